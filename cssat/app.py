@@ -1,0 +1,41 @@
+"""The ``cssat`` console script: a Hydra app over ``conf/`` (packaged as ``cssat.conf``).
+
+``cssat experiment=sim1 cs.m=4096`` runs one job; ``cssat -m ...`` sweeps. Outputs go to Hydra's
+run directory (``outputs/<date>/<time>/`` by default), which this app passes down explicitly:
+library code never reads Hydra state.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+import hydra
+from omegaconf import DictConfig
+
+log = logging.getLogger("cssat")
+
+
+@hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
+def _hydra_main(cfg: DictConfig) -> float | None:
+    from hydra.core.hydra_config import HydraConfig
+
+    from cssat.experiments import ConfigError, run_experiment
+
+    out_dir = HydraConfig.get().runtime.output_dir
+    try:
+        metrics = run_experiment(cfg, out_dir)
+    except ConfigError as err:
+        log.error("bad config: %s", err)
+        sys.exit(2)
+    value = metrics.get("psnr")
+    return float(value) if value is not None else None
+
+
+def main() -> None:
+    """Console-script entry point."""
+    _hydra_main()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,56 @@
+"""Experiments: one ``run(cfg, out_dir) -> metrics`` function each, called by the Hydra app.
+
+:func:`run_experiment` wraps any of them with what every run needs: threads, timing, and a
+``metrics.json`` that always ends with a ``status`` ("ok" or "failed", with the error).
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+from cssat.experiments.common import ConfigError, require_int, write_json
+
+__all__ = ["EXPERIMENTS", "run_experiment", "ConfigError"]
+
+log = logging.getLogger("cssat")
+
+#: experiment name -> module holding its ``run(cfg, out_dir)``.
+EXPERIMENTS = {"sim1": "cssat.experiments.sim1"}
+
+
+def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
+    """Run the experiment ``cfg.experiment_name`` into ``out_dir`` and return its metrics.
+
+    Writes ``out_dir/metrics.json`` in every case: the experiment's flat metrics plus ``status``,
+    ``seconds`` and ``experiment``; on failure ``status: failed`` and ``error``, and the exception
+    is re-raised. Other outputs are written atomically by the experiment only once computed.
+    """
+    import torch
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    name = cfg.get("experiment_name")
+    t0 = time.perf_counter()
+    metrics: dict[str, Any] = {"experiment": name}
+    try:
+        if name not in EXPERIMENTS:
+            raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)}, got {name!r}")
+        torch.set_num_threads(require_int(cfg.get("threads", 1), "threads", 1, 1024))
+        module = importlib.import_module(EXPERIMENTS[name])
+        metrics.update(module.run(cfg, out_dir))
+        metrics["status"] = "ok"
+    except BaseException as err:
+        metrics.update(status="failed", error=f"{type(err).__name__}: {err}")
+        metrics["seconds"] = time.perf_counter() - t0
+        write_json(out_dir / "metrics.json", metrics)
+        if not isinstance(err, ConfigError):
+            log.debug("%s", traceback.format_exc())
+        raise
+    metrics["seconds"] = time.perf_counter() - t0
+    write_json(out_dir / "metrics.json", metrics)
+    return metrics

@@ -1,0 +1,125 @@
+"""Helpers shared by the experiments: config checks, atomic output files, dtype/device."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+__all__ = [
+    "ConfigError",
+    "require_int",
+    "require_float",
+    "torch_dtype",
+    "torch_device",
+    "write_json",
+    "write_npz",
+    "save_figure",
+]
+
+
+class ConfigError(ValueError):
+    """A config value is out of its allowed range; the message names the field."""
+
+
+def require_int(value: Any, field: str, lo: int | None = None, hi: int | None = None) -> int:
+    """``value`` as an int in ``[lo, hi]``, else a :class:`ConfigError` naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ConfigError(f"{field}: expected an integer, got {value!r}")
+    value = int(value)
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        rng = f"[{lo if lo is not None else '-inf'}, {hi if hi is not None else 'inf'}]"
+        raise ConfigError(f"{field}: must be in {rng}, got {value}")
+    return value
+
+
+def require_float(value: Any, field: str, lo: float | None = None, hi: float | None = None) -> float:
+    """``value`` as a finite float in ``[lo, hi]``, else a :class:`ConfigError` naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ConfigError(f"{field}: expected a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value) or (lo is not None and value < lo) or (hi is not None and value > hi):
+        rng = f"[{lo if lo is not None else '-inf'}, {hi if hi is not None else 'inf'}]"
+        raise ConfigError(f"{field}: must be a finite number in {rng}, got {value}")
+    return value
+
+
+def torch_dtype(name: str):
+    """``"float32"``/``"float64"`` -> torch dtype (field ``dtype``)."""
+    import torch
+
+    table = {"float32": torch.float32, "float64": torch.float64}
+    if name not in table:
+        raise ConfigError(f"dtype: expected one of {sorted(table)}, got {name!r}")
+    return table[name]
+
+
+def torch_device(name: str):
+    """``"cpu"``/``"cuda"``/``"cuda:N"`` -> torch device (field ``device``), checked for availability."""
+    import torch
+
+    if not isinstance(name, str) or not (name == "cpu" or name.startswith("cuda")):
+        raise ConfigError(f"device: expected 'cpu' or 'cuda[:N]', got {name!r}")
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise ConfigError(f"device: {name!r} requested but CUDA is not available on this machine")
+    return torch.device(name)
+
+
+def _atomic(path: Path, write) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_json(path: str | os.PathLike, data: Mapping[str, Any]) -> None:
+    """Write ``data`` as JSON atomically (temporary file + rename)."""
+
+    def w(tmp):
+        with open(tmp, "w") as f:
+            json.dump(dict(data), f, indent=2, sort_keys=True, default=_jsonable)
+            f.write("\n")
+
+    _atomic(Path(path), w)
+
+
+def _jsonable(v):
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    return str(v)
+
+
+def write_npz(path: str | os.PathLike, **arrays) -> None:
+    """Save arrays (numpy or torch) to a compressed ``.npz``, atomically."""
+    conv = {k: (v.detach().cpu().numpy() if hasattr(v, "detach") else np.asarray(v)) for k, v in arrays.items()}
+
+    def w(tmp):
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, **conv)
+
+    _atomic(Path(path), w)
+
+
+def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
+    """Save a matplotlib figure as PNG atomically and close it."""
+    import matplotlib.pyplot as plt
+
+    def w(tmp):
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
+
+    try:
+        _atomic(Path(path), w)
+    finally:
+        plt.close(fig)

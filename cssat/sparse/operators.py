@@ -1,0 +1,282 @@
+"""Linear operators of compressed sensing as ``nn.Module``s: the DCT Ψ, a Gaussian Φ, and ΦΨ.
+
+Conventions (``../shared/DESIGN.md``):
+
+* batch-first: an operator maps ``(B, n_in)`` to ``(B, n_out)``; vectors are rows, so
+  ``forward(x) = x @ Mᵀ`` for the operator's matrix ``M (n_out, n_in)``;
+* ``forward`` applies the operator, ``adjoint`` its transpose, ``matrix()`` materialises ``M``;
+* no stored device: fixed matrices are buffers (moved with ``.to()``), and every method follows the
+  *input's* device and dtype.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import torch
+from torch import Tensor, nn
+
+__all__ = [
+    "LinearOperator",
+    "MatrixOperator",
+    "DCT",
+    "GaussianSensing",
+    "ComposedOperator",
+    "dct_matrix",
+]
+
+
+class LinearOperator(nn.Module):
+    """A linear map ``M (n_out, n_in)`` acting on batches of row vectors.
+
+    Subclasses implement :meth:`forward` (``(B, n_in) -> (B, n_out)``) and :meth:`adjoint`
+    (``(B, n_out) -> (B, n_in)``). :meth:`matrix` materialises ``M`` by applying the adjoint to
+    identity blocks, so it never needs more than one ``(block, n_in)`` temporary beside the result.
+    ``A @ B`` composes two operators (``B`` first).
+    """
+
+    n_in: int
+    n_out: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(n_out, n_in)``, the shape of the matrix."""
+        return (self.n_out, self.n_in)
+
+    def adjoint(self, y: Tensor) -> Tensor:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def matrix(
+        self, dtype: torch.dtype | None = None, device: torch.device | str | None = None
+    ) -> Tensor:
+        """The dense matrix ``M (n_out, n_in)``.
+
+        Row ``i`` of ``M`` is ``adjoint(e_i)``; rows are produced in blocks of at most 1024.
+        """
+        dtype = dtype or torch.get_default_dtype()
+        out = torch.empty(self.n_out, self.n_in, dtype=dtype, device=device)
+        block = 1024
+        for start in range(0, self.n_out, block):
+            stop = min(start + block, self.n_out)
+            eye = torch.zeros(stop - start, self.n_out, dtype=dtype, device=device)
+            eye[:, start:stop] = torch.eye(stop - start, dtype=dtype, device=device)
+            out[start:stop] = self.adjoint(eye)
+        return out
+
+    def __matmul__(self, other: "LinearOperator") -> "ComposedOperator":
+        if not isinstance(other, LinearOperator):
+            return NotImplemented
+        return ComposedOperator(self, other)
+
+
+class MatrixOperator(LinearOperator):
+    """An explicit matrix ``M (n_out, n_in)`` stored as a buffer."""
+
+    def __init__(self, matrix: Tensor):
+        super().__init__()
+        if matrix.ndim != 2:
+            raise ValueError(f"matrix: expected a 2-D tensor (n_out, n_in), got shape {tuple(matrix.shape)}")
+        self.register_buffer("weight", matrix)
+        self.n_out, self.n_in = matrix.shape
+
+    def _w(self, like: Tensor) -> Tensor:
+        return self.weight.to(device=like.device, dtype=like.dtype)
+
+    def forward(self, x: Tensor) -> Tensor:
+        """``Mx`` for rows ``x (B, n_in)`` (or one ``(n_in,)`` vector); returns ``(B, n_out)``."""
+        _check_last(x, self.n_in, "x")
+        return x @ self._w(x).T
+
+    def adjoint(self, y: Tensor) -> Tensor:
+        """``Mᵀy`` for rows ``y (B, n_out)``; returns ``(B, n_in)``."""
+        _check_last(y, self.n_out, "y")
+        return y @ self._w(y)
+
+    def matrix(self, dtype=None, device=None) -> Tensor:
+        return self.weight.to(dtype=dtype or self.weight.dtype, device=device or self.weight.device)
+
+
+def dct_matrix(n: int, dtype: torch.dtype = torch.float64, device=None) -> Tensor:
+    """Orthonormal DCT-II matrix ``C (n, n)``: ``C[k, i] = s_k cos(π (2i + 1) k / (2n))``.
+
+    ``s_0 = √(1/n)``, ``s_k = √(2/n)``; ``C @ x`` equals ``scipy.fft.dct(x, norm="ortho")`` and
+    ``C Cᵀ = I``. Built in float64 and then cast, so float32 matrices are correctly rounded.
+    """
+    if n < 1:
+        raise ValueError(f"n: DCT length must be >= 1, got {n}")
+    k = torch.arange(n, dtype=torch.float64, device=device)[:, None]
+    i = torch.arange(n, dtype=torch.float64, device=device)[None, :]
+    c = torch.cos(math.pi * (2 * i + 1) * k / (2 * n)) * math.sqrt(2.0 / n)
+    c[0] /= math.sqrt(2.0)
+    return c.to(dtype)
+
+
+class DCT(LinearOperator):
+    """Separable orthonormal DCT-II dictionary Ψ on arrays of ``shape`` (1-D, 2-D or 3-D).
+
+    ``Ψ (N, N)``, ``N = prod(shape)``, is the *synthesis* operator whose columns are the DCT atoms
+    (paper Eq. 3, ``x = Ψγ``); ``Ψᵀ`` is the type-II DCT of ``scipy.fft.dctn(x, norm="ortho")``.
+    Vectors are flattened in C (row-major) order, so ``Ψᵀ = C₁ ⊗ C₂ (⊗ C₃)``.
+
+    Inputs may be flattened ``(B, N)`` or shaped ``(B, *shape)``; the output has the same layout.
+    The transform is applied one axis at a time with the small ``(n_d, n_d)`` matrices, costing
+    ``N · Σ n_d`` multiply-adds per vector; the ``N × N`` matrix is only formed by :meth:`matrix`.
+    """
+
+    def __init__(self, shape: int | Sequence[int]):
+        super().__init__()
+        shape = (int(shape),) if isinstance(shape, int) else tuple(int(s) for s in shape)
+        if not 1 <= len(shape) <= 3 or any(s < 1 for s in shape):
+            raise ValueError(f"shape: expected 1 to 3 positive sizes, got {shape}")
+        self.dims = shape
+        self.n_in = self.n_out = math.prod(shape)
+        for d, n in enumerate(shape):
+            self.register_buffer(f"c{d}", dct_matrix(n), persistent=False)
+
+    def _mats(self, like: Tensor) -> list[Tensor]:
+        return [getattr(self, f"c{d}").to(device=like.device, dtype=like.dtype) for d in range(len(self.dims))]
+
+    def _apply(self, x: Tensor, transpose: bool) -> Tensor:
+        nd = len(self.dims)
+        if tuple(x.shape[-nd:]) == self.dims:
+            flat = False
+            batch = x.shape[:-nd]
+        elif x.shape[-1] == self.n_in:
+            flat = True
+            batch = x.shape[:-1]
+        else:
+            raise ValueError(
+                f"x: trailing shape must be {self.dims} or ({self.n_in},), got {tuple(x.shape)}"
+            )
+        z = x.reshape(-1, *self.dims)
+        for d, c in enumerate(self._mats(x)):
+            # Contract axis d+1 of z with c (analysis: C @ v along the axis; synthesis: Cᵀ @ v).
+            m = c if transpose else c.T
+            z = torch.movedim(torch.movedim(z, d + 1, -1) @ m.T, -1, d + 1)
+        return z.reshape(*batch, self.n_in) if flat else z.reshape(*batch, *self.dims)
+
+    def forward(self, coeffs: Tensor) -> Tensor:
+        """Synthesis ``x = Ψγ`` (inverse DCT): ``(B, N)`` or ``(B, *shape)`` in, same layout out."""
+        return self._apply(coeffs, transpose=False)
+
+    def adjoint(self, x: Tensor) -> Tensor:
+        """Analysis ``γ = Ψᵀx`` (forward orthonormal DCT-II), same layouts as :meth:`forward`."""
+        return self._apply(x, transpose=True)
+
+    def matrix(self, dtype=None, device=None) -> Tensor:
+        """Dense ``Ψ (N, N)`` (columns are atoms): ``(C₁ ⊗ C₂ ⊗ …)ᵀ``. Costs ``N²`` memory."""
+        dtype = dtype or torch.get_default_dtype()
+        mats = [getattr(self, f"c{d}").to(dtype=dtype, device=device) for d in range(len(self.dims))]
+        k = mats[0]
+        for c in mats[1:]:
+            k = torch.kron(k, c)
+        return k.T.contiguous()
+
+
+class GaussianSensing(LinearOperator):
+    """Gaussian sensing matrix ``Φ (m, n)`` with i.i.d. ``N(0, 1/n)`` entries (paper Eq. 1, 15).
+
+    The paper's "zero-mean, 1/N-variance" matrix: ``n`` is the number of pixels. Row ``i`` is drawn
+    from its own ``torch.Generator`` seeded by ``(seed, i)``, so
+
+    * the same ``(m, n, seed)`` gives the same matrix on every machine and chunking;
+    * the first ``m`` rows do not depend on ``m``: a sweep over ``m`` uses nested measurements.
+
+    Each row is drawn in place into the preallocated ``(m, n)`` buffer (on a GPU, through one small
+    CPU block), so a 13225 × 16384 float32 matrix needs its own 0.87 GB and no temporary copy.
+    The draw depends on ``dtype``: float32 and float64 matrices of one seed are different samples.
+    """
+
+    def __init__(
+        self,
+        m: int,
+        n: int,
+        seed: int = 0,
+        dtype: torch.dtype | None = None,
+        device: torch.device | str | None = None,
+    ):
+        super().__init__()
+        if not isinstance(n, int) or n < 1:
+            raise ValueError(f"n: number of columns must be a positive integer, got {n!r}")
+        if not isinstance(m, int) or m < 1:
+            raise ValueError(f"m: number of measurements must be a positive integer, got {m!r}")
+        self.n_out, self.n_in, self.seed = m, n, int(seed)
+        dtype = dtype or torch.get_default_dtype()
+        if dtype not in (torch.float32, torch.float64):
+            raise ValueError(f"dtype: expected torch.float32 or torch.float64, got {dtype}")
+        w = torch.empty(m, n, dtype=dtype, device=device)
+        std = 1.0 / math.sqrt(n)
+        gen = torch.Generator(device="cpu")
+        on_cpu = w.device.type == "cpu"
+        block = max(1, min(m, (1 << 22) // n))
+        buf = w if on_cpu else torch.empty(block, n, dtype=dtype)
+        for start in range(0, m, block):
+            stop = min(start + block, m)
+            for i in range(start, stop):
+                gen.manual_seed(_row_seed(self.seed, i))
+                buf[i if on_cpu else i - start].normal_(0.0, std, generator=gen)
+            if not on_cpu:
+                w[start:stop] = buf[: stop - start].to(w.device)
+        self.register_buffer("weight", w)
+
+    def _w(self, like: Tensor) -> Tensor:
+        return self.weight.to(device=like.device, dtype=like.dtype)
+
+    def forward(self, x: Tensor) -> Tensor:
+        """``y = Φx`` for rows ``x (B, n)``; returns ``(B, m)``."""
+        _check_last(x, self.n_in, "x")
+        return x @ self._w(x).T
+
+    def adjoint(self, y: Tensor) -> Tensor:
+        """``Φᵀy`` for rows ``y (B, m)``; returns ``(B, n)``."""
+        _check_last(y, self.n_out, "y")
+        return y @ self._w(y)
+
+    def matrix(self, dtype=None, device=None) -> Tensor:
+        return self.weight.to(dtype=dtype or self.weight.dtype, device=device or self.weight.device)
+
+
+def _row_seed(seed: int, row: int) -> int:
+    # A fixed, well-mixed 63-bit seed per (seed, row) pair (splitmix64 finaliser).
+    z = (seed * 0x9E3779B97F4A7C15 + row + 1) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+    return (z ^ (z >> 31)) & 0x7FFFFFFFFFFFFFFF
+
+
+class ComposedOperator(LinearOperator):
+    """The product ``A B`` of two operators (``B`` applied first), e.g. the CS dictionary ΦΨ.
+
+    ``forward(γ) = A(B(γ))``, ``adjoint(y) = Bᵀ(Aᵀ(y))``. :meth:`matrix` materialises
+    ``A B (n_out, n_in)`` as ``(Bᵀ applied to the rows of A)``: for ΦΨ with a DCT Ψ this is a fast
+    separable DCT of each row of Φ, ``m · N · Σ n_d`` operations, not an ``N × N`` product.
+    """
+
+    def __init__(self, outer: LinearOperator, inner: LinearOperator):
+        super().__init__()
+        if outer.n_in != inner.n_out:
+            raise ValueError(
+                f"inner: output size {inner.n_out} does not match the outer operator's input size {outer.n_in}"
+            )
+        self.outer, self.inner = outer, inner
+        self.n_out, self.n_in = outer.n_out, inner.n_in
+
+    def forward(self, x: Tensor) -> Tensor:
+        return self.outer(self.inner(x))
+
+    def adjoint(self, y: Tensor) -> Tensor:
+        return self.inner.adjoint(self.outer.adjoint(y))
+
+    def matrix(self, dtype=None, device=None, block_rows: int = 2048) -> Tensor:
+        """Dense ``(n_out, n_in)``; rows of the outer matrix are pushed through ``innerᵀ`` in blocks."""
+        a = self.outer.matrix(dtype=dtype, device=device)
+        out = torch.empty(self.n_out, self.n_in, dtype=a.dtype, device=a.device)
+        for start in range(0, self.n_out, block_rows):
+            out[start : start + block_rows] = self.inner.adjoint(a[start : start + block_rows])
+        return out
+
+
+def _check_last(x: Tensor, n: int, name: str) -> None:
+    if x.shape[-1] != n:
+        raise ValueError(f"{name}: last dimension must be {n}, got shape {tuple(x.shape)}")
