@@ -1,0 +1,103 @@
+"""The Hydra app: every config composes, Simulation 1 runs end to end, bad values name their field."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_module
+
+from cssat.experiments import ConfigError, run_experiment
+
+SMALL = ["target.size=16", "cs.m=200", "threads=1"]
+
+
+def cfg_of(*overrides):
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))
+
+
+def test_every_experiment_config_composes():
+    import cssat.conf
+
+    exp_dir = Path(cssat.conf.__file__).parent / "experiment"
+    names = sorted(p.stem for p in exp_dir.glob("*.yaml"))
+    assert "sim1" in names
+    for name in names:
+        cfg = cfg_of(f"experiment={name}")
+        assert cfg.experiment_name == name
+
+
+def test_sim1_end_to_end(tmp_path):
+    cfg = cfg_of(*SMALL)
+    metrics = run_experiment(cfg, tmp_path)
+    saved = json.loads((tmp_path / "metrics.json").read_text())
+    assert saved["status"] == "ok" and saved["m"] == 200 and saved["n_pixels"] == 256
+    for key in ("psnr", "ssim", "seconds", "solver_n_nonzero_coefs"):
+        assert key in saved
+    assert saved["psnr"] == pytest.approx(metrics["psnr"])
+    arrays = np.load(tmp_path / "arrays.npz")
+    assert arrays["truth"].shape == (16, 16) and arrays["y"].shape == (200,)
+    assert arrays["reconstruction"].shape == (16, 16)
+    assert (tmp_path / "figures" / "fig9_sim1.png").stat().st_size > 1000
+    # the PSNR in metrics is the PSNR of the saved arrays
+    mse = np.mean((arrays["reconstruction"] - arrays["truth"]) ** 2)
+    assert saved["psnr"] == pytest.approx(10 * np.log10(1 / mse), rel=1e-9)
+
+
+def test_sim1_is_deterministic_and_recovers_a_compressible_image(tmp_path):
+    a = run_experiment(cfg_of(*SMALL, "cs.m=230"), tmp_path / "a")
+    b = run_experiment(cfg_of(*SMALL, "cs.m=230"), tmp_path / "b")
+    assert a["psnr"] == b["psnr"]
+    ya, yb = (np.load(tmp_path / d / "arrays.npz")["y"] for d in "ab")
+    assert np.array_equal(ya, yb)
+    # m = N with the error-constrained mode: OMP fits y exactly, so the image is recovered
+    full = run_experiment(cfg_of(*SMALL, "cs.m=256", "solver.epsilon=1e-9", "dtype=float64"), tmp_path / "c")
+    assert full["psnr"] > 80
+
+
+@pytest.mark.parametrize(
+    "override,field",
+    [
+        ("cs.m=0", "cs.m"),
+        ("cs.m=257", "cs.m"),
+        ("solver.n_nonzero_coefs=0", "solver.n_nonzero_coefs"),
+        ("solver.n_nonzero_coefs=201", "solver.n_nonzero_coefs"),
+        ("solver.epsilon=-1", "solver.epsilon"),
+        ("dtype=float16", "dtype"),
+        ("device=tpu", "device"),
+        ("target.image=/nonexistent.png", "target.image"),
+    ],
+)
+def test_bad_config_names_the_field_and_leaves_only_a_failed_status(tmp_path, override, field):
+    with pytest.raises(ValueError, match=rf"^{field}:"):
+        run_experiment(cfg_of(*SMALL, override), tmp_path)
+    saved = json.loads((tmp_path / "metrics.json").read_text())
+    assert saved["status"] == "failed" and field in saved["error"]
+    assert not (tmp_path / "arrays.npz").exists()
+    assert not list(tmp_path.glob(".*tmp"))
+
+
+def test_non_square_image_is_refused(tmp_path):
+    from PIL import Image
+
+    Image.fromarray(np.zeros((10, 12), np.uint8)).save(tmp_path / "r.png")
+    with pytest.raises(ValueError, match="target.image: image is 10×12"):
+        run_experiment(cfg_of(*SMALL, f"target.image={tmp_path / 'r.png'}"), tmp_path / "out")
+
+
+def test_console_script_runs_and_exits_2_on_bad_config(tmp_path):
+    exe = [sys.executable, "-m", "cssat.app"]
+    env = {**os.environ, "HYDRA_FULL_ERROR": "1"}
+    ok = subprocess.run(exe + SMALL + [f"hydra.run.dir={tmp_path / 'run'}"], capture_output=True, text=True,
+                        env=env, cwd=tmp_path, timeout=300)
+    assert ok.returncode == 0, ok.stderr
+    assert "sim1: PSNR" in ok.stdout + ok.stderr
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["status"] == "ok"
+    bad = subprocess.run(exe + SMALL + ["cs.m=-3", f"hydra.run.dir={tmp_path / 'bad'}"], capture_output=True,
+                         text=True, env=env, cwd=tmp_path, timeout=300)
+    assert bad.returncode == 2
+    assert "cs.m: must be in [1, 256], got -3" in bad.stdout + bad.stderr

@@ -1,0 +1,65 @@
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from cssat.data import load_target
+from cssat.metrics import psnr, ssim
+
+
+def test_psnr_matches_the_formula():
+    rng = np.random.default_rng(0)
+    ref = rng.uniform(0, 1, (16, 16))
+    x = ref + rng.normal(0, 0.05, ref.shape)
+    mse = np.mean((x - ref) ** 2)
+    assert psnr(x, ref, data_range=1.0) == pytest.approx(10 * np.log10(1.0 / mse), rel=1e-12)
+    assert psnr(x * 255, ref * 255, data_range=255) == pytest.approx(10 * np.log10(1.0 / mse), rel=1e-12)
+    # torch tensors are accepted; the default range is the reference's span
+    span = ref.max() - ref.min()
+    assert psnr(torch.tensor(x), torch.tensor(ref)) == pytest.approx(10 * np.log10(span**2 / mse), rel=1e-12)
+
+
+def test_ssim_properties():
+    rng = np.random.default_rng(1)
+    ref = rng.uniform(0, 1, (32, 32))
+    assert ssim(ref, ref, data_range=1.0) == pytest.approx(1.0)
+    noisy = ref + rng.normal(0, 0.2, ref.shape)
+    less = ref + rng.normal(0, 0.05, ref.shape)
+    assert ssim(noisy, ref, data_range=1.0) < ssim(less, ref, data_range=1.0) < 1.0
+
+
+def test_metric_errors():
+    with pytest.raises(ValueError, match="data_range"):
+        psnr(np.ones((8, 8)), np.ones((8, 8)))
+    with pytest.raises(ValueError, match="x: shape"):
+        psnr(np.ones((8, 8)), np.ones((8, 9)), data_range=1)
+    with pytest.raises(ValueError, match="x: contains NaN"):
+        ssim(np.full((8, 8), np.nan), np.ones((8, 8)), data_range=1)
+
+
+def test_load_builtin_and_file_images(tmp_path):
+    cam = load_target("camera", 32)
+    assert cam.shape == (32, 32) and cam.min() >= 0 and cam.max() <= 1
+    rgb = np.zeros((40, 40, 3), np.uint8)
+    rgb[10:30, 10:30] = (255, 0, 0)  # red square: luminance 0.299
+    rgb[0:5, 0:5] = (255, 255, 255)
+    Image.fromarray(rgb).save(tmp_path / "sq.png")
+    Image.fromarray(rgb).save(tmp_path / "sq.jpg", quality=95)
+    png = load_target(str(tmp_path / "sq.png"), 40)
+    assert png[20, 20] == pytest.approx(0.299, abs=0.01)  # gray conversion, scaled to [0, 1]
+    assert png[2, 2] == pytest.approx(1.0)
+    jpg = load_target(str(tmp_path / "sq.jpg"), 20)
+    assert jpg.shape == (20, 20)
+
+
+def test_bad_images_are_refused_by_field(tmp_path):
+    Image.fromarray(np.zeros((20, 30), np.uint8)).save(tmp_path / "wide.png")
+    with pytest.raises(ValueError, match=r"target.image: image is 20×30 pixels; a square image"):
+        load_target(str(tmp_path / "wide.png"), 16)
+    (tmp_path / "junk.png").write_bytes(b"not an image")
+    with pytest.raises(ValueError, match="target.image: cannot read"):
+        load_target(str(tmp_path / "junk.png"), 16)
+    with pytest.raises(ValueError, match="target.image: .*neither a readable file nor a built-in"):
+        load_target(str(tmp_path / "missing.png"), 16)
+    with pytest.raises(ValueError, match="target.size"):
+        load_target("camera", 1)
