@@ -15,15 +15,33 @@ def problem(m=50, n=90, B=40, seed=0, scale=True):
     return D, Y
 
 
+try:
+    import numba  # noqa: F401
+
+    KERNEL_KWARGS = [{"precompute": True, "backend": "torch"}, {"precompute": True, "backend": "numba"},
+                     {"precompute": False}]
+except ImportError:
+    KERNEL_KWARGS = [{"precompute": True, "backend": "torch"}, {"precompute": False}]
+
+
 def support(c):
     return c != 0
 
 
-@pytest.mark.parametrize("path", [True, False])
+KERNELS = [
+    pytest.param({"precompute": True, "backend": "torch"}, id="gram-torch"),
+    pytest.param({"precompute": True, "backend": "numba"}, id="gram-numba"),
+    pytest.param({"precompute": False}, id="nogram"),
+]
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
 @pytest.mark.parametrize("mode", [{"n_nonzero_coefs": 12}, {"tol": 8.0}, {"tol": 2.0, "n_nonzero_coefs": 20}])
-def test_matches_sklearn_orthogonal_mp(path, mode):
+def test_matches_sklearn_orthogonal_mp(kernel, mode):
+    if kernel.get("backend") == "numba":
+        pytest.importorskip("numba")
     D, Y = problem()
-    got = batch_omp(torch.tensor(D), torch.tensor(Y), precompute=path, **mode).numpy()
+    got = batch_omp(torch.tensor(D), torch.tensor(Y), **kernel, **mode).numpy()
     if "tol" in mode and "n_nonzero_coefs" in mode:
         # scikit-learn has no capped error mode: it is the error mode truncated at the cap
         ref_full = orthogonal_mp(D, Y.T, tol=mode["tol"]).T
@@ -35,14 +53,18 @@ def test_matches_sklearn_orthogonal_mp(path, mode):
 
 
 @pytest.mark.parametrize("mode", [{"n_nonzero_coefs": 15}, {"tol": 5.0}])
-def test_matches_sklearn_orthogonal_mp_gram_with_precomputed_inputs(mode):
+@pytest.mark.parametrize("backend", ["torch", "numba"])
+def test_matches_sklearn_orthogonal_mp_gram_with_precomputed_inputs(mode, backend):
+    if backend == "numba":
+        pytest.importorskip("numba")
     D, Y = problem(m=64, n=128, B=30, seed=1)
     G, DtY = D.T @ D, Y @ D
     kw = dict(mode)
     if "tol" in kw:
         kw["norms_squared"] = (Y**2).sum(1)
     ref = orthogonal_mp_gram(G, DtY.T, **kw).T
-    got = batch_omp(torch.tensor(D), torch.tensor(Y), gram=torch.tensor(G), Dty=torch.tensor(DtY), **mode).numpy()
+    got = batch_omp(torch.tensor(D), torch.tensor(Y), gram=torch.tensor(G), Dty=torch.tensor(DtY), backend=backend,
+                    **mode).numpy()
     assert np.array_equal(support(got), support(ref))
     np.testing.assert_allclose(got, ref, atol=1e-8, rtol=0)
 
@@ -50,13 +72,13 @@ def test_matches_sklearn_orthogonal_mp_gram_with_precomputed_inputs(mode):
 def test_residual_info_is_the_true_residual_and_meets_tol():
     D, Y = problem(seed=2)
     tol = 4.0
-    for path in (True, False):
-        c, info = batch_omp(torch.tensor(D), torch.tensor(Y), tol=tol, precompute=path, return_info=True)
+    for kern in KERNEL_KWARGS:
+        c, info = batch_omp(torch.tensor(D), torch.tensor(Y), tol=tol, **kern, return_info=True)
         res = ((torch.tensor(Y) - c @ torch.tensor(D).T) ** 2).sum(1)
         torch.testing.assert_close(info.residual_sq, res, atol=1e-9, rtol=1e-9)
         assert bool((res <= tol + 1e-9).all())
         assert torch.equal(info.n_iter, (c != 0).sum(1))
-        assert info.path == ("gram" if path else "nogram")
+        assert info.path == ("gram" if kern.get("precompute") else "nogram")
 
 
 @pytest.mark.parametrize("dtype,tol", [(torch.float64, 1e-10), (torch.float32, 1e-4)])
@@ -69,12 +91,12 @@ def test_exact_recovery_of_sparse_signals_from_gaussian_measurements(dtype, tol)
         idx = torch.randperm(n, generator=g)[:k]
         X[b, idx] = torch.randn(k, generator=g, dtype=dtype).sign() * (1 + torch.rand(k, generator=g, dtype=dtype))
     Y = X @ D.T
-    for path in (True, False):
-        got = batch_omp(D, Y, n_nonzero_coefs=k, precompute=path)
+    for kern in KERNEL_KWARGS:
+        got = batch_omp(D, Y, n_nonzero_coefs=k, **kern)
         assert torch.equal(got != 0, X != 0)
         assert float((got - X).abs().max()) < tol
         # error-constrained with a tiny tolerance finds the same codes
-        got_e = batch_omp(D, Y, tol=1e-12 if dtype == torch.float64 else 1e-6, precompute=path)
+        got_e = batch_omp(D, Y, tol=1e-12 if dtype == torch.float64 else 1e-6, **kern)
         assert torch.equal(got_e != 0, X != 0)
 
 
@@ -82,12 +104,13 @@ def test_batched_equals_one_signal_at_a_time_and_chunking_is_invisible():
     D, Y = problem(B=17, seed=3)
     Dt, Yt = torch.tensor(D), torch.tensor(Y)
     for path in (True, False):
-        full = batch_omp(Dt, Yt, tol=3.0, precompute=path, chunk_size=5)
+        kw = {"precompute": path, "backend": "torch"}
+        full = batch_omp(Dt, Yt, tol=3.0, chunk_size=5, **kw)
         for b in range(17):
-            one = batch_omp(Dt, Yt[b], tol=3.0, precompute=path)
+            one = batch_omp(Dt, Yt[b], tol=3.0, **kw)
             assert one.shape == (90,)
             torch.testing.assert_close(full[b], one, atol=1e-12, rtol=0)
-        torch.testing.assert_close(full, batch_omp(Dt, Yt, tol=3.0, precompute=path, chunk_size=64), atol=1e-12, rtol=0)
+        torch.testing.assert_close(full, batch_omp(Dt, Yt, tol=3.0, chunk_size=64, **kw), atol=1e-12, rtol=0)
 
 
 def test_gram_and_nogram_paths_agree_in_float32():
@@ -104,9 +127,9 @@ def test_gram_and_nogram_paths_agree_in_float32():
 def test_zero_signal_gives_zero_code():
     D, Y = problem(B=4)
     Y[1] = 0
-    for path in (True, False):
+    for kern in KERNEL_KWARGS:
         for kw in ({"n_nonzero_coefs": 5}, {"tol": 0.0}):
-            c, info = batch_omp(torch.tensor(D), torch.tensor(Y), precompute=path, return_info=True, **kw)
+            c, info = batch_omp(torch.tensor(D), torch.tensor(Y), **kern, return_info=True, **kw)
             assert torch.count_nonzero(c[1]) == 0 and int(info.n_iter[1]) == 0
             assert torch.isfinite(c).all()
 
@@ -116,8 +139,8 @@ def test_linearly_dependent_atoms_stop_cleanly():
     base = rng.standard_normal((20, 6))
     D = np.concatenate([base, base[:, :3] * 2.0, base @ rng.standard_normal((6, 5))], axis=1)  # rank 6
     Y = rng.standard_normal((10, 20))
-    for path in (True, False):
-        c, info = batch_omp(torch.tensor(D), torch.tensor(Y), n_nonzero_coefs=12, precompute=path, return_info=True)
+    for kern in KERNEL_KWARGS:
+        c, info = batch_omp(torch.tensor(D), torch.tensor(Y), n_nonzero_coefs=12, **kern, return_info=True)
         assert torch.isfinite(c).all()
         assert int(info.n_iter.max()) <= 6
         # the fit is the least-squares projection onto the 6-dimensional span
@@ -131,14 +154,14 @@ def test_exact_fit_stops_with_tol_zero_and_more_atoms_than_needed():
     x = np.zeros(60)
     x[[3, 17, 40]] = [1.0, -2.0, 0.5]
     y = D @ x
-    for path in (True, False):
-        c, info = batch_omp(torch.tensor(D), torch.tensor(y), tol=0.0, precompute=path, return_info=True)
+    for kern in KERNEL_KWARGS:
+        c, info = batch_omp(torch.tensor(D), torch.tensor(y), tol=0.0, **kern, return_info=True)
         assert torch.isfinite(c).all()
         np.testing.assert_allclose(c.numpy(), x, atol=1e-10)
         # a square, full-rank system: m atoms fit any signal exactly, then the search stops
         D2 = rng.standard_normal((10, 10))
         y2 = rng.standard_normal(10)
-        c2, info2 = batch_omp(torch.tensor(D2), torch.tensor(y2), n_nonzero_coefs=10, precompute=path, return_info=True)
+        c2, info2 = batch_omp(torch.tensor(D2), torch.tensor(y2), n_nonzero_coefs=10, **kern, return_info=True)
         assert torch.isfinite(c2).all()
         np.testing.assert_allclose(D2 @ c2.numpy(), y2, atol=1e-10)
         assert float(info2.residual_sq) < 1e-10 * (y2 @ y2)
@@ -174,3 +197,42 @@ def test_bad_arguments_are_refused_with_their_name():
         batch_omp(Dt, Yt, precompute="yes")
     with pytest.raises(ValueError, match="gram"):
         batch_omp(Dt, Yt, gram=torch.eye(5, dtype=Dt.dtype))
+
+
+
+
+@pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
+@pytest.mark.parametrize("mode", [{"n_nonzero_coefs": 25}, {"tol": 3.0}, {"tol": 3.0, "n_nonzero_coefs": 10}])
+def test_numba_and_torch_kernels_agree(dtype, mode, monkeypatch):
+    pytest.importorskip("numba")
+    import cssat.sparse.omp as omp_mod
+
+    monkeypatch.setattr(omp_mod, "_CAP0", 4)  # exercise the growth of the work buffers
+    D, Y = problem(m=60, n=150, B=33, seed=8)
+    Dt, Yt = torch.tensor(D, dtype=dtype), torch.tensor(Y, dtype=dtype)
+    Y0 = Yt.clone()
+    Y0[5] = 0
+    a, ia = batch_omp(Dt, Y0, backend="numba", return_info=True, **mode)
+    b, ib = batch_omp(Dt, Y0, backend="torch", precompute=True, return_info=True, **mode)
+    assert ia.path == ib.path == "gram"
+    same = ((a != 0) == (b != 0)).all(1)
+    if dtype == torch.float64:
+        assert bool(same.all())
+        torch.testing.assert_close(a, b, atol=1e-10, rtol=0)
+        torch.testing.assert_close(ia.residual_sq, ib.residual_sq, atol=1e-9, rtol=1e-9)
+        ref = orthogonal_mp(D, Y0.numpy().T, **mode).T if len(mode) == 1 else None
+        if ref is not None:
+            np.testing.assert_allclose(a.numpy(), ref, atol=1e-8)
+    else:
+        assert float(same.double().mean()) >= 0.9
+        torch.testing.assert_close(a[same], b[same], atol=1e-3, rtol=1e-3)
+    assert torch.equal(ia.n_iter[same], ib.n_iter[same])
+    assert int(ia.n_iter[5]) == 0 and torch.count_nonzero(a[5]) == 0
+
+
+def test_numba_backend_errors():
+    D, Y = problem(B=2)
+    with pytest.raises(ValueError, match="backend"):
+        batch_omp(torch.tensor(D), torch.tensor(Y), backend="fortran")
+    with pytest.raises(ValueError, match="backend: 'numba' runs the Gram path"):
+        batch_omp(torch.tensor(D), torch.tensor(Y), backend="numba", precompute=False)

@@ -21,6 +21,8 @@ from torch import Tensor
 
 __all__ = ["batch_omp", "omp_path_costs", "OMPInfo"]
 
+_CAP0 = 64  # initial per-signal atom capacity of the work buffers (they double up to K)
+
 
 class OMPInfo(NamedTuple):
     """Extra output of :func:`batch_omp` with ``return_info=True``.
@@ -58,6 +60,7 @@ def batch_omp(
     Dty: Tensor | None = None,
     precompute: bool | str = "auto",
     chunk_size: int | None = None,
+    backend: str = "auto",
     return_info: bool = False,
 ) -> Tensor | tuple[Tensor, OMPInfo]:
     """Orthogonal matching pursuit for a batch of signals, all in lockstep as tensor operations.
@@ -86,8 +89,14 @@ def batch_omp(
         dictionary with K = 2000, where a Gram would cost 3.5 T multiply-adds against 0.43 T for
         ``K`` passes ``Dᵀr``.
     chunk_size : int, optional
-        Signals processed together. The default keeps each chunk's ``(chunk, K, n)`` work buffer
-        near 8 MB so it stays in cache.
+        Signals processed together by the torch path. The default keeps each chunk's
+        ``(chunk, K, n)`` work buffer near 8 MB on a CPU (cache) and 1 GB on a GPU.
+    backend : "auto", "torch" or "numba"
+        Who runs the Gram path. ``"torch"``: lockstep tensor operations on chunks of signals (any
+        device). ``"numba"``: a compiled CPU kernel, one signal per thread at a time so its
+        ``K × n`` working set stays in cache — several times faster on a CPU. ``"auto"`` takes
+        numba for CPU tensors when it is installed. The no-Gram path always runs in torch (it is
+        bound by the ``Dᵀr`` products, which BLAS already streams at memory speed).
     return_info : bool
         Also return an :class:`OMPInfo`.
 
@@ -137,9 +146,11 @@ def batch_omp(
     K = min(n_nonzero_coefs if n_nonzero_coefs is not None else n_atoms, m, n_atoms)
     B = Y2.shape[0]
 
+    if backend not in ("auto", "torch", "numba"):
+        raise ValueError(f"backend: expected 'auto', 'torch' or 'numba', got {backend!r}")
     if precompute not in ("auto", True, False):
         raise ValueError(f"precompute: expected 'auto', True or False, got {precompute!r}")
-    if gram is not None:
+    if gram is not None or (backend == "numba" and precompute == "auto"):
         use_gram = True
     elif precompute == "auto":
         # In error-constrained mode the final K is unknown; assume a quarter of the cap.
@@ -155,10 +166,20 @@ def batch_omp(
     if B == 0:
         return _finish(out, n_iter, res_sq, squeeze, return_info, "gram" if use_gram else "nogram")
 
+    if backend == "numba" and not use_gram:
+        raise ValueError("backend: 'numba' runs the Gram path only; drop precompute=False or use backend='torch'")
+    from cssat.sparse import _omp_numba
+
+    use_numba = use_gram and D.device.type == "cpu" and (
+        backend == "numba" or (backend == "auto" and _omp_numba.available())
+    )
+    if backend == "numba" and not _omp_numba.available():
+        raise ImportError("backend: 'numba' needs the numba package (pip install numba)")
     width = n_atoms if use_gram else m
     if chunk_size is None:
-        per_signal = K * width * D.element_size()
-        chunk_size = int(max(1, min(256, (8 << 20) // max(per_signal, 1))))
+        per_signal = min(K, _CAP0) * width * D.element_size()
+        budget = (8 << 20) if D.device.type == "cpu" else (1 << 30)
+        chunk_size = int(max(1, min(256 if D.device.type == "cpu" else 65536, budget // max(per_signal, 1))))
     chunk_size = max(1, int(chunk_size))
 
     if use_gram:
@@ -171,6 +192,12 @@ def batch_omp(
             A0 = Y2 @ D
         diag = torch.diagonal(G).clone()
         ynorm2 = (Y2 * Y2).sum(1)
+        if use_numba:
+            _omp_numba.omp_gram(
+                G.contiguous().numpy(), A0.contiguous().numpy(), ynorm2.numpy(), K, tol,
+                out.numpy(), n_iter.numpy(), res_sq.numpy(), torch.get_num_threads(), _CAP0,
+            )
+            return _finish(out, n_iter, res_sq, squeeze, return_info, "gram")
         for s in range(0, B, chunk_size):
             e = min(s + chunk_size, B)
             _omp_chunk(
@@ -184,10 +211,18 @@ def batch_omp(
             e = min(s + chunk_size, B)
             Yc = Y2[s:e]
             _omp_chunk(
-                Yc @ D, (Yc * Yc).sum(1), Yc, None, Dt, diag, K, tol,
+                _correlate(Dt, Yc), (Yc * Yc).sum(1), Yc, None, Dt, diag, K, tol,
                 out[s:e], n_iter[s:e], res_sq[s:e],
             )
     return _finish(out, n_iter, res_sq, squeeze, return_info, "gram" if use_gram else "nogram")
+
+
+def _correlate(Dt: Tensor, R: Tensor) -> Tensor:
+    """``R Dᵀ`` as ``(B, n)`` for rows ``R (B, m)`` and ``Dt (n, m)``, in the layout BLAS streams
+    fastest (a matrix-vector product for one row: one pass over the dictionary)."""
+    if R.shape[0] == 1:
+        return torch.mv(Dt, R[0])[None]
+    return (Dt @ R.T).T
 
 
 def _finish(out, n_iter, res_sq, squeeze, return_info, path):
@@ -222,10 +257,11 @@ def _omp_chunk(
     width = n if gram_path else Dt.shape[1]
 
     rows = torch.arange(c, device=dev)  # chunk row of each state row
-    sel = torch.empty(c, K, width, dtype=dt, device=dev)  # G rows (Gram path) or atoms (no-Gram)
-    L = torch.zeros(c, K, K, dtype=dt, device=dev)
-    idx = torch.zeros(c, K, dtype=torch.long, device=dev)
-    z = torch.zeros(c, K, dtype=dt, device=dev)
+    cap = min(K, _CAP0)  # buffers grow by doubling up to K atoms
+    sel = torch.empty(c, cap, width, dtype=dt, device=dev)  # G rows (Gram path) or atoms (no-Gram)
+    L = torch.zeros(c, cap, cap, dtype=dt, device=dev)
+    idx = torch.zeros(c, cap, dtype=torch.long, device=dev)
+    z = torch.zeros(c, cap, dtype=dt, device=dev)
     a0, yy, alpha = alpha0, Y, alpha0
     err = ynorm2.clone()
     floor = 16 * eps * alpha0.abs().amax(1)  # a correlation at round-off level
@@ -260,6 +296,12 @@ def _omp_chunk(
             yy = yy[keep] if yy is not None else None
         r = len(rows)
         ar = torch.arange(r, device=dev)
+        if k == cap:
+            cap = min(K, 2 * cap)
+            sel = torch.cat([sel, sel.new_empty(r, cap - k, width)], 1)
+            L = torch.nn.functional.pad(L, (0, cap - k, 0, cap - k))
+            idx = torch.nn.functional.pad(idx, (0, cap - k))
+            z = torch.nn.functional.pad(z, (0, cap - k))
 
         # 1. the atom with the largest |correlation|; stop at round-off level or on a repeat
         j = alpha.abs().argmax(1)
@@ -305,4 +347,4 @@ def _omp_chunk(
         if bool(done.all()):
             break
         # 4. new correlations α = Dᵀr
-        alpha = a0 - approx if gram_path else resid @ Dt.T
+        alpha = a0 - approx if gram_path else _correlate(Dt, resid)
