@@ -236,3 +236,12 @@ def test_numba_backend_errors():
         batch_omp(torch.tensor(D), torch.tensor(Y), backend="fortran")
     with pytest.raises(ValueError, match="backend: 'numba' runs the Gram path"):
         batch_omp(torch.tensor(D), torch.tensor(Y), backend="numba", precompute=False)
+
+
+def test_blocked_gram_equals_dense_product():
+    from cssat.sparse import gram_matrix
+
+    D = torch.randn(37, 1300, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    G = gram_matrix(D, block=300)
+    torch.testing.assert_close(G, D.T @ D, atol=1e-12, rtol=0)
+    assert torch.equal(G, G.T)

@@ -4,7 +4,7 @@ Nothing here knows about satellites: it can be used on its own.
 """
 
 from cssat.sparse.cs import omp_reconstruct, sensing_dictionary
-from cssat.sparse.omp import OMPInfo, batch_omp, omp_path_costs
+from cssat.sparse.omp import OMPInfo, batch_omp, gram_matrix, omp_path_costs
 from cssat.sparse.operators import (
     DCT,
     ComposedOperator,
@@ -23,6 +23,7 @@ __all__ = [
     "OMPInfo",
     "batch_omp",
     "dct_matrix",
+    "gram_matrix",
     "omp_path_costs",
     "omp_reconstruct",
     "sensing_dictionary",

@@ -60,14 +60,80 @@ def _build():
         b[: a.shape[0]] = a
         return b
 
+    @njit(cache=True, nogil=True)
+    def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor):
+        """Continue one signal from ``k`` atoms; stop when done (status 0) or when the work
+        arrays are full (status 1: grow them and call again)."""
+        n = a0.shape[0]
+        dt = a0.dtype.type
+        cap = idx.shape[0]
+        while k < K and not (use_tol and err <= tol):
+            # 1. the atom with the largest |correlation|
+            best = _absmax(alpha)
+            if best <= floor:
+                break
+            j = 0
+            for t in range(n):
+                if abs(alpha[t]) == best:
+                    j = t
+                    break
+            for i in range(k):
+                if idx[i] == j:
+                    return k, err, 0
+            if k == cap:
+                return k, err, 1
+            # 2. Cholesky row: w = L⁻¹ G[I, j]
+            gj = G[j]
+            ajj = gj[j]
+            lkk2 = ajj
+            for i in range(k):
+                s = gj[idx[i]]
+                for t in range(i):
+                    s -= L[i, t] * w[t]
+                w[i] = s / L[i, i]
+                lkk2 -= w[i] * w[i]
+            if lkk2 <= dt(16.0) * eps * ajj:
+                break
+            s = a0[j]
+            for i in range(k):
+                L[k, i] = w[i]
+                s -= w[i] * z[i]
+            L[k, k] = np.sqrt(lkk2)
+            z[k] = s / L[k, k]
+            idx[k] = j
+            for t in range(n):
+                sel[k, t] = gj[t]
+            err -= z[k] * z[k]
+            k += 1
+            # 3. γ = L⁻ᵀ z by back substitution
+            for i in range(k - 1, -1, -1):
+                s = z[i]
+                for t in range(i + 1, k):
+                    s -= L[t, i] * gamma[t]
+                gamma[i] = s / L[i, i]
+            if k == K or (use_tol and err <= tol):
+                break
+            # 4. α = Dᵀy − G_I γ, four rows per pass over α
+            for t in range(n):
+                alpha[t] = a0[t]
+            i = 0
+            while i + 4 <= k:
+                _axpy4(alpha, gamma[i], sel[i], gamma[i + 1], sel[i + 1],
+                       gamma[i + 2], sel[i + 2], gamma[i + 3], sel[i + 3])
+                i += 4
+            while i < k:
+                _axpy1(alpha, gamma[i], sel[i])
+                i += 1
+        return k, err, 0
+
     @njit(parallel=True, cache=True, nogil=True)
     def _batch(G, A0, ynorm2, K, tol, use_tol, out, n_iter, res, n_blocks, cap0):
         B, n = A0.shape
         dt = A0.dtype.type
-        eps = np.finfo(A0.dtype).eps
+        eps = dt(np.finfo(A0.dtype).eps)
         step = (B + n_blocks - 1) // n_blocks
         for blk in prange(n_blocks):
-            # per-thread workspace, grown by doubling up to K atoms
+            # per-thread work arrays, grown by doubling up to K atoms
             cap = cap0
             L = np.zeros((cap, cap), A0.dtype)
             sel = np.empty((cap, n), A0.dtype)
@@ -84,74 +150,16 @@ def _build():
                     if abs(a0[t]) > floor:
                         floor = abs(a0[t])
                 floor = dt(16.0) * eps * floor
-                err = ynorm2[b]
-                k = 0
-                while k < K and not (use_tol and err <= tol):
-                    # 1. the atom with the largest |correlation|
-                    best = _absmax(alpha)
-                    if best <= floor:
-                        break
-                    j = 0
-                    for t in range(n):
-                        if abs(alpha[t]) == best:
-                            j = t
-                            break
-                    repeat = False
-                    for i in range(k):
-                        if idx[i] == j:
-                            repeat = True
-                    if repeat:
-                        break
-                    if k == cap:
-                        cap = min(K, 2 * cap)
-                        L = _grow_square(L, cap)
-                        sel = _grow_rows(sel, cap)
-                        idx = _grow1(idx, cap)
-                        z = _grow1(z, cap)
-                        w = _grow1(w, cap)
-                        gamma = _grow1(gamma, cap)
-                    # 2. Cholesky row: w = L⁻¹ G[I, j]
-                    gj = G[j]
-                    ajj = gj[j]
-                    lkk2 = ajj
-                    for i in range(k):
-                        s = gj[idx[i]]
-                        for t in range(i):
-                            s -= L[i, t] * w[t]
-                        w[i] = s / L[i, i]
-                        lkk2 -= w[i] * w[i]
-                    if lkk2 <= dt(16.0) * eps * ajj:
-                        break
-                    s = a0[j]
-                    for i in range(k):
-                        L[k, i] = w[i]
-                        s -= w[i] * z[i]
-                    L[k, k] = np.sqrt(lkk2)
-                    z[k] = s / L[k, k]
-                    idx[k] = j
-                    for t in range(n):
-                        sel[k, t] = gj[t]
-                    err -= z[k] * z[k]
-                    k += 1
-                    # 3. γ = L⁻ᵀ z by back substitution
-                    for i in range(k - 1, -1, -1):
-                        s = z[i]
-                        for t in range(i + 1, k):
-                            s -= L[t, i] * gamma[t]
-                        gamma[i] = s / L[i, i]
-                    if k == K or (use_tol and err <= tol):
-                        break
-                    # 4. α = Dᵀy − G_I γ, four rows per pass over α
-                    for t in range(n):
-                        alpha[t] = a0[t]
-                    i = 0
-                    while i + 4 <= k:
-                        _axpy4(alpha, gamma[i], sel[i], gamma[i + 1], sel[i + 1],
-                               gamma[i + 2], sel[i + 2], gamma[i + 3], sel[i + 3])
-                        i += 4
-                    while i < k:
-                        _axpy1(alpha, gamma[i], sel[i])
-                        i += 1
+                k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, 0, ynorm2[b], K, tol, use_tol, eps, floor)
+                while status == 1:
+                    cap = min(K, 2 * cap)
+                    L = _grow_square(L, cap)
+                    sel = _grow_rows(sel, cap)
+                    idx = _grow1(idx, cap)
+                    z = _grow1(z, cap)
+                    w = _grow1(w, cap)
+                    gamma = _grow1(gamma, cap)
+                    k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor)
                 for i in range(k):
                     out[b, idx[i]] = gamma[i]
                 n_iter[b] = k

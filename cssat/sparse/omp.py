@@ -19,7 +19,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-__all__ = ["batch_omp", "omp_path_costs", "OMPInfo"]
+__all__ = ["batch_omp", "gram_matrix", "omp_path_costs", "OMPInfo"]
 
 _CAP0 = 64  # initial per-signal atom capacity of the work buffers (they double up to K)
 
@@ -39,13 +39,13 @@ class OMPInfo(NamedTuple):
 def omp_path_costs(m: int, n_atoms: int, n_signals: int, k: int) -> dict[str, float]:
     """Multiply-add counts of the two OMP paths, used to choose between them.
 
-    * ``gram``: ``DᵀD`` (``m n²``), ``DᵀY`` (``B m n``), and per signal ``n k²/2`` for the
+    * ``gram``: ``DᵀD`` (``m n²/2``, :func:`gram_matrix`), ``DᵀY`` (``B m n``), and per signal ``n k²/2`` for the
       correlation updates ``α = Dᵀy − G_I γ_I`` (Rubinstein, Zibulevsky & Elad 2008, Batch-OMP).
     * ``nogram``: per signal and step one product ``Dᵀr`` (``m n``) plus the residual
       ``r = y − D_I γ_I`` (``m k``): ``B k (m n + m k/2)``. This is memory-bound: one pass over D
       per selected atom.
     """
-    gram = m * n_atoms * n_atoms + n_signals * m * n_atoms + n_signals * n_atoms * k * k / 2
+    gram = m * n_atoms * n_atoms / 2 + n_signals * m * n_atoms + n_signals * n_atoms * k * k / 2
     nogram = n_signals * k * (m * n_atoms + m * k / 2)
     return {"gram": float(gram), "nogram": float(nogram)}
 
@@ -86,7 +86,7 @@ def batch_omp(
         Path choice. ``"auto"`` picks the one with fewer multiply-adds (:func:`omp_path_costs`):
         the **Gram path** (Batch-OMP) when many signals share ``D`` (roughly ``n_atoms < B K``), the
         **no-Gram path** for few signals on a large dictionary — e.g. one signal on a 13225 × 16384
-        dictionary with K = 2000, where a Gram would cost 3.5 T multiply-adds against 0.43 T for
+        dictionary with K = 2000, where a Gram would cost 1.8 T multiply-adds against 0.43 T for
         ``K`` passes ``Dᵀr``.
     chunk_size : int, optional
         Signals processed together by the torch path. The default keeps each chunk's
@@ -183,7 +183,7 @@ def batch_omp(
     chunk_size = max(1, int(chunk_size))
 
     if use_gram:
-        G = gram.to(dtype=D.dtype, device=D.device) if gram is not None else D.T @ D
+        G = gram.to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
         if tuple(G.shape) != (n_atoms, n_atoms):
             raise ValueError(f"gram: expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
         if Dty is not None:
@@ -215,6 +215,19 @@ def batch_omp(
                 out[s:e], n_iter[s:e], res_sq[s:e],
             )
     return _finish(out, n_iter, res_sq, squeeze, return_info, "gram" if use_gram else "nogram")
+
+
+def gram_matrix(D: Tensor, block: int = 512) -> Tensor:
+    """``DᵀD (n_atoms, n_atoms)``, exactly symmetric, computed block row by block row on and above
+    the diagonal and mirrored: about half the multiply-adds of ``D.T @ D`` (like BLAS ``syrk``)."""
+    n = D.shape[1]
+    G = torch.empty(n, n, dtype=D.dtype, device=D.device)
+    for i in range(0, n, block):
+        G[i : i + block, i:] = D[:, i : i + block].T @ D[:, i:]
+        G[i + block :, i : i + block] = G[i : i + block, i + block :].T
+        d = G[i : i + block, i : i + block]  # make the diagonal block exactly symmetric too
+        d.copy_(torch.triu(d) + torch.triu(d, 1).T)
+    return G
 
 
 def _correlate(Dt: Tensor, R: Tensor) -> Tensor:
