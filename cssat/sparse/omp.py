@@ -63,7 +63,7 @@ def batch_omp(
     backend: str = "auto",
     return_info: bool = False,
 ) -> Tensor | tuple[Tensor, OMPInfo]:
-    """Orthogonal matching pursuit for a batch of signals, all in lockstep as tensor operations.
+    """Orthogonal matching pursuit for a batch of signals (Batch-OMP; no Python loop over signals).
 
     Parameters
     ----------
@@ -108,9 +108,17 @@ def batch_omp(
     Notes
     -----
     Each step selects ``j = argmax |α|`` with ``α = Dᵀr``, grows the Cholesky factor ``L`` of
-    ``D_Iᵀ D_I`` by one row (``w = L⁻¹ D_Iᵀ dⱼ``, ``L_kk = √(‖dⱼ‖² − ‖w‖²)``), updates
-    ``z = L⁻¹ D_Iᵀ y`` by its last entry and sets ``γ_I = L⁻ᵀ z``; the squared residual is
-    ``‖y‖² − ‖z‖²``. A signal stops — cleanly, with the atoms it has — when
+    ``D_Iᵀ D_I`` by one row (``w = L⁻¹ D_Iᵀ dⱼ``, ``L_kk = √(‖dⱼ‖² − ‖w‖²)``) and
+    ``z = L⁻¹ D_Iᵀ y`` by its last entry; then ``γ_I = L⁻ᵀ z``.
+
+    * Gram path: ``D_Iᵀ dⱼ`` is read from ``G``, ``α = Dᵀy − G_I γ_I``, and the squared residual
+      is ``‖y‖² − ‖z‖²`` (exact up to cancellation when it is tiny relative to ``‖y‖²``).
+    * No-Gram path: ``D_I = Q Lᵀ`` with ``Q`` orthonormal, built by Gram–Schmidt
+      (``w = Qᵀdⱼ``, ``q = (dⱼ − Q w)/L_kk``, ``zₖ = qᵀr``, ``r ← r − zₖ q``): no triangular solve
+      until a signal finishes, the residual and its norm are exact, and each step costs one
+      product ``Dᵀr`` plus ``2 m k``.
+
+    A signal stops — cleanly, with the atoms it has — when
 
     * it has ``K`` atoms, or (``tol`` given) its squared residual is ``≤ tol``;
     * the best correlation is at round-off level (``≤ 16 ε max|Dᵀy|``) or names an atom
@@ -187,6 +195,8 @@ def batch_omp(
         if tuple(G.shape) != (n_atoms, n_atoms):
             raise ValueError(f"gram: expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
         if Dty is not None:
+            if Dty.numel() != B * n_atoms:
+                raise ValueError(f"Dty: expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
             A0 = Dty.reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
         else:
             A0 = Y2 @ D
@@ -230,12 +240,35 @@ def gram_matrix(D: Tensor, block: int = 512) -> Tensor:
     return G
 
 
+_POOL: dict[int, object] = {}
+
+
 def _correlate(Dt: Tensor, R: Tensor) -> Tensor:
     """``R Dᵀ`` as ``(B, n)`` for rows ``R (B, m)`` and ``Dt (n, m)``, in the layout BLAS streams
-    fastest (a matrix-vector product for one row: one pass over the dictionary)."""
-    if R.shape[0] == 1:
+    fastest: one pass over the dictionary.
+
+    For one row on a CPU, torch's matrix-vector product runs on a single core; a large product is
+    split into row blocks run by ``torch.get_num_threads()`` threads (the result is identical:
+    each output entry is the same dot product).
+    """
+    if R.shape[0] > 1:
+        return (Dt @ R.T).T
+    threads = torch.get_num_threads()
+    if Dt.device.type != "cpu" or threads < 2 or Dt.numel() < (1 << 22):
         return torch.mv(Dt, R[0])[None]
-    return (Dt @ R.T).T
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = _POOL.get(threads)
+    if pool is None:
+        pool = _POOL[threads] = ThreadPoolExecutor(threads, thread_name_prefix="cssat-mv")
+    out = torch.empty(Dt.shape[0], dtype=Dt.dtype)
+    jobs = [
+        pool.submit(torch.mv, part, R[0], out=o)
+        for part, o in zip(torch.tensor_split(Dt, 2 * threads), torch.tensor_split(out, 2 * threads))
+    ]
+    for job in jobs:
+        job.result()
+    return out[None]
 
 
 def _finish(out, n_iter, res_sq, squeeze, return_info, path):
@@ -271,11 +304,12 @@ def _omp_chunk(
 
     rows = torch.arange(c, device=dev)  # chunk row of each state row
     cap = min(K, _CAP0)  # buffers grow by doubling up to K atoms
-    sel = torch.empty(c, cap, width, dtype=dt, device=dev)  # G rows (Gram path) or atoms (no-Gram)
+    sel = torch.empty(c, cap, width, dtype=dt, device=dev)  # G rows (Gram) or orthonormal q (no-Gram)
     L = torch.zeros(c, cap, cap, dtype=dt, device=dev)
     idx = torch.zeros(c, cap, dtype=torch.long, device=dev)
     z = torch.zeros(c, cap, dtype=dt, device=dev)
-    a0, yy, alpha = alpha0, Y, alpha0
+    a0, alpha = alpha0, alpha0
+    resid = Y.clone() if Y is not None else None  # the residual r (no-Gram path)
     err = ynorm2.clone()
     floor = 16 * eps * alpha0.abs().amax(1)  # a correlation at round-off level
     done = err <= tol if tol is not None else torch.zeros(c, dtype=torch.bool, device=dev)
@@ -306,7 +340,7 @@ def _omp_chunk(
             keep = live.nonzero().squeeze(1)
             rows, sel, L, idx, z = rows[keep], sel[keep], L[keep], idx[keep], z[keep]
             a0, err, floor, alpha, done = a0[keep], err[keep], floor[keep], alpha[keep], done[keep]
-            yy = yy[keep] if yy is not None else None
+            resid = resid[keep] if resid is not None else None
         r = len(rows)
         ar = torch.arange(r, device=dev)
         if k == cap:
@@ -321,16 +355,24 @@ def _omp_chunk(
         stop = alpha[ar, j].abs() <= floor
         if k > 0:
             stop |= (idx[:, :k] == j[:, None]).any(1)
-        # 2. the new row of the Cholesky factor of D_Iᵀ D_I
+        # 2. the new row of the Cholesky factor L of D_Iᵀ D_I (D_I = Q Lᵀ)
         src = G if gram_path else Dt
         g = src.index_select(0, j)  # Gram column j (symmetric) or atom j, (r, width)
         ajj = diag[j]
-        if k > 0:
-            b = g.gather(1, idx[:, :k]) if gram_path else torch.bmm(sel[:, :k], g[:, :, None]).squeeze(2)
-            w = torch.linalg.solve_triangular(L[:, :k, :k], b[:, :, None], upper=False).squeeze(2)
-            lkk2 = ajj - (w * w).sum(1)
-        else:
-            lkk2 = ajj.clone()
+        w = None
+        if gram_path:
+            if k > 0:  # w = L⁻¹ G[I, j]
+                b = g.gather(1, idx[:, :k])
+                w = torch.linalg.solve_triangular(L[:, :k, :k], b[:, :, None], upper=False).squeeze(2)
+                lkk2 = ajj - (w * w).sum(1)
+            else:
+                lkk2 = ajj.clone()
+        else:  # Gram–Schmidt against the orthonormal rows q of sel: w = Qᵀd, v = d − Q w
+            v = g
+            if k > 0:
+                w = torch.bmm(sel[:, :k], g[:, :, None]).squeeze(2)
+                v = g - torch.bmm(w[:, None, :], sel[:, :k]).squeeze(1)
+            lkk2 = (v * v).sum(1)
         stop |= lkk2 <= 16 * eps * ajj  # linearly dependent atom
         stop &= ~done
         flush(stop, k)
@@ -341,23 +383,34 @@ def _omp_chunk(
             L[:, k, :k] = w * ok[:, None]
         L[:, k, k] = lkk
         idx[:, k] = j
-        sel[:, k] = g
-        zk = a0[ar, j] - ((w * z[:, :k]).sum(1) if k > 0 else 0.0)
-        z[:, k] = torch.where(ok, zk / lkk, torch.zeros_like(zk))
-        err = torch.where(ok, err - z[:, k] ** 2, err)
-
-        # 3. coefficients γ_I = L⁻ᵀ z, the residual (no-Gram) and the stopping test
-        gamma = torch.linalg.solve_triangular(
-            L[:, : k + 1, : k + 1].transpose(1, 2), z[:, : k + 1, None], upper=True
-        )  # (r, k+1, 1)
-        approx = torch.bmm(gamma.transpose(1, 2), sel[:, : k + 1]).squeeze(1)  # G_I γ or D_I γ
-        if not gram_path:
-            resid = yy - approx
+        if gram_path:
+            sel[:, k] = g
+            zk = (a0[ar, j] - ((w * z[:, :k]).sum(1) if k > 0 else 0.0)) / lkk
+        else:
+            q = v / lkk[:, None]
+            sel[:, k] = q
+            zk = (q * resid).sum(1)  # qᵀr = qᵀy, computed on the residual for stability
+        z[:, k] = torch.where(ok, zk, torch.zeros_like(zk))
+        if gram_path:
+            err = torch.where(ok, err - z[:, k] ** 2, err)
+        else:
+            resid = resid - z[:, k, None] * q
             err = torch.where(ok, (resid * resid).sum(1), err)  # exact, no cancellation
+
+        # 3. the stopping test; finished rows are written out (γ_I = L⁻ᵀ z)
         finished = ok.clone() if k + 1 == K else ok & (err <= tol) if tol is not None else torch.zeros_like(ok)
-        flush(finished, k + 1, gamma)
+        if gram_path:
+            gamma = torch.linalg.solve_triangular(
+                L[:, : k + 1, : k + 1].transpose(1, 2), z[:, : k + 1, None], upper=True
+            )  # (r, k+1, 1)
+            flush(finished, k + 1, gamma)
+        else:
+            flush(finished, k + 1)
         done = done | finished
         if bool(done.all()):
             break
         # 4. new correlations α = Dᵀr
-        alpha = a0 - approx if gram_path else _correlate(Dt, resid)
+        if gram_path:
+            alpha = a0 - torch.bmm(gamma.transpose(1, 2), sel[:, : k + 1]).squeeze(1)
+        else:
+            alpha = _correlate(Dt, resid)
