@@ -245,3 +245,18 @@ def test_blocked_gram_equals_dense_product():
     G = gram_matrix(D, block=300)
     torch.testing.assert_close(G, D.T @ D, atol=1e-12, rtol=0)
     assert torch.equal(G, G.T)
+
+
+def test_threaded_matrix_vector_product_matches_float64():
+    from cssat.sparse.omp import _correlate
+
+    g = torch.Generator().manual_seed(1)
+    Dt = torch.randn(2100, 2048, generator=g)  # large enough for the threaded split
+    r = torch.randn(1, 2048, generator=g)
+    torch.set_num_threads(2)
+    try:
+        got = _correlate(Dt, r)
+    finally:
+        torch.set_num_threads(1)
+    ref = (Dt.double() @ r[0].double()).float()
+    torch.testing.assert_close(got[0], ref, rtol=1e-5, atol=1e-4)

@@ -243,32 +243,36 @@ def gram_matrix(D: Tensor, block: int = 512) -> Tensor:
 _POOL: dict[int, object] = {}
 
 
-def _correlate(Dt: Tensor, R: Tensor) -> Tensor:
-    """``R Dᵀ`` as ``(B, n)`` for rows ``R (B, m)`` and ``Dt (n, m)``, in the layout BLAS streams
-    fastest: one pass over the dictionary.
+def _mv(A: Tensor, x: Tensor) -> Tensor:
+    """``A @ x`` for a 2-D ``A`` (any strides) and a vector ``x``.
 
-    For one row on a CPU, torch's matrix-vector product runs on a single core; a large product is
-    split into row blocks run by ``torch.get_num_threads()`` threads (the result is identical:
-    each output entry is the same dot product).
+    torch runs a matrix-vector product on a single core; on a CPU a large one is split into row
+    blocks run by ``torch.get_num_threads()`` threads (each output entry is the same dot product,
+    up to the summation order BLAS picks for a block). Memory-bound: one pass over ``A``.
     """
-    if R.shape[0] > 1:
-        return (Dt @ R.T).T
     threads = torch.get_num_threads()
-    if Dt.device.type != "cpu" or threads < 2 or Dt.numel() < (1 << 22):
-        return torch.mv(Dt, R[0])[None]
+    if A.device.type != "cpu" or threads < 2 or A.numel() < (1 << 22):
+        return torch.mv(A, x)
     from concurrent.futures import ThreadPoolExecutor
 
     pool = _POOL.get(threads)
     if pool is None:
         pool = _POOL[threads] = ThreadPoolExecutor(threads, thread_name_prefix="cssat-mv")
-    out = torch.empty(Dt.shape[0], dtype=Dt.dtype)
+    out = torch.empty(A.shape[0], dtype=A.dtype)
     jobs = [
-        pool.submit(torch.mv, part, R[0], out=o)
-        for part, o in zip(torch.tensor_split(Dt, 2 * threads), torch.tensor_split(out, 2 * threads))
+        pool.submit(torch.mv, part, x, out=o)
+        for part, o in zip(torch.tensor_split(A, 2 * threads), torch.tensor_split(out, 2 * threads))
     ]
     for job in jobs:
         job.result()
-    return out[None]
+    return out
+
+
+def _correlate(Dt: Tensor, R: Tensor) -> Tensor:
+    """``R Dᵀ`` as ``(B, n)`` for rows ``R (B, m)`` and ``Dt (n, m)``: one pass over the dictionary."""
+    if R.shape[0] > 1:
+        return (Dt @ R.T).T
+    return _mv(Dt, R[0])[None]
 
 
 def _finish(out, n_iter, res_sq, squeeze, return_info, path):
@@ -369,7 +373,10 @@ def _omp_chunk(
                 lkk2 = ajj.clone()
         else:  # Gram–Schmidt against the orthonormal rows q of sel: w = Qᵀd, v = d − Q w
             v = g
-            if k > 0:
+            if k > 0 and r == 1:  # one signal: threaded matrix-vector products
+                w = _mv(sel[0, :k], g[0])[None]
+                v = g - _mv(sel[0, :k].T, w[0])[None]
+            elif k > 0:
                 w = torch.bmm(sel[:, :k], g[:, :, None]).squeeze(2)
                 v = g - torch.bmm(w[:, None, :], sel[:, :k]).squeeze(1)
             lkk2 = (v * v).sum(1)
