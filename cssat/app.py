@@ -19,15 +19,22 @@ log = logging.getLogger("cssat")
 @hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
 def _hydra_main(cfg: DictConfig) -> float | None:
     from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
 
     from cssat.experiments import ConfigError, run_experiment
 
-    out_dir = HydraConfig.get().runtime.output_dir
+    hc = HydraConfig.get()
     try:
-        metrics = run_experiment(cfg, out_dir)
-    except ConfigError as err:
-        log.error("bad config: %s", err)
-        sys.exit(2)
+        metrics = run_experiment(cfg, hc.runtime.output_dir)
+    except Exception as err:
+        if hc.mode == RunMode.MULTIRUN:
+            # One failed job must not end the sweep: its metrics.json says status: failed.
+            log.error("job %s failed: %s", hc.job.num, err)
+            return None
+        if isinstance(err, ConfigError):
+            log.error("bad config: %s", err)
+            sys.exit(2)
+        raise
     value = metrics.get("psnr")
     return float(value) if value is not None else None
 

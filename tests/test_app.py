@@ -101,3 +101,15 @@ def test_console_script_runs_and_exits_2_on_bad_config(tmp_path):
                          text=True, env=env, cwd=tmp_path, timeout=300)
     assert bad.returncode == 2
     assert "cs.m: must be in [1, 256], got -3" in bad.stdout + bad.stderr
+
+
+def test_multirun_sweep_records_a_failed_job_and_goes_on(tmp_path):
+    exe = [sys.executable, "-m", "cssat.app", "-m"]
+    sweep = tmp_path / "sweep"
+    res = subprocess.run(exe + SMALL[:1] + ["threads=1", "cs.m=0,120", f"hydra.sweep.dir={sweep}"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert res.returncode == 0, res.stderr
+    status = {json.loads((sweep / str(i) / "metrics.json").read_text())["status"] for i in (0, 1)}
+    assert status == {"failed", "ok"}
+    bad = json.loads((sweep / "0" / "metrics.json").read_text())
+    assert bad["error"].startswith("ConfigError: cs.m: must be in [1, 256]")

@@ -201,6 +201,7 @@ def test_bad_arguments_are_refused_with_their_name():
 
 
 
+@pytest.mark.filterwarnings("ignore:Orthogonal matching pursuit ended prematurely")  # the zero signal
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
 @pytest.mark.parametrize("mode", [{"n_nonzero_coefs": 25}, {"tol": 3.0}, {"tol": 3.0, "n_nonzero_coefs": 10}])
 def test_numba_and_torch_kernels_agree(dtype, mode, monkeypatch):
