@@ -29,12 +29,24 @@ from cssat.experiments.common import (
 log = logging.getLogger("cssat")
 
 
-def solver_settings(solver: Any, m: int) -> tuple[int, float | None]:
-    """``(K, tol)`` for :func:`cssat.sparse.batch_omp` from the ``solver`` config and ``m``.
+def default_sparsity(m: int, n_pixels: int) -> int:
+    """The default ``K`` of Eq. 5 for ``m`` Gaussian measurements of ``n_pixels`` pixels:
+    ``K = m (0.05 + 0.25 (m/N)²)``.
+
+    A fixed ``K/m`` is wrong at both ends: with few measurements OMP over-fits (best near
+    ``K/m = 0.05``), with ``m`` near ``N`` it under-fits (``K/m ≥ 0.25``). The rule follows the
+    best ``K`` of a sweep on the 128² camera image at m = 1444, 4096, 13225 (BENCHMARKS.md).
+    """
+    r = m / n_pixels
+    return max(1, round(m * (0.05 + 0.25 * r * r)))
+
+
+def solver_settings(solver: Any, m: int, n_pixels: int) -> tuple[int, float | None]:
+    """``(K, tol)`` for :func:`cssat.sparse.batch_omp` from the ``solver`` config.
 
     ``solver.epsilon`` (ε, a norm in y's units) gives the error-constrained Eq. 6 with
-    ``tol = ε²`` and ``K`` as a cap (default ``m``); otherwise ``K = solver.n_nonzero_coefs`` or
-    ``round(solver.k_ratio · m)`` (Eq. 5).
+    ``tol = ε²`` and ``K`` as a cap (default ``m``); otherwise ``K = solver.n_nonzero_coefs``, or
+    ``round(solver.k_ratio · m)``, or :func:`default_sparsity` when both are null (Eq. 5).
     """
     name = solver.get("name", "omp")
     if name != "omp":
@@ -46,8 +58,11 @@ def solver_settings(solver: Any, m: int) -> tuple[int, float | None]:
         k = m if k is None else require_int(k, "solver.n_nonzero_coefs", 1, m)
         return k, eps * eps
     if k is None:
-        ratio = require_float(solver.get("k_ratio", 0.15), "solver.k_ratio", lo=0.0, hi=1.0)
-        k = max(1, round(ratio * m))
+        ratio = solver.get("k_ratio")
+        if ratio is None:
+            k = default_sparsity(m, n_pixels)
+        else:
+            k = max(1, round(require_float(ratio, "solver.k_ratio", lo=0.0, hi=1.0) * m))
     return require_int(k, "solver.n_nonzero_coefs", 1, m), None
 
 
@@ -65,7 +80,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     N = n * n
     m = require_int(cfg.cs.m, "cs.m", 1, N)
     noise = require_float(cfg.cs.get("noise", 0.0), "cs.noise", lo=0.0)
-    K, tol = solver_settings(cfg.solver, m)
+    K, tol = solver_settings(cfg.solver, m, N)
     x = load_target(str(cfg.target.image), n)
     timings: dict[str, float] = {}
 
