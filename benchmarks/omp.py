@@ -116,7 +116,8 @@ def run_batch(args, mode: str, D: np.ndarray, Y: np.ndarray, K: int, tol: float 
 
         def sp():
             if tol is None:
-                C = spams.omp(Yf, Df, L=K, numThreads=args.threads)
+                # float32 SPAMS returns empty codes unless eps is given: a negligible one
+                C = spams.omp(Yf, Df, L=K, eps=1e-12, numThreads=args.threads)
             else:
                 C = spams.omp(Yf, Df, eps=tol, L=4 * K, numThreads=args.threads)
             return np.asarray(C.T.todense())

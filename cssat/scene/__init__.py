@@ -1,0 +1,28 @@
+"""Scene: orbit, Sun, observer, Earth shadow (sgp4/skyfield), attitude frames and satellite meshes.
+
+Knows nothing of compressed sensing.
+"""
+
+from cssat.scene.attitude import nadir_pointing_frame, random_unit_vectors, to_body
+from cssat.scene.mesh import Mesh, astra_like, box, cylinder, dish, load_mesh, merge, panel, tess_like
+from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, Scenario, check_tle, earth_shadow_fraction, make_scenario
+
+__all__ = [
+    "ASTRA_1KR_SYNTHETIC_TLE",
+    "Mesh",
+    "Scenario",
+    "astra_like",
+    "box",
+    "check_tle",
+    "cylinder",
+    "dish",
+    "earth_shadow_fraction",
+    "load_mesh",
+    "make_scenario",
+    "merge",
+    "nadir_pointing_frame",
+    "panel",
+    "random_unit_vectors",
+    "tess_like",
+    "to_body",
+]

@@ -1,0 +1,147 @@
+"""Scene layer: TLE checks, the paper's default geometry, Earth shadow, attitude, meshes."""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cssat.scene import (
+    ASTRA_1KR_SYNTHETIC_TLE,
+    astra_like,
+    box,
+    check_tle,
+    dish,
+    earth_shadow_fraction,
+    load_mesh,
+    make_scenario,
+    nadir_pointing_frame,
+    tess_like,
+)
+
+TESS_OBJ = Path(__file__).resolve().parents[2] / "shared" / "models" / "tess.obj"
+
+
+def with_checksum(line: str) -> str:
+    s = sum(int(c) if c.isdigit() else (1 if c == "-" else 0) for c in line[:68]) % 10
+    return line[:68] + str(s)
+
+
+def test_tle_checks_name_the_line():
+    l1, l2 = ASTRA_1KR_SYNTHETIC_TLE
+    check_tle(l1, l2)
+    bad = l1[:68] + str((int(l1[68]) + 1) % 10)
+    with pytest.raises(ValueError, match=r"tle.line1: checksum"):
+        check_tle(bad, l2)
+    with pytest.raises(ValueError, match=r"tle.line2: a TLE line has 69 columns"):
+        check_tle(l1, l2[:60])
+    with pytest.raises(ValueError, match=r"tle.line2: must start with '2 '"):
+        check_tle(l1, with_checksum("3" + l2[1:]))
+    with pytest.raises(ValueError, match="catalogue numbers differ"):
+        check_tle(l1, with_checksum(l2[:2] + "29056" + l2[7:]))
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return make_scenario()
+
+
+def test_default_scenario_geometry_matches_the_design_notes(paper):
+    assert len(paper) == 1437
+    assert paper.times[0] == np.datetime64("2020-04-01T00:00:00")
+    assert paper.times[-1] == np.datetime64("2020-04-01T23:56:00")
+    # seen from 51.17 N 10.45 E the satellite stays near az 168.8, el 30.9, range ~38,500 km
+    assert np.all(np.abs(paper.azimuth_deg - 168.8) < 0.5)
+    assert np.all(np.abs(paper.elevation_deg - 30.9) < 0.5)
+    assert np.all(np.abs(paper.range_km - 38_500) < 300)
+    # geostationary: |r| ~ 42,164 km
+    assert np.all(np.abs(np.linalg.norm(paper.r_sat, axis=1) - 42_164) < 100)
+
+
+def test_default_scenario_eclipse_is_about_22_17_to_23_16(paper):
+    shadow = paper.sunlit < 1.0
+    idx = np.flatnonzero(shadow)
+    assert idx.size > 0 and np.all(np.diff(idx) == 1)  # one contiguous eclipse
+    start = paper.times[idx[0]].astype("datetime64[m]")
+    end = paper.times[idx[-1]].astype("datetime64[m]")
+    assert abs((start - np.datetime64("2020-04-01T22:17")).astype(int)) <= 3
+    assert abs((end - np.datetime64("2020-04-01T23:16")).astype(int)) <= 3
+    assert paper.sunlit.min() == 0.0  # a total eclipse (umbra) in the middle
+    assert np.all(paper.sunlit[: idx[0]] == 1.0)
+
+
+def test_shadow_fraction_against_hand_geometry():
+    au = 1.496e8
+    sun = np.array([[au, 0, 0]] * 5)
+    geo = 42_164.0
+    sat = np.array([[geo, 0, 0], [-geo, 0, 0], [0, geo, 0], [-geo, 6000, 0], [-geo, 6378.137, 0]])
+    f = earth_shadow_fraction(sat, sun)
+    assert f[0] == 1 and f[2] == 1  # sunward and quadrature
+    assert f[1] == 0  # straight behind the Earth: umbra
+    assert f[3] == 0  # still inside the umbra (Earth's disk 8.7°, Sun's 0.27°)
+    assert 0 < f[4] < 1  # the shadow edge: penumbra
+    # penumbra brightens monotonically as the satellite moves out of the shadow
+    ys = np.linspace(6000, 6800, 50)
+    fr = earth_shadow_fraction(np.stack([np.full(50, -geo), ys, np.zeros(50)], 1), np.tile([au, 0, 0], (50, 1)))
+    assert np.all(np.diff(fr) >= 0) and fr[0] == 0 and fr[-1] == 1
+
+
+def test_nadir_frame_is_a_rotation_with_the_papers_axes(paper):
+    R = nadir_pointing_frame(paper.r_sat, paper.v_sat)
+    np.testing.assert_allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), R.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(R), 1.0, atol=1e-12)
+    rhat = paper.r_sat / np.linalg.norm(paper.r_sat, axis=1, keepdims=True)
+    np.testing.assert_allclose(R[:, 2], -rhat, atol=1e-12)  # +z to the geocentre
+    h = np.cross(paper.r_sat, paper.v_sat)
+    np.testing.assert_allclose(np.einsum("ti,ti->t", R[:, 1], h / np.linalg.norm(h, axis=1, keepdims=True)), -1, atol=1e-12)
+
+
+def test_box_and_dish_geometry():
+    b = box((2.0, 3.0, 4.0), divisions=3)
+    assert len(b) == 6 * 9 * 2
+    assert b.areas.sum() == pytest.approx(2 * (6 + 8 + 12))
+    assert np.all(np.einsum("fi,fi->f", b.centroids, b.normals) > 0)  # outward
+    d = dish(1.0, 0.25, center=(0, 0, 0), axis=(0, 0, 1), rings=40, segments=128, two_sided=False)
+    # paraboloid z = r²/4 (focal length 1): area = (π/6)(1/a²)((1+4a²)^1.5 - 1) with a = 1/4
+    a = 0.25
+    exact = np.pi / (6 * a * a) * ((1 + 4 * a * a) ** 1.5 - 1)
+    assert d.areas.sum() == pytest.approx(exact, rel=2e-3)
+    assert np.all(d.normals[:, 2] > 0)  # concave side faces the axis
+
+
+def test_procedural_models():
+    a = astra_like()
+    assert len(a) == 4028
+    assert np.all(a.cd == 0.8) and np.all(a.cs == 0.2)
+    assert 10 < a.radius < 15 and np.all(a.areas > 0)
+    t = tess_like(cd=0.5, cs=0.1)
+    assert np.all(t.cd == 0.5) and 1.5 < t.radius < 3.5
+
+
+def test_load_mesh_files_and_errors(tmp_path):
+    b = box((1.0, 2.0, 3.0), divisions=2)
+    for ext in ("obj", "stl", "ply"):
+        p = tmp_path / f"b.{ext}"
+        b.to_trimesh().export(p)
+        m = load_mesh(p)
+        assert len(m) == len(b)
+        assert m.areas.sum() == pytest.approx(b.areas.sum())
+    m = load_mesh(tmp_path / "b.obj", scale=0.001)  # millimetres
+    assert m.areas.sum() == pytest.approx(b.areas.sum() * 1e-6)
+    with pytest.raises(ValueError, match="model.path: no such file"):
+        load_mesh(tmp_path / "missing.obj")
+    (tmp_path / "empty.obj").write_text("# nothing\n")
+    with pytest.raises(ValueError, match="model.path: .*(no triangles|cannot read)"):
+        load_mesh(tmp_path / "empty.obj")
+    (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match="model.path: every facet .* degenerate"):
+        load_mesh(tmp_path / "flat.obj")
+    with pytest.raises(ValueError, match="model.scale"):
+        load_mesh(tmp_path / "b.obj", scale=0)
+
+
+@pytest.mark.skipif(not TESS_OBJ.exists(), reason="../shared/models/tess.obj not present")
+def test_real_tess_mesh_loads():
+    m = load_mesh(TESS_OBJ)
+    assert len(m) > 15_000
+    assert np.all(m.areas > 0)
