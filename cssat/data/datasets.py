@@ -107,23 +107,16 @@ class LightCurves(Dataset):
 
     def __init__(self, mesh: Mesh, scenario, length: int, seed: int = 0, model: str = "facet",
                  images: bool = False, size: int = 64, shadows: bool = True):
-        from cssat.optics import facet_brightness
-        from cssat.scene.attitude import nadir_pointing_frame, to_body
+        from cssat.optics import simulate_light_curve
 
         if model not in ("none", "facet", "pixel"):
             raise ValueError(f"atmosphere.model: expected one of ['none', 'facet', 'pixel'], got {model!r}")
         self.mesh, self.scenario, self.length, self.seed = mesh, scenario, int(length), int(seed)
         self.model, self.images, self.size = model, images, size
-        frame = nadir_pointing_frame(scenario.r_sat, scenario.v_sat)
-        self.sun_body = to_body(frame, scenario.sun_dir)
-        self.obs_body = to_body(frame, scenario.obs_dir)
-        b = facet_brightness(
-            mesh, self.sun_body, self.obs_body, range_km=scenario.range_km,
-            sun_range_km=scenario.sun_range_km, sunlit=scenario.sunlit, shadows=shadows,
-        )
-        b = b * torch.as_tensor(scenario.elevation_deg > 0, dtype=b.dtype)[:, None]  # above the horizon
-        self.facets = b  # (T, F)
-        self.clean = b.sum(1)
+        lc = simulate_light_curve(mesh, scenario, shadows=shadows)
+        self.sun_body, self.obs_body = lc.sun, lc.observer
+        self.facets = lc.facets  # (T, F)
+        self.clean = lc.flux
         t = scenario.times
         self.times = torch.as_tensor((t - t[0]) / np.timedelta64(1, "s"), dtype=torch.float64)
         self._renders = None

@@ -20,7 +20,7 @@ __all__ = ["EXPERIMENTS", "run_experiment", "ConfigError"]
 log = logging.getLogger("cssat")
 
 #: experiment name -> module holding its ``run(cfg, out_dir)``.
-EXPERIMENTS = {"sim1": "cssat.experiments.sim1"}
+EXPERIMENTS = {"sim1": "cssat.experiments.sim1", "lightcurve": "cssat.experiments.lightcurve"}
 
 
 def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:

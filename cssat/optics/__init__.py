@@ -2,6 +2,7 @@
 atmosphere models (Eq. 11–12). Knows nothing of compressed sensing."""
 
 from cssat.optics.atmosphere import atmosphere_weights, attenuated_facetwise, attenuated_pixelwise
+from cssat.optics.lightcurve import LightCurve, simulate_light_curve
 from cssat.optics.photometry import (
     SOLAR_IRRADIANCE_W_M2,
     apparent_magnitude,
@@ -12,6 +13,7 @@ from cssat.optics.photometry import (
 from cssat.optics.render import default_fov, image_basis, render
 
 __all__ = [
+    "LightCurve",
     "SOLAR_IRRADIANCE_W_M2",
     "apparent_magnitude",
     "atmosphere_weights",
@@ -23,4 +25,5 @@ __all__ = [
     "image_basis",
     "render",
     "shadow_mask",
+    "simulate_light_curve",
 ]

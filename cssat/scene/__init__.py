@@ -4,11 +4,12 @@ Knows nothing of compressed sensing.
 """
 
 from cssat.scene.attitude import nadir_pointing_frame, random_unit_vectors, to_body
-from cssat.scene.mesh import Mesh, astra_like, box, cylinder, dish, load_mesh, merge, panel, tess_like
+from cssat.scene.mesh import MODELS, Mesh, astra_like, box, cylinder, dish, get_model, load_mesh, merge, panel, tess_like
 from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, Scenario, check_tle, earth_shadow_fraction, make_scenario
 
 __all__ = [
     "ASTRA_1KR_SYNTHETIC_TLE",
+    "MODELS",
     "Mesh",
     "Scenario",
     "astra_like",
@@ -17,6 +18,7 @@ __all__ = [
     "cylinder",
     "dish",
     "earth_shadow_fraction",
+    "get_model",
     "load_mesh",
     "make_scenario",
     "merge",

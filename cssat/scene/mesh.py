@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Mesh", "load_mesh", "box", "panel", "dish", "cylinder", "merge", "astra_like", "tess_like"]
+__all__ = ["MODELS", "Mesh", "astra_like", "box", "cylinder", "dish", "get_model", "load_mesh", "merge", "panel", "tess_like"]
 
 
 @dataclass
@@ -294,3 +294,22 @@ def tess_like(cd: float = 0.8, cs: float = 0.2) -> Mesh:
     parts.append(dish(0.35, 0.1, center=(0, 0, -0.75), axis=(0, 0, -1), rings=6, segments=24, cd=cd, cs=cs))
     parts.append(cylinder(0.05, 0.25, center=(0, 0, -0.625), axis=(0, 0, 1), segments=8, cd=cd, cs=cs))
     return merge(parts, name="tess_like")
+
+
+#: procedural models by name
+MODELS = {"astra_like": astra_like, "tess_like": tess_like}
+
+
+def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float = 0.8, cs: float = 0.2) -> Mesh:
+    """A satellite model from config: a procedural one by ``name`` (``astra_like``, ``tess_like``)
+    or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``)."""
+    for fname, val in (("model.cd", cd), ("model.cs", cs)):
+        if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
+            raise ValueError(f"{fname}: must be a number >= 0, got {val!r}")
+    if name == "file":
+        if not path:
+            raise ValueError("model.path: required when model.name is 'file'")
+        return load_mesh(path, scale=scale, cd=cd, cs=cs)
+    if name not in MODELS:
+        raise ValueError(f"model.name: expected one of {sorted(MODELS) + ['file']}, got {name!r}")
+    return MODELS[name](cd=cd, cs=cs)

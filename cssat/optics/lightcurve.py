@@ -1,0 +1,43 @@
+"""Light curves of a scenario (paper Eq. 10): the scene's geometry in the body frame and the
+facet brightnesses over time."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from cssat.optics.photometry import facet_brightness
+from cssat.scene.attitude import nadir_pointing_frame, to_body
+from cssat.scene.mesh import Mesh
+from cssat.scene.orbit import Scenario
+
+__all__ = ["LightCurve", "simulate_light_curve"]
+
+
+@dataclass
+class LightCurve:
+    """``facets (T, F)`` brightness per facet (W/m² at the observer), ``sun``/``observer``
+    ``(T, 3)`` body-frame unit vectors from the object, and the total ``flux (T,)`` = Eq. 10."""
+
+    facets: torch.Tensor
+    sun: np.ndarray
+    observer: np.ndarray
+
+    @property
+    def flux(self) -> torch.Tensor:
+        return self.facets.sum(1)
+
+
+def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, **kwargs) -> LightCurve:
+    """The atmosphere-free light curve of ``mesh`` in ``scenario`` with the paper's three-axis
+    stabilised attitude: Eq. 8–9 per facet with self- and observer-shadowing (``shadows``), the
+    Earth's shadow (``scenario.sunlit``) and the observer's horizon (zero below it)."""
+    frame = nadir_pointing_frame(scenario.r_sat, scenario.v_sat)
+    sun = to_body(frame, scenario.sun_dir)
+    obs = to_body(frame, scenario.obs_dir)
+    b = facet_brightness(mesh, sun, obs, range_km=scenario.range_km, sun_range_km=scenario.sun_range_km,
+                         sunlit=scenario.sunlit, shadows=shadows, **kwargs)
+    b = b * torch.as_tensor(scenario.elevation_deg > 0, dtype=b.dtype)[:, None]
+    return LightCurve(b, sun, obs)
