@@ -113,3 +113,17 @@ def test_multirun_sweep_records_a_failed_job_and_goes_on(tmp_path):
     assert status == {"failed", "ok"}
     bad = json.loads((sweep / "0" / "metrics.json").read_text())
     assert bad["error"].startswith("ConfigError: cs.m: must be in [1, 256]")
+
+
+def test_lightcurve_experiment_end_to_end(tmp_path):
+    cfg = cfg_of("experiment=lightcurve", "scenario.n_steps=40", "scenario.step_s=1800", "render.size=24",
+                 "model.name=tess_like", "threads=1")
+    metrics = run_experiment(cfg, tmp_path)
+    assert metrics["status"] == "ok" and metrics["n_steps"] == 40
+    assert metrics["pixel_sum_relative_error"] < 1e-12
+    for fig in ("fig4_lightcurve.png", "fig5_atmosphere.png"):
+        assert (tmp_path / "figures" / fig).stat().st_size > 5000
+    arrays = np.load(tmp_path / "arrays.npz")
+    assert arrays["flux"].shape == (40,) and arrays["mark_images"].shape == (5, 24, 24)
+    with pytest.raises(ValueError, match="model.name"):
+        run_experiment(cfg_of("experiment=lightcurve", "model.name=hubble"), tmp_path / "bad")

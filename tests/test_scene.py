@@ -145,3 +145,23 @@ def test_real_tess_mesh_loads():
     m = load_mesh(TESS_OBJ)
     assert len(m) > 15_000
     assert np.all(m.areas > 0)
+
+
+def test_sgp4_error_codes_are_reported():
+    # an ISS-like orbit propagated far past its decay
+    l1 = "1 25544U 98067A   20092.00000000  .00016717  00000-0  10270-2 0  9997"
+    l2 = "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.72125391 56354"
+    make_scenario((l1, l2), start_utc="2020-04-01T00:00:00", n_steps=3)  # fine at epoch
+    with pytest.raises(ValueError, match=r"tle: SGP4 error 6 \(.*decayed\) at step 0"):
+        make_scenario((l1, l2), start_utc="2021-01-26T00:00:00", n_steps=3)  # 300 days on
+    with pytest.raises(ValueError, match=r"tle: SGP4 error 1 \(mean eccentricity"):
+        make_scenario((l1, l2), start_utc="2022-12-27T00:00:00", n_steps=3)
+
+
+def test_scenario_arguments_are_checked():
+    with pytest.raises(ValueError, match="scenario.n_steps"):
+        make_scenario(n_steps=0)
+    with pytest.raises(ValueError, match="scenario.start_utc"):
+        make_scenario(start_utc="April 1st")
+    with pytest.raises(ValueError, match="observer.lat_deg"):
+        make_scenario(lat_deg=91.0, n_steps=2)
