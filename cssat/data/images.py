@@ -8,8 +8,28 @@ import numpy as np
 
 __all__ = ["BUILTIN_IMAGES", "load_target"]
 
-#: scikit-image test images that ship inside the package (no download needed).
-BUILTIN_IMAGES = ("camera", "moon", "astronaut", "checkerboard", "brick", "grass", "gravel")
+#: built-in targets: ``tess`` (the procedural TESS-like spacecraft rendered with shadows, the
+#: paper's target) and scikit-image test images that ship inside that package (no download).
+BUILTIN_IMAGES = ("tess", "camera", "moon", "astronaut", "checkerboard", "brick", "grass", "gravel")
+
+#: Sun and view directions (body frame, from the object) of the built-in ``tess`` target
+TESS_VIEW = {"sun": (0.4, -0.7, 0.6), "observer": (0.8, -0.5, 0.3)}
+
+
+def render_tess(size: int) -> np.ndarray:
+    """The procedural TESS-like model rendered at ``size × size`` (flat shading, shadows, the
+    model's bounding-sphere field of view), exposed like a photograph: scaled so the 99th
+    percentile of the lit pixels is 1 and clipped there (a few pixels that collect the flux of
+    several sub-pixel facets would otherwise leave the rest of the spacecraft near black)."""
+    import torch
+
+    from cssat.optics import render
+    from cssat.scene import tess_like
+
+    unit = [np.asarray(v, float) / np.linalg.norm(v) for v in (TESS_VIEW["sun"], TESS_VIEW["observer"])]
+    img = render(tess_like(), unit[0][None], unit[1][None], size, shadows=True, dtype=torch.float64)[0].numpy()
+    lit = img[img > 0]
+    return np.clip(img / np.percentile(lit, 99), 0.0, 1.0) if lit.size else img
 
 
 def load_target(image: str, size: int, field: str = "target.image") -> np.ndarray:
@@ -26,6 +46,8 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
         raise ValueError(f"target.size: must be an integer >= 2, got {size!r}")
     if not isinstance(image, str) or not image:
         raise ValueError(f"{field}: expected a file path or one of {list(BUILTIN_IMAGES)}, got {image!r}")
+    if image == "tess" and not os.path.exists(image):
+        return render_tess(size)
     if image in BUILTIN_IMAGES and not os.path.exists(image):
         import skimage.data
 
