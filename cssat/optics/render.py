@@ -100,76 +100,83 @@ def _render_chunk(verts, faces, normals, V, ex, ey, b, size, fov, bias, out):
     Tc, F = b.shape
     dev = verts.device
     scale = size / fov
-    # projected vertex coordinates, pixel units; y up; depth towards the viewer
+    # projected vertex coordinates in pixels (y up) and depth towards the viewer
     X = (verts @ ex.T).T * scale + size / 2  # (Tc, Vn)
     Y = (verts @ ey.T).T * scale + size / 2
     Z = (verts @ V.T).T
     fx, fy, fz = X[:, faces], Y[:, faces], Z[:, faces]  # (Tc, F, 3)
     back = (V @ normals.T) <= 0  # back-facing facets still occlude, but lose depth ties
-    zb = fz - bias * back[..., None]
-    area2 = (fx[..., 1] - fx[..., 0]) * (fy[..., 2] - fy[..., 0]) - (fx[..., 2] - fx[..., 0]) * (fy[..., 1] - fy[..., 0])
     x0 = torch.ceil(fx.amin(-1) - 0.5).clamp(min=0)
     x1 = torch.floor(fx.amax(-1) - 0.5).clamp(max=size - 1)
     y0 = torch.ceil(fy.amin(-1) - 0.5).clamp(min=0)
     y1 = torch.floor(fy.amax(-1) - 0.5).clamp(max=size - 1)
-    w = (x1 - x0 + 1).clamp(min=0)
-    h = (y1 - y0 + 1).clamp(min=0)
-    ext = torch.maximum(w, h)
-    valid = (ext > 0) & (area2.abs() > 1e-12)
-
-    keys, fids, vids, depths = [], [], [], []
-    lo = 0
-    B = 1
-    max_ext = int(ext[valid].max()) if bool(valid.any()) else 0
-    while lo < max_ext:
-        sel = valid & (ext > lo) & (ext <= B)
-        vi, fi = sel.nonzero(as_tuple=True)
-        if len(vi):
-            # chunk the candidate list so (n, B, B) stays bounded
-            step = max(1, (1 << 22) // (B * B))
-            o = torch.arange(B, device=dev, dtype=fx.dtype)
-            for c0 in range(0, len(vi), step):
-                v_, f_ = vi[c0 : c0 + step], fi[c0 : c0 + step]
-                px = x0[v_, f_][:, None, None] + o[None, None, :] + 0.5  # (n, 1, B) columns
-                py = y0[v_, f_][:, None, None] + o[None, :, None] + 0.5  # (n, B, 1) rows
-                inbox = (o[None, None, :] < w[v_, f_][:, None, None]) & (o[None, :, None] < h[v_, f_][:, None, None])
-                tx, ty, tz = fx[v_, f_], fy[v_, f_], zb[v_, f_]
-                sgn = torch.sign(area2[v_, f_])[:, None, None]
-
-                def edge(i, j):
-                    return sgn * ((tx[:, j, None, None] - tx[:, i, None, None]) * (py - ty[:, i, None, None])
-                                  - (ty[:, j, None, None] - ty[:, i, None, None]) * (px - tx[:, i, None, None]))
-
-                w0, w1, w2 = edge(1, 2), edge(2, 0), edge(0, 1)
-                inside = inbox & (w0 >= 0) & (w1 >= 0) & (w2 >= 0)
-                tot = w0 + w1 + w2
-                depth = (w0 * tz[:, 0, None, None] + w1 * tz[:, 1, None, None] + w2 * tz[:, 2, None, None]) / tot
-                n_i, r_i, c_i = inside.nonzero(as_tuple=True)
-                col = (x0[v_, f_][n_i] + c_i).long()
-                row = (size - 1 - (y0[v_, f_][n_i] + r_i)).long()
-                keys.append(v_[n_i] * (size * size) + row * size + col)
-                fids.append(f_[n_i])
-                vids.append(v_[n_i])
-                depths.append(depth[n_i, r_i, c_i])
-        lo, B = B, 2 * B
+    w = x1 - x0 + 1
+    h = y1 - y0 + 1
+    area2 = (fx[..., 1] - fx[..., 0]) * (fy[..., 2] - fy[..., 0]) - (fx[..., 2] - fx[..., 0]) * (fy[..., 1] - fy[..., 0])
+    valid = (w > 0) & (h > 0) & (area2.abs() > 1e-12)
+    vi, fi = valid.nonzero(as_tuple=True)
 
     flat_b = b.reshape(-1)
     counts = torch.zeros(Tc * F, dtype=b.dtype, device=dev)
-    if keys:
-        key = torch.cat(keys)
-        fid = torch.cat(fids)
-        vid = torch.cat(vids)
-        depth = torch.cat(depths)
-        zbuf = torch.full((Tc * size * size,), -math.inf, dtype=depth.dtype, device=dev)
-        zbuf.scatter_reduce_(0, key, depth, reduce="amax")
-        win = depth >= zbuf[key]
-        # exact depth ties (shared edges): the highest facet index wins, one facet per pixel
-        best = torch.full((Tc * size * size,), -1, dtype=fid.dtype, device=dev)
-        best.scatter_reduce_(0, key[win], fid[win], reduce="amax")
-        win &= fid == best[key]
-        vf = vid[win] * F + fid[win]
-        counts.index_add_(0, vf, torch.ones(len(vf), dtype=b.dtype, device=dev))
-        out.view(-1).index_add_(0, key[win], flat_b[vf] / counts[vf])
+    if len(vi):
+        # per-facet data of the candidates, gathered once
+        tx, ty, tz = fx[vi, fi], fy[vi, fi], fz[vi, fi] - bias * back[vi, fi, None]  # (n, 3)
+        sgn = torch.sign(area2[vi, fi])
+        # edge functions e_k(x, y) = a_k x + b_k y + c_k (>= 0 inside), edge k opposite vertex k
+        j1, j2 = [1, 2, 0], [2, 0, 1]
+        A = sgn[:, None] * -(ty[:, j2] - ty[:, j1])  # (n, 3)
+        Bc = sgn[:, None] * (tx[:, j2] - tx[:, j1])
+        C = -(A * tx[:, j1] + Bc * ty[:, j1])
+        xs, ys = x0[vi, fi], y0[vi, fi]
+        ws, hs = w[vi, fi], h[vi, fi]
+        ext = torch.maximum(ws, hs)
+        A32, B32, C32 = A.float(), Bc.float(), C.float()
+        keys, fids, vids, depths = [], [], [], []
+        lo, Bsz = 0, 1
+        max_ext = int(ext.max())
+        while lo < max_ext:
+            sel = ((ext > lo) & (ext <= Bsz)).nonzero().squeeze(1)
+            if len(sel):
+                o = torch.arange(Bsz, device=dev, dtype=torch.float32)
+                step = max(1, (1 << 22) // (Bsz * Bsz))
+                for c0 in range(0, len(sel), step):
+                    k = sel[c0 : c0 + step]
+                    px = (xs[k].float()[:, None, None] + 0.5) + o[None, None, :]  # (n, 1, B)
+                    py = (ys[k].float()[:, None, None] + 0.5) + o[None, :, None]  # (n, B, 1)
+                    inside = (o[None, None, :] < ws[k].float()[:, None, None]) & (o[None, :, None] < hs[k].float()[:, None, None])
+                    for e in range(3):
+                        inside &= (A32[k, e, None, None] * px + B32[k, e, None, None] * py + C32[k, e, None, None]) >= 0
+                    n_i, r_i, c_i = inside.nonzero(as_tuple=True)
+                    kk = k[n_i]
+                    colf = xs[kk] + c_i
+                    rowf = ys[kk] + r_i
+                    # depth at the pixel centre, in float64, from the barycentric weights
+                    pcx, pcy = colf + 0.5, rowf + 0.5
+                    wts = A[kk] * pcx[:, None] + Bc[kk] * pcy[:, None] + C[kk]
+                    depth = (wts * tz[kk]).sum(1) / wts.sum(1)
+                    col = colf.long()
+                    row = size - 1 - rowf.long()
+                    v_ = vi[kk]
+                    keys.append(v_ * (size * size) + row * size + col)
+                    fids.append(fi[kk])
+                    vids.append(v_)
+                    depths.append(depth)
+            lo, Bsz = Bsz, 2 * Bsz
+        if keys:
+            key = torch.cat(keys)
+            fid = torch.cat(fids)
+            vid = torch.cat(vids)
+            depth = torch.cat(depths)
+            zbuf = torch.full((Tc * size * size,), -math.inf, dtype=depth.dtype, device=dev)
+            zbuf.scatter_reduce_(0, key, depth, reduce="amax")
+            win = depth >= zbuf[key]
+            # exact depth ties (shared edges): the highest facet index wins, one facet per pixel
+            best = torch.full((Tc * size * size,), -1, dtype=fid.dtype, device=dev)
+            best.scatter_reduce_(0, key[win], fid[win], reduce="amax")
+            win &= fid == best[key]
+            vf = vid[win] * F + fid[win]
+            counts.index_add_(0, vf, torch.ones(len(vf), dtype=b.dtype, device=dev))
+            out.view(-1).index_add_(0, key[win], flat_b[vf] / counts[vf])
     # lit facets that won no pixel: their brightness goes to the pixel under the centroid
     lost = (counts == 0) & (flat_b != 0)
     if bool(lost.any()):
