@@ -17,22 +17,13 @@ Run from the repository root::
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
-
-
-def timed(fn, repeats):
-    ts, out = [], None
-    for _ in range(repeats):
-        t = time.perf_counter()
-        out = fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts), ts, out
+from _timing import median_time
 
 
 def raytraced_images(mesh, brightness, obs, size, fov):
@@ -67,7 +58,7 @@ def bench_light_curve(args):
 
     mesh, sc = astra_like(), make_scenario()
     simulate_light_curve(mesh, sc)  # warm-up (ephemeris, BVH code paths)
-    t_ours, ts, lc = timed(lambda: simulate_light_curve(mesh, sc), args.repeats)
+    t_ours, ts, lc = median_time(lambda: simulate_light_curve(mesh, sc), args.repeats)
     frame = nadir_pointing_frame(sc.r_sat, sc.v_sat)
     sun, obs = to_body(frame, sc.sun_dir), to_body(frame, sc.obs_dir)
     sub = np.linspace(0, len(sc) - 1, args.peer_steps).round().astype(int)
@@ -100,7 +91,7 @@ def bench_renders(args, mesh, label):
         img = render(mesh, sun, obs, 128, brightness=b, fov_m=fov)
         return b, img, t1 - t, time.perf_counter() - t1
 
-    t_ours, ts, (b, img, t_shadow, t_raster) = timed(ours, args.repeats)
+    t_ours, ts, (b, img, t_shadow, t_raster) = median_time(ours, args.repeats)
     k = args.peer_renders
     t0 = time.perf_counter()
     peer = raytraced_images(mesh, b[:k].double(), obs[:k], 128, fov)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from hydra import compose, initialize_config_module
 
-from cssat.experiments import ConfigError, run_experiment
+from cssat.experiments import run_experiment
 
 SMALL = ["target.size=16", "cs.m=200", "threads=1"]
 

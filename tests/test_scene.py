@@ -1,6 +1,5 @@
 """Scene layer: TLE checks, the paper's default geometry, Earth shadow, attitude, meshes."""
 
-import os
 from pathlib import Path
 
 import numpy as np

@@ -152,8 +152,6 @@ def shadow_mask(
     All steps go in one batch through trimesh's ray engine: Embree (``embreex``) when installed,
     else trimesh's pure-Python intersector (``engine="triangle"``, ~100× slower).
     """
-    import trimesh
-
     sun_t = check_unit(sun, "sun").double().cpu()
     obs_t = check_unit(observer, "observer").double().cpu()
     T, F = sun_t.shape[0], len(mesh)

@@ -22,7 +22,6 @@ def available() -> bool:
 
 
 def _build():
-    import numba
     from numba import njit, prange
 
     @njit(cache=True, nogil=True, fastmath=True)
