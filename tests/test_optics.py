@@ -192,3 +192,23 @@ def test_atmosphere_models_are_seeded_and_linear():
 def test_apparent_magnitude():
     assert float(apparent_magnitude(I0)) == pytest.approx(-26.74)
     assert float(apparent_magnitude(I0 * 1e-10)) == pytest.approx(-26.74 + 25.0)
+
+
+def test_threaded_ray_queries_equal_one_batch():
+    pytest.importorskip("embreex")
+    from cssat.optics.photometry import _any_hit
+    from trimesh.ray.ray_pyembree import RayMeshIntersector
+
+    m = astra_like()
+    inter = RayMeshIntersector(m.to_trimesh(), scale_to_box=False)
+    rng = np.random.default_rng(3)
+    n = 150_000
+    o = m.centroids[rng.integers(0, len(m), n)] + 1e-3 * rng.standard_normal((n, 3))
+    d = random_unit_vectors(n, rng)
+    torch.set_num_threads(2)
+    try:
+        threaded = _any_hit(inter, o, d, threaded=True)
+    finally:
+        torch.set_num_threads(1)
+    assert np.array_equal(threaded, _any_hit(inter, o, d, threaded=False))
+    assert 0 < threaded.mean() < 1

@@ -114,24 +114,33 @@ def facet_brightness(
     cd = torch.as_tensor(mesh.cd, dtype=dtype, device=dev)
     cs = torch.as_tensor(mesh.cs, dtype=dtype, device=dev)
     sun_t = sun_t.to(dtype)
-    sn = sun_t @ N.T  # (T, F) cos incidence
-    vn = obs_t @ N.T  # (T, F) cos emission
-    front = (sn > 0) & (vn > 0)
-    # mirror direction R = 2 (S·N) N − S; τ = 1 when angle(R, V) <= window
-    rv = 2 * sn * vn - (sun_t * obs_t).sum(1, keepdim=True)  # R·V
-    tau = rv >= math.cos(math.radians(specular_window_deg))
-    spec = math.pi * cs * (r_sun / SUN_RADIUS_KM) ** 2 * tau
-    val = irradiance * A / (math.pi * r_topo_m**2) * sn * (cd * vn + spec)
-    val = torch.where(front, val, torch.zeros_like(val)) * lit
-    if shadows:
-        vis = shadow_mask(mesh, sun_t, obs_t, candidates=front & (lit > 0))
-        val = val * vis.to(device=dev, dtype=dtype)
+    F = len(mesh)
     if visible is not None:
-        vis = torch.as_tensor(visible, device=dev)
-        if tuple(vis.shape) != (T, len(mesh)):
-            raise ValueError(f"visible: expected shape ({T}, {len(mesh)}), got {tuple(vis.shape)}")
-        val = val * vis.to(dtype)
-    return val
+        visible = torch.as_tensor(visible, device=dev)
+        if tuple(visible.shape) != (T, F):
+            raise ValueError(f"visible: expected shape ({T}, {F}), got {tuple(visible.shape)}")
+    out = torch.empty(T, F, dtype=dtype, device=dev)
+    cos_win = math.cos(math.radians(specular_window_deg))
+    step = max(1, (1 << 24) // max(F, 1))  # bound the (views, facets) temporaries
+    for s in range(0, T, step):
+        e = min(s + step, T)
+        S, V = sun_t[s:e], obs_t[s:e]
+        sn = S @ N.T  # (t, F) cos incidence
+        vn = V @ N.T  # (t, F) cos emission
+        front = (sn > 0) & (vn > 0)
+        # mirror direction R = 2 (S·N) N − S; τ = 1 when angle(R, V) <= window
+        tau = (2 * sn * vn - (S * V).sum(1, keepdim=True)) >= cos_win
+        rs, rt, li = (x if x.shape[0] == 1 else x[s:e] for x in (r_sun, r_topo_m, lit))
+        spec = math.pi * cs * (rs / SUN_RADIUS_KM) ** 2 * tau
+        val = irradiance * A / (math.pi * rt**2) * sn * (cd * vn + spec)
+        val = torch.where(front, val, torch.zeros_like(val)) * li
+        if shadows:
+            vis = shadow_mask(mesh, S, V, candidates=front & (li > 0))
+            val = val * vis.to(device=dev, dtype=dtype)
+        if visible is not None:
+            val = val * visible[s:e].to(dtype)
+        out[s:e] = val
+    return out
 
 
 def shadow_mask(
@@ -190,12 +199,27 @@ def shadow_mask(
         raise ValueError(f"engine: expected 'auto', 'embree' or 'triangle', got {engine!r}")
     origins = mesh.centroids[fi.numpy()] + offset * mesh.normals[fi.numpy()]
     blocked = np.zeros(len(ti), dtype=bool)
+    threaded = "embree" in type(inter).__module__
     for dirs in (sun_t[ti].numpy(), obs_t[ti].numpy()):
         todo = np.flatnonzero(~blocked)
         if len(todo):
-            blocked[todo] |= np.asarray(inter.intersects_any(origins[todo], dirs[todo]), dtype=bool)
+            blocked[todo] |= _any_hit(inter, origins[todo], dirs[todo], threaded)
     out[ti, fi] = torch.as_tensor(~blocked)
     return out
+
+
+def _any_hit(inter, origins: np.ndarray, dirs: np.ndarray, threaded: bool) -> np.ndarray:
+    """``inter.intersects_any`` over ``torch.get_num_threads()`` threads for large batches
+    (Embree releases the GIL and its queries on a committed scene are thread-safe)."""
+    threads = torch.get_num_threads()
+    if not threaded or threads < 2 or len(origins) < 100_000:
+        return np.asarray(inter.intersects_any(origins, dirs), dtype=bool)
+    from concurrent.futures import ThreadPoolExecutor
+
+    parts = np.array_split(np.arange(len(origins)), threads)
+    with ThreadPoolExecutor(threads) as pool:
+        hits = list(pool.map(lambda p: np.asarray(inter.intersects_any(origins[p], dirs[p]), dtype=bool), parts))
+    return np.concatenate(hits)
 
 
 def apparent_magnitude(flux_w_m2, irradiance: float = SOLAR_IRRADIANCE_W_M2) -> Tensor:
