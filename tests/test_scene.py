@@ -117,7 +117,7 @@ def test_procedural_models():
     assert np.all(t.cd == 0.5) and 1.5 < t.radius < 3.5
 
 
-def test_load_mesh_files_and_errors(tmp_path):
+def test_load_mesh_files_and_errors(tmp_path, caplog):
     b = box((1.0, 2.0, 3.0), divisions=2)
     for ext in ("obj", "stl", "ply"):
         p = tmp_path / f"b.{ext}"
@@ -132,6 +132,10 @@ def test_load_mesh_files_and_errors(tmp_path):
     (tmp_path / "empty.obj").write_text("# nothing\n")
     with pytest.raises(ValueError, match="model.path: .*(no triangles|cannot read)"):
         load_mesh(tmp_path / "empty.obj")
+    (tmp_path / "some.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")
+    with caplog.at_level("WARNING", logger="cssat"):
+        some = load_mesh(tmp_path / "some.obj")
+    assert len(some) == 1 and "dropped 1 zero-area" in caplog.text
     (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
     with pytest.raises(ValueError, match="model.path: every facet .* degenerate"):
         load_mesh(tmp_path / "flat.obj")

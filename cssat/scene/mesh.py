@@ -133,6 +133,11 @@ def load_mesh(
     if not good.any():
         raise ValueError(f"{field}: every facet of {path!r} is degenerate (zero area)")
     if not good.all():
+        import logging
+
+        logging.getLogger("cssat").warning(
+            "%s: dropped %d zero-area (degenerate) facets of %d in %r", field, int((~good).sum()), len(faces), path
+        )
         mesh = Mesh(verts, faces[good], cd, cs, name=mesh.name)
     return mesh
 
