@@ -80,12 +80,14 @@ def render(
     if not (isinstance(fov_m, (int, float)) and math.isfinite(fov_m) and fov_m > 0):
         raise ValueError(f"fov_m: must be a positive number of metres, got {fov_m!r}")
     dev = brightness.device
+    # geometry in float32: pixel coordinates below 10⁴ and depths within the model's size need no more
     obs = obs.to(device=dev, dtype=torch.float64)
-    ex, ey = image_basis(obs, up)
-    verts = torch.as_tensor(mesh.vertices, dtype=torch.float64, device=dev)
+    ex, ey = (v.float() for v in image_basis(obs, up))
+    obs = obs.float()
+    verts = torch.as_tensor(mesh.vertices, dtype=torch.float32, device=dev)
     faces = torch.as_tensor(mesh.faces, device=dev)
-    normals = torch.as_tensor(mesh.normals, dtype=torch.float64, device=dev)
-    bias = 1e-6 * max(mesh.radius, 1e-12)
+    normals = torch.as_tensor(mesh.normals, dtype=torch.float32, device=dev)
+    bias = 1e-5 * max(mesh.radius, 1e-12)  # ~100 float32 ulps of a depth
     images = torch.zeros(T, size, size, dtype=dtype, device=dev)
     for s in range(0, T, views_per_chunk):
         e = min(s + views_per_chunk, T)
@@ -101,66 +103,67 @@ def _render_chunk(verts, faces, normals, V, ex, ey, b, size, fov, bias, out):
     dev = verts.device
     scale = size / fov
     # projected vertex coordinates in pixels (y up) and depth towards the viewer
-    X = (verts @ ex.T).T * scale + size / 2  # (Tc, Vn)
-    Y = (verts @ ey.T).T * scale + size / 2
-    Z = (verts @ V.T).T
-    fx, fy, fz = X[:, faces], Y[:, faces], Z[:, faces]  # (Tc, F, 3)
-    back = (V @ normals.T) <= 0  # back-facing facets still occlude, but lose depth ties
+    vt = verts.T.contiguous()
+    X = torch.addmm(torch.full((), size / 2, dtype=vt.dtype, device=dev), ex, vt, alpha=scale)  # (Tc, Vn)
+    Y = torch.addmm(torch.full((), size / 2, dtype=vt.dtype, device=dev), ey, vt, alpha=scale)
+    Z = V @ vt
+    fidx = faces.reshape(-1)
+    fx = X.index_select(1, fidx).view(Tc, F, 3)  # (Tc, F, 3)
+    fy = Y.index_select(1, fidx).view(Tc, F, 3)
     x0 = torch.ceil(fx.amin(-1) - 0.5).clamp(min=0)
-    x1 = torch.floor(fx.amax(-1) - 0.5).clamp(max=size - 1)
     y0 = torch.ceil(fy.amin(-1) - 0.5).clamp(min=0)
-    y1 = torch.floor(fy.amax(-1) - 0.5).clamp(max=size - 1)
-    w = x1 - x0 + 1
-    h = y1 - y0 + 1
+    w = torch.floor(fx.amax(-1) - 0.5).clamp(max=size - 1) - x0 + 1
+    h = torch.floor(fy.amax(-1) - 0.5).clamp(max=size - 1) - y0 + 1
     area2 = (fx[..., 1] - fx[..., 0]) * (fy[..., 2] - fy[..., 0]) - (fx[..., 2] - fx[..., 0]) * (fy[..., 1] - fy[..., 0])
     valid = (w > 0) & (h > 0) & (area2.abs() > 1e-12)
-    vi, fi = valid.nonzero(as_tuple=True)
+    li = valid.view(-1).nonzero().squeeze(1)  # candidate (view, facet) pairs, flattened
 
     flat_b = b.reshape(-1)
     counts = torch.zeros(Tc * F, dtype=b.dtype, device=dev)
-    if len(vi):
-        # per-facet data of the candidates, gathered once
-        tx, ty, tz = fx[vi, fi], fy[vi, fi], fz[vi, fi] - bias * back[vi, fi, None]  # (n, 3)
-        sgn = torch.sign(area2[vi, fi])
+    if len(li):
+        # the candidates' vertices, gathered straight from the projected vertex arrays
+        v_c, f_c = li // F, li % F
+        vert = v_c[:, None] * X.shape[1] + faces[f_c]  # (n, 3) flat vertex indices
+        tx, ty = X.reshape(-1)[vert], Y.reshape(-1)[vert]
+        back = ((V[v_c] * normals[f_c]).sum(1) <= 0)  # back-facing facets occlude but lose depth ties
+        tz = Z.reshape(-1)[vert] - bias * back[:, None]
+        sgn = torch.sign(area2.view(-1)[li])
         # edge functions e_k(x, y) = a_k x + b_k y + c_k (>= 0 inside), edge k opposite vertex k
         j1, j2 = [1, 2, 0], [2, 0, 1]
         A = sgn[:, None] * -(ty[:, j2] - ty[:, j1])  # (n, 3)
         Bc = sgn[:, None] * (tx[:, j2] - tx[:, j1])
         C = -(A * tx[:, j1] + Bc * ty[:, j1])
-        xs, ys = x0[vi, fi], y0[vi, fi]
-        ws, hs = w[vi, fi], h[vi, fi]
-        ext = torch.maximum(ws, hs)
-        A32, B32, C32 = A.float(), Bc.float(), C.float()
+        box = torch.stack([x0.view(-1)[li], y0.view(-1)[li], w.view(-1)[li], h.view(-1)[li]], 1)
+        # per candidate: edge coefficients A, B, C (3 each), vertex depths (3), bbox x0, y0, w, h
+        Q = torch.cat([A, Bc, C, tz, box], 1)  # (n, 16)
+        ext = torch.maximum(box[:, 2], box[:, 3])
         keys, fids, vids, depths = [], [], [], []
         lo, Bsz = 0, 1
         max_ext = int(ext.max())
         while lo < max_ext:
             sel = ((ext > lo) & (ext <= Bsz)).nonzero().squeeze(1)
-            if len(sel):
-                o = torch.arange(Bsz, device=dev, dtype=torch.float32)
-                step = max(1, (1 << 22) // (Bsz * Bsz))
-                for c0 in range(0, len(sel), step):
-                    k = sel[c0 : c0 + step]
-                    px = (xs[k].float()[:, None, None] + 0.5) + o[None, None, :]  # (n, 1, B)
-                    py = (ys[k].float()[:, None, None] + 0.5) + o[None, :, None]  # (n, B, 1)
-                    inside = (o[None, None, :] < ws[k].float()[:, None, None]) & (o[None, :, None] < hs[k].float()[:, None, None])
-                    for e in range(3):
-                        inside &= (A32[k, e, None, None] * px + B32[k, e, None, None] * py + C32[k, e, None, None]) >= 0
-                    n_i, r_i, c_i = inside.nonzero(as_tuple=True)
-                    kk = k[n_i]
-                    colf = xs[kk] + c_i
-                    rowf = ys[kk] + r_i
-                    # depth at the pixel centre, in float64, from the barycentric weights
-                    pcx, pcy = colf + 0.5, rowf + 0.5
-                    wts = A[kk] * pcx[:, None] + Bc[kk] * pcy[:, None] + C[kk]
-                    depth = (wts * tz[kk]).sum(1) / wts.sum(1)
-                    col = colf.long()
-                    row = size - 1 - rowf.long()
-                    v_ = vi[kk]
-                    keys.append(v_ * (size * size) + row * size + col)
-                    fids.append(fi[kk])
-                    vids.append(v_)
-                    depths.append(depth)
+            o = torch.arange(Bsz, device=dev, dtype=Q.dtype)
+            step = max(1, (1 << 22) // (Bsz * Bsz))
+            for c0 in range(0, len(sel), step):
+                k = sel[c0 : c0 + step]
+                q = Q[k]
+                px = (q[:, 12, None, None] + 0.5) + o[None, None, :]  # (m, 1, B) pixel-centre columns
+                py = (q[:, 13, None, None] + 0.5) + o[None, :, None]  # (m, B, 1) rows
+                inside = (o[None, None, :] < q[:, 14, None, None]) & (o[None, :, None] < q[:, 15, None, None])
+                for e in range(3):
+                    inside &= (q[:, e, None, None] * px + q[:, 3 + e, None, None] * py + q[:, 6 + e, None, None]) >= 0
+                n_i, r_i, c_i = inside.nonzero(as_tuple=True)
+                qq = q[n_i]
+                colf = qq[:, 12] + c_i
+                rowf = qq[:, 13] + r_i
+                # depth at the pixel centre from the barycentric weights
+                wts = qq[:, 0:3] * (colf + 0.5)[:, None] + qq[:, 3:6] * (rowf + 0.5)[:, None] + qq[:, 6:9]
+                depths.append((wts * qq[:, 9:12]).sum(1) / wts.sum(1))
+                lik = li[k[n_i]]
+                v_ = lik // F
+                keys.append(v_ * (size * size) + (size - 1 - rowf.long()) * size + colf.long())
+                fids.append(lik % F)
+                vids.append(v_)
             lo, Bsz = Bsz, 2 * Bsz
         if keys:
             key = torch.cat(keys)
