@@ -63,3 +63,8 @@ def test_bad_images_are_refused_by_field(tmp_path):
         load_target(str(tmp_path / "missing.png"), 16)
     with pytest.raises(ValueError, match="target.size"):
         load_target("camera", 1)
+    nan = np.ones((8, 8), np.float32)
+    nan[2, 3] = np.nan
+    Image.fromarray(nan, mode="F").save(tmp_path / "nan.tif")
+    with pytest.raises(ValueError, match="target.image: the image contains NaN"):
+        load_target(str(tmp_path / "nan.tif"), 8)

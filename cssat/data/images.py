@@ -63,7 +63,12 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
         try:
             with Image.open(image) as im:
                 im.load()
-                arr = np.asarray(im.convert("L"))
+                if im.mode in ("F", "I") or im.mode.startswith("I;16"):
+                    arr = np.asarray(im, dtype=np.float64)  # keep float and 16-bit data as they are
+                elif im.mode in ("1", "L"):
+                    arr = np.asarray(im)
+                else:
+                    arr = np.asarray(im.convert("RGB"))  # colour, palette, alpha: luminance below
         except (UnidentifiedImageError, OSError) as err:
             raise ValueError(f"{field}: cannot read {image!r} as an image: {err}") from None
     arr = np.asarray(arr, dtype=np.float64)
@@ -72,6 +77,8 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
         arr = rgb @ np.array([0.299, 0.587, 0.114]) if rgb.shape[-1] == 3 else rgb[..., 0]
     if arr.ndim != 2:
         raise ValueError(f"{field}: expected a 2-D gray or colour image, got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{field}: the image contains NaN or Inf pixels")
     h, w = arr.shape
     if h != w:
         raise ValueError(f"{field}: image is {h}×{w} pixels; a square image is required (crop it first)")
