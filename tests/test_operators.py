@@ -110,3 +110,18 @@ def test_shape_errors_name_the_argument():
         GaussianSensing(3, 5)(torch.randn(2, 4))
     with pytest.raises(ValueError, match="shape"):
         DCT((2, 2, 2, 2))
+
+
+def test_omp_reconstruct_equals_the_manual_pipeline():
+    from cssat.sparse import batch_omp, omp_reconstruct
+
+    phi = GaussianSensing(150, 256, seed=4, dtype=torch.float64)
+    g = torch.Generator().manual_seed(0)
+    x = torch.rand(2, 256, generator=g, dtype=torch.float64)
+    y = phi(x)
+    img, gamma, info = omp_reconstruct(phi, y, (16, 16), n_nonzero_coefs=30)
+    assert img.shape == (2, 16, 16) and gamma.shape == (2, 256)
+    ref = batch_omp(phi.matrix() @ DCT((16, 16)).matrix(dtype=torch.float64), y, n_nonzero_coefs=30)
+    torch.testing.assert_close(gamma, ref, atol=1e-10, rtol=0)
+    torch.testing.assert_close(img.reshape(2, -1), DCT((16, 16))(ref), atol=1e-10, rtol=0)
+    assert torch.equal(info.n_iter, torch.tensor([30, 30]))

@@ -174,7 +174,7 @@ class DCT(LinearOperator):
         return k.T.contiguous()
 
 
-class GaussianSensing(LinearOperator):
+class GaussianSensing(MatrixOperator):
     """Gaussian sensing matrix ``Φ (m, n)`` with i.i.d. ``N(0, 1/n)`` entries (paper Eq. 1, 15).
 
     The paper's "zero-mean, 1/N-variance" matrix: ``n`` is the number of pixels. Row ``i`` is drawn
@@ -196,12 +196,11 @@ class GaussianSensing(LinearOperator):
         dtype: torch.dtype | None = None,
         device: torch.device | str | None = None,
     ):
-        super().__init__()
         if not isinstance(n, int) or n < 1:
             raise ValueError(f"n: number of columns must be a positive integer, got {n!r}")
         if not isinstance(m, int) or m < 1:
             raise ValueError(f"m: number of measurements must be a positive integer, got {m!r}")
-        self.n_out, self.n_in, self.seed = m, n, int(seed)
+        seed = int(seed)
         dtype = dtype or torch.get_default_dtype()
         if dtype not in (torch.float32, torch.float64):
             raise ValueError(f"dtype: expected torch.float32 or torch.float64, got {dtype}")
@@ -214,27 +213,12 @@ class GaussianSensing(LinearOperator):
         for start in range(0, m, block):
             stop = min(start + block, m)
             for i in range(start, stop):
-                gen.manual_seed(_row_seed(self.seed, i))
+                gen.manual_seed(_row_seed(seed, i))
                 buf[i if on_cpu else i - start].normal_(0.0, std, generator=gen)
             if not on_cpu:
                 w[start:stop] = buf[: stop - start].to(w.device)
-        self.register_buffer("weight", w)
-
-    def _w(self, like: Tensor) -> Tensor:
-        return self.weight.to(device=like.device, dtype=like.dtype)
-
-    def forward(self, x: Tensor) -> Tensor:
-        """``y = Φx`` for rows ``x (B, n)``; returns ``(B, m)``."""
-        _check_last(x, self.n_in, "x")
-        return x @ self._w(x).T
-
-    def adjoint(self, y: Tensor) -> Tensor:
-        """``Φᵀy`` for rows ``y (B, m)``; returns ``(B, n)``."""
-        _check_last(y, self.n_out, "y")
-        return y @ self._w(y)
-
-    def matrix(self, dtype=None, device=None) -> Tensor:
-        return self.weight.to(dtype=dtype or self.weight.dtype, device=device or self.weight.device)
+        super().__init__(w)
+        self.seed = seed
 
 
 def _row_seed(seed: int, row: int) -> int:
