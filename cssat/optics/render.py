@@ -54,6 +54,7 @@ def render(
     up=(0.0, 0.0, 1.0),
     dtype: torch.dtype = torch.float32,
     views_per_chunk: int = 128,
+    backend: str = "auto",
     **brightness_kwargs,
 ) -> Tensor:
     """Render ``(T, size, size)`` images of ``mesh`` for body-frame unit vectors ``sun`` and
@@ -64,6 +65,11 @@ def render(
     in the same units (W/m² at the observer), so ``image.sum((1, 2)) == brightness.sum(1)``.
     ``fov_m`` is the side of the square field of view in metres (default :func:`default_fov`).
     Row 0 is the top of the image (``e_y`` up), column 0 the left (``-e_x``).
+
+    ``backend``: ``"torch"`` rasterises all views of a chunk at once with tensor operations (any
+    device); ``"numba"`` runs a compiled CPU kernel, one view per thread, with the same rules
+    (several times faster on meshes with many sub-pixel facets); ``"auto"`` takes numba for CPU
+    tensors when it is installed.
     """
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
         raise ValueError(f"size: image size must be a positive integer, got {size!r}")
@@ -88,25 +94,43 @@ def render(
     faces = torch.as_tensor(mesh.faces, device=dev)
     normals = torch.as_tensor(mesh.normals, dtype=torch.float32, device=dev)
     bias = 1e-5 * max(mesh.radius, 1e-12)  # ~100 float32 ulps of a depth
+    if backend not in ("auto", "torch", "numba"):
+        raise ValueError(f"backend: expected 'auto', 'torch' or 'numba', got {backend!r}")
+    from cssat.optics import _render_numba
+
+    use_numba = dev.type == "cpu" and (backend == "numba" or (backend == "auto" and _render_numba.available()))
     images = torch.zeros(T, size, size, dtype=dtype, device=dev)
     for s in range(0, T, views_per_chunk):
         e = min(s + views_per_chunk, T)
-        _render_chunk(
-            verts, faces, normals, obs[s:e], ex[s:e], ey[s:e], brightness[s:e].to(dtype),
-            size, float(fov_m), bias, images[s:e].view(e - s, -1),
-        )
+        if use_numba:
+            X, Y, Z = _project(verts, obs[s:e], ex[s:e], ey[s:e], size, float(fov_m))
+            back = (obs[s:e] @ normals.T) <= 0
+            _render_numba.raster(
+                X.numpy(), Y.numpy(), Z.numpy(), faces.numpy(), back.numpy(),
+                brightness[s:e].to(dtype).contiguous().numpy(), size, bias,
+                images[s:e].view(e - s, -1).numpy(), torch.get_num_threads(),
+            )
+        else:
+            _render_chunk(
+                verts, faces, normals, obs[s:e], ex[s:e], ey[s:e], brightness[s:e].to(dtype),
+                size, float(fov_m), bias, images[s:e].view(e - s, -1),
+            )
     return images
+
+
+def _project(verts, V, ex, ey, size, fov):
+    """Vertex coordinates of each view: pixel columns ``X``, rows ``Y`` (upwards) and depth ``Z``
+    towards the viewer, each ``(views, n_vertices)``."""
+    scale = size / fov
+    vt = verts.T.contiguous()
+    half = torch.full((), size / 2, dtype=vt.dtype, device=vt.device)
+    return torch.addmm(half, ex, vt, alpha=scale), torch.addmm(half, ey, vt, alpha=scale), V @ vt
 
 
 def _render_chunk(verts, faces, normals, V, ex, ey, b, size, fov, bias, out):
     Tc, F = b.shape
     dev = verts.device
-    scale = size / fov
-    # projected vertex coordinates in pixels (y up) and depth towards the viewer
-    vt = verts.T.contiguous()
-    X = torch.addmm(torch.full((), size / 2, dtype=vt.dtype, device=dev), ex, vt, alpha=scale)  # (Tc, Vn)
-    Y = torch.addmm(torch.full((), size / 2, dtype=vt.dtype, device=dev), ey, vt, alpha=scale)
-    Z = V @ vt
+    X, Y, Z = _project(verts, V, ex, ey, size, fov)  # (Tc, Vn) each
     fidx = faces.reshape(-1)
     fx = X.index_select(1, fidx).view(Tc, F, 3)  # (Tc, F, 3)
     fy = Y.index_select(1, fidx).view(Tc, F, 3)
