@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-_KERNEL = None
+_KERNELS: dict = {}
 
 
 def available() -> bool:
@@ -21,10 +21,10 @@ def available() -> bool:
     return True
 
 
-def _build():
+def _build(parallel: bool):
     from numba import njit, prange
 
-    @njit(parallel=True, cache=True, nogil=True)
+    @njit(parallel=parallel, cache=True, nogil=True)
     def _raster(X, Y, Z, faces, back, b, size, bias, out):
         T = X.shape[0]
         F = faces.shape[0]
@@ -90,11 +90,16 @@ def _build():
 
 
 def raster(X, Y, Z, faces, back, b, size: int, bias: float, out, threads: int) -> None:
-    """Fill ``out (T, size²)`` in place; arrays are C-contiguous numpy (coordinates float32)."""
-    global _KERNEL
+    """Fill ``out (T, size²)`` in place; arrays are C-contiguous numpy (coordinates float32).
+
+    With one thread (e.g. in a DataLoader worker, where torch sets one) the serial kernel runs:
+    numba's thread pool must not start in a forked child of a process that uses OpenMP.
+    """
     import numba
 
-    if _KERNEL is None:
-        _KERNEL = _build()
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    _KERNEL(X, Y, Z, faces, back, b, size, bias, out)
+    parallel = threads > 1
+    if parallel not in _KERNELS:
+        _KERNELS[parallel] = _build(parallel)
+    if parallel:
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    _KERNELS[parallel](X, Y, Z, faces, back, b, size, bias, out)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-_KERNEL = None
+_KERNELS: dict = {}
 
 
 def available() -> bool:
@@ -21,7 +21,7 @@ def available() -> bool:
     return True
 
 
-def _build():
+def _build(parallel: bool):
     from numba import njit, prange
 
     @njit(cache=True, nogil=True, fastmath=True)
@@ -125,7 +125,7 @@ def _build():
                 i += 1
         return k, err, 0
 
-    @njit(parallel=True, cache=True, nogil=True)
+    @njit(parallel=parallel, cache=True, nogil=True)
     def _batch(G, A0, ynorm2, K, tol, use_tol, out, n_iter, res, n_blocks, cap0):
         B, n = A0.shape
         dt = A0.dtype.type
@@ -169,13 +169,14 @@ def _build():
 
 def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out, n_iter, res, threads: int, cap0: int = 64):
     """Run the kernel in place on numpy arrays (all C-contiguous, one float dtype)."""
-    global _KERNEL
     import numba
 
-    if _KERNEL is None:
-        _KERNEL = _build()
-    numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    parallel = threads > 1  # one thread (e.g. a DataLoader worker): the serial kernel, no pool
+    if parallel not in _KERNELS:
+        _KERNELS[parallel] = _build(parallel)
+    if parallel:
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     use_tol = tol is not None
     dt = A0.dtype.type
     n_blocks = max(1, min(A0.shape[0], 8 * threads))
-    _KERNEL(G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res, n_blocks, min(K, cap0))
+    _KERNELS[parallel](G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res, n_blocks, min(K, cap0))
