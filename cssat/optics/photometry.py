@@ -209,16 +209,30 @@ def shadow_mask(
 
 
 def _any_hit(inter, origins: np.ndarray, dirs: np.ndarray, threaded: bool) -> np.ndarray:
-    """``inter.intersects_any`` over ``torch.get_num_threads()`` threads for large batches
-    (Embree releases the GIL and its queries on a committed scene are thread-safe)."""
+    """Does each ray (unit ``dirs``) hit the mesh? With Embree, an occlusion query straight on
+    trimesh's Embree scene (about 3× faster than ``intersects_any``, which finds the first hit),
+    over ``torch.get_num_threads()`` threads for large batches (Embree releases the GIL and its
+    queries on a committed scene are thread-safe)."""
+    scene = getattr(inter, "_scene", None) if threaded else None
+    if scene is not None and hasattr(scene, "run"):
+
+        def query(o, d):
+            occ = scene.run(np.ascontiguousarray(o, dtype=np.float32), np.ascontiguousarray(d, dtype=np.float32),
+                            query="OCCLUDED")
+            return np.asarray(occ) != -1
+    else:
+
+        def query(o, d):
+            return np.asarray(inter.intersects_any(o, d), dtype=bool)
+
     threads = torch.get_num_threads()
     if not threaded or threads < 2 or len(origins) < 100_000:
-        return np.asarray(inter.intersects_any(origins, dirs), dtype=bool)
+        return query(origins, dirs)
     from concurrent.futures import ThreadPoolExecutor
 
     parts = np.array_split(np.arange(len(origins)), threads)
     with ThreadPoolExecutor(threads) as pool:
-        hits = list(pool.map(lambda p: np.asarray(inter.intersects_any(origins[p], dirs[p]), dtype=bool), parts))
+        hits = list(pool.map(lambda p: query(origins[p], dirs[p]), parts))
     return np.concatenate(hits)
 
 
