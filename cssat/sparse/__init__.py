@@ -5,6 +5,7 @@ Nothing here knows about satellites: it can be used on its own.
 
 from cssat.sparse.cs import omp_reconstruct, sensing_dictionary
 from cssat.sparse.omp import OMPInfo, batch_omp, gram_matrix, omp_path_costs
+from cssat.sparse.patches import extract_patches, fold_patches, patch_positions
 from cssat.sparse.operators import (
     DCT,
     ComposedOperator,
@@ -23,8 +24,11 @@ __all__ = [
     "OMPInfo",
     "batch_omp",
     "dct_matrix",
+    "extract_patches",
+    "fold_patches",
     "gram_matrix",
     "omp_path_costs",
     "omp_reconstruct",
+    "patch_positions",
     "sensing_dictionary",
 ]

@@ -1,0 +1,92 @@
+"""Overlapping patches (2-D) and cubes (3-D) of an image or volume, and their weighted average
+back into it (paper Fig. 7: the training data of the patch-based denoisers).
+
+Patch positions along each axis are ``0, step, 2·step, …`` plus the last position ``n − p`` when
+the steps do not land on it, so every pixel is covered whatever the step. Patches are flattened in
+C order and stacked as rows, in C order of their positions (as scikit-learn's
+``extract_patches_2d`` for ``step = 1``).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import torch
+from torch import Tensor
+
+__all__ = ["patch_positions", "extract_patches", "fold_patches"]
+
+
+def _norm(value, nd: int, name: str) -> tuple[int, ...]:
+    t = (int(value),) * nd if isinstance(value, int) else tuple(int(v) for v in value)
+    if len(t) != nd:
+        raise ValueError(f"{name}: expected {nd} sizes for a {nd}-D array, got {t}")
+    if any(v < 1 for v in t):
+        raise ValueError(f"{name}: sizes must be >= 1, got {t}")
+    return t
+
+
+def patch_positions(shape: Sequence[int], size, step=1) -> list[Tensor]:
+    """Start indices of the patches along each axis of an array of ``shape``."""
+    nd = len(shape)
+    size, step = _norm(size, nd, "size"), _norm(step, nd, "step")
+    out = []
+    if any(s > p for p, s in zip(size, step)):
+        raise ValueError(f"step: {step} must not exceed the block size {size}, or pixels would be left out")
+    for n, p, s in zip(shape, size, step):
+        if p > n:
+            raise ValueError(f"size: block size {tuple(size)} is larger than the array {tuple(shape)}")
+        pos = list(range(0, n - p + 1, s))
+        if pos[-1] != n - p:
+            pos.append(n - p)
+        out.append(torch.tensor(pos))
+    return out
+
+
+def _index(shape, size, step, device) -> Tensor:
+    """``(n_patches, prod(size))`` flat indices into the array for every patch element."""
+    pos = patch_positions(shape, size, step)
+    nd = len(shape)
+    size = _norm(size, nd, "size")
+    strides = [1] * nd
+    for d in range(nd - 2, -1, -1):
+        strides[d] = strides[d + 1] * shape[d + 1]
+    start = torch.zeros(1, dtype=torch.long)
+    within = torch.zeros(1, dtype=torch.long)
+    for d in range(nd):
+        start = (start[:, None] + pos[d][None, :] * strides[d]).reshape(-1)
+        within = (within[:, None] + torch.arange(size[d])[None, :] * strides[d]).reshape(-1)
+    return (start[:, None] + within[None, :]).to(device)
+
+
+def _check(x: Tensor) -> None:
+    if x.ndim not in (2, 3):
+        raise ValueError(f"x: expected a 2-D image (H, W) or a 3-D volume (D, H, W), got shape {tuple(x.shape)}")
+
+
+def extract_patches(x: Tensor, size, step=1) -> Tensor:
+    """All ``size`` patches of ``x`` (2-D ``(H, W)`` or 3-D ``(D, H, W)``) at the positions of
+    :func:`patch_positions`, as rows: ``(n_patches, prod(size))``."""
+    x = torch.as_tensor(x)
+    _check(x)
+    idx = _index(tuple(x.shape), size, step, x.device)
+    return x.reshape(-1)[idx]
+
+
+def fold_patches(patches: Tensor, shape: Sequence[int], size, step=1) -> Tensor:
+    """The inverse of :func:`extract_patches`: every pixel is the average of the values all the
+    patches covering it give it. ``patches (n_patches, prod(size))`` → array of ``shape``."""
+    shape = tuple(int(s) for s in shape)
+    if len(shape) not in (2, 3):
+        raise ValueError(f"shape: expected 2 or 3 dimensions, got {shape}")
+    idx = _index(shape, size, step, patches.device)
+    if tuple(patches.shape) != tuple(idx.shape):
+        raise ValueError(f"patches: expected shape {tuple(idx.shape)} for {shape}, size {size}, step {step}; got {tuple(patches.shape)}")
+    n = 1
+    for s in shape:
+        n *= s
+    total = torch.zeros(n, dtype=patches.dtype, device=patches.device).index_add_(0, idx.reshape(-1), patches.reshape(-1))
+    count = torch.zeros(n, dtype=patches.dtype, device=patches.device).index_add_(
+        0, idx.reshape(-1), torch.ones(idx.numel(), dtype=patches.dtype, device=patches.device)
+    )
+    return (total / count).reshape(shape)
