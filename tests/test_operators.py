@@ -125,3 +125,34 @@ def test_omp_reconstruct_equals_the_manual_pipeline():
     torch.testing.assert_close(gamma, ref, atol=1e-10, rtol=0)
     torch.testing.assert_close(img.reshape(2, -1), DCT((16, 16))(ref), atol=1e-10, rtol=0)
     assert torch.equal(info.n_iter, torch.tensor([30, 30]))
+
+
+def test_odct_dictionary():
+    from cssat.sparse import odct_matrix
+
+    d = odct_matrix(8, 16)
+    assert d.shape == (8, 16)
+    torch.testing.assert_close(torch.linalg.vector_norm(d, dim=0), torch.ones(16, dtype=torch.float64))
+    torch.testing.assert_close(d[:, 0], torch.full((8,), 8**-0.5, dtype=torch.float64))
+    torch.testing.assert_close(d[:, 1:].sum(0), torch.zeros(15, dtype=torch.float64), atol=1e-12, rtol=0)
+    # column k is a cosine of frequency k/16 (mean removed): check one against the formula
+    v = torch.cos(torch.pi * torch.arange(8, dtype=torch.float64) * 3 / 16)
+    v = v - v.mean()
+    torch.testing.assert_close(d[:, 3], v / v.norm())
+    assert torch.linalg.matrix_rank(d) == 8  # spans R^8: overcomplete
+
+
+@pytest.mark.parametrize("shapes", [[(4, 6)], [(4, 6), (3, 5)], [(2, 3), (3, 4), (4, 2)]])
+def test_kronecker_operator_equals_the_dense_kronecker_product(shapes):
+    from cssat.sparse import KroneckerOperator
+
+    g = torch.Generator().manual_seed(1)
+    mats = [torch.randn(*s, generator=g, dtype=torch.float64) for s in shapes]
+    op = KroneckerOperator(mats)
+    dense = mats[0]
+    for m in mats[1:]:
+        dense = torch.kron(dense, m)
+    torch.testing.assert_close(op.matrix(dtype=torch.float64), dense)
+    x = torch.randn(5, op.n_in, generator=g, dtype=torch.float64)
+    torch.testing.assert_close(op(x), x @ dense.T)
+    assert dot_test(op) < 1e-12

@@ -10,15 +10,18 @@ from cssat.sparse.operators import (
     DCT,
     ComposedOperator,
     GaussianSensing,
+    KroneckerOperator,
     LinearOperator,
     MatrixOperator,
     dct_matrix,
+    odct_matrix,
 )
 
 __all__ = [
     "DCT",
     "ComposedOperator",
     "GaussianSensing",
+    "KroneckerOperator",
     "LinearOperator",
     "MatrixOperator",
     "OMPInfo",
@@ -28,6 +31,7 @@ __all__ = [
     "fold_patches",
     "gram_matrix",
     "omp_path_costs",
+    "odct_matrix",
     "omp_reconstruct",
     "patch_positions",
     "sensing_dictionary",

@@ -18,12 +18,14 @@ import torch
 from torch import Tensor, nn
 
 __all__ = [
+    "KroneckerOperator",
     "LinearOperator",
     "MatrixOperator",
     "DCT",
     "GaussianSensing",
     "ComposedOperator",
     "dct_matrix",
+    "odct_matrix",
 ]
 
 
@@ -264,3 +266,67 @@ class ComposedOperator(LinearOperator):
 def _check_last(x: Tensor, n: int, name: str) -> None:
     if x.shape[-1] != n:
         raise ValueError(f"{name}: last dimension must be {n}, got shape {tuple(x.shape)}")
+
+
+def odct_matrix(n: int, atoms: int, dtype: torch.dtype = torch.float64) -> Tensor:
+    """1-D overcomplete DCT dictionary ``(n, atoms)`` (KSVDBox's ``odctdict``): column 0 is the
+    constant ``1/√n``; column ``k`` is ``cos(π k i / atoms)``, ``i = 0..n−1``, with its mean removed
+    and scaled to unit norm. The base dictionary of sparse-KSVD (Rubinstein et al. 2010)."""
+    if n < 1 or atoms < 1:
+        raise ValueError(f"atoms: an (n, atoms) dictionary needs both >= 1, got ({n}, {atoms})")
+    i = torch.arange(n, dtype=torch.float64)[:, None]
+    k = torch.arange(atoms, dtype=torch.float64)[None, :]
+    d = torch.cos(math.pi * i * k / atoms)
+    d[:, 1:] -= d[:, 1:].mean(0, keepdim=True)
+    norms = torch.linalg.vector_norm(d, dim=0)
+    d = torch.where(norms > 1e-12, d / norms.clamp_min(1e-300), d)
+    d[:, 0] = 1.0 / math.sqrt(n)
+    return d.to(dtype)
+
+
+class KroneckerOperator(LinearOperator):
+    """The Kronecker product ``M₁ ⊗ M₂ (⊗ M₃)`` of small matrices, applied one axis at a time.
+
+    ``Mₐ (rₐ, cₐ)``; the operator maps ``(B, Π cₐ)`` to ``(B, Π rₐ)`` with vectors flattened in C
+    order — a separable dictionary for patches (columns of ``Mₐ`` are 1-D atoms) costing
+    ``Σ`` small products instead of one ``Π rₐ × Π cₐ`` matrix.
+    """
+
+    def __init__(self, mats: Sequence[Tensor]):
+        super().__init__()
+        mats = [torch.as_tensor(m) for m in mats]
+        if not 1 <= len(mats) <= 3 or any(m.ndim != 2 for m in mats):
+            raise ValueError("mats: expected 1 to 3 two-dimensional matrices")
+        for d, m in enumerate(mats):
+            self.register_buffer(f"m{d}", m)
+        self.rows = tuple(int(m.shape[0]) for m in mats)
+        self.cols = tuple(int(m.shape[1]) for m in mats)
+        self.n_out, self.n_in = math.prod(self.rows), math.prod(self.cols)
+
+    def _mats(self, like: Tensor) -> list[Tensor]:
+        return [getattr(self, f"m{d}").to(device=like.device, dtype=like.dtype) for d in range(len(self.rows))]
+
+    def _apply(self, x: Tensor, transpose: bool) -> Tensor:
+        dims_in = self.rows if transpose else self.cols
+        _check_last(x, math.prod(dims_in), "x")
+        batch = x.shape[:-1]
+        z = x.reshape(-1, *dims_in)
+        for d, m in enumerate(self._mats(x)):
+            mm = m if transpose else m.T  # forward: contract with M (z @ Mᵀ); adjoint: with Mᵀ
+            z = torch.movedim(torch.movedim(z, d + 1, -1) @ mm, -1, d + 1)
+        return z.reshape(*batch, -1)
+
+    def forward(self, x: Tensor) -> Tensor:
+        """``(M₁ ⊗ M₂ ⊗ …) x`` for rows ``x (B, Π cₐ)``; returns ``(B, Π rₐ)``."""
+        return self._apply(x, transpose=False)
+
+    def adjoint(self, y: Tensor) -> Tensor:
+        """``(M₁ ⊗ M₂ ⊗ …)ᵀ y`` for rows ``y (B, Π rₐ)``; returns ``(B, Π cₐ)``."""
+        return self._apply(y, transpose=True)
+
+    def matrix(self, dtype=None, device=None) -> Tensor:
+        mats = [getattr(self, f"m{d}").to(dtype=dtype or torch.get_default_dtype(), device=device) for d in range(len(self.rows))]
+        k = mats[0]
+        for m in mats[1:]:
+            k = torch.kron(k, m)
+        return k
