@@ -10,15 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-_KERNELS: dict = {}
+from cssat._numba import available, kernel
 
-
-def available() -> bool:
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
+__all__ = ["available"]
 
 
 def _build(parallel: bool):
@@ -90,16 +84,5 @@ def _build(parallel: bool):
 
 
 def raster(X, Y, Z, faces, back, b, size: int, bias: float, out, threads: int) -> None:
-    """Fill ``out (T, size²)`` in place; arrays are C-contiguous numpy (coordinates float32).
-
-    With one thread (e.g. in a DataLoader worker, where torch sets one) the serial kernel runs:
-    numba's thread pool must not start in a forked child of a process that uses OpenMP.
-    """
-    import numba
-
-    parallel = threads > 1
-    if parallel not in _KERNELS:
-        _KERNELS[parallel] = _build(parallel)
-    if parallel:
-        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    _KERNELS[parallel](X, Y, Z, faces, back, b, size, bias, out)
+    """Fill ``out (T, size²)`` in place; arrays are C-contiguous numpy (coordinates float32)."""
+    kernel(_build, threads)(X, Y, Z, faces, back, b, size, bias, out)

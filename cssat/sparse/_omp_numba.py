@@ -10,15 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-_KERNELS: dict = {}
+from cssat._numba import available, kernel
 
-
-def available() -> bool:
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
+__all__ = ["available"]
 
 
 def _build(parallel: bool):
@@ -169,14 +163,7 @@ def _build(parallel: bool):
 
 def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out, n_iter, res, threads: int, cap0: int = 64):
     """Run the kernel in place on numpy arrays (all C-contiguous, one float dtype)."""
-    import numba
-
-    parallel = threads > 1  # one thread (e.g. a DataLoader worker): the serial kernel, no pool
-    if parallel not in _KERNELS:
-        _KERNELS[parallel] = _build(parallel)
-    if parallel:
-        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     use_tol = tol is not None
     dt = A0.dtype.type
     n_blocks = max(1, min(A0.shape[0], 8 * threads))
-    _KERNELS[parallel](G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res, n_blocks, min(K, cap0))
+    kernel(_build, threads)(G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res, n_blocks, min(K, cap0))

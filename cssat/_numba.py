@@ -1,0 +1,34 @@
+"""Shared plumbing of cssat's optional numba kernels (no layer: used by sparse and optics)."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+_KERNELS: dict = {}
+
+
+def available() -> bool:
+    """Whether numba can be imported."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def kernel(build: Callable[[bool], Callable], threads: int) -> Callable:
+    """The kernel ``build(parallel)`` compiles, built once per (``build``, ``parallel``).
+
+    With one thread (e.g. in a DataLoader worker, where torch sets one) the serial variant is
+    returned: numba's thread pool must not start in a forked child of a process that uses OpenMP.
+    Otherwise numba's pool is set to ``threads``.
+    """
+    import numba
+
+    parallel = threads > 1
+    key = (build, parallel)
+    if key not in _KERNELS:
+        _KERNELS[key] = build(parallel)
+    if parallel:
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    return _KERNELS[key]
