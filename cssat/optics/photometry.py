@@ -177,26 +177,22 @@ def shadow_mask(
         return out
     if offset is None:
         offset = min(1e-5 * mesh.radius, 1e-3) if mesh.radius > 0 else 1e-6
+    if engine not in ("auto", "embree", "triangle"):
+        raise ValueError(f"engine: expected 'auto', 'embree' or 'triangle', got {engine!r}")
     tm = mesh.to_trimesh()
-    if engine == "auto":
+    inter = None
+    if engine != "triangle":
         try:
             from trimesh.ray.ray_pyembree import RayMeshIntersector
 
             inter = RayMeshIntersector(tm, scale_to_box=False)
         except Exception:
-            from trimesh.ray.ray_triangle import RayMeshIntersector
-
-            inter = RayMeshIntersector(tm)
-    elif engine == "embree":
-        from trimesh.ray.ray_pyembree import RayMeshIntersector
-
-        inter = RayMeshIntersector(tm, scale_to_box=False)
-    elif engine == "triangle":
+            if engine == "embree":
+                raise
+    if inter is None:
         from trimesh.ray.ray_triangle import RayMeshIntersector
 
         inter = RayMeshIntersector(tm)
-    else:
-        raise ValueError(f"engine: expected 'auto', 'embree' or 'triangle', got {engine!r}")
     origins = mesh.centroids[fi.numpy()] + offset * mesh.normals[fi.numpy()]
     blocked = np.zeros(len(ti), dtype=bool)
     threaded = "embree" in type(inter).__module__
