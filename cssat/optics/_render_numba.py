@@ -21,6 +21,7 @@ def _build(parallel: bool):
     @njit(parallel=parallel, cache=True, nogil=True)
     def _raster(X, Y, Z, faces, back, b, size, bias, out):
         T = X.shape[0]
+        is_parallel = parallel  # a closure cell: numba's cache keys the two variants apart  # noqa: F841
         F = faces.shape[0]
         npix = size * size
         for t in prange(T):

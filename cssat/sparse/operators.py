@@ -139,7 +139,7 @@ class DCT(LinearOperator):
     def _mats(self, like: Tensor) -> list[Tensor]:
         return [getattr(self, f"c{d}").to(device=like.device, dtype=like.dtype) for d in range(len(self.dims))]
 
-    def _apply(self, x: Tensor, transpose: bool) -> Tensor:
+    def _separable(self, x: Tensor, transpose: bool) -> Tensor:
         nd = len(self.dims)
         if tuple(x.shape[-nd:]) == self.dims:
             flat = False
@@ -160,11 +160,11 @@ class DCT(LinearOperator):
 
     def forward(self, coeffs: Tensor) -> Tensor:
         """Synthesis ``x = Ψγ`` (inverse DCT): ``(B, N)`` or ``(B, *shape)`` in, same layout out."""
-        return self._apply(coeffs, transpose=False)
+        return self._separable(coeffs, transpose=False)
 
     def adjoint(self, x: Tensor) -> Tensor:
         """Analysis ``γ = Ψᵀx`` (forward orthonormal DCT-II), same layouts as :meth:`forward`."""
-        return self._apply(x, transpose=True)
+        return self._separable(x, transpose=True)
 
     def matrix(self, dtype=None, device=None) -> Tensor:
         """Dense ``Ψ (N, N)`` (columns are atoms): ``(C₁ ⊗ C₂ ⊗ …)ᵀ``. Costs ``N²`` memory."""
@@ -306,7 +306,7 @@ class KroneckerOperator(LinearOperator):
     def _mats(self, like: Tensor) -> list[Tensor]:
         return [getattr(self, f"m{d}").to(device=like.device, dtype=like.dtype) for d in range(len(self.rows))]
 
-    def _apply(self, x: Tensor, transpose: bool) -> Tensor:
+    def _separable(self, x: Tensor, transpose: bool) -> Tensor:
         dims_in = self.rows if transpose else self.cols
         _check_last(x, math.prod(dims_in), "x")
         batch = x.shape[:-1]
@@ -318,11 +318,11 @@ class KroneckerOperator(LinearOperator):
 
     def forward(self, x: Tensor) -> Tensor:
         """``(M₁ ⊗ M₂ ⊗ …) x`` for rows ``x (B, Π cₐ)``; returns ``(B, Π rₐ)``."""
-        return self._apply(x, transpose=False)
+        return self._separable(x, transpose=False)
 
     def adjoint(self, y: Tensor) -> Tensor:
         """``(M₁ ⊗ M₂ ⊗ …)ᵀ y`` for rows ``y (B, Π rₐ)``; returns ``(B, Π cₐ)``."""
-        return self._apply(y, transpose=True)
+        return self._separable(y, transpose=True)
 
     def matrix(self, dtype=None, device=None) -> Tensor:
         mats = [getattr(self, f"m{d}").to(dtype=dtype or torch.get_default_dtype(), device=device) for d in range(len(self.rows))]

@@ -1,0 +1,161 @@
+"""numba kernels of the Gram-path OMP (imported only when numba is installed; see ``_omp_numba``).
+
+The helpers and ``_run`` are module-level functions so numba's on-disk cache finds them again in
+a new process (a closure over another compiled function is re-keyed, and recompiled, every run).
+"""
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _absmax(a):
+    mx = a.dtype.type(0.0)
+    for t in range(a.shape[0]):
+        mx = max(mx, abs(a[t]))
+    return mx
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _axpy1(a, g0, r0):
+    for t in range(a.shape[0]):
+        a[t] -= g0 * r0[t]
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _axpy4(a, g0, r0, g1, r1, g2, r2, g3, r3):
+    for t in range(a.shape[0]):
+        a[t] -= g0 * r0[t] + g1 * r1[t] + g2 * r2[t] + g3 * r3[t]
+
+
+@njit(cache=True, nogil=True)
+def _grow_square(a, cap):
+    b = np.zeros((cap, cap), a.dtype)
+    b[: a.shape[0], : a.shape[1]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _grow_rows(a, cap):
+    b = np.empty((cap, a.shape[1]), a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _grow1(a, cap):
+    b = np.zeros(cap, a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True, nogil=True)
+def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor):
+    """Continue one signal from ``k`` atoms; stop when done (status 0) or when the work
+    arrays are full (status 1: grow them and call again)."""
+    n = a0.shape[0]
+    dt = a0.dtype.type
+    cap = idx.shape[0]
+    while k < K and not (use_tol and err <= tol):
+        # 1. the atom with the largest |correlation|
+        best = _absmax(alpha)
+        if best <= floor:
+            break
+        j = 0
+        for t in range(n):
+            if abs(alpha[t]) == best:
+                j = t
+                break
+        for i in range(k):
+            if idx[i] == j:
+                return k, err, 0
+        if k == cap:
+            return k, err, 1
+        # 2. Cholesky row: w = L⁻¹ G[I, j]
+        gj = G[j]
+        ajj = gj[j]
+        lkk2 = ajj
+        for i in range(k):
+            s = gj[idx[i]]
+            for t in range(i):
+                s -= L[i, t] * w[t]
+            w[i] = s / L[i, i]
+            lkk2 -= w[i] * w[i]
+        if lkk2 <= dt(16.0) * eps * ajj:
+            break
+        s = a0[j]
+        for i in range(k):
+            L[k, i] = w[i]
+            s -= w[i] * z[i]
+        L[k, k] = np.sqrt(lkk2)
+        z[k] = s / L[k, k]
+        idx[k] = j
+        for t in range(n):
+            sel[k, t] = gj[t]
+        err -= z[k] * z[k]
+        k += 1
+        # 3. γ = L⁻ᵀ z by back substitution
+        for i in range(k - 1, -1, -1):
+            s = z[i]
+            for t in range(i + 1, k):
+                s -= L[t, i] * gamma[t]
+            gamma[i] = s / L[i, i]
+        if k == K or (use_tol and err <= tol):
+            break
+        # 4. α = Dᵀy − G_I γ, four rows per pass over α
+        for t in range(n):
+            alpha[t] = a0[t]
+        i = 0
+        while i + 4 <= k:
+            _axpy4(alpha, gamma[i], sel[i], gamma[i + 1], sel[i + 1],
+                   gamma[i + 2], sel[i + 2], gamma[i + 3], sel[i + 3])
+            i += 4
+        while i < k:
+            _axpy1(alpha, gamma[i], sel[i])
+            i += 1
+    return k, err, 0
+
+
+def build(parallel: bool):
+    """The batch kernel, parallel over signals or serial."""
+
+    @njit(parallel=parallel, cache=True, nogil=True)
+    def _batch(G, A0, ynorm2, K, tol, use_tol, out, n_iter, res, n_blocks, cap0):
+        B, n = A0.shape
+        is_parallel = parallel  # a closure cell: numba's cache keys the two variants apart  # noqa: F841
+        dt = A0.dtype.type
+        eps = dt(np.finfo(A0.dtype).eps)
+        step = (B + n_blocks - 1) // n_blocks
+        for blk in prange(n_blocks):
+            # per-thread work arrays, grown by doubling up to K atoms
+            cap = cap0
+            L = np.zeros((cap, cap), A0.dtype)
+            sel = np.empty((cap, n), A0.dtype)
+            idx = np.zeros(cap, np.int64)
+            z = np.zeros(cap, A0.dtype)
+            w = np.zeros(cap, A0.dtype)
+            gamma = np.zeros(cap, A0.dtype)
+            alpha = np.empty(n, A0.dtype)
+            for b in range(blk * step, min(B, (blk + 1) * step)):
+                a0 = A0[b]
+                floor = dt(0.0)
+                for t in range(n):
+                    alpha[t] = a0[t]
+                    if abs(a0[t]) > floor:
+                        floor = abs(a0[t])
+                floor = dt(16.0) * eps * floor
+                k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, 0, ynorm2[b], K, tol, use_tol, eps, floor)
+                while status == 1:
+                    cap = min(K, 2 * cap)
+                    L = _grow_square(L, cap)
+                    sel = _grow_rows(sel, cap)
+                    idx = _grow1(idx, cap)
+                    z = _grow1(z, cap)
+                    w = _grow1(w, cap)
+                    gamma = _grow1(gamma, cap)
+                    k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor)
+                for i in range(k):
+                    out[b, idx[i]] = gamma[i]
+                n_iter[b] = k
+                res[b] = err
+    return _batch
