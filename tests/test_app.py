@@ -46,6 +46,23 @@ def test_sim1_end_to_end(tmp_path):
     # the PSNR in metrics is the PSNR of the saved arrays
     mse = np.mean((arrays["reconstruction"] - arrays["truth"]) ** 2)
     assert saved["psnr"] == pytest.approx(10 * np.log10(1 / mse), rel=1e-9)
+    # Fig. 9's third column: the denoised reconstruction and its PSNR
+    assert saved["denoiser"] == "sparse_ksvd" and saved["denoise_sigma"] > 0
+    mse_d = np.mean((arrays["denoised"] - arrays["truth"]) ** 2)
+    assert saved["psnr_denoised"] == pytest.approx(10 * np.log10(1 / mse_d), rel=1e-9)
+    assert not np.array_equal(arrays["denoised"], arrays["reconstruction"])
+
+
+@pytest.mark.parametrize("name", ["none", "sparse_ksvd", "tv", "wavelet", "nlm"])
+def test_every_denoiser_config_runs_in_sim1(tmp_path, name):
+    if name == "wavelet":
+        pytest.importorskip("pywt")
+    metrics = run_experiment(cfg_of(*SMALL, f"denoiser={name}"), tmp_path)
+    arrays = np.load(tmp_path / "arrays.npz")
+    assert metrics["denoiser"] == name and arrays["denoised"].shape == (16, 16)
+    if name == "none":
+        assert np.array_equal(arrays["denoised"], arrays["reconstruction"])
+        assert metrics["psnr_denoised"] == metrics["psnr"]
 
 
 def test_sim1_is_deterministic_and_recovers_a_compressible_image(tmp_path):
@@ -70,6 +87,9 @@ def test_sim1_is_deterministic_and_recovers_a_compressible_image(tmp_path):
         ("dtype=float16", "dtype"),
         ("device=tpu", "device"),
         ("target.image=/nonexistent.png", "target.image"),
+        ("denoiser.name=bm4d", "denoiser.name"),
+        ("denoiser.sigma=-1", "denoiser.sigma"),
+        ("denoiser.block_size=17", "denoiser"),
     ],
 )
 def test_bad_config_names_the_field_and_leaves_only_a_failed_status(tmp_path, override, field):

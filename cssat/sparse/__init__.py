@@ -1,11 +1,14 @@
-"""General batched sparse-coding toolkit: operators (Ψ, Φ, ΦΨ) and batched OMP.
+"""General batched sparse-coding toolkit: operators (Ψ, Φ, ΦΨ), batched OMP, sparse K-SVD and
+patch-based denoising.
 
 Nothing here knows about satellites: it can be used on its own.
 """
 
 from cssat.sparse.cs import omp_reconstruct, sensing_dictionary
+from cssat.sparse.denoise import DEMO_DEFAULTS, DenoiseInfo, estimate_sigma, ksvd_denoise
+from cssat.sparse.ksvd import KSVDInfo, SparseDictionary, ksvd, odct_base, sparse_ksvd
 from cssat.sparse.omp import OMPInfo, batch_omp, gram_matrix, omp_path_costs
-from cssat.sparse.patches import extract_patches, fold_patches, patch_positions
+from cssat.sparse.patches import accumulate_patches, extract_patches, fold_patches, patch_positions
 from cssat.sparse.operators import (
     DCT,
     ComposedOperator,
@@ -18,6 +21,16 @@ from cssat.sparse.operators import (
 )
 
 __all__ = [
+    "DEMO_DEFAULTS",
+    "DenoiseInfo",
+    "KSVDInfo",
+    "SparseDictionary",
+    "accumulate_patches",
+    "estimate_sigma",
+    "ksvd",
+    "ksvd_denoise",
+    "odct_base",
+    "sparse_ksvd",
     "DCT",
     "ComposedOperator",
     "GaussianSensing",

@@ -14,7 +14,7 @@ from typing import Sequence
 import torch
 from torch import Tensor
 
-__all__ = ["patch_positions", "extract_patches", "fold_patches"]
+__all__ = ["patch_positions", "extract_patches", "fold_patches", "accumulate_patches"]
 
 
 def _norm(value, nd: int, name: str) -> tuple[int, ...]:
@@ -76,6 +76,13 @@ def extract_patches(x: Tensor, size, step=1) -> Tensor:
 def fold_patches(patches: Tensor, shape: Sequence[int], size, step=1) -> Tensor:
     """The inverse of :func:`extract_patches`: every pixel is the average of the values all the
     patches covering it give it. ``patches (n_patches, prod(size))`` → array of ``shape``."""
+    total, count = accumulate_patches(patches, shape, size, step)
+    return total / count
+
+
+def accumulate_patches(patches: Tensor, shape: Sequence[int], size, step=1) -> tuple[Tensor, Tensor]:
+    """Sum of the patches' values at every pixel, and how many patches cover it: ``(total,
+    count)``, both of ``shape`` (for weighted averages such as KSVDSBox's ``(λx + Σ)/(λ + count)``)."""
     shape = tuple(int(s) for s in shape)
     if len(shape) not in (2, 3):
         raise ValueError(f"shape: expected 2 or 3 dimensions, got {shape}")
@@ -85,8 +92,7 @@ def fold_patches(patches: Tensor, shape: Sequence[int], size, step=1) -> Tensor:
     n = 1
     for s in shape:
         n *= s
-    total = torch.zeros(n, dtype=patches.dtype, device=patches.device).index_add_(0, idx.reshape(-1), patches.reshape(-1))
-    count = torch.zeros(n, dtype=patches.dtype, device=patches.device).index_add_(
-        0, idx.reshape(-1), torch.ones(idx.numel(), dtype=patches.dtype, device=patches.device)
-    )
-    return (total / count).reshape(shape)
+    flat = idx.reshape(-1)
+    total = torch.zeros(n, dtype=patches.dtype, device=patches.device).index_add_(0, flat, patches.reshape(-1))
+    count = torch.bincount(flat, minlength=n).to(patches.dtype)
+    return total.reshape(shape), count.reshape(shape)
