@@ -147,3 +147,44 @@ def test_lightcurve_experiment_end_to_end(tmp_path):
     assert arrays["flux"].shape == (40,) and arrays["mark_images"].shape == (5, 24, 24)
     with pytest.raises(ValueError, match="model.name"):
         run_experiment(cfg_of("experiment=lightcurve", "model.name=hubble"), tmp_path / "bad")
+
+
+def test_sim2_small_recovers_phi_and_uses_the_reference_cache(tmp_path):
+    over = ["experiment=sim2", "target.size=16", "cs.m=200", "threads=1", "dtype=float64",
+            f"cache_dir={tmp_path / 'cache'}", "denoiser.n_iter=3"]
+    a = run_experiment(cfg_of(*over), tmp_path / "a")
+    assert a["reference_n"] == 256 and not a["reference_cached"]
+    assert a["phi_relative_error"] < 1e-8  # Eq. 24 is exact up to round-off
+    assert len(list((tmp_path / "cache").glob("refs-*.npy"))) == 1
+    b = run_experiment(cfg_of(*over), tmp_path / "b")
+    assert b["reference_cached"] and b["psnr"] == a["psnr"] and b["psnr_denoised"] == a["psnr_denoised"]
+    arrays = np.load(tmp_path / "a" / "arrays.npz")
+    assert arrays["denoised"].shape == (16, 16)
+    assert (tmp_path / "a" / "figures" / "fig11_sim2.png").stat().st_size > 1000
+    # a different reference seed is a different cache entry
+    run_experiment(cfg_of(*over, "reference.seed=5"), tmp_path / "c")
+    assert len(list((tmp_path / "cache").glob("refs-*.npy"))) == 2
+
+
+def test_sim3_small_runs_repeats_and_3d_denoising(tmp_path):
+    over = ["experiment=sim3", "target.size=16", "cs.m=200", "threads=1", "reference.pool=300",
+            "reference.n=200", "reference.repeats=3", "reference.n_nonzero_coefs=20",
+            f"cache_dir={tmp_path / 'cache'}", "denoiser.n_iter=2", "denoiser3d.n_iter=2"]
+    met = run_experiment(cfg_of(*over), tmp_path)
+    assert len(met["repeat_psnr"]) == 3 and len(met["repeat_psnr_denoised_3d"]) == 3
+    assert met["psnr_best"] == max(met["repeat_psnr"])
+    assert met["repeat_estimate_mean_atoms"][0] <= 20
+    arrays = np.load(tmp_path / "arrays.npz")
+    assert arrays["reconstructions"].shape == (3, 16, 16) and arrays["denoised_3d"].shape == (3, 16, 16)
+    for fig in ("fig13_sim3_results.png", "fig14_sim3_denoised.png"):
+        assert (tmp_path / "figures" / fig).stat().st_size > 1000
+    # the minimum-norm baseline is reported beside the sparse estimate
+    assert 0 < met["phi_relative_error_min_norm_mean"] and "psnr_min_norm_mean" in met
+
+
+@pytest.mark.parametrize("exp", ["sim2", "sim3"])
+def test_memory_estimate_stops_a_run_that_does_not_fit(tmp_path, exp):
+    with pytest.raises(ValueError, match=r"^memory: .*GB"):
+        run_experiment(cfg_of(f"experiment={exp}", "memory_limit_gb=0.5", "threads=1"), tmp_path)
+    saved = json.loads((tmp_path / "metrics.json").read_text())
+    assert saved["status"] == "failed" and not (tmp_path / "arrays.npz").exists()

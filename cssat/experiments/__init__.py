@@ -20,7 +20,12 @@ __all__ = ["EXPERIMENTS", "run_experiment", "ConfigError"]
 log = logging.getLogger("cssat")
 
 #: experiment name -> module holding its ``run(cfg, out_dir)``.
-EXPERIMENTS = {"sim1": "cssat.experiments.sim1", "lightcurve": "cssat.experiments.lightcurve"}
+EXPERIMENTS = {
+    "sim1": "cssat.experiments.sim1",
+    "sim2": "cssat.experiments.sim2",
+    "sim3": "cssat.experiments.sim3",
+    "lightcurve": "cssat.experiments.lightcurve",
+}
 
 
 def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:

@@ -167,7 +167,7 @@ def ksvd_denoise(
     T = min(demo["atom_sparsity"], base.n_in) if atom_sparsity is None else int(atom_sparsity)
     n_train = demo["n_train"] if n_train is None else int(n_train)
     n_iter = demo["n_iter"] if n_iter is None else int(n_iter)
-    cap = max(1, p // 2) if max_atoms is None else int(max_atoms)
+    cap = min(max(1, p // 2), L) if max_atoms is None else int(max_atoms)
     if not 1 <= cap <= L:
         raise ValueError(f"max_atoms: must be in [1, n_atoms={L}], got {cap}")
     if n_train < L:

@@ -1,0 +1,191 @@
+"""Sensing-matrix estimation from reference satellites (paper Eq. 22–30, the guide-star idea).
+
+Reference images ``X_ref (n_pixel, N)`` (images as columns) observed through the same atmosphere
+as the target give light curves ``Y_ref = Φ X_ref (m, N)`` (Eq. 22). Three estimates of ``Φ``:
+
+* :func:`estimate_sensing_full_rank` — ``N = n_pixel`` linearly independent references:
+  ``Φ̂ = Y_ref X_ref⁻¹`` (Eq. 24), by an LU solve, never an explicit inverse;
+* :func:`estimate_sensing_sparse` — ``N < n_pixel``: model ``Φᵀ = Ψ A`` with ``T₀``-sparse columns
+  (Eq. 26), code every row of ``Y_ref`` over ``D = X_refᵀ Ψ`` by batch-OMP (Eq. 27–29) and set
+  ``Φ̂ = Âᵀ Ψᵀ`` (Eq. 30);
+* :func:`estimate_sensing_min_norm` — the baseline without a sparsity model: the minimum-norm
+  ``Φ̂ = Y_ref X_ref⁺`` (exact on the span of the references, zero off it).
+
+Shapes follow Eq. 22: ``Φ̂ (m, n_pixel)``. All functions follow the inputs' dtype and device.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Sequence
+
+import torch
+from torch import Tensor
+
+__all__ = [
+    "estimate_sensing_full_rank",
+    "estimate_sensing_sparse",
+    "estimate_sensing_min_norm",
+    "relative_error",
+    "SparseEstimate",
+]
+
+
+def _check(X_ref: Tensor, Y_ref: Tensor) -> tuple[int, int, int]:
+    if X_ref.ndim != 2:
+        raise ValueError(f"X_ref: expected (n_pixel, N) with reference images as columns, got shape {tuple(X_ref.shape)}")
+    if Y_ref.ndim != 2 or Y_ref.shape[1] != X_ref.shape[1]:
+        raise ValueError(
+            f"Y_ref: expected (m, N={X_ref.shape[1]}) light curves of the N references, got shape {tuple(Y_ref.shape)}"
+        )
+    for name, t in (("X_ref", X_ref), ("Y_ref", Y_ref)):
+        if not t.is_floating_point():
+            raise TypeError(f"{name}: expected a float32 or float64 tensor, got {t.dtype}")
+        if not bool(torch.isfinite(t).all()):
+            raise ValueError(f"{name}: contains NaN or Inf")
+    return int(X_ref.shape[0]), int(X_ref.shape[1]), int(Y_ref.shape[0])
+
+
+def _rcond_1norm(lu: Tensor, anorm: float) -> float | None:
+    """LAPACK's 1-norm reciprocal condition estimate from an LU factor (CPU only; else None)."""
+    if lu.device.type != "cpu":
+        return None
+    from scipy.linalg import lapack
+
+    fn = lapack.sgecon if lu.dtype == torch.float32 else lapack.dgecon
+    rcond, info = fn(lu.numpy(), anorm, norm="1")
+    return float(rcond) if info == 0 else None
+
+
+def estimate_sensing_full_rank(X_ref: Tensor, Y_ref: Tensor, *, rcond_min: float | None = None) -> Tensor:
+    """``Φ̂ = Y_ref X_ref⁻¹`` (Eq. 24) for ``N = n_pixel`` linearly independent references.
+
+    Solves ``X_refᵀ Φ̂ᵀ = Y_refᵀ`` by one LU factorisation (``⅔ n³`` flops) and ``m`` pairs of
+    triangular solves (``2 n² m``). ``X_ref (n_pixel, n_pixel)``, ``Y_ref (m, n_pixel)`` →
+    ``Φ̂ (m, n_pixel)``.
+
+    Raises ``ValueError`` naming ``X_ref`` when there are fewer references than pixels, when the
+    LU factorisation finds an exactly singular matrix, or when LAPACK's reciprocal condition
+    estimate is below ``rcond_min`` (default ``n · eps`` of the dtype: the solve would return
+    round-off): then use :func:`estimate_sensing_sparse` (or :func:`estimate_sensing_min_norm`).
+    """
+    n_pixel, N, m = _check(X_ref, Y_ref)
+    if N < n_pixel:
+        raise ValueError(
+            f"X_ref: N={N} reference images for n_pixel={n_pixel} pixels is rank deficient (Eq. 25); "
+            "use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
+        )
+    Y = Y_ref.to(X_ref.dtype)
+    if N > n_pixel:  # more references than pixels: least squares
+        return torch.linalg.lstsq(X_ref.T, Y.T).solution.T.contiguous()
+    Xt = X_ref.T
+    anorm = float(X_ref.abs().sum(1).max())  # ‖Xᵀ‖₁ = max row sum of X
+    LU, piv, info = torch.linalg.lu_factor_ex(Xt)
+    eps = torch.finfo(X_ref.dtype).eps
+    limit = n_pixel * eps if rcond_min is None else float(rcond_min)
+    if int(info) > 0:
+        raise ValueError(
+            f"X_ref: singular (pivot {int(info)} of the LU factorisation is zero): the references are "
+            "linearly dependent; use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
+        )
+    rcond = _rcond_1norm(LU, anorm)
+    if rcond is None:  # not on a CPU: the ratio of the smallest to the largest pivot, a rough proxy
+        d = torch.diagonal(LU).abs()
+        rcond = float(d.min() / d.max().clamp_min(torch.finfo(d.dtype).tiny))
+    if not rcond > limit:
+        raise ValueError(
+            f"X_ref: numerically singular (reciprocal condition ≈ {rcond:.2e} <= {limit:.2e}): the references "
+            "are (nearly) linearly dependent; use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
+        )
+    out = torch.empty(m, n_pixel, dtype=X_ref.dtype, device=X_ref.device)
+    block = 2048  # right-hand sides per solve: bounds the transposed copy of Y
+    for s in range(0, m, block):
+        out[s : s + block] = torch.linalg.lu_solve(LU, piv, Y[s : s + block].T.contiguous()).T
+    return out
+
+
+def estimate_sensing_min_norm(X_ref: Tensor, Y_ref: Tensor) -> Tensor:
+    """The minimum-norm estimate ``Φ̂ = Y_ref X_ref⁺`` (no sparsity model): ``Φ̂ X_ref = Y_ref``
+    and every row of ``Φ̂`` lies in the span of the references. For full column rank ``X_ref``
+    (``N ≤ n_pixel``) it is ``Y_ref (X_refᵀX_ref)⁻¹ X_refᵀ``, by a Cholesky solve of the ``N × N``
+    Gram matrix; a rank-deficient ``X_ref`` falls back to a pseudo-inverse."""
+    n_pixel, N, m = _check(X_ref, Y_ref)
+    Y = Y_ref.to(X_ref.dtype)
+    G = X_ref.T @ X_ref
+    L, info = torch.linalg.cholesky_ex(G)
+    if int(info) == 0:
+        Z = torch.cholesky_solve(Y.T.contiguous(), L)  # (N, m) = G⁻¹ Yᵀ
+    else:
+        Z = torch.linalg.pinv(G, hermitian=True) @ Y.T
+    return (X_ref @ Z).T.contiguous()
+
+
+class SparseEstimate(NamedTuple):
+    """Extra output of :func:`estimate_sensing_sparse`: ``coefficients (m, n_pixel)`` is ``Âᵀ``
+    — so ``Φ̂Ψ = Âᵀ`` is the CS dictionary directly; ``n_iter (m,)`` atoms per row;
+    ``residual_sq (m,)`` final ``‖ȳᵢ − Dâᵢ‖²``."""
+
+    coefficients: Tensor
+    n_iter: Tensor
+    residual_sq: Tensor
+
+
+def estimate_sensing_sparse(
+    X_ref: Tensor,
+    Y_ref: Tensor,
+    *,
+    n_nonzero_coefs: int | None = None,
+    tol: float | None = None,
+    shape: Sequence[int] | None = None,
+    return_info: bool = False,
+) -> Tensor | tuple[Tensor, SparseEstimate]:
+    """Rank-deficient estimate (Eq. 26–30): ``Φᵀ = Ψ A`` with sparse columns ``āᵢ``.
+
+    ``D = X_refᵀ Ψ (N, n_pixel)`` (the DCT of every reference image), and row ``i`` of ``Y_ref``
+    (column ``i`` of ``Y_refᵀ``) is coded as ``ȳᵢ ≈ D āᵢ`` by :func:`~cssat.sparse.batch_omp` —
+    all ``m`` rows in one batched call, with ``T₀ = n_nonzero_coefs`` (Eq. 28) and/or the squared
+    error bound ``tol = ε₀²`` (Eq. 29). Then ``Φ̂ = Âᵀ Ψᵀ`` (Eq. 30).
+
+    ``D``'s columns have very unequal norms (the images are non-negative, so the DC column
+    dominates); OMP selects atoms on the normalised columns and the coefficients are scaled back,
+    so a frequency is chosen for how well it explains ``ȳᵢ``, not for its energy in the references.
+
+    ``shape`` is the image shape (default: square ``√n_pixel``). Returns ``Φ̂ (m, n_pixel)`` and,
+    with ``return_info``, a :class:`SparseEstimate`.
+    """
+    from cssat.sparse import DCT, batch_omp
+
+    n_pixel, N, m = _check(X_ref, Y_ref)
+    if shape is None:
+        side = math.isqrt(n_pixel)
+        if side * side != n_pixel:
+            raise ValueError(f"shape: n_pixel={n_pixel} is not a square; give the image shape")
+        shape = (side, side)
+    shape = tuple(int(s) for s in shape)
+    if math.prod(shape) != n_pixel:
+        raise ValueError(f"shape: {shape} does not have n_pixel={n_pixel} pixels")
+    if n_nonzero_coefs is None and tol is None:
+        raise ValueError("n_nonzero_coefs/tol: give T0 (Eq. 28), eps0^2 (Eq. 29) or both")
+    psi = DCT(shape)
+    D = psi.adjoint(X_ref.T.contiguous())  # (N, n_pixel): row k is the DCT of reference k
+    norms = torch.linalg.vector_norm(D, dim=0)
+    ok = norms > 0
+    Dn = D / torch.where(ok, norms, torch.ones_like(norms))
+    coef, oinfo = batch_omp(Dn, Y_ref.to(D.dtype), n_nonzero_coefs=n_nonzero_coefs, tol=tol, return_info=True)
+    coef = torch.where(ok, coef / torch.where(ok, norms, torch.ones_like(norms)), torch.zeros_like(coef))
+    phi_hat = psi(coef)  # rows: Φ̂ᵢ = Ψ āᵢ
+    if return_info:
+        return phi_hat, SparseEstimate(coef, oinfo.n_iter, oinfo.residual_sq)
+    return phi_hat
+
+
+def relative_error(phi_hat: Tensor, phi: Tensor) -> float:
+    """``‖Φ̂ − Φ‖_F / ‖Φ‖_F``, computed in row blocks (no full-size temporary)."""
+    if phi_hat.shape != phi.shape:
+        raise ValueError(f"phi_hat: shape {tuple(phi_hat.shape)} differs from phi {tuple(phi.shape)}")
+    num = den = 0.0
+    for s in range(0, phi.shape[0], 1024):
+        a, b = phi_hat[s : s + 1024].double(), phi[s : s + 1024].double()
+        num += float(((a - b) ** 2).sum())
+        den += float((b**2).sum())
+    return math.sqrt(num / den) if den > 0 else math.sqrt(num)
