@@ -57,17 +57,23 @@ def _rcond_1norm(lu: Tensor, anorm: float) -> float | None:
     return float(rcond) if info == 0 else None
 
 
-def estimate_sensing_full_rank(X_ref: Tensor, Y_ref: Tensor, *, rcond_min: float | None = None) -> Tensor:
+def estimate_sensing_full_rank(
+    X_ref: Tensor, Y_ref: Tensor, *, rcond_min: float | None = None, return_rcond: bool = False
+) -> Tensor | tuple[Tensor, float | None]:
     """``Φ̂ = Y_ref X_ref⁻¹`` (Eq. 24) for ``N = n_pixel`` linearly independent references.
 
-    Solves ``X_refᵀ Φ̂ᵀ = Y_refᵀ`` by one LU factorisation (``⅔ n³`` flops) and ``m`` pairs of
-    triangular solves (``2 n² m``). ``X_ref (n_pixel, n_pixel)``, ``Y_ref (m, n_pixel)`` →
+    Solves ``Φ̂ X_ref = Y_ref`` by one LU factorisation of ``X_ref`` (``⅔ n³`` flops) and
+    triangular solves from the right for blocks of rows of ``Y_ref`` (``2 n² m``). ``X_ref (n_pixel, n_pixel)``, ``Y_ref (m, n_pixel)`` →
     ``Φ̂ (m, n_pixel)``.
 
     Raises ``ValueError`` naming ``X_ref`` when there are fewer references than pixels, when the
-    LU factorisation finds an exactly singular matrix, or when LAPACK's reciprocal condition
-    estimate is below ``rcond_min`` (default ``n · eps`` of the dtype: the solve would return
-    round-off): then use :func:`estimate_sensing_sparse` (or :func:`estimate_sensing_min_norm`).
+    LU factorisation finds an exactly singular matrix, or when LAPACK's 1-norm reciprocal
+    condition estimate ``rcond`` is below ``rcond_min`` (default: the dtype's ``eps``, LAPACK's
+    own test for numerical singularity): then use :func:`estimate_sensing_sparse` (or
+    :func:`estimate_sensing_min_norm`). The relative error of ``Φ̂`` is about ``eps / rcond``: renders
+    of one satellite are nearly linearly dependent and only their noise makes ``X_ref`` invertible,
+    so 128² references with 1 % noise have ``rcond ≈ 1e-8`` — float64 is needed for a near-exact
+    ``Φ̂``. ``return_rcond=True`` also returns ``rcond`` (``None`` off the CPU).
     """
     n_pixel, N, m = _check(X_ref, Y_ref)
     if N < n_pixel:
@@ -77,18 +83,18 @@ def estimate_sensing_full_rank(X_ref: Tensor, Y_ref: Tensor, *, rcond_min: float
         )
     Y = Y_ref.to(X_ref.dtype)
     if N > n_pixel:  # more references than pixels: least squares
-        return torch.linalg.lstsq(X_ref.T, Y.T).solution.T.contiguous()
-    Xt = X_ref.T
-    anorm = float(X_ref.abs().sum(1).max())  # ‖Xᵀ‖₁ = max row sum of X
-    LU, piv, info = torch.linalg.lu_factor_ex(Xt)
+        sol = torch.linalg.lstsq(X_ref.T, Y.T).solution.T.contiguous()
+        return (sol, None) if return_rcond else sol
+    anorm = float(X_ref.abs().sum(0).max())  # ‖X_ref‖₁ = max column sum
+    LU, piv, info = torch.linalg.lu_factor_ex(X_ref)
     eps = torch.finfo(X_ref.dtype).eps
-    limit = n_pixel * eps if rcond_min is None else float(rcond_min)
+    limit = eps if rcond_min is None else float(rcond_min)
     if int(info) > 0:
         raise ValueError(
             f"X_ref: singular (pivot {int(info)} of the LU factorisation is zero): the references are "
             "linearly dependent; use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
         )
-    rcond = _rcond_1norm(LU, anorm)
+    rcond = lapack_rcond = _rcond_1norm(LU, anorm)
     if rcond is None:  # not on a CPU: the ratio of the smallest to the largest pivot, a rough proxy
         d = torch.diagonal(LU).abs()
         rcond = float(d.min() / d.max().clamp_min(torch.finfo(d.dtype).tiny))
@@ -98,10 +104,10 @@ def estimate_sensing_full_rank(X_ref: Tensor, Y_ref: Tensor, *, rcond_min: float
             "are (nearly) linearly dependent; use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
         )
     out = torch.empty(m, n_pixel, dtype=X_ref.dtype, device=X_ref.device)
-    block = 2048  # right-hand sides per solve: bounds the transposed copy of Y
+    block = 4096  # rows of Φ̂ per solve Φ̂ X_ref = Y_ref (right-hand side form, no transposes)
     for s in range(0, m, block):
-        out[s : s + block] = torch.linalg.lu_solve(LU, piv, Y[s : s + block].T.contiguous()).T
-    return out
+        out[s : s + block] = torch.linalg.lu_solve(LU, piv, Y[s : s + block], left=False)
+    return (out, lapack_rcond) if return_rcond else out
 
 
 def estimate_sensing_min_norm(X_ref: Tensor, Y_ref: Tensor) -> Tensor:
@@ -137,6 +143,7 @@ def estimate_sensing_sparse(
     n_nonzero_coefs: int | None = None,
     tol: float | None = None,
     shape: Sequence[int] | None = None,
+    normalize: bool = True,
     return_info: bool = False,
 ) -> Tensor | tuple[Tensor, SparseEstimate]:
     """Rank-deficient estimate (Eq. 26–30): ``Φᵀ = Ψ A`` with sparse columns ``āᵢ``.
@@ -148,7 +155,8 @@ def estimate_sensing_sparse(
 
     ``D``'s columns have very unequal norms (the images are non-negative, so the DC column
     dominates); OMP selects atoms on the normalised columns and the coefficients are scaled back,
-    so a frequency is chosen for how well it explains ``ȳᵢ``, not for its energy in the references.
+    so a frequency is chosen for how well it explains ``ȳᵢ``, not for its energy in the references
+    (``normalize=False``: select on the raw columns, scikit-learn's convention).
 
     ``shape`` is the image shape (default: square ``√n_pixel``). Returns ``Φ̂ (m, n_pixel)`` and,
     with ``return_info``, a :class:`SparseEstimate`.
@@ -170,6 +178,8 @@ def estimate_sensing_sparse(
     D = psi.adjoint(X_ref.T.contiguous())  # (N, n_pixel): row k is the DCT of reference k
     norms = torch.linalg.vector_norm(D, dim=0)
     ok = norms > 0
+    if not normalize:
+        norms = torch.ones_like(norms)
     Dn = D / torch.where(ok, norms, torch.ones_like(norms))
     coef, oinfo = batch_omp(Dn, Y_ref.to(D.dtype), n_nonzero_coefs=n_nonzero_coefs, tol=tol, return_info=True)
     coef = torch.where(ok, coef / torch.where(ok, norms, torch.ones_like(norms)), torch.zeros_like(coef))

@@ -49,13 +49,13 @@ def require_float(value: Any, field: str, lo: float | None = None, hi: float | N
     return value
 
 
-def torch_dtype(name: str):
-    """``"float32"``/``"float64"`` -> torch dtype (field ``dtype``)."""
+def torch_dtype(name: str, field: str = "dtype"):
+    """``"float32"``/``"float64"`` -> torch dtype (config field ``field``)."""
     import torch
 
     table = {"float32": torch.float32, "float64": torch.float64}
     if name not in table:
-        raise ConfigError(f"dtype: expected one of {sorted(table)}, got {name!r}")
+        raise ConfigError(f"{field}: expected one of {sorted(table)}, got {name!r}")
     return table[name]
 
 

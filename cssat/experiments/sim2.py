@@ -28,24 +28,24 @@ from cssat.experiments.common import (
 log = logging.getLogger("cssat")
 
 
-def peak_memory(n: int, m: int, itemsize: int) -> tuple[int, dict[str, int]]:
+def peak_memory(n: int, m: int, itemsize: int, ref_itemsize: int) -> tuple[int, dict[str, int]]:
     """Estimated peak bytes of Simulation 2 at ``N = n²`` pixels and ``m`` measurements.
 
-    At the LU solve these live together: ``Φ`` (m N), ``Y_ref`` (m N), the LU factor (N²), ``Φ̂``
-    (m N) and one block of transposed right-hand sides; the reference set (N², float32) is freed
-    after the factorisation. Later, ``Φ̂Ψ`` (m N) and the OMP's Gram (N², if it takes that path).
+    In the reference stage (``ref_itemsize``) these live together: ``Φ`` (m N), ``Y_ref`` (m N),
+    ``X_ref`` (N²) and its LU factor (N²), then ``Φ̂`` (m N) in place of ``X_ref``. In the
+    reconstruction (``itemsize``): ``Φ̂Ψ`` (m N) and the OMP's Gram (N²).
     """
     N = n * n
     parts = {
-        "Φ": m * N * itemsize,
-        "Y_ref": m * N * itemsize,
-        "X_ref": N * N * 4,
-        "LU": N * N * itemsize,
-        "Φ̂": m * N * itemsize,
+        "Φ": m * N * ref_itemsize,
+        "Y_ref": m * N * ref_itemsize,
+        "X_ref": N * N * ref_itemsize,
+        "LU": N * N * ref_itemsize,
     }
-    at_lu = sum(parts.values())
-    later = parts["Φ"] + 2 * m * N * itemsize + N * N * itemsize
-    return int(max(at_lu, later) * 1.1), parts
+    at_lu = sum(parts.values()) + N * N * 4  # + the float32 renders while X_ref is built
+    at_solve = 2 * m * N * ref_itemsize + N * N * ref_itemsize + m * N * ref_itemsize
+    later = m * N * ref_itemsize + m * N * itemsize + N * N * itemsize
+    return int(max(at_lu, at_solve, later) * 1.2), parts
 
 
 def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
@@ -70,30 +70,33 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     ref_seed = cfg.reference.get("seed")
     ref_seed = seed + 1000 if ref_seed is None else require_int(ref_seed, "reference.seed", 0)
     K, tol = solver_settings(cfg.solver, m, N)
+    ref_dtype = torch_dtype(cfg.reference.get("dtype", "float64"), field="reference.dtype")
     itemsize = torch.finfo(dtype).bits // 8
-    est, parts = peak_memory(n, m, itemsize)
-    check_memory(est, parts, cfg, "lower target.size or cs.m, or use dtype=float32")
+    est, parts = peak_memory(n, m, itemsize, torch.finfo(ref_dtype).bits // 8)
+    check_memory(est, parts, cfg, "lower target.size or cs.m, or use dtype=float32 / reference.dtype=float32")
     x = load_target(str(cfg.target.image), n)
     timings: dict[str, float] = {}
     peak_rss = _peak_rss()
 
     t = time.perf_counter()
-    phi = GaussianSensing(m, N, seed=seed, dtype=dtype, device=device).matrix()
-    y = phi @ torch.as_tensor(x, dtype=dtype, device=device).reshape(N)
+    # Φ is drawn in float32 (the same Φ as Simulation 1's for this seed) and held exactly in
+    # reference.dtype, in which Y_ref = Φ X_ref and the solve are computed
+    phi = GaussianSensing(m, N, seed=seed, dtype=torch.float32, device=device).matrix().to(ref_dtype)
+    y = (phi @ torch.as_tensor(x, dtype=ref_dtype, device=device).reshape(N)).to(dtype)
     timings["seconds_measure"] = time.perf_counter() - t
 
     t = time.perf_counter()
     refs, cached = reference_set(cfg, n, n_ref, ref_seed)  # (N, n, n) float32
     timings["seconds_references"] = time.perf_counter() - t
     t = time.perf_counter()
-    Xt = refs.reshape(n_ref, N).to(dtype=dtype, device=device)  # X_refᵀ: reference k is row k
+    Xt = refs.reshape(n_ref, N).to(dtype=ref_dtype, device=device)  # X_refᵀ: reference k is row k
     del refs
     Y_ref = phi @ Xt.T  # Eq. 22, (m, N)
     timings["seconds_reference_light_curves"] = time.perf_counter() - t
 
     t = time.perf_counter()
     try:
-        phi_hat = estimate_sensing_full_rank(Xt.T, Y_ref)  # Eq. 24
+        phi_hat, rcond = estimate_sensing_full_rank(Xt.T, Y_ref, return_rcond=True)  # Eq. 24
     except ValueError as err:
         raise ConfigError(f"reference: {err}") from err
     del Xt, Y_ref
@@ -102,6 +105,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     del phi
 
     t = time.perf_counter()
+    phi_hat = phi_hat.to(dtype)
     A = sensing_dictionary(phi_hat, (n, n))
     del phi_hat
     gamma, info = batch_omp(A, y, n_nonzero_coefs=K, tol=tol, return_info=True)
@@ -120,6 +124,8 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         "psnr_denoised": psnr(den, x, data_range=1.0),
         "ssim_denoised": ssim(den, x, data_range=1.0),
         "phi_relative_error": phi_err,
+        "x_ref_rcond": rcond,
+        "reference_dtype": str(cfg.reference.get("dtype", "float64")),
         "m": m,
         "n": n,
         "n_pixels": N,

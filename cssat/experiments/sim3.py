@@ -112,7 +112,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         Xt = pool_imgs[idx].to(dtype=dtype, device=device)  # X_refᵀ (N_ref, n²)
         Y_ref = phi @ Xt.T  # Eq. 22
         t = time.perf_counter()
-        phi_hat, info = estimate_sensing_sparse(Xt.T, Y_ref, n_nonzero_coefs=t0, tol=tol0, shape=(n, n), return_info=True)
+        phi_hat, info = estimate_sensing_sparse(
+            Xt.T, Y_ref, n_nonzero_coefs=t0, tol=tol0, shape=(n, n), normalize=bool(ref.get("normalize", True)), return_info=True
+        )
         timings["seconds_estimate"] += time.perf_counter() - t
         row = {"phi_relative_error": relative_error(phi_hat, phi), "estimate_mean_atoms": float(info.n_iter.double().mean())}
         del phi_hat
