@@ -6,7 +6,9 @@
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import json
 import logging
 import time
 import traceback
@@ -15,7 +17,7 @@ from typing import Any
 
 from cssat.experiments.common import ConfigError, require_int, write_json
 
-__all__ = ["EXPERIMENTS", "run_experiment", "ConfigError"]
+__all__ = ["EXPERIMENTS", "run_experiment", "config_sha", "ConfigError"]
 
 log = logging.getLogger("cssat")
 
@@ -32,16 +34,33 @@ def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     """Run the experiment ``cfg.experiment_name`` into ``out_dir`` and return its metrics.
 
     Writes ``out_dir/metrics.json`` in every case: the experiment's flat metrics plus ``status``,
-    ``seconds`` and ``experiment``; on failure ``status: failed`` and ``error``, and the exception
-    is re-raised. Other outputs are written atomically by the experiment only once computed.
+    ``seconds``, ``experiment`` and ``config_sha`` (a hash of the config without ``threads`` and
+    ``resume``); on failure ``status: failed`` and ``error``, and the exception is re-raised.
+    Other outputs are written atomically by the experiment only once computed, and
+    ``metrics.json`` last.
+
+    Resuming: when ``cfg.resume`` is true (the default) and ``out_dir`` already holds a
+    ``metrics.json`` with ``status: ok`` and the same ``config_sha``, the run is skipped and the
+    saved metrics are returned — re-running a sweep into the same directory redoes only the jobs
+    that failed, were interrupted or changed.
     """
     import torch
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     name = cfg.get("experiment_name")
+    sha = config_sha(cfg)
+    saved = out_dir / "metrics.json"
+    if cfg.get("resume", True) and saved.exists():
+        try:
+            old = json.loads(saved.read_text())
+        except (OSError, ValueError):
+            old = {}
+        if old.get("status") == "ok" and old.get("config_sha") == sha:
+            log.info("%s: complete results already in %s, skipped (resume=false to redo)", name, out_dir)
+            return old
     t0 = time.perf_counter()
-    metrics: dict[str, Any] = {"experiment": name}
+    metrics: dict[str, Any] = {"experiment": name, "config_sha": sha}
     try:
         if name not in EXPERIMENTS:
             raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)}, got {name!r}")
@@ -59,3 +78,16 @@ def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     metrics["seconds"] = time.perf_counter() - t0
     write_json(out_dir / "metrics.json", metrics)
     return metrics
+
+
+def config_sha(cfg: Any) -> str:
+    """A short hash of the resolved config, without the keys that do not change the results
+    (``threads``, ``resume``)."""
+    from omegaconf import DictConfig, OmegaConf
+
+    if isinstance(cfg, DictConfig):
+        data = OmegaConf.to_container(cfg, resolve=True)
+    else:
+        data = dict(cfg)
+    data = {k: v for k, v in data.items() if k not in ("threads", "resume", "hydra")}
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]

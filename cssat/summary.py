@@ -1,0 +1,213 @@
+"""Sweep summaries: ``summary.csv`` (one row per job) and a plot of PSNR against the swept values.
+
+Written by a Hydra callback at the end of every multirun (:class:`SummaryCallback`, registered in
+``conf/config.yaml``), and by the standalone ``cssat-summarize <sweep dir>`` for sweeps that were
+interrupted or had failures. A job is a sub-directory with Hydra's ``.hydra/overrides.yaml``; its
+row holds the swept values, every scalar metric of its ``metrics.json``, ``seconds`` and
+``status`` (``ok``, ``failed`` or ``missing`` when the job left no metrics).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import logging
+import math
+from pathlib import Path
+from typing import Any, Sequence
+
+log = logging.getLogger("cssat")
+
+__all__ = ["collect", "summarize", "SummaryCallback", "main"]
+
+
+def _parse_overrides(path: Path) -> dict[str, str]:
+    import yaml
+
+    out: dict[str, str] = {}
+    for item in yaml.safe_load(path.read_text()) or []:
+        key, _, value = str(item).partition("=")
+        out[key.lstrip("+~")] = value
+    return out
+
+
+def _number(text: Any) -> Any:
+    if not isinstance(text, str):
+        return text
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return text
+
+
+def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
+    """Rows of a sweep (one per job directory, in job order) and the override keys that vary."""
+    sweep_dir = Path(sweep_dir)
+    jobs = sorted(
+        (p.parent.parent for p in sweep_dir.glob("*/.hydra/overrides.yaml")),
+        key=lambda p: (0, int(p.name)) if p.name.isdigit() else (1, p.name),
+    )
+    rows, overrides = [], []
+    for job in jobs:
+        ov = _parse_overrides(job / ".hydra" / "overrides.yaml")
+        overrides.append(ov)
+        row: dict[str, Any] = {"job": job.name}
+        metrics_path = job / "metrics.json"
+        if metrics_path.exists():
+            metrics = json.loads(metrics_path.read_text())
+            for k, v in metrics.items():
+                if v is None or isinstance(v, (int, float, str, bool)):
+                    row[k] = v
+        else:
+            row["status"] = "missing"
+        rows.append(row)
+    keys: list[str] = []
+    for ov in overrides:
+        for k in ov:
+            if k not in keys:
+                keys.append(k)
+    swept = [k for k in keys if len({ov.get(k) for ov in overrides}) > 1]
+    for row, ov in zip(rows, overrides):
+        for k in swept:
+            row[k] = _number(ov.get(k))
+    return rows, swept
+
+
+def summarize(sweep_dir: str | Path, metric: str = "psnr") -> tuple[Path, Path | None]:
+    """Write ``summary.csv`` and ``summary_<metric>.png`` into ``sweep_dir``; return their paths."""
+    from cssat.experiments.common import _atomic, save_figure
+
+    sweep_dir = Path(sweep_dir)
+    rows, swept = collect(sweep_dir)
+    first = ["job", *swept, "status", metric]
+    cols = first + sorted({k for r in rows for k in r} - set(first))
+
+    def w(tmp):
+        with open(tmp, "w", newline="") as f:
+            wr = csv.DictWriter(f, fieldnames=cols, restval="")
+            wr.writeheader()
+            for r in rows:
+                wr.writerow(r)
+
+    csv_path = sweep_dir / "summary.csv"
+    _atomic(csv_path, w)
+    fig = _plot(rows, swept, metric)
+    png = None
+    if fig is not None:
+        png = sweep_dir / f"summary_{metric}.png"
+        save_figure(fig, png)
+    n_ok = sum(r.get("status") == "ok" for r in rows)
+    log.info("sweep summary: %d jobs (%d ok) -> %s", len(rows), n_ok, csv_path)
+    return csv_path, png
+
+
+def _axis(rows: Sequence[dict], key: str) -> tuple[list[float], str]:
+    """Values of a swept key for the plot; ``cs.m`` as the measurement ratio m/N and
+    ``reference.n`` as N/n_pixel when the rows know ``n_pixels``."""
+    vals = []
+    for r in rows:
+        v = r.get(key)
+        npix = r.get("n_pixels")
+        if key in ("cs.m", "reference.n") and isinstance(v, (int, float)) and npix:
+            v = v / npix
+        vals.append(v)
+    label = {"cs.m": "m / N (measurement ratio)", "reference.n": "N_ref / n_pixel"}.get(key, key)
+    return vals, label
+
+
+def _plot(rows: list[dict], swept: list[str], metric: str):
+    ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get(metric), (int, float))]
+    if not ok or not swept:
+        return None
+    numeric = [k for k in swept if all(isinstance(r.get(k), (int, float)) for r in ok)]
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if len(numeric) >= 2:  # a phase-transition map over the first two numeric keys
+        kx, ky = numeric[0], numeric[1]
+        xs, lx = _axis(ok, kx)
+        ys, ly = _axis(ok, ky)
+        ux, uy = sorted(set(xs)), sorted(set(ys))
+        grid = [[math.nan] * len(ux) for _ in uy]
+        for x, y, r in zip(xs, ys, ok):
+            grid[uy.index(y)][ux.index(x)] = r[metric]
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(len(ux)), [f"{v:.3g}" for v in ux])
+        ax.set_yticks(range(len(uy)), [f"{v:.3g}" for v in uy])
+        for i, row in enumerate(grid):
+            for j, v in enumerate(row):
+                if not math.isnan(v):
+                    ax.text(j, i, f"{v:.1f}", ha="center", va="center", color="w", fontsize=8)
+        ax.set_xlabel(lx)
+        ax.set_ylabel(ly)
+        fig.colorbar(im, ax=ax, label=f"{metric} (dB)" if "psnr" in metric else metric)
+        ax.set_title(f"{metric} over {kx} × {ky}", fontsize=10)
+        return fig
+    key = numeric[0] if numeric else swept[0]
+    xs, label = _axis(ok, key)
+    others = [k for k in swept if k != key]
+    groups: dict[tuple, list[int]] = {}
+    for i, r in enumerate(ok):
+        groups.setdefault(tuple(r.get(k) for k in others), []).append(i)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for g, idx in groups.items():
+        idx = sorted(idx, key=lambda i: (str(type(xs[i])), xs[i]))
+        name = ", ".join(f"{k}={v}" for k, v in zip(others, g))
+        ax.plot([xs[i] for i in idx], [ok[i][metric] for i in idx], "o-", label=f"{metric} {name}".strip())
+        den = f"{metric}_denoised"
+        if all(isinstance(ok[i].get(den), (int, float)) for i in idx):
+            ax.plot([xs[i] for i in idx], [ok[i][den] for i in idx], "s--", label=f"{den} {name}".strip())
+    ax.set_xlabel(label)
+    ax.set_ylabel(f"{metric} (dB)" if "psnr" in metric else metric)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"{metric} against {key}", fontsize=10)
+    return fig
+
+
+try:  # the callback needs hydra, which cssat depends on; keep the import cheap for the CLI
+    from hydra.experimental.callback import Callback
+except ImportError:  # pragma: no cover
+    Callback = object  # type: ignore[misc,assignment]
+
+
+class SummaryCallback(Callback):
+    """Hydra callback: :func:`summarize` the sweep directory when a multirun ends."""
+
+    def __init__(self, metric: str = "psnr"):
+        self.metric = metric
+
+    def on_multirun_end(self, config, **kwargs) -> None:
+        try:
+            summarize(config.hydra.sweep.dir, self.metric)
+        except Exception as err:  # a summary must never turn a finished sweep into a failure
+            log.error("sweep summary failed: %s (run cssat-summarize %s)", err, config.hydra.sweep.dir)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``cssat-summarize <sweep dir> [--metric psnr]``."""
+    ap = argparse.ArgumentParser(prog="cssat-summarize", description="Summarise a cssat sweep directory.")
+    ap.add_argument("sweep_dir", help="a multirun directory (outputs/multirun/<date>/<time>)")
+    ap.add_argument("--metric", default="psnr", help="metric to plot (default: psnr)")
+    args = ap.parse_args(argv)
+    d = Path(args.sweep_dir)
+    if not d.is_dir():
+        ap.error(f"sweep_dir: {d} is not a directory")
+    if not any(d.glob("*/.hydra/overrides.yaml")):
+        ap.error(f"sweep_dir: no job directories (*/.hydra/overrides.yaml) in {d}")
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    csv_path, png = summarize(d, args.metric)
+    print(csv_path)
+    if png:
+        print(png)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

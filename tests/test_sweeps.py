@@ -1,0 +1,94 @@
+"""Named sweeps, launchers, sweep summaries and resuming (issue 6)."""
+
+import csv
+import json
+import subprocess
+import sys
+
+import pytest
+from hydra import compose, initialize_config_module
+
+from cssat.summary import collect, main as summarize_main
+
+EXE = [sys.executable, "-m", "cssat.app", "-m"]
+
+
+def compose_hydra(*overrides):
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides), return_hydra_config=True)
+
+
+def rows_of(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.mark.parametrize(
+    "sweep, params",
+    [
+        ("m", {"experiment": "sim1", "cs.m": "1444,4096,13225"}),
+        ("n_refs", {"experiment": "sim3", "reference.n": "1024,2048,3277"}),
+        ("m_n", {"experiment": "sim3", "cs.m": "1024,2048,3277", "reference.n": "1024,2048,3277"}),
+        ("m_k", {"experiment": "sim1", "cs.m": "1444,4096,13225", "solver.k_ratio": "0.05,0.1,0.25"}),
+    ],
+)
+def test_named_sweeps_compose(sweep, params):
+    cfg = compose_hydra(f"sweep={sweep}")
+    assert dict(cfg.hydra.sweeper.params) == params
+
+
+def test_launcher_configs_compose():
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    slurm = compose_hydra("launcher=slurm")
+    assert "SlurmLauncher" in slurm.hydra.launcher._target_
+    assert slurm.hydra.launcher.cpus_per_task == slurm.threads
+    local = compose_hydra("launcher=submitit_local")
+    assert "LocalLauncher" in local.hydra.launcher._target_
+    joblib = compose_hydra("launcher=local")
+    assert "JoblibLauncher" in joblib.hydra.launcher._target_
+    assert joblib.threads * joblib.hydra.launcher.n_jobs <= 2  # no oversubscription of 2 cores
+
+
+def test_joblib_sweep_2x2_summary_failed_job_and_resume(tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    sweep = tmp_path / "sweep"
+    args = ["target.size=16", "cs.m=0,120", "solver.k_ratio=0.05,0.2", "launcher=local",
+            "denoiser.n_iter=2", f"hydra.sweep.dir={sweep}"]
+    res = subprocess.run(EXE + args, capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr
+    rows = rows_of(sweep / "summary.csv")
+    assert len(rows) == 4
+    assert {(r["cs.m"], r["solver.k_ratio"]) for r in rows} == {(m, k) for m in ("0", "120") for k in ("0.05", "0.2")}
+    status = {r["cs.m"]: set() for r in rows}
+    for r in rows:
+        status[r["cs.m"]].add(r["status"])
+    assert status == {"0": {"failed"}, "120": {"ok"}}  # cs.m=0 is refused, and is a row, not a gap
+    assert all(float(r["psnr"]) > 10 for r in rows if r["status"] == "ok")
+    assert (sweep / "summary_psnr.png").stat().st_size > 1000
+    # resume: the same sweep into the same directory skips the complete jobs and redoes the failed
+    before = {r["job"]: json.loads((sweep / r["job"] / "metrics.json").read_text())["seconds"] for r in rows}
+    res = subprocess.run(EXE + args, capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.count("skipped") + res.stdout.count("skipped") == 2
+    after = {r["job"]: json.loads((sweep / r["job"] / "metrics.json").read_text())["seconds"] for r in rows_of(sweep / "summary.csv")}
+    for job, sec in before.items():
+        ok = next(r for r in rows if r["job"] == job)["status"] == "ok"
+        assert (after[job] == sec) == ok
+
+
+def test_standalone_summary_reports_missing_jobs(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    res = subprocess.run(EXE + ["target.size=16", "cs.m=60,120", "threads=1", "denoiser=none", f"hydra.sweep.dir={sweep}"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr
+    (sweep / "1" / "metrics.json").unlink()  # an interrupted job
+    (sweep / "summary.csv").unlink()
+    assert summarize_main([str(sweep)]) == 0
+    rows = rows_of(sweep / "summary.csv")
+    assert [r["status"] for r in rows] == ["ok", "missing"] and [r["cs.m"] for r in rows] == ["60", "120"]
+    _, swept = collect(sweep)
+    assert swept == ["cs.m"]
+    with pytest.raises(SystemExit):
+        summarize_main([str(tmp_path / "nowhere")])
+    assert "sweep_dir" in capsys.readouterr().err
