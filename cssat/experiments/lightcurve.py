@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat.experiments.common import require_int, save_figure, write_npz
+from cssat.experiments.common import require_int, save_figure, torch_device, write_npz
 
 log = logging.getLogger("cssat")
 
@@ -75,7 +75,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     timings["seconds_light_curve"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    images = render(mesh, lc.sun, lc.observer, size, fov_m=fov, brightness=lc.facets, dtype=torch.float64)
+    # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
+    device = torch_device(cfg.get("device", "cpu"))
+    images = render(mesh, lc.sun, lc.observer, size, fov_m=fov, brightness=lc.facets.to(device), dtype=torch.float64).cpu()
     timings["seconds_render"] = time.perf_counter() - t
 
     t = time.perf_counter()
