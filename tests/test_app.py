@@ -188,3 +188,11 @@ def test_memory_estimate_stops_a_run_that_does_not_fit(tmp_path, exp):
         run_experiment(cfg_of(f"experiment={exp}", "memory_limit_gb=0.5", "threads=1"), tmp_path)
     saved = json.loads((tmp_path / "metrics.json").read_text())
     assert saved["status"] == "failed" and not (tmp_path / "arrays.npz").exists()
+
+
+@pytest.mark.parametrize("solver", ["l1", "tv"])
+def test_sim1_with_convex_solvers(tmp_path, solver):
+    met = run_experiment(cfg_of(*SMALL, f"solver={solver}", "denoiser=none"), tmp_path)
+    assert met["solver"] == solver and met["solver_iterations"] >= 1 and met["psnr"] > 15
+    with pytest.raises(ValueError, match="^solver.lam"):
+        run_experiment(cfg_of(*SMALL, f"solver={solver}", "solver.lam=-1"), tmp_path / "bad")

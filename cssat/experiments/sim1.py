@@ -67,6 +67,20 @@ def solver_settings(solver: Any, m: int, n_pixels: int) -> tuple[int, float | No
     return require_int(k, "solver.n_nonzero_coefs", 1, m), None
 
 
+#: reconstruction solvers of Simulation 1 (the ``solver`` config group)
+SIM1_SOLVERS = ("omp", "l1", "tv")
+
+
+def convex_settings(solver: Any) -> dict[str, Any]:
+    """``lam`` (relative to ‖Aᵀy‖∞), ``max_iter``, ``tol`` and ``nonneg`` of the ``l1``/``tv`` solvers."""
+    return {
+        "lam": require_float(solver.get("lam", 1e-3), "solver.lam", lo=0.0),
+        "max_iter": require_int(solver.get("max_iter", 500), "solver.max_iter", 1),
+        "tol": require_float(solver.get("tol", 1e-5), "solver.tol", lo=0.0),
+        "nonneg": bool(solver.get("nonneg", True)),
+    }
+
+
 def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     import torch
 
@@ -81,7 +95,13 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     N = n * n
     m = require_int(cfg.cs.m, "cs.m", 1, N)
     noise = require_float(cfg.cs.get("noise", 0.0), "cs.noise", lo=0.0)
-    K, tol = solver_settings(cfg.solver, m, N)
+    solver_name = cfg.solver.get("name", "omp")
+    if solver_name not in SIM1_SOLVERS:
+        raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {solver_name!r}")
+    if solver_name == "omp":
+        K, tol = solver_settings(cfg.solver, m, N)
+    else:
+        conv = convex_settings(cfg.solver)
     x = load_target(str(cfg.target.image), n)
     timings: dict[str, float] = {}
 
@@ -98,15 +118,45 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     timings["seconds_measure"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    A = sensing_dictionary(phi, (n, n))
-    del phi
-    timings["seconds_dictionary"] = time.perf_counter() - t
+    solver_metrics: dict[str, Any] = {"solver": solver_name}
+    gamma = None
+    if solver_name == "tv":  # TV works on the image itself: Φ, not ΦΨ
+        from cssat.sparse.solvers import tv_pdhg
 
-    t = time.perf_counter()
-    gamma, info = batch_omp(A, y, n_nonzero_coefs=K, tol=tol, return_info=True)
-    timings["seconds_omp"] = time.perf_counter() - t
-    del A
-    x_raw = DCT((n, n))(gamma).reshape(n, n)
+        x_raw, sinfo = tv_pdhg(phi, y, (n, n), lam=conv["lam"], nonneg=conv["nonneg"], max_iter=conv["max_iter"],
+                               tol=conv["tol"], return_info=True)
+        del phi
+    else:
+        A = sensing_dictionary(phi, (n, n))
+        del phi
+        timings["seconds_dictionary"] = time.perf_counter() - t
+        t = time.perf_counter()
+        if solver_name == "omp":
+            gamma, info = batch_omp(A, y, n_nonzero_coefs=K, tol=tol, return_info=True)
+            solver_metrics.update({
+                "solver_n_nonzero_coefs": K,
+                "solver_tol": tol,
+                "solver_epsilon": math.sqrt(tol) if tol is not None else None,
+                "omp_atoms": int(info.n_iter),
+                "omp_path": info.path,
+                "relative_residual": float(math.sqrt(float(info.residual_sq)) / max(float(y.norm()), 1e-300)),
+            })
+        else:
+            from cssat.sparse.solvers import fista_l1
+
+            gamma, sinfo = fista_l1(A, y, lam=conv["lam"], max_iter=conv["max_iter"], tol=conv["tol"], return_info=True)
+        del A
+        x_raw = DCT((n, n))(gamma).reshape(n, n)
+    if solver_name != "omp":
+        solver_metrics.update({
+            "solver_lam": conv["lam"], "solver_lam_abs": float(sinfo.lam[0]), "solver_max_iter": conv["max_iter"],
+            "solver_tol": conv["tol"], "solver_iterations": sinfo.n_iter, "solver_converged": sinfo.converged,
+            "solver_objective": sinfo.objective[-1] if sinfo.objective else None,
+        })
+        log.info("%s: %d iterations (converged: %s)", solver_name, sinfo.n_iter, sinfo.converged)
+    timings["seconds_solver"] = time.perf_counter() - t
+    if solver_name == "omp":
+        timings["seconds_omp"] = timings["seconds_solver"]
     x_hat = x_raw.clamp(0.0, 1.0)  # back to the image range
 
     rec = x_hat.double().cpu().numpy()
@@ -124,13 +174,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         "n": n,
         "n_pixels": N,
         "measurement_ratio": m / N,
-        "solver": "omp",
-        "solver_n_nonzero_coefs": K,
-        "solver_tol": tol,
-        "solver_epsilon": math.sqrt(tol) if tol is not None else None,
-        "omp_atoms": int(info.n_iter),
-        "omp_path": info.path,
-        "relative_residual": float(math.sqrt(float(info.residual_sq)) / max(float(y.norm()), 1e-300)),
+        **solver_metrics,
         "noise": noise,
         "seed": seed,
         "dtype": str(cfg.get("dtype", "float32")),
@@ -146,12 +190,13 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         reconstruction=rec,
         reconstruction_unclipped=x_raw,
         denoised=den,
-        coefficients=gamma,
+        **({"coefficients": gamma} if gamma is not None else {}),
     )
     _figure(y.cpu().numpy(), rec, den, x, metrics, out_dir / "figures" / "fig9_sim1.png")
     log.info(
-        "sim1: PSNR %.2f dB (denoised %.2f dB, %s), SSIM %.3f, m=%d (%.0f%% of N=%d), K=%d, %.1f s",
-        metrics["psnr"], metrics["psnr_denoised"], metrics["denoiser"], metrics["ssim"], m, 100 * m / N, N, metrics["omp_atoms"],
+        "sim1: PSNR %.2f dB (denoised %.2f dB, %s), SSIM %.3f, m=%d (%.0f%% of N=%d), %s, %.1f s",
+        metrics["psnr"], metrics["psnr_denoised"], metrics["denoiser"], metrics["ssim"], m, 100 * m / N, N,
+        f"K={metrics['omp_atoms']}" if solver_name == "omp" else f"{solver_name} {metrics['solver_iterations']} it.",
         sum(timings.values()),
     )
     return metrics
@@ -185,9 +230,10 @@ def _figure(y: np.ndarray, rec: np.ndarray, den: np.ndarray, truth: np.ndarray, 
         ax.set_title(title, fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])
-    fig.suptitle(
-        f"Simulation 1: batch-OMP, K = {metrics['solver_n_nonzero_coefs']}"
-        + (f", ε = {metrics['solver_epsilon']:.3g}" if metrics["solver_epsilon"] is not None else ""),
-        fontsize=10,
-    )
+    if metrics["solver"] == "omp":
+        title = f"Simulation 1: batch-OMP, K = {metrics['solver_n_nonzero_coefs']}" + (
+            f", ε = {metrics['solver_epsilon']:.3g}" if metrics["solver_epsilon"] is not None else "")
+    else:
+        title = f"Simulation 1: {metrics['solver']}, λ = {metrics['solver_lam']:g}·‖Aᵀy‖∞, {metrics['solver_iterations']} iterations"
+    fig.suptitle(title, fontsize=10)
     save_figure(fig, path)
