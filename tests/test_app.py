@@ -196,3 +196,10 @@ def test_sim1_with_convex_solvers(tmp_path, solver):
     assert met["solver"] == solver and met["solver_iterations"] >= 1 and met["psnr"] > 15
     with pytest.raises(ValueError, match="^solver.lam"):
         run_experiment(cfg_of(*SMALL, f"solver={solver}", "solver.lam=-1"), tmp_path / "bad")
+
+
+def test_sim1_with_plug_and_play(tmp_path):
+    met = run_experiment(cfg_of(*SMALL, "solver=pnp", "solver.max_iter=4", "solver.ksvd_iter=1", "denoiser=none"), tmp_path)
+    assert met["solver"] == "pnp" and met["solver_iterations"] == 4 and met["psnr"] > 12
+    with pytest.raises(ValueError, match="^solver.denoiser"):
+        run_experiment(cfg_of(*SMALL, "solver=pnp", "solver.denoiser=bm3d"), tmp_path / "bad")

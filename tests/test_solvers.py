@@ -79,3 +79,30 @@ def test_bad_parameters_are_refused(call, field):
     y = torch.randn(10, dtype=torch.float64)
     with pytest.raises(ValueError, match=f"^{field}"):
         call(A, y)
+
+
+def test_pnp_with_a_soft_threshold_denoiser_is_ista_and_matches_fista():
+    """PnP-PGD whose 'denoiser' is soft thresholding in the DCT at λ/L is ISTA for the ℓ1
+    problem, so it must reach FISTA's minimiser."""
+    from cssat.sparse import DCT
+    from cssat.sparse.solvers import pnp_pgd
+
+    n = 8
+    psi = DCT((n, n))
+    g = torch.Generator().manual_seed(6)
+    phi = torch.randn(40, n * n, generator=g, dtype=torch.float64) / 8
+    img = psi(torch.where(torch.rand(n * n, generator=g) < 0.1, torch.randn(n * n, generator=g, dtype=torch.float64), 0.0)[None])[0]
+    y = phi @ img
+    A = phi @ psi.matrix(dtype=torch.float64)
+    gamma, info = fista_l1(A, y, lam=0.05, max_iter=20000, tol=1e-13, return_info=True)
+    L = operator_norm_sq(phi)
+    thr = float(info.lam[0]) / L
+
+    def soft(x, s):
+        c = psi.adjoint(x.reshape(1, -1))
+        return psi(torch.sign(c) * torch.clamp(c.abs() - s, min=0)).reshape(n, n)
+
+    x, pinfo = pnp_pgd(phi, y, (n, n), soft, sigmas=[thr] * 20000, return_info=True)
+    torch.testing.assert_close(x.reshape(-1), psi(gamma[None])[0], atol=1e-6, rtol=0)
+    with pytest.raises(ValueError, match="^sigmas"):
+        pnp_pgd(phi, y, (n, n), soft, sigmas=[])

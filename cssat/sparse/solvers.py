@@ -18,7 +18,7 @@ from torch import Tensor
 
 from cssat.sparse.operators import LinearOperator, MatrixOperator
 
-__all__ = ["fista_l1", "tv_pdhg", "operator_norm_sq", "SolverInfo", "tv_gradient", "tv_divergence"]
+__all__ = ["fista_l1", "tv_pdhg", "pnp_pgd", "operator_norm_sq", "SolverInfo", "tv_gradient", "tv_divergence"]
 
 log = logging.getLogger("cssat")
 
@@ -203,4 +203,45 @@ def tv_pdhg(
     out = x[0] if squeeze else x
     if return_info:
         return out, SolverInfo(k, objective, converged, lam_abs.flatten(), step)
+    return out
+
+
+def pnp_pgd(
+    phi,
+    y: Tensor,
+    shape: Sequence[int],
+    denoiser,
+    *,
+    sigmas: Sequence[float],
+    x0: Tensor | None = None,
+    return_info: bool = False,
+):
+    """Plug-and-play proximal gradient (Venkatakrishnan et al. 2013; PnP-ISTA):
+    ``xₖ₊₁ = D(xₖ − Φᵀ(Φxₖ − y)/L, σₖ)`` with a decreasing noise level ``σₖ`` (image units).
+
+    ``denoiser(image (H, W), sigma) -> image`` is any denoiser — sparse K-SVD, TV, wavelets, BM3D
+    — which replaces the proximal step of a regulariser. ``phi (m, N)``, ``y (m,)``; ``x0`` the
+    start (default ``0``). One iteration per ``σ`` in ``sigmas``. Returns ``(H, W)`` (and a
+    :class:`SolverInfo` whose objective is the data misfit ``½‖Φx − y‖²``).
+    """
+    op = _as_operator(phi)
+    H, W = (int(s) for s in shape)
+    if H * W != op.n_in:
+        raise ValueError(f"shape: {tuple(shape)} does not match the operator's {op.n_in} pixels")
+    if y.ndim != 1 or y.shape[0] != op.n_out:
+        raise ValueError(f"y: expected shape ({op.n_out},), got {tuple(y.shape)}")
+    sigmas = [float(s) for s in sigmas]
+    if not sigmas or any(not (math.isfinite(s) and s >= 0) for s in sigmas):
+        raise ValueError(f"sigmas: expected a non-empty list of noise levels >= 0, got {sigmas}")
+    L = operator_norm_sq(op, dtype=y.dtype, device=y.device)
+    x = torch.zeros(H * W, dtype=y.dtype, device=y.device) if x0 is None else x0.reshape(-1).to(y)
+    misfit = []
+    for s in sigmas:
+        v = x - op.adjoint((op(x[None]) - y[None]))[0] / L
+        x = torch.as_tensor(denoiser(v.reshape(H, W), s), dtype=y.dtype, device=y.device).reshape(-1)
+        r = op(x[None])[0] - y
+        misfit.append(float(0.5 * (r * r).sum()))
+    out = x.reshape(H, W)
+    if return_info:
+        return out, SolverInfo(len(sigmas), misfit, True, torch.tensor(sigmas), 1.0 / L)
     return out
