@@ -203,3 +203,18 @@ def test_sim1_with_plug_and_play(tmp_path):
     assert met["solver"] == "pnp" and met["solver_iterations"] == 4 and met["psnr"] > 12
     with pytest.raises(ValueError, match="^solver.denoiser"):
         run_experiment(cfg_of(*SMALL, "solver=pnp", "solver.denoiser=bm3d"), tmp_path / "bad")
+
+
+def test_solvers_experiment_compares_every_solver(tmp_path):
+    cfg = cfg_of("experiment=solvers", "target.size=16", "comparison.m=[120,200]", "threads=1",
+                 "comparison.solvers.pnp.max_iter=3", "comparison.solvers.pnp.ksvd_iter=1", "denoiser.n_iter=2")
+    met = run_experiment(cfg, tmp_path)
+    with open(tmp_path / "comparison.csv", newline="") as f:
+        import csv
+
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 * 5 and {r["solver"] for r in rows} == {"omp", "omp+ksvd", "l1", "tv", "pnp"}
+    for r in rows:
+        assert met[f"psnr_{r['solver']}_m{r['m']}"] == pytest.approx(float(r["psnr"]))
+    assert met["best_m200"] in {"omp", "omp+ksvd", "l1", "tv", "pnp"}
+    assert (tmp_path / "figures" / "solvers.png").stat().st_size > 1000

@@ -26,6 +26,7 @@ EXPERIMENTS = {
     "sim1": "cssat.experiments.sim1",
     "sim2": "cssat.experiments.sim2",
     "sim3": "cssat.experiments.sim3",
+    "solvers": "cssat.experiments.solvers",
     "lightcurve": "cssat.experiments.lightcurve",
 }
 

@@ -115,12 +115,79 @@ def _pnp(solver: Any, phi, y, n: int, seed: int):
     return pnp_pgd(phi, y, (n, n), den, sigmas=sig, x0=x0, return_info=True)
 
 
+def reconstruct(solver: Any, phi, y, n: int, seed: int = 0):
+    """Reconstruct an ``n × n`` image from ``y = Φx`` with the ``solver`` config (one of
+    :data:`SIM1_SOLVERS`). ``phi`` is the sensing operator (kept by the caller).
+
+    Returns ``(x_raw (n, n), γ or None, solver metrics, timings)``; ``x_raw`` is not clipped.
+    """
+    from cssat.sparse import DCT, batch_omp, sensing_dictionary
+
+    name = solver.get("name", "omp")
+    if name not in SIM1_SOLVERS:
+        raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {name!r}")
+    m, N = int(y.shape[0]), n * n
+    timings: dict[str, float] = {}
+    metrics: dict[str, Any] = {"solver": name}
+    gamma = None
+    t = time.perf_counter()
+    if name == "pnp":
+        x_raw, sinfo = _pnp(solver, phi, y, n, seed)
+    elif name == "tv":  # TV works on the image itself: Φ, not ΦΨ
+        from cssat.sparse.solvers import tv_pdhg
+
+        conv = convex_settings(solver)
+        x_raw, sinfo = tv_pdhg(phi, y, (n, n), lam=conv["lam"], nonneg=conv["nonneg"], max_iter=conv["max_iter"],
+                               tol=conv["tol"], return_info=True)
+    else:
+        if name == "omp":
+            K, tol = solver_settings(solver, m, N)
+        else:
+            conv = convex_settings(solver)
+        A = sensing_dictionary(phi, (n, n))
+        timings["seconds_dictionary"] = time.perf_counter() - t
+        t = time.perf_counter()
+        if name == "omp":
+            gamma, info = batch_omp(A, y, n_nonzero_coefs=K, tol=tol, return_info=True)
+            metrics.update({
+                "solver_n_nonzero_coefs": K,
+                "solver_tol": tol,
+                "solver_epsilon": math.sqrt(tol) if tol is not None else None,
+                "omp_atoms": int(info.n_iter),
+                "omp_path": info.path,
+                "relative_residual": float(math.sqrt(float(info.residual_sq)) / max(float(y.norm()), 1e-300)),
+            })
+        else:
+            from cssat.sparse.solvers import fista_l1
+
+            gamma, sinfo = fista_l1(A, y, lam=conv["lam"], max_iter=conv["max_iter"], tol=conv["tol"], return_info=True)
+        del A
+        x_raw = DCT((n, n))(gamma).reshape(n, n)
+    if name == "pnp":
+        metrics.update({
+            "solver_denoiser": str(solver.get("denoiser", "sparse_ksvd")), "solver_iterations": sinfo.n_iter,
+            "solver_sigma_start": float(sinfo.lam[0]), "solver_sigma_end": float(sinfo.lam[-1]),
+            "solver_objective": sinfo.objective[-1],
+        })
+    elif name != "omp":
+        metrics.update({
+            "solver_lam": conv["lam"], "solver_lam_abs": float(sinfo.lam[0]), "solver_max_iter": conv["max_iter"],
+            "solver_tol": conv["tol"], "solver_iterations": sinfo.n_iter, "solver_converged": sinfo.converged,
+            "solver_objective": sinfo.objective[-1] if sinfo.objective else None,
+        })
+        log.info("%s: %d iterations (converged: %s)", name, sinfo.n_iter, sinfo.converged)
+    timings["seconds_solver"] = time.perf_counter() - t
+    if name == "omp":
+        metrics["seconds_omp"] = timings["seconds_solver"]  # the name earlier versions wrote
+    return x_raw, gamma, metrics, timings
+
+
 def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     import torch
 
     from cssat.data import load_target
     from cssat.metrics import psnr, ssim
-    from cssat.sparse import DCT, GaussianSensing, batch_omp, sensing_dictionary
+    from cssat.sparse import GaussianSensing
 
     dtype = torch_dtype(cfg.get("dtype", "float32"))
     device = torch_device(cfg.get("device", "cpu"))
@@ -133,9 +200,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     if solver_name not in SIM1_SOLVERS:
         raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {solver_name!r}")
     if solver_name == "omp":
-        K, tol = solver_settings(cfg.solver, m, N)
-    else:
-        conv = convex_settings(cfg.solver)
+        solver_settings(cfg.solver, m, N)  # refuse bad settings before any work
+    elif solver_name in ("l1", "tv"):
+        convex_settings(cfg.solver)
     x = load_target(str(cfg.target.image), n)
     timings: dict[str, float] = {}
 
@@ -151,55 +218,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         raise ValueError("y: the light curve contains NaN or Inf")
     timings["seconds_measure"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    solver_metrics: dict[str, Any] = {"solver": solver_name}
-    gamma = None
-    if solver_name == "pnp":
-        x_raw, sinfo = _pnp(cfg.solver, phi, y, n, seed)
-        del phi
-    elif solver_name == "tv":  # TV works on the image itself: Φ, not ΦΨ
-        from cssat.sparse.solvers import tv_pdhg
-
-        x_raw, sinfo = tv_pdhg(phi, y, (n, n), lam=conv["lam"], nonneg=conv["nonneg"], max_iter=conv["max_iter"],
-                               tol=conv["tol"], return_info=True)
-        del phi
-    else:
-        A = sensing_dictionary(phi, (n, n))
-        del phi
-        timings["seconds_dictionary"] = time.perf_counter() - t
-        t = time.perf_counter()
-        if solver_name == "omp":
-            gamma, info = batch_omp(A, y, n_nonzero_coefs=K, tol=tol, return_info=True)
-            solver_metrics.update({
-                "solver_n_nonzero_coefs": K,
-                "solver_tol": tol,
-                "solver_epsilon": math.sqrt(tol) if tol is not None else None,
-                "omp_atoms": int(info.n_iter),
-                "omp_path": info.path,
-                "relative_residual": float(math.sqrt(float(info.residual_sq)) / max(float(y.norm()), 1e-300)),
-            })
-        else:
-            from cssat.sparse.solvers import fista_l1
-
-            gamma, sinfo = fista_l1(A, y, lam=conv["lam"], max_iter=conv["max_iter"], tol=conv["tol"], return_info=True)
-        del A
-        x_raw = DCT((n, n))(gamma).reshape(n, n)
-    if solver_name == "pnp":
-        solver_metrics.update({
-            "solver_denoiser": str(cfg.solver.get("denoiser", "sparse_ksvd")), "solver_iterations": sinfo.n_iter,
-            "solver_sigma_start": float(sinfo.lam[0]), "solver_sigma_end": float(sinfo.lam[-1]),
-            "solver_objective": sinfo.objective[-1],
-        })
-    elif solver_name != "omp":
-        solver_metrics.update({
-            "solver_lam": conv["lam"], "solver_lam_abs": float(sinfo.lam[0]), "solver_max_iter": conv["max_iter"],
-            "solver_tol": conv["tol"], "solver_iterations": sinfo.n_iter, "solver_converged": sinfo.converged,
-            "solver_objective": sinfo.objective[-1] if sinfo.objective else None,
-        })
-        log.info("%s: %d iterations (converged: %s)", solver_name, sinfo.n_iter, sinfo.converged)
-    timings["seconds_solver"] = time.perf_counter() - t
-    if solver_name == "omp":
-        solver_metrics["seconds_omp"] = timings["seconds_solver"]  # the name earlier versions wrote
+    x_raw, gamma, solver_metrics, solver_times = reconstruct(cfg.solver, phi, y, n, seed)
+    del phi
+    timings.update(solver_times)
     x_hat = x_raw.clamp(0.0, 1.0)  # back to the image range
 
     rec = x_hat.double().cpu().numpy()
