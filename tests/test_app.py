@@ -218,3 +218,17 @@ def test_solvers_experiment_compares_every_solver(tmp_path):
         assert met[f"psnr_{r['solver']}_m{r['m']}"] == pytest.approx(float(r["psnr"]))
     assert met["best_m200"] in {"omp", "omp+ksvd", "l1", "tv", "pnp"}
     assert (tmp_path / "figures" / "solvers.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("exp", ["sim2", "sim3"])
+def test_reference_experiments_take_any_solver(tmp_path, exp):
+    over = [f"experiment={exp}", "target.size=16", "cs.m=200", "threads=1", "solver=tv",
+            f"cache_dir={tmp_path / 'cache'}", "denoiser=none"]
+    if exp == "sim2":
+        over.append("dtype=float64")
+    else:
+        over += ["reference.pool=300", "reference.n=200", "reference.repeats=2", "reference.n_nonzero_coefs=10",
+                 "reference.baseline=false", "denoiser3d.name=none"]
+    met = run_experiment(cfg_of(*over), tmp_path / "run")
+    assert met["solver"] == "tv"
+    assert met["psnr"] > 15 if exp == "sim2" else met["psnr_best"] > 10

@@ -65,7 +65,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.denoisers import apply_denoiser
     from cssat.experiments.refsets import Progress, check_memory, reference_set
-    from cssat.experiments.sim1 import solver_settings
+    from cssat.experiments.sim1 import SIM1_SOLVERS, reconstruct, solver_settings
     from cssat.experiments.sim2 import _peak_rss
     from cssat.metrics import psnr
     from cssat.reference import estimate_sensing_min_norm, estimate_sensing_sparse, relative_error
@@ -85,13 +85,16 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     ref_seed = seed + 1000 if ref_seed is None else require_int(ref_seed, "reference.seed", 0)
     baseline = bool(ref.get("baseline", True))
     t0, tol0 = settings(cfg, m, N)
-    K, tol = solver_settings(cfg.solver, m, N)
+    solver_name = cfg.solver.get("name", "omp")
+    if solver_name not in SIM1_SOLVERS:
+        raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {solver_name!r}")
+    K, tol = solver_settings(cfg.solver, m, N) if solver_name == "omp" else (None, None)
     itemsize = torch.finfo(dtype).bits // 8
     est, parts = peak_memory(n, m, n_ref, pool, itemsize)
     check_memory(est, parts, cfg, "lower target.size, reference.pool or cs.m, or use dtype=float32")
     den3_cfg = cfg.get("denoiser3d")
     x = load_target(str(cfg.target.image), n)
-    timings: dict[str, float] = {"seconds_estimate": 0.0, "seconds_omp": 0.0, "seconds_denoise": 0.0,
+    timings: dict[str, float] = {"seconds_estimate": 0.0, "seconds_solver": 0.0, "seconds_denoise": 0.0,
                                  "seconds_baseline": 0.0}
 
     t = time.perf_counter()
@@ -117,11 +120,15 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         )
         timings["seconds_estimate"] += time.perf_counter() - t
         row = {"phi_relative_error": relative_error(phi_hat, phi), "estimate_mean_atoms": float(info.n_iter.double().mean())}
-        del phi_hat
         t = time.perf_counter()
-        gamma = batch_omp(info.coefficients, y, n_nonzero_coefs=K, tol=tol)  # Φ̂Ψ = Âᵀ
-        x_r = psi(gamma).reshape(n, n).clamp(0, 1).double().cpu().numpy()
-        timings["seconds_omp"] += time.perf_counter() - t
+        if solver_name == "omp":
+            gamma = batch_omp(info.coefficients, y, n_nonzero_coefs=K, tol=tol)  # Φ̂Ψ = Âᵀ
+            x_r = psi(gamma).reshape(n, n).clamp(0, 1).double().cpu().numpy()
+        else:  # l1 / tv / pnp on the estimated Φ̂
+            x_raw, _, _, _ = reconstruct(cfg.solver, phi_hat, y, n, seed)
+            x_r = x_raw.clamp(0, 1).double().cpu().numpy()
+        del phi_hat
+        timings["seconds_solver"] += time.perf_counter() - t
         del info
         if baseline:
             t = time.perf_counter()
@@ -159,7 +166,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     metrics: dict[str, Any] = {
         "m": m, "n": n, "n_pixels": N, "reference_n": n_ref, "reference_pool": pool, "repeats": repeats,
         "reference_n_nonzero_coefs": t0, "reference_tol": tol0, "reference_cached": cached,
-        "solver_n_nonzero_coefs": K, "solver_tol": tol, "seed": seed,
+        "solver": solver_name, "solver_n_nonzero_coefs": K, "solver_tol": tol, "seed": seed,
         "dtype": str(cfg.get("dtype", "float32")), "device": str(device),
         "best_repeat": best,
         "psnr_best": per[best]["psnr"],
