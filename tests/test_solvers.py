@@ -104,5 +104,9 @@ def test_pnp_with_a_soft_threshold_denoiser_is_ista_and_matches_fista():
 
     x, pinfo = pnp_pgd(phi, y, (n, n), soft, sigmas=[thr] * 20000, return_info=True)
     torch.testing.assert_close(x.reshape(-1), psi(gamma[None])[0], atol=1e-6, rtol=0)
+    # a batch of light curves gives, row by row, the single-curve results
+    batch = pnp_pgd(phi, torch.stack([y, 2 * y]), (n, n), soft, sigmas=[thr] * 50)
+    for b, yb in enumerate((y, 2 * y)):
+        torch.testing.assert_close(batch[b], pnp_pgd(phi, yb, (n, n), soft, sigmas=[thr] * 50))
     with pytest.raises(ValueError, match="^sigmas"):
         pnp_pgd(phi, y, (n, n), soft, sigmas=[])

@@ -220,28 +220,33 @@ def pnp_pgd(
     ``xₖ₊₁ = D(xₖ − Φᵀ(Φxₖ − y)/L, σₖ)`` with a decreasing noise level ``σₖ`` (image units).
 
     ``denoiser(image (H, W), sigma) -> image`` is any denoiser — sparse K-SVD, TV, wavelets, BM3D
-    — which replaces the proximal step of a regulariser. ``phi (m, N)``, ``y (m,)``; ``x0`` the
-    start (default ``0``). One iteration per ``σ`` in ``sigmas``. Returns ``(H, W)`` (and a
-    :class:`SolverInfo` whose objective is the data misfit ``½‖Φx − y‖²``).
+    — which replaces the proximal step of a regulariser. ``phi (m, N)``, ``y (B, m)`` or ``(m,)``
+    (the gradient steps are batched, the denoiser runs image by image); ``x0`` the start
+    (default ``0``). One iteration per ``σ`` in ``sigmas``. Returns ``(B, H, W)`` or ``(H, W)``
+    (and a :class:`SolverInfo` whose objective is the summed data misfit ``½‖Φx − y‖²``).
     """
     op = _as_operator(phi)
     H, W = (int(s) for s in shape)
     if H * W != op.n_in:
         raise ValueError(f"shape: {tuple(shape)} does not match the operator's {op.n_in} pixels")
-    if y.ndim != 1 or y.shape[0] != op.n_out:
-        raise ValueError(f"y: expected shape ({op.n_out},), got {tuple(y.shape)}")
+    squeeze = y.ndim == 1
+    y2 = y[None] if squeeze else y
+    if y2.ndim != 2 or y2.shape[1] != op.n_out:
+        raise ValueError(f"y: expected shape (B, {op.n_out}) or ({op.n_out},), got {tuple(y.shape)}")
     sigmas = [float(s) for s in sigmas]
     if not sigmas or any(not (math.isfinite(s) and s >= 0) for s in sigmas):
         raise ValueError(f"sigmas: expected a non-empty list of noise levels >= 0, got {sigmas}")
-    L = operator_norm_sq(op, dtype=y.dtype, device=y.device)
-    x = torch.zeros(H * W, dtype=y.dtype, device=y.device) if x0 is None else x0.reshape(-1).to(y)
+    L = operator_norm_sq(op, dtype=y2.dtype, device=y2.device)
+    B = y2.shape[0]
+    x = torch.zeros(B, H * W, dtype=y2.dtype, device=y2.device) if x0 is None else x0.reshape(B, -1).to(y2)
     misfit = []
     for s in sigmas:
-        v = x - op.adjoint((op(x[None]) - y[None]))[0] / L
-        x = torch.as_tensor(denoiser(v.reshape(H, W), s), dtype=y.dtype, device=y.device).reshape(-1)
-        r = op(x[None])[0] - y
+        v = (x - op.adjoint(op(x) - y2) / L).reshape(B, H, W)  # the gradient step, batched
+        x = torch.stack([torch.as_tensor(denoiser(v[b], s), dtype=y2.dtype, device=y2.device).reshape(-1)
+                         for b in range(B)])  # the denoiser, image by image
+        r = op(x) - y2
         misfit.append(float(0.5 * (r * r).sum()))
-    out = x.reshape(H, W)
+    out = x.reshape(H, W) if squeeze else x.reshape(B, H, W)
     if return_info:
         return out, SolverInfo(len(sigmas), misfit, True, torch.tensor(sigmas), 1.0 / L)
     return out
