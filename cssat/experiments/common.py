@@ -70,6 +70,18 @@ def torch_device(name: str):
     return torch.device(name)
 
 
+def run_settings(cfg: Any, max_size: int = 4096):
+    """``(dtype, device, seed, n, N, m)`` of an image experiment, validated: the fields ``dtype``,
+    ``device``, ``seed``, ``target.size`` (``n``, at most ``max_size``) and ``cs.m`` (``1 ≤ m ≤ N = n²``)."""
+    dtype = torch_dtype(cfg.get("dtype", "float32"))
+    device = torch_device(cfg.get("device", "cpu"))
+    seed = require_int(cfg.get("seed", 0), "seed", 0)
+    n = require_int(cfg.target.size, "target.size", 2, max_size)
+    N = n * n
+    m = require_int(cfg.cs.m, "cs.m", 1, N) if "cs" in cfg else None
+    return dtype, device, seed, n, N, m
+
+
 def _atomic(path: Path, write) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

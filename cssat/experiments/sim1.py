@@ -21,9 +21,8 @@ from cssat.experiments.common import (
     ConfigError,
     require_float,
     require_int,
+    run_settings,
     save_figure,
-    torch_device,
-    torch_dtype,
     write_npz,
 )
 
@@ -129,6 +128,18 @@ def _pnp(solver: Any, phi, y, n: int, seed: int):
     return pnp_pgd(phi, y, (n, n), den, sigmas=sig, x0=x0, return_info=True)
 
 
+def check_solver(solver: Any, m: int, N: int) -> str:
+    """Validate the ``solver`` config before any work; return its name."""
+    name = solver.get("name", "omp")
+    if name not in SIM1_SOLVERS:
+        raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {name!r}")
+    if name == "omp":
+        solver_settings(solver, m, N)
+    elif name in ("l1", "tv"):
+        convex_settings(solver, m / N)
+    return name
+
+
 def reconstruct(solver: Any, phi, y, n: int, seed: int = 0):
     """Reconstruct an ``n × n`` image from ``y = Φx`` with the ``solver`` config (one of
     :data:`SIM1_SOLVERS`). ``phi`` is the sensing operator (kept by the caller).
@@ -203,20 +214,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.metrics import psnr, ssim
     from cssat.sparse import GaussianSensing
 
-    dtype = torch_dtype(cfg.get("dtype", "float32"))
-    device = torch_device(cfg.get("device", "cpu"))
-    seed = require_int(cfg.get("seed", 0), "seed", 0)
-    n = require_int(cfg.target.size, "target.size", 2, 4096)
-    N = n * n
-    m = require_int(cfg.cs.m, "cs.m", 1, N)
+    dtype, device, seed, n, N, m = run_settings(cfg, max_size=4096)
     noise = require_float(cfg.cs.get("noise", 0.0), "cs.noise", lo=0.0)
-    solver_name = cfg.solver.get("name", "omp")
-    if solver_name not in SIM1_SOLVERS:
-        raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {solver_name!r}")
-    if solver_name == "omp":
-        solver_settings(cfg.solver, m, N)  # refuse bad settings before any work
-    elif solver_name in ("l1", "tv"):
-        convex_settings(cfg.solver)
+    solver_name = check_solver(cfg.solver, m, N)
     x = load_target(str(cfg.target.image), n)
     timings: dict[str, float] = {}
 

@@ -19,8 +19,8 @@ import numpy as np
 from cssat.experiments.common import (
     ConfigError,
     require_int,
+    run_settings,
     save_figure,
-    torch_device,
     torch_dtype,
     write_npz,
 )
@@ -54,26 +54,17 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.denoisers import apply_denoiser
     from cssat.experiments.refsets import check_memory, reference_set
-    from cssat.experiments.sim1 import SIM1_SOLVERS, reconstruct, solver_settings
+    from cssat.experiments.sim1 import check_solver, reconstruct
     from cssat.metrics import psnr, ssim
     from cssat.reference import estimate_sensing_full_rank, relative_error
     from cssat.sparse import GaussianSensing
 
-    dtype = torch_dtype(cfg.get("dtype", "float32"))
-    device = torch_device(cfg.get("device", "cpu"))
-    seed = require_int(cfg.get("seed", 0), "seed", 0)
-    n = require_int(cfg.target.size, "target.size", 2, 1024)
-    N = n * n
-    m = require_int(cfg.cs.m, "cs.m", 1, N)
+    dtype, device, seed, n, N, m = run_settings(cfg, max_size=1024)
     n_ref = cfg.reference.get("n")
     n_ref = N if n_ref is None else require_int(n_ref, "reference.n", N, N)
     ref_seed = cfg.reference.get("seed")
     ref_seed = seed + 1000 if ref_seed is None else require_int(ref_seed, "reference.seed", 0)
-    solver_name = cfg.solver.get("name", "omp")
-    if solver_name not in SIM1_SOLVERS:
-        raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {solver_name!r}")
-    if solver_name == "omp":
-        solver_settings(cfg.solver, m, N)  # refuse bad settings before any work
+    check_solver(cfg.solver, m, N)
     ref_dtype = torch_dtype(cfg.reference.get("dtype", "float64"), field="reference.dtype")
     itemsize = torch.finfo(dtype).bits // 8
     est, parts = peak_memory(n, m, itemsize, torch.finfo(ref_dtype).bits // 8)

@@ -22,9 +22,8 @@ from cssat.experiments.common import (
     ConfigError,
     require_float,
     require_int,
+    run_settings,
     save_figure,
-    torch_device,
-    torch_dtype,
     write_npz,
 )
 
@@ -65,18 +64,17 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.denoisers import apply_denoiser
     from cssat.experiments.refsets import Progress, check_memory, reference_set
-    from cssat.experiments.sim1 import SIM1_SOLVERS, reconstruct, solver_settings
+    from cssat.experiments.sim1 import check_solver, reconstruct, solver_settings
     from cssat.experiments.sim2 import _peak_rss
     from cssat.metrics import psnr
-    from cssat.reference import estimate_sensing_min_norm, estimate_sensing_sparse, relative_error
+    from cssat.reference import (
+        estimate_sensing_min_norm,
+        estimate_sensing_sparse,
+        relative_error,
+    )
     from cssat.sparse import DCT, GaussianSensing, batch_omp, sensing_dictionary
 
-    dtype = torch_dtype(cfg.get("dtype", "float32"))
-    device = torch_device(cfg.get("device", "cpu"))
-    seed = require_int(cfg.get("seed", 0), "seed", 0)
-    n = require_int(cfg.target.size, "target.size", 2, 512)
-    N = n * n
-    m = require_int(cfg.cs.m, "cs.m", 1, N)
+    dtype, device, seed, n, N, m = run_settings(cfg, max_size=512)
     ref = cfg.reference
     pool = require_int(ref.pool, "reference.pool", 1)
     n_ref = require_int(ref.n, "reference.n", 1, min(pool, N))
@@ -85,9 +83,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     ref_seed = seed + 1000 if ref_seed is None else require_int(ref_seed, "reference.seed", 0)
     baseline = bool(ref.get("baseline", True))
     t0, tol0 = settings(cfg, m, N)
-    solver_name = cfg.solver.get("name", "omp")
-    if solver_name not in SIM1_SOLVERS:
-        raise ConfigError(f"solver.name: expected one of {list(SIM1_SOLVERS)}, got {solver_name!r}")
+    solver_name = check_solver(cfg.solver, m, N)
     K, tol = solver_settings(cfg.solver, m, N) if solver_name == "omp" else (None, None)
     itemsize = torch.finfo(dtype).bits // 8
     est, parts = peak_memory(n, m, n_ref, pool, itemsize)

@@ -22,9 +22,8 @@ from cssat.experiments.common import (
     ConfigError,
     _atomic,
     require_int,
+    run_settings,
     save_figure,
-    torch_device,
-    torch_dtype,
     write_npz,
 )
 
@@ -40,11 +39,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.metrics import psnr, ssim
     from cssat.sparse import GaussianSensing
 
-    dtype = torch_dtype(cfg.get("dtype", "float32"))
-    device = torch_device(cfg.get("device", "cpu"))
-    seed = require_int(cfg.get("seed", 0), "seed", 0)
-    n = require_int(cfg.target.size, "target.size", 2, 4096)
-    N = n * n
+    dtype, device, seed, n, N, _ = run_settings(cfg, max_size=4096)
     ms = [require_int(v, "comparison.m", 1, N) for v in cfg.comparison.m]
     solvers = dict(cfg.comparison.solvers)
     if not ms or not solvers:
