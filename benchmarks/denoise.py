@@ -41,26 +41,16 @@ def psnr(x, ref):
     return float(10 * np.log10(255.0**2 / np.mean((np.asarray(x, float) - ref) ** 2)))
 
 
-def exposed_render(mesh, size):
-    """A rendered satellite exposed like :func:`cssat.data.images.render_tess` (0–1)."""
-    from cssat.data.images import TESS_VIEW
-    from cssat.optics import render
-
-    unit = [np.asarray(v, float) / np.linalg.norm(v) for v in (TESS_VIEW["sun"], TESS_VIEW["observer"])]
-    img = render(mesh, unit[0][None], unit[1][None], size, shadows=True, dtype=torch.float64)[0].numpy()
-    lit = img[img > 0]
-    return np.clip(img / np.percentile(lit, 99), 0.0, 1.0)
-
-
 def test_images(size):
     from cssat.data import load_target
+    from cssat.data.images import render_exposed
     from cssat.scene import get_model, load_mesh
 
     imgs = {name: 255 * load_target(name, size) for name in ("camera", "moon", "astronaut", "tess")}
     imgs["tess (render)"] = imgs.pop("tess")
-    imgs["astra (render)"] = 255 * exposed_render(get_model("astra_like"), size)
+    imgs["astra (render)"] = 255 * render_exposed(get_model("astra_like"), size)
     if SHARED_TESS.exists():
-        imgs["TESS mesh (render)"] = 255 * exposed_render(load_mesh(str(SHARED_TESS)), size)
+        imgs["TESS mesh (render)"] = 255 * render_exposed(load_mesh(str(SHARED_TESS)), size)
     return imgs
 
 

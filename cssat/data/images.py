@@ -17,17 +17,24 @@ TESS_VIEW = {"sun": (0.4, -0.7, 0.6), "observer": (0.8, -0.5, 0.3)}
 
 
 def render_tess(size: int) -> np.ndarray:
-    """The procedural TESS-like model rendered at ``size × size`` (flat shading, shadows, the
-    model's bounding-sphere field of view), exposed like a photograph: scaled so the 99th
-    percentile of the lit pixels is 1 and clipped there (a few pixels that collect the flux of
-    several sub-pixel facets would otherwise leave the rest of the spacecraft near black)."""
+    """The procedural TESS-like model rendered at ``size × size`` by :func:`render_exposed`."""
+    from cssat.scene import tess_like
+
+    return render_exposed(tess_like(), size)
+
+
+def render_exposed(mesh, size: int, view: dict = TESS_VIEW) -> np.ndarray:
+    """``mesh`` rendered at ``size × size`` (flat shading, shadows, the model's bounding-sphere field
+    of view) from ``view`` (body-frame ``sun`` and ``observer`` directions), exposed like a
+    photograph: scaled so the 99th percentile of the lit pixels is 1 and clipped there (a few
+    pixels that collect the flux of several sub-pixel facets would otherwise leave the rest of the
+    spacecraft near black)."""
     import torch
 
     from cssat.optics import render
-    from cssat.scene import tess_like
 
-    unit = [np.asarray(v, float) / np.linalg.norm(v) for v in (TESS_VIEW["sun"], TESS_VIEW["observer"])]
-    img = render(tess_like(), unit[0][None], unit[1][None], size, shadows=True, dtype=torch.float64)[0].numpy()
+    unit = [np.asarray(v, float) / np.linalg.norm(v) for v in (view["sun"], view["observer"])]
+    img = render(mesh, unit[0][None], unit[1][None], size, shadows=True, dtype=torch.float64)[0].numpy()
     lit = img[img > 0]
     return np.clip(img / np.percentile(lit, 99), 0.0, 1.0) if lit.size else img
 
