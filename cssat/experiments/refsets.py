@@ -59,6 +59,14 @@ def available_memory_bytes() -> int:
     return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
 
 
+def peak_rss_bytes() -> int:
+    """Peak resident memory of this process so far, bytes (Linux ``ru_maxrss`` is in KiB; it is
+    already the running maximum)."""
+    import resource
+
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
 def check_memory(estimate: int, parts: dict[str, int], cfg: Any, hint: str) -> None:
     """Stop with a ``memory:`` ConfigError when the estimated peak exceeds the limit
     (``memory_limit_gb``, default: the memory available now)."""

@@ -53,7 +53,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.denoisers import apply_denoiser
-    from cssat.experiments.refsets import check_memory, reference_set
+    from cssat.experiments.refsets import check_memory, peak_rss_bytes, reference_set
     from cssat.experiments.sim1 import check_solver, reconstruct
     from cssat.metrics import psnr, ssim
     from cssat.reference import estimate_sensing_full_rank, relative_error
@@ -71,7 +71,6 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     check_memory(est, parts, cfg, "lower target.size or cs.m, or use dtype=float32 / reference.dtype=float32")
     x = load_target(str(cfg.target.image), n)
     timings: dict[str, float] = {}
-    peak_rss = _peak_rss()
 
     t = time.perf_counter()
     # Φ is drawn in float32 (the same Φ as Simulation 1's for this seed) and held exactly in
@@ -109,7 +108,6 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     den, den_metrics = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device)
     den = np.clip(den, 0.0, 1.0)
     timings["seconds_denoise"] = den_metrics.pop("seconds_denoise")
-    peak_rss = max(peak_rss, _peak_rss())
 
     metrics: dict[str, Any] = {
         "psnr": psnr(rec, x, data_range=1.0),
@@ -130,7 +128,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         "dtype": str(cfg.get("dtype", "float32")),
         "device": str(device),
         "peak_memory_estimate_gb": est / 2**30,
-        "peak_rss_gb": peak_rss / 2**30,
+        "peak_rss_gb": peak_rss_bytes() / 2**30,
         **den_metrics,
         **timings,
     }
@@ -143,13 +141,6 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         phi_err, metrics["psnr"], metrics["psnr_denoised"], metrics["psnr_gain_denoised"], metrics["peak_rss_gb"],
     )
     return metrics
-
-
-def _peak_rss() -> int:
-    """Peak resident memory of this process so far, bytes (Linux ``ru_maxrss`` is in KiB)."""
-    import resource
-
-    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
 def _figure(truth, rec, den, metrics, path: Path) -> None:

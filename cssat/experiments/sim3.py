@@ -63,9 +63,8 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.denoisers import apply_denoiser
-    from cssat.experiments.refsets import Progress, check_memory, reference_set
+    from cssat.experiments.refsets import Progress, check_memory, peak_rss_bytes, reference_set
     from cssat.experiments.sim1 import check_solver, reconstruct, solver_settings
-    from cssat.experiments.sim2 import _peak_rss
     from cssat.metrics import psnr
     from cssat.reference import (
         estimate_sensing_min_norm,
@@ -175,7 +174,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         "psnr_mean_denoised_3d": float(np.mean(psnr3)),
         "phi_relative_error_mean": float(np.mean([p["phi_relative_error"] for p in per])),
         "peak_memory_estimate_gb": est / 2**30,
-        "peak_rss_gb": _peak_rss() / 2**30,
+        "peak_rss_gb": peak_rss_bytes() / 2**30,
         "denoiser_2d": (cfg.get("denoiser") or {}).get("name", "none"),
         "denoiser_3d": dm3.get("denoiser"),
         **timings,
