@@ -14,7 +14,7 @@ import numpy as np
 
 from cssat.experiments.common import ConfigError, require_float, require_int
 
-__all__ = ["DENOISERS", "apply_denoiser"]
+__all__ = ["DENOISERS", "apply_denoiser", "scores"]
 
 
 def _ksvd(x: np.ndarray, settings: dict, seed: int, dtype, device) -> tuple[np.ndarray, dict]:
@@ -105,8 +105,11 @@ DENOISERS: dict[str, Callable] = {
 }
 
 
-def apply_denoiser(cfg: Any, x: np.ndarray, *, seed: int = 0, dtype=None, device=None) -> tuple[np.ndarray, dict]:
-    """Denoise ``x`` (image or stack, float) as ``cfg`` (the ``denoiser`` group) says.
+def apply_denoiser(
+    cfg: Any, x: np.ndarray, *, seed: int = 0, dtype=None, device=None, clip: tuple[float, float] | None = None
+) -> tuple[np.ndarray, dict]:
+    """Denoise ``x`` (image or stack, float) as ``cfg`` (the ``denoiser`` group) says, then clip
+    to the range ``clip`` if given (the experiments' images lie in [0, 1]).
 
     Returns ``(denoised, metrics)``; metrics hold ``denoiser``, ``seconds_denoise`` and what the
     denoiser reports (e.g. the noise level used). ``cfg = None`` means no denoising.
@@ -119,4 +122,19 @@ def apply_denoiser(cfg: Any, x: np.ndarray, *, seed: int = 0, dtype=None, device
         raise ConfigError(f"denoiser.name: expected one of {sorted(DENOISERS)}, got {name!r}")
     t = time.perf_counter()
     out, extra = DENOISERS[name](np.asarray(x, dtype=np.float64), settings, seed, dtype or torch.float32, device or "cpu")
-    return out, {"denoiser": name, **extra, "seconds_denoise": time.perf_counter() - t}
+    seconds = time.perf_counter() - t
+    if clip is not None:
+        out = np.clip(out, *clip)
+    return out, {"denoiser": name, **extra, "seconds_denoise": seconds}
+
+
+def scores(rec: np.ndarray, den: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """PSNR and SSIM of a reconstruction and of its denoised version against the truth (range 1)."""
+    from cssat.metrics import psnr, ssim
+
+    return {
+        "psnr": psnr(rec, truth, data_range=1.0),
+        "ssim": ssim(rec, truth, data_range=1.0),
+        "psnr_denoised": psnr(den, truth, data_range=1.0),
+        "ssim_denoised": ssim(den, truth, data_range=1.0),
+    }

@@ -211,7 +211,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     import torch
 
     from cssat.data import load_target
-    from cssat.metrics import psnr, ssim
+    from cssat.experiments.denoisers import apply_denoiser, scores
     from cssat.sparse import GaussianSensing
 
     dtype, device, seed, n, N, m = run_settings(cfg, max_size=4096)
@@ -238,16 +238,10 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     x_hat = x_raw.clamp(0.0, 1.0)  # back to the image range
 
     rec = x_hat.double().cpu().numpy()
-    from cssat.experiments.denoisers import apply_denoiser
-
-    den, den_metrics = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device)
-    den = np.clip(den, 0.0, 1.0)
+    den, den_metrics = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device, clip=(0.0, 1.0))
     timings["seconds_denoise"] = den_metrics.pop("seconds_denoise")
     metrics: dict[str, Any] = {
-        "psnr": psnr(rec, x, data_range=1.0),
-        "ssim": ssim(rec, x, data_range=1.0),
-        "psnr_denoised": psnr(den, x, data_range=1.0),
-        "ssim_denoised": ssim(den, x, data_range=1.0),
+        **scores(rec, den, x),
         "m": m,
         "n": n,
         "n_pixels": N,

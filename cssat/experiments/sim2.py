@@ -14,7 +14,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from cssat.experiments.common import (
     ConfigError,
@@ -52,10 +51,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     import torch
 
     from cssat.data import load_target
-    from cssat.experiments.denoisers import apply_denoiser
+    from cssat.experiments.denoisers import apply_denoiser, scores
     from cssat.experiments.refsets import check_memory, peak_rss_bytes, reference_set
     from cssat.experiments.sim1 import check_solver, reconstruct
-    from cssat.metrics import psnr, ssim
     from cssat.reference import estimate_sensing_full_rank, relative_error
     from cssat.sparse import GaussianSensing
 
@@ -105,15 +103,11 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     rec = x_raw.clamp(0.0, 1.0).double().cpu().numpy()
     timings["seconds_solver"] = time.perf_counter() - t
 
-    den, den_metrics = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device)
-    den = np.clip(den, 0.0, 1.0)
+    den, den_metrics = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device, clip=(0.0, 1.0))
     timings["seconds_denoise"] = den_metrics.pop("seconds_denoise")
 
     metrics: dict[str, Any] = {
-        "psnr": psnr(rec, x, data_range=1.0),
-        "ssim": ssim(rec, x, data_range=1.0),
-        "psnr_denoised": psnr(den, x, data_range=1.0),
-        "ssim_denoised": ssim(den, x, data_range=1.0),
+        **scores(rec, den, x),
         "phi_relative_error": phi_err,
         "x_ref_rcond": rcond,
         "reference_dtype": str(cfg.reference.get("dtype", "float64")),

@@ -134,8 +134,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
             del phi_mn
             timings["seconds_baseline"] += time.perf_counter() - t
         del Xt, Y_ref
-        d2, dm = apply_denoiser(cfg.get("denoiser"), x_r, seed=seed, dtype=dtype, device=device)
-        d2 = np.clip(d2, 0, 1)
+        d2, dm = apply_denoiser(cfg.get("denoiser"), x_r, seed=seed, dtype=dtype, device=device, clip=(0.0, 1.0))
         timings["seconds_denoise"] += dm.pop("seconds_denoise")
         row["psnr"] = psnr(x_r, x, data_range=1.0)
         row["psnr_denoised"] = psnr(d2, x, data_range=1.0)
@@ -150,8 +149,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     stack = np.stack(raw)
     if repeats >= 2 and den3_cfg is not None and den3_cfg.get("name", "none") != "none":
-        den3, dm3 = apply_denoiser(den3_cfg, stack, seed=seed, dtype=dtype, device=device)
-        den3 = np.clip(den3, 0, 1)
+        den3, dm3 = apply_denoiser(den3_cfg, stack, seed=seed, dtype=dtype, device=device, clip=(0.0, 1.0))
         timings["seconds_denoise_3d"] = dm3.pop("seconds_denoise")
     else:
         den3, dm3 = stack.copy(), {"denoiser": "none"}

@@ -16,7 +16,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from cssat.experiments.common import (
     ConfigError,
@@ -54,8 +53,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
             x_raw, _, smet, _ = reconstruct(scfg, phi, y, n, seed)
             rec = x_raw.clamp(0, 1).double().cpu().numpy()
             if scfg.get("denoise", False):
-                rec, _ = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device)
-                rec = np.clip(rec, 0, 1)
+                rec, _ = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device, clip=(0.0, 1.0))
             sec = time.perf_counter() - t
             row = {"m": m, "m_over_N": m / N, "solver": label, "psnr": psnr(rec, x, data_range=1.0),
                    "ssim": ssim(rec, x, data_range=1.0), "seconds": sec,
