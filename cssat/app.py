@@ -35,8 +35,9 @@ def _hydra_main(cfg: DictConfig) -> float | None:
             log.error("bad config: %s", err)
             sys.exit(2)
         raise
-    value = metrics.get("psnr")
-    return float(value) if value is not None else None
+    key = cfg.get("optimized_metric", "psnr")
+    value = metrics.get(key) if key else None
+    return float(value) if isinstance(value, (int, float)) else None
 
 
 def main() -> None:

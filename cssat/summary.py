@@ -13,7 +13,6 @@ import argparse
 import csv
 import json
 import logging
-import math
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -78,7 +77,8 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
 
 def summarize(sweep_dir: str | Path, metric: str = "psnr") -> tuple[Path, Path | None]:
     """Write ``summary.csv`` and ``summary_<metric>.png`` into ``sweep_dir``; return their paths."""
-    from cssat.experiments.common import _atomic, save_figure
+    from cssat.experiments.common import _atomic
+    from cssat.plots import save_figure, sweep_figure
 
     sweep_dir = Path(sweep_dir)
     rows, swept = collect(sweep_dir)
@@ -94,7 +94,7 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr") -> tuple[Path, Path |
 
     csv_path = sweep_dir / "summary.csv"
     _atomic(csv_path, w)
-    fig = _plot(rows, swept, metric)
+    fig = sweep_figure(rows, swept, metric)
     png = None
     if fig is not None:
         png = sweep_dir / f"summary_{metric}.png"
@@ -102,73 +102,6 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr") -> tuple[Path, Path |
     n_ok = sum(r.get("status") == "ok" for r in rows)
     log.info("sweep summary: %d jobs (%d ok) -> %s", len(rows), n_ok, csv_path)
     return csv_path, png
-
-
-def _axis(rows: Sequence[dict], key: str) -> tuple[list[float], str]:
-    """Values of a swept key for the plot; ``cs.m`` as the measurement ratio m/N and
-    ``reference.n`` as N/n_pixel when the rows know ``n_pixels``."""
-    vals = []
-    for r in rows:
-        v = r.get(key)
-        npix = r.get("n_pixels")
-        if key in ("cs.m", "reference.n") and isinstance(v, (int, float)) and npix:
-            v = v / npix
-        vals.append(v)
-    label = {"cs.m": "m / N (measurement ratio)", "reference.n": "N_ref / n_pixel"}.get(key, key)
-    return vals, label
-
-
-def _plot(rows: list[dict], swept: list[str], metric: str):
-    ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get(metric), (int, float))]
-    if not ok or not swept:
-        return None
-    numeric = [k for k in swept if all(isinstance(r.get(k), (int, float)) for r in ok)]
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    if len(numeric) >= 2:  # a phase-transition map over the first two numeric keys
-        kx, ky = numeric[0], numeric[1]
-        xs, lx = _axis(ok, kx)
-        ys, ly = _axis(ok, ky)
-        ux, uy = sorted(set(xs)), sorted(set(ys))
-        grid = [[math.nan] * len(ux) for _ in uy]
-        for x, y, r in zip(xs, ys, ok):
-            grid[uy.index(y)][ux.index(x)] = r[metric]
-        fig, ax = plt.subplots(figsize=(6, 4.5))
-        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
-        ax.set_xticks(range(len(ux)), [f"{v:.3g}" for v in ux])
-        ax.set_yticks(range(len(uy)), [f"{v:.3g}" for v in uy])
-        for i, row in enumerate(grid):
-            for j, v in enumerate(row):
-                if not math.isnan(v):
-                    ax.text(j, i, f"{v:.1f}", ha="center", va="center", color="w", fontsize=8)
-        ax.set_xlabel(lx)
-        ax.set_ylabel(ly)
-        fig.colorbar(im, ax=ax, label=f"{metric} (dB)" if "psnr" in metric else metric)
-        ax.set_title(f"{metric} over {kx} × {ky}", fontsize=10)
-        return fig
-    key = numeric[0] if numeric else swept[0]
-    xs, label = _axis(ok, key)
-    others = [k for k in swept if k != key]
-    groups: dict[tuple, list[int]] = {}
-    for i, r in enumerate(ok):
-        groups.setdefault(tuple(r.get(k) for k in others), []).append(i)
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for g, idx in groups.items():
-        idx = sorted(idx, key=lambda i: (str(type(xs[i])), xs[i]))
-        name = ", ".join(f"{k}={v}" for k, v in zip(others, g))
-        ax.plot([xs[i] for i in idx], [ok[i][metric] for i in idx], "o-", label=f"{metric} {name}".strip())
-        den = f"{metric}_denoised"
-        if all(isinstance(ok[i].get(den), (int, float)) for i in idx):
-            ax.plot([xs[i] for i in idx], [ok[i][den] for i in idx], "s--", label=f"{den} {name}".strip())
-    ax.set_xlabel(label)
-    ax.set_ylabel(f"{metric} (dB)" if "psnr" in metric else metric)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title(f"{metric} against {key}", fontsize=10)
-    return fig
 
 
 try:  # the callback needs hydra, which cssat depends on; keep the import cheap for the CLI

@@ -112,19 +112,21 @@ def test_shape_errors_name_the_argument():
         DCT((2, 2, 2, 2))
 
 
-def test_omp_reconstruct_equals_the_manual_pipeline():
-    from cssat.sparse import batch_omp, omp_reconstruct
+def test_omp_solver_on_a_batch_equals_the_explicit_matrices():
+    from cssat.recon import OMP
+    from cssat.sparse import batch_omp
 
     phi = GaussianSensing(150, 256, seed=4, dtype=torch.float64)
     g = torch.Generator().manual_seed(0)
     x = torch.rand(2, 256, generator=g, dtype=torch.float64)
     y = phi(x)
-    img, gamma, info = omp_reconstruct(phi, y, (16, 16), n_nonzero_coefs=30)
+    img, info = OMP(n_nonzero_coefs=30)(phi, y, (16, 16))
+    gamma = info["coefficients"]
     assert img.shape == (2, 16, 16) and gamma.shape == (2, 256)
     ref = batch_omp(phi.matrix() @ DCT((16, 16)).matrix(dtype=torch.float64), y, n_nonzero_coefs=30)
     torch.testing.assert_close(gamma, ref, atol=1e-10, rtol=0)
     torch.testing.assert_close(img.reshape(2, -1), DCT((16, 16))(ref), atol=1e-10, rtol=0)
-    assert torch.equal(info.n_iter, torch.tensor([30, 30]))
+    assert info["omp_atoms"] == 30
 
 
 def test_odct_dictionary():

@@ -16,7 +16,7 @@ def test_fista_matches_scikit_learn_lasso():
     gamma = torch.zeros(n, dtype=torch.float64)
     gamma[torch.randperm(n, generator=g)[:6]] = torch.randn(6, generator=g, dtype=torch.float64)
     y = A @ gamma
-    est, info = fista_l1(A, y, lam=0.01, max_iter=20000, tol=1e-12, return_info=True)
+    est, info = fista_l1(A, y, lam=0.01, max_iter=20000, rtol=1e-12, return_info=True)
     lam_abs = float(info.lam[0])
     # scikit-learn's Lasso minimises (1/2m)‖y − Aw‖² + α‖w‖₁: the same problem with α = λ/m
     ref = sklearn.Lasso(alpha=lam_abs / m, fit_intercept=False, tol=1e-14, max_iter=200000).fit(A.numpy(), y.numpy()).coef_
@@ -31,7 +31,7 @@ def test_fista_recovers_an_exactly_sparse_signal_and_decreases_the_objective():
     gamma = torch.zeros(2, n, dtype=torch.float64)
     for b in range(2):
         gamma[b, torch.randperm(n, generator=g)[:8]] = torch.randn(8, generator=g, dtype=torch.float64)
-    est, info = fista_l1(A, gamma @ A.T, lam=1e-6, max_iter=20000, tol=1e-12, return_info=True)
+    est, info = fista_l1(A, gamma @ A.T, lam=1e-6, max_iter=20000, rtol=1e-12, return_info=True)
     assert float((est - gamma).norm() / gamma.norm()) < 1e-3
     assert info.objective[-1] < 1e-3 * info.objective[0]
 
@@ -42,7 +42,7 @@ def test_tv_recovers_a_piecewise_constant_image():
     img[10:14, 5:15] = 0.4
     phi = GaussianSensing(200, 256, seed=3, dtype=torch.float64)
     y = phi(img.reshape(-1))
-    est, info = tv_pdhg(phi, y, (16, 16), lam=1e-4, max_iter=5000, tol=1e-9, return_info=True)
+    est, info = tv_pdhg(phi, y, (16, 16), lam=1e-4, max_iter=5000, rtol=1e-9, return_info=True)
     assert info.converged and float((est - img).norm() / img.norm()) < 1e-3
     assert info.objective[-1] < info.objective[0]
     assert bool((est >= 0).all())
@@ -94,7 +94,7 @@ def test_pnp_with_a_soft_threshold_denoiser_is_ista_and_matches_fista():
     img = psi(torch.where(torch.rand(n * n, generator=g) < 0.1, torch.randn(n * n, generator=g, dtype=torch.float64), 0.0)[None])[0]
     y = phi @ img
     A = phi @ psi.matrix(dtype=torch.float64)
-    gamma, info = fista_l1(A, y, lam=0.05, max_iter=20000, tol=1e-13, return_info=True)
+    gamma, info = fista_l1(A, y, lam=0.05, max_iter=20000, rtol=1e-13, return_info=True)
     L = operator_norm_sq(phi)
     thr = float(info.lam[0]) / L
 

@@ -4,9 +4,11 @@ import csv
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from hydra import compose, initialize_config_module
+from omegaconf import OmegaConf
 
 from cssat.summary import collect, main as summarize_main
 
@@ -23,18 +25,29 @@ def rows_of(path):
         return list(csv.DictReader(f))
 
 
-@pytest.mark.parametrize(
-    "sweep, params",
-    [
-        ("m", {"experiment": "sim1", "cs.m": "1444,4096,13225"}),
-        ("n_refs", {"experiment": "sim3", "reference.n": "1024,2048,3277"}),
-        ("m_n", {"experiment": "sim3", "cs.m": "1024,2048,3277", "reference.n": "1024,2048,3277"}),
-        ("m_k", {"experiment": "sim1", "cs.m": "1444,4096,13225", "solver.k_ratio": "0.05,0.1,0.25"}),
-    ],
-)
-def test_named_sweeps_compose(sweep, params):
-    cfg = compose_hydra(f"sweep={sweep}")
-    assert dict(cfg.hydra.sweeper.params) == params
+def _named_sweeps():
+    import cssat.conf
+
+    return sorted(p.stem for p in (Path(cssat.conf.__file__).parent / "sweep").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("sweep", _named_sweeps())
+def test_named_sweeps_name_valid_values_of_their_experiment(sweep):
+    """Every value of every named sweep composes with its experiment and is in its allowed range."""
+    from cssat.experiments.build import build_solver
+
+    params = dict(compose_hydra(f"sweep={sweep}").hydra.sweeper.params)
+    exp = params.pop("experiment")
+    assert params, f"sweep {sweep} sweeps nothing"
+    for key, values in params.items():
+        for value in str(values).split(","):
+            cfg = compose_hydra(f"experiment={exp}", f"{key}={value}")
+            assert str(OmegaConf.select(cfg, key)) == value  # the key exists in the experiment's config
+            N = cfg.target.size ** 2
+            assert 1 <= cfg.cs.m <= N
+            if exp == "sim3":
+                assert 1 <= cfg.reference.n <= min(cfg.reference.pool, N)
+            build_solver(cfg.solver, cfg.cs.m, N)  # e.g. K/m in [0, 1]
 
 
 def test_launcher_configs_compose():

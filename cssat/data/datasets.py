@@ -98,21 +98,27 @@ class LightCurves(Dataset):
     """Light curves of one scenario seen through independent atmospheres.
 
     The geometry (``scenario``: orbit, Sun, observer, shadow) and the attitude are fixed; item
-    ``i`` draws its own atmosphere. Each item is a dict with ``times`` (``(T,)`` seconds from the
-    first sample), ``clean`` (the atmosphere-free light curve, Eq. 10, W/m²) and ``curve`` — the
-    facet-wise attenuated model (Eq. 11, ``model="facet"``), the pixel-wise one (Eq. 12,
-    ``model="pixel"``) or the clean curve (``model="none"``); with ``images=True`` also the
-    ``(T, size, size)`` renders the pixel-wise model sums.
+    ``i`` draws its own atmosphere and noise. Each item is a dict with ``times`` (``(T,)`` seconds
+    from the first sample), ``clean`` (the atmosphere-free light curve, Eq. 10, W/m²) and
+    ``curve``: the light curve measured through ``atmosphere`` (a :class:`cssat.physics.Atmosphere`;
+    default the paper's Gaussian weights over the facets, Eq. 11; one over ``"pixels"`` weights
+    the ``(T, size, size)`` renders, Eq. 12; ``None``: the clean curve) with ``noise``
+    (a :class:`cssat.physics.NoiseModel`, default none). With ``images=True`` also the renders.
     """
 
-    def __init__(self, mesh: Mesh, scenario, length: int, seed: int = 0, model: str = "facet",
-                 images: bool = False, size: int = 64, shadows: bool = True):
+    def __init__(self, mesh: Mesh, scenario, length: int, seed: int = 0, atmosphere="default",
+                 noise=None, images: bool = False, size: int = 64, shadows: bool = True):
         from cssat.optics import simulate_light_curve
+        from cssat.physics import Atmosphere, GaussianAtmosphere, NoiseModel
 
-        if model not in ("none", "facet", "pixel"):
-            raise ValueError(f"atmosphere.model: expected one of ['none', 'facet', 'pixel'], got {model!r}")
+        if isinstance(atmosphere, str) and atmosphere == "default":
+            atmosphere = GaussianAtmosphere(emitters="facets")
+        if atmosphere is not None and not isinstance(atmosphere, Atmosphere):
+            raise TypeError(f"atmosphere: expected a cssat.physics.Atmosphere or None, got {atmosphere!r}")
+        if noise is not None and not isinstance(noise, NoiseModel):
+            raise TypeError(f"noise: expected a cssat.physics.NoiseModel or None, got {noise!r}")
         self.mesh, self.scenario, self.length, self.seed = mesh, scenario, int(length), int(seed)
-        self.model, self.images, self.size = model, images, size
+        self.atmosphere, self.noise, self.images, self.size = atmosphere, noise, images, size
         lc = simulate_light_curve(mesh, scenario, shadows=shadows)
         self.sun_body, self.obs_body = lc.sun, lc.observer
         self.facets = lc.facets  # (T, F)
@@ -134,18 +140,20 @@ class LightCurves(Dataset):
         return self._renders
 
     def __getitem__(self, index: int) -> dict:
-        from cssat.optics import attenuated_facetwise, attenuated_pixelwise
+        from cssat.physics import Measurement
 
         if not 0 <= index < self.length:
             raise IndexError(f"index {index} outside [0, {self.length})")
         seed = int(item_rng(self.seed, index, 2).integers(0, 2**62))
         item = {"times": self.times, "clean": self.clean}
-        if self.model == "facet":
-            item["curve"] = attenuated_facetwise(self.facets, seed)
-        elif self.model == "pixel":
-            item["curve"] = attenuated_pixelwise(self.renders(), seed)
+        if self.atmosphere is None:
+            gen = torch.Generator().manual_seed(seed + 1)
+            item["curve"] = self.clean if self.noise is None else self.noise(self.clean, gen)
         else:
-            item["curve"] = self.clean
+            frames = self.facets if self.atmosphere.emitters == "facets" else self.renders()
+            n = frames[0].numel()
+            op = self.atmosphere.operator(len(frames), n, seed=seed, dtype=frames.dtype)
+            item["curve"] = Measurement(op, self.noise, seed=seed + 1).frames(frames)
         if self.images:
             item["images"] = self.renders()
         return item

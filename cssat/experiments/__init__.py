@@ -17,7 +17,7 @@ from typing import Any
 
 from cssat.experiments.common import ConfigError, require_int, write_json
 
-__all__ = ["EXPERIMENTS", "run_experiment", "config_sha", "ConfigError"]
+__all__ = ["EXPERIMENTS", "run_experiment", "config_sha", "provenance", "ConfigError"]
 
 log = logging.getLogger("cssat")
 
@@ -61,7 +61,7 @@ def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
             log.info("%s: complete results already in %s, skipped (resume=false to redo)", name, out_dir)
             return old
     t0 = time.perf_counter()
-    metrics: dict[str, Any] = {"experiment": name, "config_sha": sha}
+    metrics: dict[str, Any] = {"experiment": name, "config_sha": sha, **provenance()}
     try:
         if name not in EXPERIMENTS:
             raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)}, got {name!r}")
@@ -81,6 +81,50 @@ def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     return metrics
 
 
+#: config keys that do not change a run's results (left out of its config hash)
+_NOT_RESULTS = ("threads", "resume", "hydra", "optimized_metric")
+
+
+def provenance() -> dict[str, Any]:
+    """``cssat_version``, ``git_commit`` (of cssat's own checkout, when it is one; else null),
+    ``torch_version``, ``numpy_version`` and ``python_version`` of this run."""
+    import platform
+
+    import numpy
+    import torch
+
+    import cssat
+
+    return {"cssat_version": cssat.__version__, "git_commit": _git_commit(Path(cssat.__file__).resolve().parent.parent),
+            "torch_version": torch.__version__, "numpy_version": numpy.__version__,
+            "python_version": platform.python_version()}
+
+
+def _git_commit(root: Path) -> str | None:
+    """The commit checked out in ``root`` (read from ``.git`` directly: no subprocess)."""
+    git = root / ".git"
+    try:
+        if git.is_file():  # a worktree: "gitdir: <path>"
+            git = (root / git.read_text().split(":", 1)[1].strip()).resolve()
+        head = (git / "HEAD").read_text().strip()
+        if not head.startswith("ref:"):
+            return head
+        ref = head.split(None, 1)[1]
+        path = git / ref
+        if path.exists():
+            return path.read_text().strip()
+        common = git / "commondir"
+        base = (git / common.read_text().strip()).resolve() if common.exists() else git
+        if (base / ref).exists():
+            return (base / ref).read_text().strip()
+        for line in (base / "packed-refs").read_text().splitlines():
+            if line.endswith(" " + ref):
+                return line.split()[0]
+    except (OSError, IndexError):
+        pass
+    return None
+
+
 def config_sha(cfg: Any) -> str:
     """A short hash of the resolved config, without the keys that do not change the results
     (``threads``, ``resume``)."""
@@ -90,5 +134,5 @@ def config_sha(cfg: Any) -> str:
         data = OmegaConf.to_container(cfg, resolve=True)
     else:
         data = dict(cfg)
-    data = {k: v for k, v in data.items() if k not in ("threads", "resume", "hydra")}
+    data = {k: v for k, v in data.items() if k not in _NOT_RESULTS}
     return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]

@@ -19,7 +19,6 @@ __all__ = [
     "torch_device",
     "write_json",
     "write_npz",
-    "save_figure",
 ]
 
 
@@ -122,16 +121,3 @@ def write_npz(path: str | os.PathLike, **arrays) -> None:
             np.savez_compressed(f, **conv)
 
     _atomic(Path(path), w)
-
-
-def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
-    """Save a matplotlib figure as PNG atomically and close it."""
-    import matplotlib.pyplot as plt
-
-    def w(tmp):
-        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
-
-    try:
-        _atomic(Path(path), w)
-    finally:
-        plt.close(fig)

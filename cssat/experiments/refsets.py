@@ -1,12 +1,10 @@
-"""What Simulations 2 and 3 share: the rendered reference set (cached on disk), a progress bar,
-and the peak-memory check made before anything large is allocated."""
+"""What Simulations 2 and 3 share: the rendered reference set (cached on disk) and a progress bar."""
 
 from __future__ import annotations
 
 import hashlib
 import json
 import logging
-import os
 import sys
 import time
 from pathlib import Path
@@ -14,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat.experiments.common import ConfigError, _atomic, require_float
+from cssat.experiments.common import _atomic, require_float, require_int
 
 log = logging.getLogger("cssat")
 
@@ -47,43 +45,22 @@ class Progress:
         return el
 
 
-def available_memory_bytes() -> int:
-    """Memory available to this process now (``MemAvailable``; else total physical memory)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+def reference_settings(cfg: Any, seed: int) -> int:
+    """The reference set's seed (``reference.seed``, null: ``seed + 1000``), with ``reference.noise``
+    and ``reference.model`` checked before any work."""
+    from cssat.experiments.build import build_model
 
-
-def peak_rss_bytes() -> int:
-    """Peak resident memory of this process so far, bytes (Linux ``ru_maxrss`` is in KiB; it is
-    already the running maximum)."""
-    import resource
-
-    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
-
-
-def check_memory(estimate: int, parts: dict[str, int], cfg: Any, hint: str) -> None:
-    """Stop with a ``memory:`` ConfigError when the estimated peak exceeds the limit
-    (``memory_limit_gb``, default: the memory available now)."""
-    limit_gb = cfg.get("memory_limit_gb")
-    limit = int(require_float(limit_gb, "memory_limit_gb", lo=0.0) * 2**30) if limit_gb is not None else available_memory_bytes()
-    if estimate > limit:
-        detail = ", ".join(f"{k} {v / 2**30:.2f}" for k, v in parts.items())
-        raise ConfigError(
-            f"memory: this run needs about {estimate / 2**30:.1f} GB at its peak ({detail} GB) but "
-            f"{limit / 2**30:.1f} GB are available; {hint}"
-        )
+    ref = cfg.reference
+    require_float(ref.get("noise", 0.0), "reference.noise", lo=0.0)
+    build_model(ref.model, "reference.model")
+    s = ref.get("seed")
+    return seed + 1000 if s is None else require_int(s, "reference.seed", 0)
 
 
 def _model_and_key(ref: Any, size: int, n: int, seed: int, noise: float, shadows: bool):
-    from cssat.experiments.lightcurve import build_model
+    from cssat.experiments.build import build_model
 
-    mesh = build_model(ref.model)
+    mesh = build_model(ref.model, "reference.model")
     h = hashlib.sha256()
     for a in (mesh.vertices, mesh.faces, mesh.cd, mesh.cs):
         h.update(np.ascontiguousarray(np.asarray(a)).tobytes())

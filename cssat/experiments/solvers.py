@@ -1,11 +1,15 @@
 """Solver comparison (``cssat experiment=solvers``): every reconstruction solver on Simulation 1's
 target at several m, side by side with the paper's OMP + sparse-KSVD.
 
-For each m one Gaussian Φ (seed) and one light curve ``y = Φx``; each entry of
-``comparison.solvers`` reconstructs from them (a ``solver`` config, plus ``denoise: true`` to
-post-process with the ``denoiser`` group). Writes ``comparison.csv`` (one row per m and solver:
-PSNR, SSIM, seconds), flat metrics ``psnr_<solver>_m<m>``, the images in ``arrays.npz`` and a
-figure: rows = m, columns = solvers, PSNR in each panel.
+For each m one measurement ``y = noise(Φx)`` (the ``atmosphere`` and ``noise`` groups, seeded);
+each entry of ``comparison.solvers`` (a ``solver`` group config, label → config) reconstructs
+from it, and the labels listed in ``comparison.denoise`` are post-processed with the
+``denoiser`` group. Writes ``comparison.csv`` (one row per m and solver: PSNR, SSIM, seconds),
+flat metrics ``psnr_<label>_m<m>``, the images in ``arrays.npz`` and a figure: rows = m,
+columns = solvers.
+
+Headline metrics: ``psnr``/``ssim`` of the best solver at the last m of ``comparison.m``
+(``best_solver``; the largest m by default).
 """
 
 from __future__ import annotations
@@ -16,57 +20,56 @@ import time
 from pathlib import Path
 from typing import Any
 
-
-from cssat.experiments.common import (
-    ConfigError,
-    _atomic,
-    require_int,
-    run_settings,
-    save_figure,
-    write_npz,
-)
-
 log = logging.getLogger("cssat")
 
 
 def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
+    """Run the comparison into ``out_dir``; return the metrics."""
     import torch
 
     from cssat.data import load_target
-    from cssat.experiments.denoisers import apply_denoiser
-    from cssat.experiments.sim1 import reconstruct
-    from cssat.metrics import psnr, ssim
-    from cssat.sparse import GaussianSensing
+    from cssat.experiments.build import build_denoiser, build_measurement, build_solver
+    from cssat.experiments.common import ConfigError, _atomic, require_int, run_settings, write_npz
+    from cssat.experiments.pipeline import reconstruct, scores
+    from cssat.experiments.resources import check_memory
+    from cssat.experiments.sim1 import memory_parts
+    from cssat.plots import save_figure, solvers_figure
 
     dtype, device, seed, n, N, _ = run_settings(cfg, max_size=4096)
     ms = [require_int(v, "comparison.m", 1, N) for v in cfg.comparison.m]
-    solvers = dict(cfg.comparison.solvers)
-    if not ms or not solvers:
-        raise ConfigError("comparison: needs at least one m and one solver")
+    labels = list(cfg.comparison.solvers or {})
+    if not ms or not labels:
+        raise ConfigError("comparison: needs at least one m (comparison.m) and one solver (comparison.solvers)")
+    post = list(cfg.comparison.get("denoise") or [])
+    if not set(post) <= set(labels):
+        raise ConfigError(f"comparison.denoise: expected labels from {labels}, got {post}")
+    # validated at the smallest m, where the size-dependent settings (e.g. K <= m) bind
+    solvers = {lab: build_solver(cfg.comparison.solvers[lab], min(ms), N, f"comparison.solvers.{lab}") for lab in labels}
+    denoiser = build_denoiser(cfg.get("denoiser"))
+    check_memory(memory_parts(n, max(ms), torch.finfo(dtype).bits // 8), cfg, "lower target.size or comparison.m")
     x = load_target(str(cfg.target.image), n)
-    rows, images, metrics = [], {}, {"n": n, "n_pixels": N, "m_values": ms, "solvers": list(solvers)}
+    rows, images = [], {}
+    metrics: dict[str, Any] = {"n": n, "n_pixels": N, "m_values": ms, "solvers": labels}
     for m in ms:
-        phi = GaussianSensing(m, N, seed=seed, dtype=dtype, device=device)
-        y = phi(torch.as_tensor(x, dtype=dtype, device=device).reshape(N))
-        for label, scfg in solvers.items():
+        meas, atm = build_measurement(cfg, m, N, seed, dtype, device, experiment="solvers")
+        y = meas(torch.as_tensor(x, dtype=dtype, device=device).reshape(N))
+        for label in labels:
             t = time.perf_counter()
-            x_raw, _, smet, _ = reconstruct(scfg, phi, y, n, seed)
-            rec = x_raw.clamp(0, 1).double().cpu().numpy()
-            if scfg.get("denoise", False):
-                rec, _ = apply_denoiser(cfg.get("denoiser"), rec, seed=seed, dtype=dtype, device=device, clip=(0.0, 1.0))
+            r = reconstruct(solvers[label], meas.operator, y, (n, n), denoiser=denoiser if label in post else None)
             sec = time.perf_counter() - t
-            row = {"m": m, "m_over_N": m / N, "solver": label, "psnr": psnr(rec, x, data_range=1.0),
-                   "ssim": ssim(rec, x, data_range=1.0), "seconds": sec,
-                   "iterations": smet.get("solver_iterations", smet.get("omp_atoms"))}
+            out = r.denoised if label in post else r.image
+            row = {"m": m, "m_over_N": m / N, "solver": label, **scores(out, None, x), "seconds": sec,
+                   "iterations": r.metrics.get("solver_iterations", r.metrics.get("omp_atoms"))}
             rows.append(row)
-            images[f"{label}_m{m}"] = rec
-            metrics[f"psnr_{label}_m{m}"] = row["psnr"]
-            metrics[f"seconds_{label}_m{m}"] = sec
+            images[f"{label}_m{m}"] = out
+            metrics[f"psnr_{label}_m{m}"], metrics[f"seconds_{label}_m{m}"] = row["psnr"], sec
             log.info("solvers: m=%d %-10s PSNR %.2f dB, SSIM %.3f, %.1f s", m, label, row["psnr"], row["ssim"], sec)
-        del phi
+        metrics.update(atm.describe(), **meas.describe())
+        del meas
     for m in ms:
         best = max((r for r in rows if r["m"] == m), key=lambda r: r["psnr"])
         metrics[f"best_m{m}"] = best["solver"]
+    metrics.update(psnr=best["psnr"], ssim=best["ssim"], best_solver=best["solver"], m=ms[-1])
 
     def w(tmp):
         with open(tmp, "w", newline="") as f:
@@ -76,30 +79,5 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     _atomic(out_dir / "comparison.csv", w)
     write_npz(out_dir / "arrays.npz", truth=x, **images)
-    _figure(x, ms, list(solvers), images, rows, out_dir / "figures" / "solvers.png")
+    save_figure(solvers_figure(x, ms, labels, images, rows), out_dir / "figures" / "solvers.png")
     return metrics
-
-
-def _figure(x, ms, labels, images, rows, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(len(ms), len(labels) + 1, figsize=(2.4 * (len(labels) + 1), 2.6 * len(ms)), squeeze=False)
-    for i, m in enumerate(ms):
-        for j, label in enumerate(labels + ["truth"]):
-            ax = axes[i, j]
-            ax.set_xticks([])
-            ax.set_yticks([])
-            img = x if label == "truth" else images[f"{label}_m{m}"]
-            ax.imshow(img, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
-            if label == "truth":
-                ax.set_title("truth", fontsize=9)
-            else:
-                r = next(r for r in rows if r["m"] == m and r["solver"] == label)
-                ax.set_title(f"{label}\n{r['psnr']:.2f} dB, {r['seconds']:.0f} s", fontsize=9)
-            if j == 0:
-                ax.set_ylabel(f"m = {m}", fontsize=9)
-    fig.suptitle("Reconstruction solvers on Simulation 1's target", fontsize=10)
-    save_figure(fig, path)

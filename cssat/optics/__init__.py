@@ -1,7 +1,6 @@
-"""Optics: BRDF and visibility (Eq. 8–9), light curves (Eq. 10), the z-buffer renderer and the
-atmosphere models (Eq. 11–12). Knows nothing of compressed sensing."""
+"""Optics: BRDF and visibility (Eq. 8–9), light curves (Eq. 10) and the z-buffer renderer.
+Knows nothing of compressed sensing; the atmosphere (Eq. 11–12) lives in :mod:`cssat.physics`."""
 
-from cssat.optics.atmosphere import atmosphere_weights, attenuated_facetwise, attenuated_pixelwise
 from cssat.optics.lightcurve import LightCurve, simulate_light_curve
 from cssat.optics.photometry import (
     SOLAR_IRRADIANCE_W_M2,
@@ -16,9 +15,6 @@ __all__ = [
     "LightCurve",
     "SOLAR_IRRADIANCE_W_M2",
     "apparent_magnitude",
-    "atmosphere_weights",
-    "attenuated_facetwise",
-    "attenuated_pixelwise",
     "check_unit",
     "default_fov",
     "facet_brightness",

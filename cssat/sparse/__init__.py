@@ -4,7 +4,7 @@ patch-based denoising.
 Nothing here knows about satellites: it can be used on its own.
 """
 
-from cssat.sparse.cs import omp_reconstruct, sensing_dictionary
+from cssat.sparse.cs import DictionarySensing, sensing_dictionary
 from cssat.sparse.denoise import DEMO_DEFAULTS, DenoiseInfo, estimate_sigma, ksvd_denoise
 from cssat.sparse.ksvd import KSVDInfo, SparseDictionary, ksvd, odct_base, sparse_ksvd
 from cssat.sparse.omp import OMPInfo, batch_omp, gram_matrix, omp_path_costs
@@ -32,6 +32,7 @@ __all__ = [
     "odct_base",
     "sparse_ksvd",
     "DCT",
+    "DictionarySensing",
     "ComposedOperator",
     "GaussianSensing",
     "KroneckerOperator",
@@ -45,7 +46,6 @@ __all__ = [
     "gram_matrix",
     "omp_path_costs",
     "odct_matrix",
-    "omp_reconstruct",
     "patch_positions",
     "sensing_dictionary",
 ]

@@ -98,6 +98,9 @@ class MatrixOperator(LinearOperator):
     def matrix(self, dtype=None, device=None) -> Tensor:
         return self.weight.to(dtype=dtype or self.weight.dtype, device=device or self.weight.device)
 
+    def extra_repr(self) -> str:
+        return f"n_out={self.n_out}, n_in={self.n_in}, dtype={self.weight.dtype}"
+
 
 def dct_matrix(n: int, dtype: torch.dtype = torch.float64, device=None) -> Tensor:
     """Orthonormal DCT-II matrix ``C (n, n)``: ``C[k, i] = s_k cos(π (2i + 1) k / (2n))``.
@@ -177,7 +180,8 @@ class DCT(LinearOperator):
 
 
 class GaussianSensing(MatrixOperator):
-    """Gaussian sensing matrix ``Φ (m, n)`` with i.i.d. ``N(0, 1/n)`` entries (paper Eq. 1, 15).
+    """Gaussian sensing matrix ``Φ (m, n)`` with i.i.d. ``N(mean, std²)`` entries; by default
+    ``N(0, 1/n)`` (paper Eq. 1, 12, 15).
 
     The paper's "zero-mean, 1/N-variance" matrix: ``n`` is the number of pixels. Row ``i`` is drawn
     from its own ``torch.Generator`` seeded by ``(seed, i)``, so
@@ -188,6 +192,7 @@ class GaussianSensing(MatrixOperator):
     Each row is drawn in place into the preallocated ``(m, n)`` buffer (on a GPU, through one small
     CPU block), so a 13225 × 16384 float32 matrix needs its own 0.87 GB and no temporary copy.
     The draw depends on ``dtype``: float32 and float64 matrices of one seed are different samples.
+    ``mean`` and ``std`` (default ``1/√n``) shift and scale the same draws.
     """
 
     def __init__(
@@ -197,17 +202,24 @@ class GaussianSensing(MatrixOperator):
         seed: int = 0,
         dtype: torch.dtype | None = None,
         device: torch.device | str | None = None,
+        mean: float = 0.0,
+        std: float | None = None,
     ):
-        if not isinstance(n, int) or n < 1:
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise ValueError(f"n: number of columns must be a positive integer, got {n!r}")
-        if not isinstance(m, int) or m < 1:
+        if isinstance(m, bool) or not isinstance(m, int) or m < 1:
             raise ValueError(f"m: number of measurements must be a positive integer, got {m!r}")
         seed = int(seed)
         dtype = dtype or torch.get_default_dtype()
         if dtype not in (torch.float32, torch.float64):
             raise ValueError(f"dtype: expected torch.float32 or torch.float64, got {dtype}")
+        std = 1.0 / math.sqrt(n) if std is None else float(std)
+        mean = float(mean)
+        if not (math.isfinite(std) and std >= 0):
+            raise ValueError(f"std: must be a finite number >= 0, got {std}")
+        if not math.isfinite(mean):
+            raise ValueError(f"mean: must be finite, got {mean}")
         w = torch.empty(m, n, dtype=dtype, device=device)
-        std = 1.0 / math.sqrt(n)
         gen = torch.Generator(device="cpu")
         on_cpu = w.device.type == "cpu"
         block = max(1, min(m, (1 << 22) // n))
@@ -216,11 +228,14 @@ class GaussianSensing(MatrixOperator):
             stop = min(start + block, m)
             for i in range(start, stop):
                 gen.manual_seed(_row_seed(seed, i))
-                buf[i if on_cpu else i - start].normal_(0.0, std, generator=gen)
+                buf[i if on_cpu else i - start].normal_(mean, std, generator=gen)
             if not on_cpu:
                 w[start:stop] = buf[: stop - start].to(w.device)
         super().__init__(w)
-        self.seed = seed
+        self.seed, self.mean, self.std = seed, mean, std
+
+    def extra_repr(self) -> str:
+        return f"m={self.n_out}, n={self.n_in}, seed={self.seed}, mean={self.mean:g}, std={self.std:.4g}, dtype={self.weight.dtype}"
 
 
 def _row_seed(seed: int, row: int) -> int:
@@ -254,9 +269,18 @@ class ComposedOperator(LinearOperator):
     def adjoint(self, y: Tensor) -> Tensor:
         return self.inner.adjoint(self.outer.adjoint(y))
 
-    def matrix(self, dtype=None, device=None, block_rows: int = 2048) -> Tensor:
-        """Dense ``(n_out, n_in)``; rows of the outer matrix are pushed through ``innerᵀ`` in blocks."""
+    def matrix(self, dtype=None, device=None, block_rows: int = 1024, atoms_contiguous: bool = False) -> Tensor:
+        """Dense ``(n_out, n_in)``; rows of the outer matrix are pushed through ``innerᵀ`` in blocks.
+
+        ``atoms_contiguous``: return a transposed view of a contiguous ``(n_in, n_out)`` tensor, so
+        each column (a dictionary atom) is contiguous in memory.
+        """
         a = self.outer.matrix(dtype=dtype, device=device)
+        if atoms_contiguous:
+            at = torch.empty(self.n_in, self.n_out, dtype=a.dtype, device=a.device)
+            for start in range(0, self.n_out, block_rows):
+                at[:, start : start + block_rows] = self.inner.adjoint(a[start : start + block_rows]).T
+            return at.T
         out = torch.empty(self.n_out, self.n_in, dtype=a.dtype, device=a.device)
         for start in range(0, self.n_out, block_rows):
             out[start : start + block_rows] = self.inner.adjoint(a[start : start + block_rows])

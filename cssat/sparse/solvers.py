@@ -60,7 +60,7 @@ def operator_norm_sq(A, *, n_iter: int = 50, dtype=torch.float64, device=None, s
     return est * 1.01
 
 
-def _check(y: Tensor, n_out: int, lam: float, max_iter: int, tol: float) -> tuple[Tensor, bool]:
+def _check(y: Tensor, n_out: int, lam: float, max_iter: int, rtol: float) -> tuple[Tensor, bool]:
     squeeze = y.ndim == 1
     y2 = y[None] if squeeze else y
     if y2.ndim != 2 or y2.shape[1] != n_out:
@@ -71,8 +71,8 @@ def _check(y: Tensor, n_out: int, lam: float, max_iter: int, tol: float) -> tupl
         raise ValueError(f"lam: the relative weight must be finite and >= 0, got {lam!r}")
     if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 1:
         raise ValueError(f"max_iter: must be an integer >= 1, got {max_iter!r}")
-    if not tol >= 0:
-        raise ValueError(f"tol: must be >= 0, got {tol!r}")
+    if not rtol >= 0:
+        raise ValueError(f"rtol: must be >= 0, got {rtol!r}")
     return y2, squeeze
 
 
@@ -82,7 +82,7 @@ def fista_l1(
     *,
     lam: float = 1e-3,
     max_iter: int = 500,
-    tol: float = 1e-6,
+    rtol: float = 1e-6,
     lipschitz: float | None = None,
     return_info: bool = False,
 ):
@@ -91,11 +91,11 @@ def fista_l1(
 
     ``A`` is the CS dictionary ``ΦΨ (m, n)`` as an operator or matrix; ``y (B, m)`` or ``(m,)``.
     ``λ = lam · ‖Aᵀy‖_∞`` per signal. The step is ``1/L`` with ``L = ‖A‖²`` from a power
-    iteration (or ``lipschitz``). Stops when ``‖γₖ − γₖ₋₁‖ ≤ tol ‖γₖ‖`` for every signal or after
+    iteration (or ``lipschitz``). Stops when ``‖γₖ − γₖ₋₁‖ ≤ rtol ‖γₖ‖`` for every signal or after
     ``max_iter`` iterations. Returns ``γ (B, n)`` (and a :class:`SolverInfo`).
     """
     op = _as_operator(A)
-    y2, squeeze = _check(y, op.n_out, lam, max_iter, tol)
+    y2, squeeze = _check(y, op.n_out, lam, max_iter, rtol)
     L = operator_norm_sq(op, dtype=y2.dtype, device=y2.device) if lipschitz is None else float(lipschitz)
     if not L > 0:
         raise ValueError("A: the operator is zero")
@@ -117,7 +117,7 @@ def fista_l1(
         if k % 10 == 0 or k == 1:
             r = op(x) - y2
             objective.append(float((0.5 * (r * r).sum(1) + lam_abs[:, 0] * x.abs().sum(1)).sum()))
-        if bool((change <= tol).all()):
+        if bool((change <= rtol).all()):
             converged = True
             break
     log.debug("fista_l1: %d iterations, converged=%s", k, converged)
@@ -153,7 +153,7 @@ def tv_pdhg(
     lam: float = 1e-4,
     nonneg: bool = True,
     max_iter: int = 1000,
-    tol: float = 1e-5,
+    rtol: float = 1e-5,
     return_info: bool = False,
 ):
     """Isotropic total variation by the primal–dual method of Chambolle & Pock (2011):
@@ -161,14 +161,14 @@ def tv_pdhg(
 
     ``phi (m, N)`` as an operator or matrix; ``y (B, m)`` or ``(m,)``; images of ``shape (H, W)``.
     ``λ = lam · ‖Φᵀy‖_∞`` per signal. Step sizes ``σ = τ = 0.99 / ‖K‖`` with
-    ``‖K‖² ≤ ‖Φ‖² + 8`` for ``K = [Φ; ∇]``. Stops when ``‖xₖ − xₖ₋₁‖ ≤ tol ‖xₖ‖`` for every signal.
+    ``‖K‖² ≤ ‖Φ‖² + 8`` for ``K = [Φ; ∇]``. Stops when ``‖xₖ − xₖ₋₁‖ ≤ rtol ‖xₖ‖`` for every signal.
     Returns images ``(B, H, W)`` or ``(H, W)`` (and a :class:`SolverInfo`).
     """
     op = _as_operator(phi)
     H, W = (int(s) for s in shape)
     if H * W != op.n_in:
         raise ValueError(f"shape: {tuple(shape)} does not match the operator's {op.n_in} pixels")
-    y2, squeeze = _check(y, op.n_out, lam, max_iter, tol)
+    y2, squeeze = _check(y, op.n_out, lam, max_iter, rtol)
     B = y2.shape[0]
     Lphi = operator_norm_sq(op, dtype=y2.dtype, device=y2.device)
     step = 0.99 / math.sqrt(Lphi + 8.0)
@@ -196,7 +196,7 @@ def tv_pdhg(
             g = tv_gradient(x)
             tv = torch.sqrt((g * g).sum(1)).flatten(1).sum(1)
             objective.append(float((0.5 * (r * r).sum(1) + lam_abs.flatten() * tv).sum()))
-        if bool((change <= tol).all()):
+        if bool((change <= rtol).all()):
             converged = True
             break
     log.debug("tv_pdhg: %d iterations, converged=%s", k, converged)

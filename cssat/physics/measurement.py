@@ -1,0 +1,105 @@
+"""One measurement model: ``y = noise(Φ x)`` (paper Eq. 15 with sensor noise)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import torch
+from torch import Tensor, nn
+
+from cssat.physics.noise import NoiseModel, NoNoise
+from cssat.sparse.operators import LinearOperator, MatrixOperator
+
+__all__ = ["Measurement"]
+
+
+class Measurement(nn.Module):
+    """A light-curve measurement: a sensing operator ``Φ (m, N)`` followed by a noise model.
+
+    In deepinv's ``LinearPhysics`` shape: :meth:`A` is the noiseless ``Φx``, :meth:`A_adjoint`
+    its transpose ``Φᵀy``, and ``forward(x) = noise(A(x))``. Batch-first: ``x (B, N)``,
+    ``(N,)``, or images ``(B, H, W)`` / ``(H, W)`` with ``H W = N``; ``y (B, m)`` or ``(m,)``.
+    Everything follows the input's device and dtype.
+
+    The noise is seeded: ``forward(x)`` draws it from a generator seeded with ``seed``
+    (the same ``x`` and seed give the same ``y`` on every call); pass ``generator`` to draw
+    from a stream of your own instead.
+
+    Parameters
+    ----------
+    operator : LinearOperator or (m, N) tensor
+        The sensing matrix (e.g. from :meth:`cssat.physics.Atmosphere.operator`).
+    noise : NoiseModel, optional
+        Default: :class:`~cssat.physics.NoNoise`.
+    seed : int
+        Seed of the noise.
+    """
+
+    def __init__(self, operator: LinearOperator | Tensor, noise: NoiseModel | None = None, seed: int = 0):
+        super().__init__()
+        if isinstance(operator, Tensor):
+            operator = MatrixOperator(operator)
+        if not isinstance(operator, LinearOperator):
+            raise TypeError(f"operator: expected a LinearOperator or a 2-D tensor, got {type(operator).__name__}")
+        self.operator = operator
+        self.noise = noise if noise is not None else NoNoise()
+        self.seed = int(seed)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(m, N)``."""
+        return self.operator.shape
+
+    def _flat(self, x: Tensor) -> Tensor:
+        n = self.operator.n_in
+        if x.shape[-1] == n:
+            return x
+        if x.ndim >= 2 and math.prod(x.shape[-2:]) == n:
+            return x.reshape(*x.shape[:-2], n)
+        raise ValueError(f"x: expected (B, {n}), ({n},) or images with H·W = {n}, got shape {tuple(x.shape)}")
+
+    def A(self, x: Tensor) -> Tensor:
+        """The noiseless light curve ``Φx``: ``(B, m)`` or ``(m,)``."""
+        return self.operator(self._flat(x))
+
+    def A_adjoint(self, y: Tensor) -> Tensor:
+        """``Φᵀy``: ``(B, N)`` or ``(N,)``."""
+        return self.operator.adjoint(y)
+
+    def forward(self, x: Tensor, generator: torch.Generator | None = None) -> Tensor:
+        """The measured light curve ``noise(Φx)``."""
+        return self.add_noise(self.A(x), generator)
+
+    def add_noise(self, y: Tensor, generator: torch.Generator | None = None) -> Tensor:
+        """``noise(y)`` with the measurement's seeded generator (or ``generator``)."""
+        if generator is None:
+            generator = torch.Generator(device="cpu").manual_seed(self.seed)
+        out = self.noise(y, generator)
+        if not bool(torch.isfinite(out).all()):
+            raise ValueError("y: the light curve contains NaN or Inf")
+        return out
+
+    def frames(self, x_t: Tensor, generator: torch.Generator | None = None) -> Tensor:
+        """The light curve of a changing scene: ``y_t = Σⱼ Φ[t, j] x_t[j]`` (Eq. 11, 12).
+
+        ``x_t (m, N)`` (or ``(m, H, W)``): the scene at sample ``t`` — facet fluxes or rendered
+        images. Returns ``(m,)``, noise added.
+        """
+        flat = self._flat(x_t)
+        if flat.ndim != 2 or flat.shape[0] != self.operator.n_out:
+            raise ValueError(f"x_t: expected {self.operator.n_out} frames, got shape {tuple(x_t.shape)}")
+        w = self.operator.matrix(dtype=flat.dtype, device=flat.device)
+        return self.add_noise((w * flat).sum(-1), generator)
+
+    def matrix(self) -> Tensor:
+        """The dense sensing matrix ``Φ (m, N)``."""
+        return self.operator.matrix()
+
+    def describe(self) -> dict[str, Any]:
+        """Flat settings of the noise model for ``metrics.json``."""
+        return self.noise.describe()
+
+    def extra_repr(self) -> str:
+        m, n = self.shape
+        return f"m={m}, N={n}, noise={self.noise!r}, seed={self.seed}"

@@ -1,0 +1,251 @@
+"""Figures of the experiments and sweeps, as matplotlib ``Figure`` objects.
+
+Every function returns a :class:`matplotlib.figure.Figure` built without pyplot, so nothing here
+switches matplotlib's backend or touches a notebook's open figures: show one in a notebook by
+leaving it as a cell's value, save it with :func:`save_figure` (atomic) or ``fig.savefig``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any, Sequence
+
+import numpy as np
+
+__all__ = ["image_panels", "sim1_figure", "sim2_figure", "sim3_figures", "solvers_figure", "lightcurve_figure",
+           "atmosphere_figure", "sweep_figure", "light_curve_image", "save_figure"]
+
+
+def _figure(figsize):
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize)
+
+
+def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
+    """Save ``fig`` as PNG atomically (a reader sees the old file or the new one, never a part)."""
+    from cssat.experiments.common import _atomic
+
+    _atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png"))
+
+
+def light_curve_image(y: np.ndarray) -> np.ndarray:
+    """The light curve ``y (m,)`` laid out row by row in a ``⌈√m⌉ × ⌈√m⌉`` image, padded with NaN
+    (the paper's Fig. 9, first column)."""
+    side = math.ceil(math.sqrt(len(y)))
+    img = np.full(side * side, np.nan)
+    img[: len(y)] = y
+    return img.reshape(side, side)
+
+
+def image_panels(
+    panels: Sequence[tuple],
+    *,
+    ncols: int | None = None,
+    title: str | None = None,
+    panel_size: tuple[float, float] = (3.1, 3.4),
+    row_labels: Sequence[str] | None = None,
+    title_size: int = 10,
+):
+    """A grid of gray images: ``panels`` are ``(image, title)`` or ``(image, title, (vmin, vmax))``
+    (``None`` limits: the image's own range; a ``None`` image leaves the cell empty), filled row
+    by row into ``ncols`` columns (default: all in one row)."""
+    n = len(panels)
+    ncols = ncols or n
+    nrows = -(-n // ncols)
+    fig = _figure((panel_size[0] * ncols, panel_size[1] * nrows))
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).reshape(nrows, ncols)
+    for k, ax in enumerate(axes.flat):
+        ax.set_xticks([])
+        ax.set_yticks([])
+        if k >= n or panels[k][0] is None:
+            ax.axis("off")
+            continue
+        img, text, *lim = panels[k]
+        lim = lim[0] if lim else (0.0, 1.0)
+        kw = {"vmin": lim[0], "vmax": lim[1]} if lim is not None else {}
+        ax.imshow(img, cmap="gray", interpolation="nearest", **kw)
+        ax.set_title(text, fontsize=9)
+    for i, label in enumerate(row_labels or []):
+        axes[i, 0].set_ylabel(label, fontsize=9)
+    if title:
+        fig.suptitle(title, fontsize=title_size)
+    return fig
+
+
+def lightcurve_figure(minutes, mag, images, marks, times, sunlit):
+    """The paper's Fig. 4: rendered images at the marked steps above the atmosphere-free light
+    curve in magnitudes, with the Earth's shadow shaded."""
+    n = len(marks)
+    fig = _figure((2.2 * n, 6.2))
+    gs = fig.add_gridspec(2, n, height_ratios=[1, 1.25])
+    for k, (step, img) in enumerate(zip(marks, images)):
+        ax = fig.add_subplot(gs[0, k])
+        ax.imshow(img, cmap="gray", interpolation="nearest", vmin=0, vmax=max(float(img.max()), 1e-300))
+        ax.set_title(f"({k + 1}) {str(times[step])[11:16]} UTC", fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    ax = fig.add_subplot(gs[1, :])
+    ax.plot(minutes, mag, color="k", lw=1)
+    ax.plot(minutes[marks], mag[marks], "o", color="tab:red")
+    for k, step in enumerate(marks):
+        ax.annotate(f"({k + 1})", (minutes[step], mag[step]), textcoords="offset points", xytext=(4, 6), fontsize=8, color="tab:red")
+    ecl = np.asarray(sunlit) < 1
+    if ecl.any():
+        ax.axvspan(minutes[ecl][0], minutes[ecl][-1], color="0.85", label="Earth shadow")
+        ax.legend(loc="lower right", fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("minutes since " + str(times[0])[:16].replace("T", " ") + " UTC")
+    ax.set_ylabel("apparent magnitude")
+    ax.set_title("(b) simulated atmosphere-free light curve", fontsize=10)
+    fig.suptitle("(a) synthetic images of the satellite at the marked times", fontsize=10, y=0.99)
+    fig.tight_layout()
+    return fig
+
+
+def atmosphere_figure(minutes, mag, mag_facetwise, mag_pixelwise, atmosphere: str = "gaussian"):
+    """The paper's Fig. 5: the atmosphere-free light curve against the facet-wise (Eq. 11) and
+    pixel-wise (Eq. 12) attenuated noisy ones, in magnitudes of ``|I|``."""
+    fig = _figure((9, 4))
+    ax = fig.subplots()
+    ax.plot(minutes, mag_pixelwise, color="tab:orange", lw=0.6, label=f"simplified attenuated noisy LC (pixel-wise, Eq. 12, {atmosphere})")
+    ax.plot(minutes, mag_facetwise, color="tab:blue", lw=0.6, label=f"attenuated noisy LC (facet-wise, Eq. 11, {atmosphere})")
+    ax.plot(minutes, mag, color="k", lw=1.2, label="atmosphere-free (Eq. 10)")
+    ax.invert_yaxis()
+    ax.set_xlabel("minutes")
+    ax.set_ylabel("apparent magnitude (of |I|)")
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title("Atmosphere-free light curve and attenuated noisy light curves", fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _axis(rows: Sequence[dict], key: str) -> tuple[list[Any], str]:
+    """Values of a swept key for the plot; ``cs.m`` as the measurement ratio m/N and
+    ``reference.n`` as N_ref/N when the rows know ``n_pixels``."""
+    vals = []
+    for r in rows:
+        v = r.get(key)
+        npix = r.get("n_pixels")
+        if key in ("cs.m", "reference.n") and isinstance(v, (int, float)) and npix:
+            v = v / npix
+        vals.append(v)
+    label = {"cs.m": "m / N (measurement ratio)", "reference.n": "N_ref / N (references per pixel)"}.get(key, key)
+    return vals, label
+
+
+def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr"):
+    """The sweep plot: ``metric`` against one swept value (and ``<metric>_denoised`` dashed), or
+    a map over the first two numeric swept values. ``None`` when no row has the metric."""
+    ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get(metric), (int, float))]
+    if not ok or not swept:
+        return None
+    numeric = [k for k in swept if all(isinstance(r.get(k), (int, float)) for r in ok)]
+    unit = f"{metric} (dB)" if "psnr" in metric else metric
+    if len(numeric) >= 2:  # a phase-transition map over the first two numeric keys
+        kx, ky = numeric[0], numeric[1]
+        xs, lx = _axis(ok, kx)
+        ys, ly = _axis(ok, ky)
+        ux, uy = sorted(set(xs)), sorted(set(ys))
+        grid = np.full((len(uy), len(ux)), np.nan)
+        for x, y, r in zip(xs, ys, ok):
+            grid[uy.index(y), ux.index(x)] = r[metric]
+        fig = _figure((6, 4.5))
+        ax = fig.subplots()
+        im = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(len(ux)), [f"{v:.3g}" for v in ux])
+        ax.set_yticks(range(len(uy)), [f"{v:.3g}" for v in uy])
+        for i in range(grid.shape[0]):
+            for j in range(grid.shape[1]):
+                if not np.isnan(grid[i, j]):
+                    ax.text(j, i, f"{grid[i, j]:.1f}", ha="center", va="center", color="w", fontsize=8)
+        ax.set_xlabel(lx)
+        ax.set_ylabel(ly)
+        fig.colorbar(im, ax=ax, label=unit)
+        ax.set_title(f"{metric} over {lx.split(' (')[0]} × {ly.split(' (')[0]}", fontsize=10)
+        return fig
+    key = numeric[0] if numeric else swept[0]
+    xs, label = _axis(ok, key)
+    others = [k for k in swept if k != key]
+    groups: dict[tuple, list[int]] = {}
+    for i, r in enumerate(ok):
+        groups.setdefault(tuple(r.get(k) for k in others), []).append(i)
+    fig = _figure((6, 4))
+    ax = fig.subplots()
+    for g, idx in groups.items():
+        idx = sorted(idx, key=lambda i: (str(type(xs[i])), xs[i]))
+        name = ", ".join(f"{k}={v}" for k, v in zip(others, g))
+        ax.plot([xs[i] for i in idx], [ok[i][metric] for i in idx], "o-", label=f"{metric} {name}".strip())
+        den = f"{metric}_denoised"
+        if all(isinstance(ok[i].get(den), (int, float)) for i in idx):
+            ax.plot([xs[i] for i in idx], [ok[i][den] for i in idx], "s--", label=f"{den} {name}".strip())
+    ax.set_xlabel(label)
+    ax.set_ylabel(unit)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"{metric} against {label.split(' (')[0]}", fontsize=10)
+    return fig
+
+
+def _solver_title(metrics: dict) -> str:
+    if metrics.get("solver") == "omp":
+        eps = metrics.get("solver_epsilon")
+        return f"batch-OMP, K = {metrics.get('solver_n_nonzero_coefs')}" + (f", ε = {eps:.3g}" if eps is not None else "")
+    it = metrics.get("solver_iterations")
+    text = f"{metrics.get('solver')}" + (f", {it} iterations" if it is not None else "")
+    if "solver_lam" in metrics:
+        text += f", λ = {metrics['solver_lam']:g}·‖Aᵀy‖∞"
+    elif "solver_denoiser" in metrics:
+        text += f", denoiser {metrics['solver_denoiser']}"
+    return text
+
+
+def sim1_figure(y, rec, den, truth, metrics: dict):
+    """The paper's Fig. 9 (one row): the light curve as an image, the reconstruction, the
+    denoised reconstruction and the truth."""
+    return image_panels([
+        (light_curve_image(np.asarray(y)), f"light curve y (m = {metrics['m']})", None),
+        (rec, f"reconstruction\nPSNR {metrics['psnr']:.2f} dB, SSIM {metrics['ssim']:.3f}"),
+        (den, f"denoised ({metrics['denoiser']})\nPSNR {metrics['psnr_denoised']:.2f} dB, SSIM {metrics['ssim_denoised']:.3f}"),
+        (truth, f"truth ({metrics['n']}×{metrics['n']})"),
+    ], title="Simulation 1: " + _solver_title(metrics), panel_size=(3.125, 3.4))
+
+
+def sim2_figure(truth, rec, den, metrics: dict):
+    """The paper's Fig. 11: truth, reconstruction from the full-rank Φ̂, denoised."""
+    return image_panels([
+        (truth, f"truth ({metrics['n']}×{metrics['n']})"),
+        (rec, f"reconstruction\nPSNR {metrics['psnr']:.2f} dB"),
+        (den, f"denoised ({metrics['denoiser']})\nPSNR {metrics['psnr_denoised']:.2f} dB ({metrics['psnr_gain_denoised']:+.2f})"),
+    ], title=f"Simulation 2: full-rank Φ̂ (N_ref = {metrics['reference_n']}, ‖Φ̂−Φ‖/‖Φ‖ = "
+             f"{metrics['phi_relative_error']:.1e}), m = {metrics['m']}, " + _solver_title(metrics),
+       panel_size=(3.17, 3.6), title_size=9)
+
+
+def sim3_figures(truth, stack, den2, den3, per: list[dict], psnr3: list[float], best: int, metrics: dict):
+    """The paper's Fig. 13 (the repeats' raw results) and Fig. 14 (truth, best raw, its 2-D and
+    3-D denoised versions): two figures."""
+    R = stack.shape[0]
+    fig13 = image_panels([(stack[k], f"slice {k + 1}: {per[k]['psnr']:.2f} dB") for k in range(R)],
+                         ncols=min(R, 3 if R <= 9 else 5), panel_size=(2.8, 2.9),
+                         title=f"Simulation 3: {R} noisy results (N_ref = {metrics['reference_n']} references each)")
+    fig14 = image_panels([
+        (truth, "(a) truth"),
+        (stack[best], f"(b) best raw (slice {best + 1})\nPSNR {per[best]['psnr']:.2f} dB"),
+        (den2[best], f"(c) 2-D denoised\nPSNR {per[best]['psnr_denoised']:.2f} dB ({metrics['gain_2d']:+.2f})"),
+        (den3[best], f"(d) 3-D denoised\nPSNR {psnr3[best]:.2f} dB ({metrics['gain_3d_over_2d']:+.2f} over 2-D)"),
+    ], panel_size=(3.0, 3.5))
+    return fig13, fig14
+
+
+def solvers_figure(truth, ms: Sequence[int], labels: Sequence[str], images: dict, rows: list[dict]):
+    """The solver comparison: rows = m, columns = solvers and the truth, PSNR and seconds in each panel."""
+    panels = []
+    for m in ms:
+        for label in labels:
+            r = next(r for r in rows if r["m"] == m and r["solver"] == label)
+            panels.append((images[f"{label}_m{m}"], f"{label}\n{r['psnr']:.2f} dB, {r['seconds']:.0f} s"))
+        panels.append((truth, "truth"))
+    return image_panels(panels, ncols=len(labels) + 1, panel_size=(2.4, 2.6), row_labels=[f"m = {m}" for m in ms],
+                        title="Reconstruction solvers on Simulation 1's target")

@@ -1,0 +1,232 @@
+"""Reconstruction solvers: an image from its light curve ``y = Φx`` (paper Eq. 5, 6 and beyond).
+
+Every solver is an object with one call signature::
+
+    x, info = solver(phi, y, shape)
+
+``phi`` is the sensing operator ``Φ (m, N)`` (a :class:`~cssat.sparse.LinearOperator` or a dense
+``(m, N)`` tensor), ``y`` the light curve ``(m,)`` or a batch ``(B, m)``, ``shape`` the image
+shape ``(H, W)`` with ``H W = N``. ``x`` is the reconstruction ``shape`` or ``(B, *shape)``,
+*not* clipped to the image range, in ``y``'s dtype and on its device; ``info`` is a flat dict for
+``metrics.json`` (tensors in it, such as OMP's ``coefficients``, are arrays to save).
+``validate(m, N)`` checks the settings that depend on the problem size before any work.
+Settings are checked when the object is built. Build them from the ``solver`` config group
+(``_target_``) or directly; a class of your own with the same call works everywhere these do.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from cssat.recon._checks import choice_param, float_param, int_param, opt
+from cssat.recon.denoisers import Denoiser
+
+__all__ = ["Solver", "OMP", "L1", "TV", "PnP", "default_sparsity", "tv_default_lam"]
+
+
+class Solver:
+    """Base class of the reconstruction solvers."""
+
+    name = "solver"
+
+    def validate(self, m: int, n_pixels: int) -> None:
+        """Check the size-dependent settings for ``m`` samples of ``n_pixels`` pixels."""
+
+    def __call__(self, phi, y: Tensor, shape: Sequence[int]) -> tuple[Tensor, dict[str, Any]]:  # pragma: no cover
+        raise NotImplementedError
+
+
+def _problem(phi, y: Tensor, shape: Sequence[int]) -> tuple[int, int, tuple[int, int]]:
+    shape = tuple(int(s) for s in shape)
+    N = math.prod(shape)
+    n_in = phi.n_in if hasattr(phi, "n_in") else phi.shape[-1]
+    if n_in != N:
+        raise ValueError(f"shape: {shape} has {N} pixels but phi has {n_in} columns")
+    if y.shape[-1] != (phi.n_out if hasattr(phi, "n_out") else phi.shape[0]):
+        raise ValueError(f"y: last dimension {y.shape[-1]} does not match phi's {tuple(phi.shape)}")
+    return int(y.shape[-1]), N, shape
+
+
+def default_sparsity(m: int, n_pixels: int) -> int:
+    """The default ``K`` of Eq. 5 for ``m`` Gaussian measurements of ``N = n_pixels`` pixels:
+    ``K = m (0.05 + 0.25 (m/N)²)``.
+
+    A fixed ``K/m`` is wrong at both ends: with few measurements OMP over-fits (best near
+    ``K/m = 0.05``), with ``m`` near ``N`` it under-fits (``K/m ≥ 0.25``). The rule follows the
+    best ``K`` of a sweep on the 128² camera image at m = 1444, 4096, 13225 (BENCHMARKS.md).
+    """
+    r = m / n_pixels
+    return max(1, round(m * (0.05 + 0.25 * r * r)))
+
+
+class OMP(Solver):
+    """Batch-OMP over the CS dictionary ``ΦΨ`` with a 2-D DCT Ψ (paper Eq. 5 / Eq. 6).
+
+    ``epsilon`` (ε, a norm in ``y``'s units) gives the error-constrained Eq. 6,
+    ``‖y − ΦΨγ‖₂ ≤ ε``, with ``n_nonzero_coefs`` as a cap (default ``m``); otherwise Eq. 5 with
+    ``K = n_nonzero_coefs``, or ``round(k_ratio · m)``, or :func:`default_sparsity` when both are
+    null. ``x̂ = Ψγ̂``. ``ΦΨ`` is formed by a fast DCT of Φ's rows
+    (:func:`cssat.sparse.sensing_dictionary`), or taken as it is from a
+    :class:`cssat.sparse.DictionarySensing`.
+    """
+
+    name = "omp"
+
+    def __init__(self, n_nonzero_coefs: int | None = None, k_ratio: float | None = None, epsilon: float | None = None):
+        self.n_nonzero_coefs = opt(n_nonzero_coefs, int_param, "n_nonzero_coefs", 1)
+        self.k_ratio = opt(k_ratio, float_param, "k_ratio", 0.0, 1.0)
+        self.epsilon = opt(epsilon, float_param, "epsilon", 0.0)
+
+    def settings(self, m: int, n_pixels: int) -> tuple[int, float | None]:
+        """``(K, tol)`` for :func:`cssat.sparse.batch_omp` (``tol = ε²``, a squared norm)."""
+        k = self.n_nonzero_coefs
+        if self.epsilon is not None:
+            return (m if k is None else int_param(k, "n_nonzero_coefs", 1, m)), self.epsilon ** 2
+        if k is None:
+            k = default_sparsity(m, n_pixels) if self.k_ratio is None else max(1, round(self.k_ratio * m))
+        return int_param(k, "n_nonzero_coefs", 1, m), None
+
+    def validate(self, m, n_pixels):
+        self.settings(m, n_pixels)
+
+    def __call__(self, phi, y, shape):
+        from cssat.sparse import DCT, batch_omp, sensing_dictionary
+
+        m, N, shape = _problem(phi, y, shape)
+        K, tol = self.settings(m, N)
+        t = time.perf_counter()
+        D = sensing_dictionary(phi, shape)
+        t_dict = time.perf_counter() - t
+        gamma, info = batch_omp(D, y.to(D.dtype), n_nonzero_coefs=K, tol=tol, return_info=True)
+        del D
+        x = DCT(shape)(gamma).reshape(*y.shape[:-1], *shape)
+        res = info.residual_sq.double().sqrt().reshape(-1) / y.double().reshape(-1, m).norm(dim=1).clamp_min(1e-300)
+        return x, {
+            "solver_n_nonzero_coefs": K,
+            "solver_tol": tol,
+            "solver_epsilon": self.epsilon,
+            "omp_atoms": int(info.n_iter.max()),
+            "omp_path": info.path,
+            "relative_residual": float(res.max()),
+            "seconds_dictionary": t_dict,
+            "coefficients": gamma,
+        }
+
+    def __repr__(self):
+        return f"OMP(n_nonzero_coefs={self.n_nonzero_coefs}, k_ratio={self.k_ratio}, epsilon={self.epsilon})"
+
+
+class _Convex(Solver):
+    def __init__(self, lam: float | None, max_iter: int, rtol: float):
+        self.lam = opt(lam, float_param, "lam", 0.0)
+        self.max_iter = int_param(max_iter, "max_iter", 1)
+        self.rtol = float_param(rtol, "rtol", 0.0)
+
+    def _info(self, lam: float, sinfo) -> dict[str, Any]:
+        return {
+            "solver_lam": lam, "solver_lam_abs": float(sinfo.lam[0]), "solver_max_iter": self.max_iter,
+            "solver_rtol": self.rtol, "solver_iterations": sinfo.n_iter, "solver_converged": sinfo.converged,
+            "solver_objective": sinfo.objective[-1] if sinfo.objective else None,
+        }
+
+
+class L1(_Convex):
+    """ℓ1 in the DCT by FISTA (Beck & Teboulle 2009): ``min ½‖ΦΨγ − y‖² + λ‖γ‖₁``, ``x̂ = Ψγ̂``.
+
+    ``lam`` is relative: ``λ = lam · ‖(ΦΨ)ᵀy‖∞`` (the solution is zero for ``lam ≥ 1``).
+    Stops when the relative change of γ falls below ``rtol`` or after ``max_iter`` iterations.
+    """
+
+    name = "l1"
+
+    def __init__(self, lam: float = 1e-3, max_iter: int = 1000, rtol: float = 1e-5):
+        super().__init__(lam if lam is not None else 1e-3, max_iter, rtol)
+
+    def __call__(self, phi, y, shape):
+        from cssat.sparse import DCT, sensing_dictionary
+        from cssat.sparse.solvers import fista_l1
+
+        m, N, shape = _problem(phi, y, shape)
+        t = time.perf_counter()
+        A = sensing_dictionary(phi, shape)
+        t_dict = time.perf_counter() - t
+        gamma, sinfo = fista_l1(A, y.to(A.dtype), lam=self.lam, max_iter=self.max_iter, rtol=self.rtol, return_info=True)
+        del A
+        x = DCT(shape)(gamma).reshape(*y.shape[:-1], *shape)
+        return x, {**self._info(self.lam, sinfo), "seconds_dictionary": t_dict, "coefficients": gamma}
+
+
+def tv_default_lam(ratio: float) -> float:
+    """The default relative TV weight at the measurement ratio ``m/N``: ``0.01 (1 − m/N)²``.
+
+    Few measurements need a strong prior, many a faithful fit: on the 128² TESS-like target a fixed
+    ``1e-2`` gives 31.1 / 41.2 / 45.1 dB at m = 1444 / 4096 / 13225 and ``1e-3`` gives
+    20.6 / 30.7 / 63.6 dB (BENCHMARKS.md).
+    """
+    return 0.01 * (1.0 - min(max(ratio, 0.0), 1.0)) ** 2
+
+
+class TV(_Convex):
+    """Isotropic total variation on the image by Chambolle–Pock (2011):
+    ``min ½‖Φx − y‖² + λ TV(x)``, ``x ≥ 0`` when ``nonneg``.
+
+    ``lam`` relative to ``‖Φᵀy‖∞``; ``None``: :func:`tv_default_lam` at ``m/N``.
+    """
+
+    name = "tv"
+
+    def __init__(self, lam: float | None = None, nonneg: bool = True, max_iter: int = 2000, rtol: float = 1e-5):
+        super().__init__(lam, max_iter, rtol)
+        if not isinstance(nonneg, bool):
+            raise ValueError(f"nonneg: expected true or false, got {nonneg!r}")
+        self.nonneg = nonneg
+
+    def __call__(self, phi, y, shape):
+        from cssat.sparse.solvers import tv_pdhg
+
+        m, N, shape = _problem(phi, y, shape)
+        lam = self.lam if self.lam is not None else tv_default_lam(m / N)
+        x, sinfo = tv_pdhg(phi, y, shape, lam=lam, nonneg=self.nonneg, max_iter=self.max_iter, rtol=self.rtol,
+                           return_info=True)
+        return x, self._info(lam, sinfo)
+
+
+class PnP(Solver):
+    """Plug-and-play proximal gradient (Venkatakrishnan et al. 2013):
+    ``x ← D(x − Φᵀ(Φx − y)/L, σₖ)`` with any :class:`~cssat.recon.Denoiser` ``D`` and a geometric
+    σ schedule from ``sigma_start`` to ``sigma_end`` (image units; the targets are in [0, 1]), one
+    iteration per σ. ``init: tv`` starts from a TV solution (λ = 1e-3, 300 iterations).
+    BM3D is not offered: its licence is non-commercial.
+    """
+
+    name = "pnp"
+
+    def __init__(self, denoiser: Denoiser, max_iter: int = 30, sigma_start: float = 0.1, sigma_end: float = 0.005,
+                 init: str = "zero"):
+        if not callable(denoiser):
+            raise ValueError(f"denoiser: expected a denoiser object (image, sigma) -> (image, info), got {denoiser!r}")
+        self.denoiser = denoiser
+        self.max_iter = int_param(max_iter, "max_iter", 1)
+        self.sigma_start = float_param(sigma_start, "sigma_start", 1e-6)
+        self.sigma_end = float_param(sigma_end, "sigma_end", 1e-6)
+        self.init = choice_param(init, "init", ("zero", "tv"))
+
+    def __call__(self, phi, y, shape):
+        from cssat.sparse.solvers import pnp_pgd, tv_pdhg
+
+        m, N, shape = _problem(phi, y, shape)
+        x0 = tv_pdhg(phi, y, shape, lam=1e-3, max_iter=300) if self.init == "tv" else None
+        sig = np.geomspace(self.sigma_start, self.sigma_end, self.max_iter)
+        x, sinfo = pnp_pgd(phi, y, shape, lambda img, s: self.denoiser(img, s)[0], sigmas=sig, x0=x0, return_info=True)
+        return x, {
+            "solver_denoiser": getattr(self.denoiser, "name", type(self.denoiser).__name__),
+            "solver_iterations": sinfo.n_iter,
+            "solver_sigma_start": float(sinfo.lam[0]), "solver_sigma_end": float(sinfo.lam[-1]),
+            "solver_objective": sinfo.objective[-1],
+        }
