@@ -140,7 +140,7 @@ def run_large(args):
     p_ours = psnr(psi(g).reshape(n, n).clamp(0, 1).numpy(), x, data_range=1.0)
     ours_sup = g.numpy() != 0
     # the floor: K passes Dᵀr over the dictionary (one matrix-vector product each)
-    from cssat.sparse.omp import _mv
+    from cssat.sparse._omp_torch import _mv
 
     r = torch.randn(m)
     _mv(A.T, r)

@@ -249,7 +249,7 @@ def test_blocked_gram_equals_dense_product():
 
 
 def test_threaded_matrix_vector_product_matches_float64():
-    from cssat.sparse.omp import _correlate
+    from cssat.sparse._omp_torch import correlate as _correlate
 
     g = torch.Generator().manual_seed(1)
     Dt = torch.randn(2100, 2048, generator=g)  # large enough for the threaded split

@@ -3,14 +3,14 @@
 One signal at a time per thread, so each signal's working set — the ``K`` Gram rows it has selected,
 ``K × n`` values — stays in the core's L2 cache; the torch path runs signals in lockstep and is
 bound by cache bandwidth and per-operation overhead on a CPU. The arithmetic, the stopping rules
-and the output are those of the torch path (``_omp_chunk``), and the tests compare the two.
+and the output are those of the torch path (``_omp_torch.omp_chunk``), and the tests compare the two.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from cssat._numba import available, kernel
+from cssat.sparse._numba import available, kernel
 
 __all__ = ["available"]
 

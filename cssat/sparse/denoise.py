@@ -23,13 +23,12 @@ from cssat.sparse.patches import _norm, accumulate_patches, extract_patches, pat
 __all__ = ["ksvd_denoise", "estimate_sigma", "DenoiseInfo", "DEMO_DEFAULTS"]
 
 #: KSVDSBox ``ksvdsdenoisedemo`` parameters (Rubinstein 2009), per dimensionality: block edge,
-#: 1-D ODCT atoms per block edge (``odctdict(8, 10)``), trained atoms, ``T_dict``, noise gain,
-#: training blocks, iterations and the step between the denoised blocks.
+#: ``T_dict``, noise gain, training blocks, iterations and the step between the denoised blocks.
+#: The trained atoms default to the base dictionary's size: ``odctdict(8, 10)`` per axis, so 100
+#: in 2-D and 1000 in 3-D (:func:`~cssat.sparse.odct_base`).
 DEMO_DEFAULTS: dict[int, dict[str, Any]] = {
-    2: {"block": 8, "base_ratio": 1.25, "n_atoms": 100, "atom_sparsity": 6, "gain": 1.15,
-        "n_train": 30000, "n_iter": 15, "step": 1},
-    3: {"block": 8, "base_ratio": 1.25, "n_atoms": 1000, "atom_sparsity": 16, "gain": 1.04,
-        "n_train": 80000, "n_iter": 15, "step": 2},
+    2: {"block": 8, "atom_sparsity": 6, "gain": 1.15, "n_train": 30000, "n_iter": 15, "step": 1},
+    3: {"block": 8, "atom_sparsity": 16, "gain": 1.04, "n_train": 80000, "n_iter": 15, "step": 2},
 }
 
 

@@ -1,4 +1,5 @@
-"""Shared plumbing of cssat's optional numba kernels (no layer: used by sparse and optics)."""
+"""Shared plumbing of cssat's optional numba kernels (part of the sparse layer, which stands alone; the
+optics renderer uses it too)."""
 
 from __future__ import annotations
 
