@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import logging
 import sys
+from pathlib import Path
+from typing import Any
 
 import hydra
 from omegaconf import DictConfig
@@ -16,20 +18,22 @@ from omegaconf import DictConfig
 log = logging.getLogger("cssat")
 
 
-@hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
-def _hydra_main(cfg: DictConfig) -> float | None:
-    from hydra.core.hydra_config import HydraConfig
-    from hydra.types import RunMode
+def task(cfg: Any, output_dir: str | Path, multirun: bool = False) -> float | None:
+    """Run one job of the app into ``output_dir`` and return the metric named by
+    ``cfg.optimized_metric`` (default ``psnr``; ``None`` when it is null or not a number), the
+    value a sweeper such as Optuna's optimises.
 
+    A bad config exits with status 2 after logging one line naming the field; in a multirun a
+    failed job is logged and returns ``None`` (its ``metrics.json`` says ``status: failed``), so
+    the sweep goes on.
+    """
     from cssat.experiments import ConfigError, run_experiment
 
-    hc = HydraConfig.get()
     try:
-        metrics = run_experiment(cfg, hc.runtime.output_dir)
+        metrics = run_experiment(cfg, output_dir)
     except Exception as err:
-        if hc.mode == RunMode.MULTIRUN:
-            # One failed job must not end the sweep: its metrics.json says status: failed.
-            log.error("job %s failed: %s", hc.job.num, err)
+        if multirun:
+            log.error("job failed: %s", err)
             return None
         if isinstance(err, ConfigError):
             log.error("bad config: %s", err)
@@ -37,7 +41,16 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         raise
     key = cfg.get("optimized_metric", "psnr")
     value = metrics.get(key) if key else None
-    return float(value) if isinstance(value, (int, float)) else None
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+@hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
+def _hydra_main(cfg: DictConfig) -> float | None:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    hc = HydraConfig.get()
+    return task(cfg, hc.runtime.output_dir, multirun=hc.mode == RunMode.MULTIRUN)
 
 
 def main() -> None:

@@ -263,3 +263,29 @@ def test_reference_experiments_take_any_solver(tmp_path, exp):
     met = run_experiment(cfg_of(*over), tmp_path / "run")
     assert met["solver"] == "tv"
     assert met["psnr"] > (15 if exp == "sim2" else 10)
+
+
+def test_the_app_returns_the_optimized_metric(tmp_path):
+    from cssat.app import task
+
+    value = task(cfg_of(*SMALL, "denoiser=none"), tmp_path / "a")
+    saved = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert value == saved["psnr"]
+    assert task(cfg_of(*SMALL, "denoiser=none", "optimized_metric=ssim"), tmp_path / "b") == saved["ssim"]
+    assert task(cfg_of(*SMALL, "denoiser=none", "optimized_metric=null"), tmp_path / "c") is None
+    assert task(cfg_of(*SMALL, "cs.m=0"), tmp_path / "d", multirun=True) is None  # a failed job in a sweep
+
+
+@pytest.mark.parametrize("overrides", [
+    ("target.size=4096", "cs.m=13225"),                      # Φ and ΦΨ alone would be 1.8 TB
+    ("experiment=lightcurve", "render.size=4096"),           # 1437 renders of 4096² would be 193 GB
+    ("experiment=solvers", "target.size=4096", "comparison.m=[13225]"),
+])
+def test_every_experiment_refuses_a_run_that_does_not_fit_before_any_work(tmp_path, overrides):
+    import time
+
+    t = time.perf_counter()
+    with pytest.raises(ValueError, match=r"^memory: this run needs about [0-9.]+ GB"):
+        run_experiment(cfg_of(*overrides, "threads=1"), tmp_path)
+    assert time.perf_counter() - t < 30  # refused before it renders or allocates
+    assert json.loads((tmp_path / "metrics.json").read_text())["status"] == "failed"

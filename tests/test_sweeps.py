@@ -36,12 +36,13 @@ def test_named_sweeps_name_valid_values_of_their_experiment(sweep):
     """Every value of every named sweep composes with its experiment and is in its allowed range."""
     from cssat.experiments.build import build_solver
 
-    params = dict(compose_hydra(f"sweep={sweep}").hydra.sweeper.params)
-    exp = params.pop("experiment")
+    base = compose_hydra(f"sweep={sweep}")
+    params = dict(base.hydra.sweeper.params)
     assert params, f"sweep {sweep} sweeps nothing"
     for key, values in params.items():
         for value in str(values).split(","):
-            cfg = compose_hydra(f"experiment={exp}", f"{key}={value}")
+            cfg = compose_hydra(f"sweep={sweep}", f"{key}={value}")
+            exp = cfg.experiment_name
             assert str(OmegaConf.select(cfg, key)) == value  # the key exists in the experiment's config
             N = cfg.target.size ** 2
             assert 1 <= cfg.cs.m <= N
@@ -105,3 +106,21 @@ def test_standalone_summary_reports_missing_jobs(tmp_path, capsys):
     with pytest.raises(SystemExit):
         summarize_main([str(tmp_path / "nowhere")])
     assert "sweep_dir" in capsys.readouterr().err
+
+
+def test_m_n_sweep_writes_psnr_in_every_row_and_a_map(tmp_path):
+    """The phase-transition sweep of Simulation 3 over m × N_ref, at 16²."""
+    sweep = tmp_path / "sweep"
+    args = ["sweep=m_n", "target.size=16", "cs.m=100,200", "reference.n=100,200", "reference.pool=300",
+            "reference.repeats=1", "reference.n_nonzero_coefs=10", "reference.baseline=false", "denoiser=none",
+            "denoiser@denoiser3d=none", f"cache_dir={tmp_path / 'cache'}", "threads=1", f"hydra.sweep.dir={sweep}"]
+    res = subprocess.run(EXE + args, capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr
+    rows = rows_of(sweep / "summary.csv")
+    assert len(rows) == 4 and all(r["status"] == "ok" for r in rows)
+    assert {(r["cs.m"], r["reference.n"]) for r in rows} == {(m, k) for m in ("100", "200") for k in ("100", "200")}
+    for r in rows:  # psnr is the headline of each job: its best repeat, as in its metrics.json
+        met = json.loads((sweep / r["job"] / "metrics.json").read_text())
+        assert float(r["psnr"]) == pytest.approx(max(met["repeat_psnr"])) and float(r["psnr"]) > 5
+    assert (sweep / "summary_psnr.png").stat().st_size > 5000
+    assert len(list((tmp_path / "cache").glob("refs-*.npy"))) == 1  # the pool is rendered once, shared

@@ -34,6 +34,9 @@ EXPERIMENTS = {
 def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     """Run the experiment ``cfg.experiment_name`` into ``out_dir`` and return its metrics.
 
+    The experiment is the module :data:`EXPERIMENTS` names, or ``cfg.experiment_module`` (a module
+    of your own with ``run(cfg, out_dir) -> metrics``: a new experiment is that module and its YAML).
+
     Writes ``out_dir/metrics.json`` in every case: the experiment's flat metrics plus ``status``,
     ``seconds``, ``experiment`` and ``config_sha`` (a hash of the config without ``threads`` and
     ``resume``); on failure ``status: failed`` and ``error``, and the exception is re-raised.
@@ -63,10 +66,14 @@ def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     t0 = time.perf_counter()
     metrics: dict[str, Any] = {"experiment": name, "config_sha": sha, **provenance()}
     try:
-        if name not in EXPERIMENTS:
-            raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)}, got {name!r}")
+        module_name = cfg.get("experiment_module") or EXPERIMENTS.get(name)
+        if module_name is None:
+            raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)} (or an experiment_module), got {name!r}")
         torch.set_num_threads(require_int(cfg.get("threads", 1), "threads", 1, 1024))
-        module = importlib.import_module(EXPERIMENTS[name])
+        try:
+            module = importlib.import_module(str(module_name))
+        except ImportError as err:
+            raise ConfigError(f"experiment_module: cannot import {module_name!r}: {err}") from err
         metrics.update(module.run(cfg, out_dir))
         metrics["status"] = "ok"
     except BaseException as err:

@@ -94,23 +94,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     minutes = (scenario.times - scenario.times[0]) / np.timedelta64(1, "m")
     mag, mag_f, mag_p = (apparent_magnitude(v).numpy() for v in (flux, facetwise.abs(), pixelwise.abs()))
-    lit = flux.numpy() > 0
     marks = _mark_steps(flux.numpy(), n_marks)
-    shadow = np.flatnonzero(scenario.sunlit < 1)
-    metrics: dict[str, Any] = {
-        "psnr": None, "ssim": None,
-        "model": mesh.name, "n_facets": len(mesh), "n_steps": len(scenario), "start_utc": str(scenario.times[0]),
-        "image_size": size, "azimuth_deg_mean": float(scenario.azimuth_deg.mean()),
-        "elevation_deg_mean": float(scenario.elevation_deg.mean()), "range_km_mean": float(scenario.range_km.mean()),
-        "eclipse_start_utc": str(scenario.times[shadow[0]]) if shadow.size else None,
-        "eclipse_end_utc": str(scenario.times[shadow[-1]]) if shadow.size else None,
-        "magnitude_min": float(mag[lit].min()) if lit.any() else None,
-        "magnitude_max": float(mag[lit].max()) if lit.any() else None,
-        "magnitude_facetwise_median": float(np.median(mag_f[lit])) if lit.any() else None,
-        "magnitude_pixelwise_median": float(np.median(mag_p[lit])) if lit.any() else None,
-        "pixel_sum_relative_error": float((images.sum((1, 2)) - flux).abs().max() / flux.abs().max().clamp_min(1e-300)),
-        **atm.describe(), **noise.describe(), "seed": seed, **timings,
-    }
+    metrics = {**_metrics(scenario, mesh, flux, images, mag, mag_f, mag_p), "image_size": size, **atm.describe(),
+               **noise.describe(), "seed": seed, **timings}
     write_npz(
         out_dir / "arrays.npz", times=scenario.times.astype("datetime64[s]").astype(str), minutes=minutes, flux=flux,
         flux_facetwise=facetwise, flux_pixelwise=pixelwise, magnitude=mag, sunlit=scenario.sunlit,
@@ -124,6 +110,27 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
              len(scenario), mesh.name, len(mesh), metrics["magnitude_min"] or math.nan, metrics["magnitude_max"] or math.nan,
              metrics["eclipse_start_utc"], metrics["eclipse_end_utc"], sum(timings.values()))
     return metrics
+
+
+def _metrics(scenario, mesh, flux, images, mag, mag_f, mag_p) -> dict[str, Any]:
+    """The scenario's geometry, the eclipse, the magnitudes and the render's flux check."""
+    lit = flux.numpy() > 0
+    shadow = np.flatnonzero(scenario.sunlit < 1)
+
+    def stat(f, v):
+        return float(f(v[lit])) if lit.any() else None
+
+    return {
+        "psnr": None, "ssim": None,
+        "model": mesh.name, "n_facets": len(mesh), "n_steps": len(scenario), "start_utc": str(scenario.times[0]),
+        "azimuth_deg_mean": float(scenario.azimuth_deg.mean()), "elevation_deg_mean": float(scenario.elevation_deg.mean()),
+        "range_km_mean": float(scenario.range_km.mean()),
+        "eclipse_start_utc": str(scenario.times[shadow[0]]) if shadow.size else None,
+        "eclipse_end_utc": str(scenario.times[shadow[-1]]) if shadow.size else None,
+        "magnitude_min": stat(np.min, mag), "magnitude_max": stat(np.max, mag),
+        "magnitude_facetwise_median": stat(np.median, mag_f), "magnitude_pixelwise_median": stat(np.median, mag_p),
+        "pixel_sum_relative_error": float((images.sum((1, 2)) - flux).abs().max() / flux.abs().max().clamp_min(1e-300)),
+    }
 
 
 def _mark_steps(flux: np.ndarray, n: int) -> np.ndarray:

@@ -55,21 +55,18 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
     from cssat.experiments.common import require_int, run_settings, write_npz
-    from cssat.experiments.pipeline import denoise, reconstruct, scores
+    from cssat.experiments.pipeline import denoise
     from cssat.experiments.refsets import Progress, reference_set, reference_settings
     from cssat.experiments.resources import check_memory, peak_rss_bytes
     from cssat.metrics import psnr
     from cssat.plots import save_figure, sim3_figures
-    from cssat.reference import estimate_sensing_min_norm, estimate_sensing_sparse, relative_error
-    from cssat.sparse import DictionarySensing
 
     dtype, device, seed, n, N, m = run_settings(cfg, max_size=512)
     ref = cfg.reference
     pool = require_int(ref.pool, "reference.pool", 1)
     n_ref = require_int(ref.n, "reference.n", 1, min(pool, N))
     repeats = require_int(ref.get("repeats", 9), "reference.repeats", 1, 1000)
-    ref_seed, baseline = reference_settings(cfg, seed), bool(ref.get("baseline", True))
-    t0, tol0 = estimate_settings(cfg, N)
+    ref_seed, estimate = reference_settings(cfg, seed), estimate_settings(cfg, N)
     solver, denoiser = build_solver(cfg.solver, m, N), build_denoiser(cfg.get("denoiser"))
     denoiser3d = build_denoiser(cfg.get("denoiser3d"), "denoiser3d") if repeats >= 2 else None
     est = check_memory(memory_parts(n, m, n_ref, pool, torch.finfo(dtype).bits // 8), cfg,
@@ -79,80 +76,87 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     t = time.perf_counter()
     meas, atm = build_measurement(cfg, m, N, seed, dtype, device, experiment="sim3")
-    phi = meas.matrix()
     y = meas(torch.as_tensor(x, dtype=dtype, device=device).reshape(N))
     timings["seconds_measure"] = time.perf_counter() - t
     t = time.perf_counter()
     pool_imgs, cached = reference_set(cfg, n, pool, ref_seed)
-    pool_imgs = pool_imgs.reshape(pool, N)
     timings["seconds_references"] = time.perf_counter() - t
 
-    raw, den2, per = [], [], []
+    per, recs = [], []
     bar = Progress(repeats, f"sim3: {repeats} repeats of Eq. 26-30 with N_ref={n_ref}")
     for r in range(repeats):
         idx = torch.randperm(pool, generator=torch.Generator().manual_seed(ref_seed * 1_000_003 + r))[:n_ref]
-        Xt = pool_imgs[idx].to(dtype=dtype, device=device)  # X_refᵀ (N_ref, N)
-        Y_ref = meas.add_noise(phi @ Xt.T, torch.Generator().manual_seed(ref_seed * 1_000_003 + r + 1))  # Eq. 22
-        t = time.perf_counter()
-        phi_dense, info = estimate_sensing_sparse(Xt.T, Y_ref, n_nonzero_coefs=t0, tol=tol0, shape=(n, n),
-                                          normalize=bool(ref.get("normalize", True)), return_info=True)
-        phi_hat = DictionarySensing(info.coefficients, (n, n))  # Φ̂ held as Φ̂Ψ = Âᵀ
-        timings["seconds_estimate"] += time.perf_counter() - t
-        row = {"phi_relative_error": relative_error(phi_dense, phi), "estimate_mean_atoms": float(info.n_iter.double().mean())}
-        del info, phi_dense
-        rec = reconstruct(solver, phi_hat, y, (n, n), denoiser=denoiser)
-        del phi_hat
-        timings["seconds_solver"] += rec.metrics["seconds_solver"] + rec.metrics.get("seconds_dictionary", 0.0)
-        timings["seconds_denoise"] += rec.metrics["seconds_denoise"]
-        if baseline:
-            t = time.perf_counter()
-            phi_mn = estimate_sensing_min_norm(Xt.T, Y_ref)
-            row["phi_relative_error_min_norm"] = relative_error(phi_mn, phi)
-            row["psnr_min_norm"] = psnr(reconstruct(solver, phi_mn, y, (n, n)).image, x, data_range=1.0)
-            del phi_mn
-            timings["seconds_baseline"] += time.perf_counter() - t
-        del Xt, Y_ref
-        row.update({k: v for k, v in scores(rec.image, rec.denoised, x).items()})
-        raw.append(rec.image)
-        den2.append(rec.denoised)
+        Xt = pool_imgs.reshape(pool, N)[idx].to(dtype=dtype, device=device)  # X_refᵀ (N_ref, N)
+        row, rec = _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, ref_seed * 1_000_003 + r + 1)
         per.append(row)
+        recs.append(rec)
         bar.update()
         log.info("sim3 repeat %d: ‖Φ̂−Φ‖/‖Φ‖ %.3f, PSNR %.2f dB, 2-D denoised %.2f dB", r,
                  row["phi_relative_error"], row["psnr"], row["psnr_denoised"])
     bar.close()
     noise = meas.describe()
-    del phi, meas, pool_imgs
+    del meas, pool_imgs
 
-    stack, den2 = np.stack(raw), np.stack(den2)
+    stack, den2 = np.stack([r.image for r in recs]), np.stack([r.denoised for r in recs])
     den3, dm3 = denoise(denoiser3d, stack, field="denoiser3d") if denoiser3d is not None else (stack.copy(), {"denoiser": "none"})
     timings["seconds_denoise_3d"] = dm3.pop("seconds_denoise", 0.0)
-    psnr3 = [psnr(den3[r], x, data_range=1.0) for r in range(repeats)]
-    best = int(np.argmax([p["psnr"] for p in per]))
-    metrics: dict[str, Any] = {
-        **{k: per[best][k] for k in ("psnr", "ssim", "psnr_denoised", "ssim_denoised")},
-        "psnr_denoised_3d": psnr3[best],
-        "m": m, "n": n, "n_pixels": N, "reference_n": n_ref, "reference_pool": pool, "repeats": repeats,
-        "reference_n_nonzero_coefs": t0, "reference_tol": tol0, "reference_cached": cached,
-        "solver": rec.metrics["solver"], **{k: v for k, v in rec.metrics.items() if k.startswith("solver_")},
-        **atm.describe(), **noise, "seed": seed, "dtype": str(cfg.get("dtype", "float32")), "device": str(device),
-        "best_repeat": best, "gain_2d": per[best]["psnr_denoised"] - per[best]["psnr"],
-        "gain_3d_over_2d": psnr3[best] - per[best]["psnr_denoised"],
-        "psnr_mean": float(np.mean([p["psnr"] for p in per])),
-        "psnr_mean_denoised": float(np.mean([p["psnr_denoised"] for p in per])),
-        "psnr_mean_denoised_3d": float(np.mean(psnr3)),
-        "phi_relative_error_mean": float(np.mean([p["phi_relative_error"] for p in per])),
-        "peak_memory_estimate_gb": est / 2**30, "peak_rss_gb": peak_rss_bytes() / 2**30,
-        "denoiser": rec.metrics["denoiser"], "denoiser_3d": dm3.get("denoiser"), **timings,
-    }
-    if baseline:
-        metrics["phi_relative_error_min_norm_mean"] = float(np.mean([p["phi_relative_error_min_norm"] for p in per]))
-        metrics["psnr_min_norm_mean"] = float(np.mean([p["psnr_min_norm"] for p in per]))
-    metrics.update({f"repeat_{key}": [p[key] for p in per] for key in per[0]})
-    metrics["repeat_psnr_denoised_3d"] = psnr3
+    psnr3 = [psnr(d, x, data_range=1.0) for d in den3]
+    metrics = {**_summary(per, psnr3), "m": m, "n": n, "n_pixels": N, "reference_n": n_ref, "reference_pool": pool,
+               "repeats": repeats, "reference_n_nonzero_coefs": estimate[0], "reference_tol": estimate[1],
+               "reference_cached": cached, **{k: v for k, v in recs[-1].metrics.items() if k.startswith("solver")},
+               **atm.describe(), **noise, "seed": seed, "dtype": str(cfg.get("dtype", "float32")), "device": str(device),
+               "peak_memory_estimate_gb": est / 2**30, "peak_rss_gb": peak_rss_bytes() / 2**30,
+               "denoiser": recs[-1].metrics["denoiser"], "denoiser_3d": dm3.get("denoiser"), **timings}
     write_npz(out_dir / "arrays.npz", truth=x, y=y, reconstructions=stack, denoised_2d=den2, denoised_3d=den3)
-    fig13, fig14 = sim3_figures(x, stack, den2, den3, per, psnr3, best, metrics)
+    fig13, fig14 = sim3_figures(x, stack, den2, den3, per, psnr3, metrics["best_repeat"], metrics)
     save_figure(fig13, out_dir / "figures" / "fig13_sim3_results.png")
     save_figure(fig14, out_dir / "figures" / "fig14_sim3_denoised.png")
-    log.info("sim3: best repeat %d: PSNR %.2f dB, 2-D %.2f dB (%+.2f), 3-D %.2f dB (%+.2f over 2-D)", best,
+    log.info("sim3: best repeat %d: PSNR %.2f dB, 2-D %.2f dB (%+.2f), 3-D %.2f dB (%+.2f over 2-D)", metrics["best_repeat"],
              metrics["psnr"], metrics["psnr_denoised"], metrics["gain_2d"], metrics["psnr_denoised_3d"], metrics["gain_3d_over_2d"])
     return metrics
+
+
+def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed):
+    """One repeat: ``Y_ref`` (Eq. 22), the sparse ``Φ̂`` (Eq. 26–30), the reconstruction from it
+    and its 2-D denoising, and the minimum-norm baseline. Returns ``(row of metrics, Reconstruction)``."""
+    import torch
+
+    from cssat.experiments.pipeline import reconstruct, scores
+    from cssat.metrics import psnr
+    from cssat.reference import estimate_sensing_min_norm, estimate_sensing_sparse, relative_error
+    from cssat.sparse import DictionarySensing
+
+    n = int(cfg.target.size)
+    phi = meas.matrix()
+    Y_ref = meas.add_noise(phi @ Xt.T, torch.Generator().manual_seed(noise_seed))
+    t = time.perf_counter()
+    phi_dense, info = estimate_sensing_sparse(Xt.T, Y_ref, n_nonzero_coefs=estimate[0], tol=estimate[1], shape=(n, n),
+                                              normalize=bool(cfg.reference.get("normalize", True)), return_info=True)
+    timings["seconds_estimate"] += time.perf_counter() - t
+    row = {"phi_relative_error": relative_error(phi_dense, phi), "estimate_mean_atoms": float(info.n_iter.double().mean())}
+    del phi_dense
+    rec = reconstruct(solver, DictionarySensing(info.coefficients, (n, n)), y, (n, n), denoiser=denoiser)  # Φ̂Ψ = Âᵀ
+    timings["seconds_solver"] += rec.metrics["seconds_solver"] + rec.metrics.get("seconds_dictionary", 0.0)
+    timings["seconds_denoise"] += rec.metrics["seconds_denoise"]
+    if bool(cfg.reference.get("baseline", True)):
+        t = time.perf_counter()
+        phi_mn = estimate_sensing_min_norm(Xt.T, Y_ref)
+        row["phi_relative_error_min_norm"] = relative_error(phi_mn, phi)
+        row["psnr_min_norm"] = psnr(reconstruct(solver, phi_mn, y, (n, n)).image, x, data_range=1.0)
+        timings["seconds_baseline"] += time.perf_counter() - t
+    row.update(scores(rec.image, rec.denoised, x))
+    return row, rec
+
+
+def _summary(per: list[dict], psnr3: list[float]) -> dict[str, Any]:
+    """The headline (the best repeat's), the means over the repeats and the per-repeat lists."""
+    best = int(np.argmax([p["psnr"] for p in per]))
+    out: dict[str, Any] = {k: per[best][k] for k in ("psnr", "ssim", "psnr_denoised", "ssim_denoised")}
+    out.update(psnr_denoised_3d=psnr3[best], best_repeat=best, gain_2d=per[best]["psnr_denoised"] - per[best]["psnr"],
+               gain_3d_over_2d=psnr3[best] - per[best]["psnr_denoised"], psnr_mean_denoised_3d=float(np.mean(psnr3)))
+    means = {"psnr": "psnr_mean", "psnr_denoised": "psnr_mean_denoised", "phi_relative_error": "phi_relative_error_mean",
+             "phi_relative_error_min_norm": "phi_relative_error_min_norm_mean", "psnr_min_norm": "psnr_min_norm_mean"}
+    out.update({name: float(np.mean([p[key] for p in per])) for key, name in means.items() if key in per[0]})
+    out.update({f"repeat_{key}": [p[key] for p in per] for key in per[0]})
+    out["repeat_psnr_denoised_3d"] = psnr3
+    return out

@@ -68,17 +68,20 @@ class Measurement(nn.Module):
         return self.operator.adjoint(y)
 
     def forward(self, x: Tensor, generator: torch.Generator | None = None) -> Tensor:
-        """The measured light curve ``noise(Φx)``."""
-        return self.add_noise(self.A(x), generator)
+        """The measured light curve ``noise(Φx)``; refuses a non-finite result."""
+        y = self.add_noise(self.A(x), generator)
+        if not bool(torch.isfinite(y).all()):
+            raise ValueError("y: the light curve contains NaN or Inf")
+        return y
 
     def add_noise(self, y: Tensor, generator: torch.Generator | None = None) -> Tensor:
-        """``noise(y)`` with the measurement's seeded generator (or ``generator``)."""
+        """``noise(y)`` with the measurement's seeded generator (or ``generator``); ``y`` itself
+        when the model is :class:`~cssat.physics.NoNoise`."""
+        if isinstance(self.noise, NoNoise):
+            return y
         if generator is None:
             generator = torch.Generator(device="cpu").manual_seed(self.seed)
-        out = self.noise(y, generator)
-        if not bool(torch.isfinite(out).all()):
-            raise ValueError("y: the light curve contains NaN or Inf")
-        return out
+        return self.noise(y, generator)
 
     def frames(self, x_t: Tensor, generator: torch.Generator | None = None) -> Tensor:
         """The light curve of a changing scene: ``y_t = Σⱼ Φ[t, j] x_t[j]`` (Eq. 11, 12).
@@ -90,7 +93,10 @@ class Measurement(nn.Module):
         if flat.ndim != 2 or flat.shape[0] != self.operator.n_out:
             raise ValueError(f"x_t: expected {self.operator.n_out} frames, got shape {tuple(x_t.shape)}")
         w = self.operator.matrix(dtype=flat.dtype, device=flat.device)
-        return self.add_noise((w * flat).sum(-1), generator)
+        y = self.add_noise((w * flat).sum(-1), generator)
+        if not bool(torch.isfinite(y).all()):
+            raise ValueError("x_t: the light curve contains NaN or Inf")
+        return y
 
     def matrix(self) -> Tensor:
         """The dense sensing matrix ``Φ (m, N)``."""

@@ -134,36 +134,31 @@ class SparseKSVD(Denoiser):
 
     name = "sparse_ksvd"
 
-    def __init__(
-        self,
-        sigma: float | None = None,
-        block_size: int | Sequence[int] | None = None,
-        step: int | Sequence[int] | None = None,
-        n_atoms: int | None = None,
-        atom_sparsity: int | None = None,
-        gain: float | None = None,
-        n_train: int | None = None,
-        n_iter: int | None = None,
-        max_atoms: int | None = None,
-        lam: float = 0.0,
-        seed: int = 0,
-        dtype: str | torch.dtype = "float32",
-        device: str | torch.device = "cpu",
-    ):
+    #: the settings of :func:`cssat.sparse.ksvd_denoise` this denoiser passes on (``None``: its default)
+    SETTINGS = ("block_size", "step", "n_atoms", "atom_sparsity", "gain", "n_train", "n_iter", "max_atoms", "lam")
+
+    def __init__(self, sigma: float | None = None, *, seed: int = 0, dtype: str | torch.dtype = "float32",
+                 device: str | torch.device = "cpu", **settings: Any):
+        """``settings``: any of :data:`SETTINGS` — ``block_size``, ``step`` (int or per-axis ints),
+        ``n_atoms``, ``atom_sparsity``, ``n_train``, ``n_iter``, ``max_atoms`` (ints ≥ 1), ``gain``
+        (> 0), ``lam`` (≥ 0)."""
         super().__init__(sigma)
+        unknown = sorted(set(settings) - set(self.SETTINGS))
+        if unknown:
+            raise ValueError(f"{unknown[0]}: not a sparse-KSVD setting; expected one of {list(self.SETTINGS)}")
         self.kw: dict[str, Any] = {}
-        for key, v in (("n_atoms", n_atoms), ("atom_sparsity", atom_sparsity), ("n_train", n_train),
-                       ("n_iter", n_iter), ("max_atoms", max_atoms)):
-            if v is not None:
-                self.kw[key] = int_param(v, key, 1)
-        for key, v in (("block_size", block_size), ("step", step)):
+        for key in ("n_atoms", "atom_sparsity", "n_train", "n_iter", "max_atoms"):
+            if settings.get(key) is not None:
+                self.kw[key] = int_param(settings[key], key, 1)
+        for key in ("block_size", "step"):
+            v = settings.get(key)
             if v is not None:
                 vals = [v] if not isinstance(v, Sequence) or isinstance(v, str) else list(v)
                 t = tuple(int_param(u, key, 1) for u in vals)
                 self.kw[key] = t[0] if len(t) == 1 else t
-        if gain is not None:
-            self.kw["gain"] = float_param(gain, "gain", 0.0, open_lo=True)
-        self.kw["lam"] = float_param(lam if lam is not None else 0.0, "lam", 0.0)
+        if settings.get("gain") is not None:
+            self.kw["gain"] = float_param(settings["gain"], "gain", 0.0, open_lo=True)
+        self.kw["lam"] = float_param(settings.get("lam") or 0.0, "lam", 0.0)
         self.seed = int_param(seed, "seed", 0)
         if isinstance(dtype, str):
             if dtype not in ("float32", "float64"):
