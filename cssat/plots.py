@@ -13,7 +13,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["image_panels", "sim1_figure", "sim2_figure", "sim3_figures", "solvers_figure", "lightcurve_figure",
+__all__ = ["image_panels", "sim1_figure", "sim2_figure", "sim3_figures", "solvers_figure", "realism_figures", "lightcurve_figure",
            "atmosphere_figure", "sweep_figure", "light_curve_image", "save_figure"]
 
 
@@ -249,3 +249,53 @@ def solvers_figure(truth, ms: Sequence[int], labels: Sequence[str], images: dict
         panels.append((truth, "truth"))
     return image_panels(panels, ncols=len(labels) + 1, panel_size=(2.4, 2.6), row_labels=[f"m = {m}" for m in ms],
                         title="Reconstruction solvers on Simulation 1's target")
+
+
+def realism_figures(rows: list[dict], stats: list[dict], solvers: Sequence[str], sizes: Sequence[float],
+                    mags: Sequence[float], n: int) -> dict[str, Any]:
+    """The realism maps: per solver, PSNR over (angular size, V magnitude) with the paper's
+    Gaussian Φ as the first column; and Φ's effective rank and scintillation index against the
+    angular size. Returns ``{name: Figure}``."""
+    figs = {}
+    cols = ["paper"] + [f"a{i}" for i in range(len(sizes))]
+    labels = ["Gaussian\n(paper)"] + [f"{a:.3g}″" for a in sizes]
+    snr = {r["magnitude"]: r["snr"] for r in rows}
+    for solver in solvers:
+        grid = np.full((len(mags), len(cols)), np.nan)
+        for r in rows:
+            if r["solver"] == solver:
+                grid[list(mags).index(r["magnitude"]), cols.index(r["column"])] = r["psnr"]
+        fig = _figure((1.3 * len(cols) + 2.5, 0.55 * len(mags) + 2.2))
+        ax = fig.subplots()
+        im = ax.imshow(grid, origin="upper", aspect="auto", cmap="viridis")
+        ax.set_xticks(range(len(cols)), labels, fontsize=8)
+        ax.set_yticks(range(len(mags)), [f"V = {v:g} (SNR {snr[v]:.3g})" for v in mags], fontsize=8)
+        for i in range(grid.shape[0]):
+            for j in range(grid.shape[1]):
+                if not np.isnan(grid[i, j]):
+                    ax.text(j, i, f"{grid[i, j]:.1f}", ha="center", va="center", color="w", fontsize=8)
+        ax.axvline(0.5, color="w", lw=2)
+        ax.set_xlabel("angular size of the image (object at the range that gives it)")
+        fig.colorbar(im, ax=ax, label="PSNR (dB)")
+        ax.set_title(f"{solver}: PSNR of a {n}×{n} image from its light curve", fontsize=10)
+        fig.tight_layout()
+        figs[solver] = fig
+    phys = [s for s in stats if s["angular_size_arcsec"] is not None]
+    fig = _figure((6.5, 3.6))
+    ax = fig.subplots()
+    a = [s["angular_size_arcsec"] for s in phys]
+    ax.semilogx(a, [s["phi_effective_rank_centered"] for s in phys], "o-",
+                label="effective rank of Φ's fluctuations (99 % energy)")
+    ax.axhline(next(s["phi_effective_rank_centered"] for s in stats if s["angular_size_arcsec"] is None), color="0.5",
+               ls="--", label="the paper's Gaussian Φ")
+    ax.set_yscale("log")
+    ax.set_xlabel("angular size of the image (arcsec)")
+    ax.set_ylabel("effective rank")
+    ax2 = ax.twinx()
+    ax2.semilogx(a, [s["phi_scintillation_index"] for s in phys], "s:", color="tab:red")
+    ax2.set_ylabel("scintillation index σ_I²", color="tab:red")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.set_title(f"What the atmosphere can measure ({n}×{n} pixels)", fontsize=10)
+    fig.tight_layout()
+    figs["rank"] = fig
+    return figs

@@ -289,3 +289,25 @@ def test_every_experiment_refuses_a_run_that_does_not_fit_before_any_work(tmp_pa
         run_experiment(cfg_of(*overrides, "threads=1"), tmp_path)
     assert time.perf_counter() - t < 30  # refused before it renders or allocates
     assert json.loads((tmp_path / "metrics.json").read_text())["status"] == "failed"
+
+
+def test_realism_experiment_maps(tmp_path):
+    cfg = cfg_of("experiment=realism", "target.size=12", "cs.m=115", "threads=1", "realism.angular_size_arcsec=[0.058,60]",
+                 "realism.magnitudes=[2,14]", "atmosphere.n_radial=32", "atmosphere.n_angular=6", "atmosphere.n_layers=4",
+                 "realism.solvers.tv.max_iter=300")
+    met = run_experiment(cfg, tmp_path)
+    with open(tmp_path / "realism.csv", newline="") as f:
+        import csv
+
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 3 * 2 * 2  # (paper + 2 sizes) × 2 magnitudes × 2 solvers
+    for fig in ("realism_omp.png", "realism_tv.png", "realism_rank.png"):
+        assert (tmp_path / "figures" / fig).stat().st_size > 5000
+    # the physics: at GEO one transmission for all pixels; at 60″ the pixels decorrelate
+    assert met["phi_effective_rank_centered_a0"] <= 2 < met["phi_effective_rank_centered_a1"]
+    assert met["phi_effective_rank_a0"] == 1  # Φ itself: its common row holds > 99 % of the energy
+    assert met["phi_effective_rank_centered_paper"] >= 0.75 * 115  # Gaussian: (nearly) full rank
+    # brighter is better, and for the paper's Φ the image is recovered at V = 2
+    tv = {(r["column"], float(r["magnitude"])): float(r["psnr"]) for r in rows if r["solver"] == "tv"}
+    assert tv[("paper", 2.0)] > tv[("paper", 14.0)] and tv[("paper", 2.0)] > 25
+    assert met["psnr"] == max(float(r["psnr"]) for r in rows if r["column"] == "a1" and float(r["magnitude"]) == 2.0)

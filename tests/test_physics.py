@@ -77,3 +77,54 @@ def test_noise_matches_the_pre_measurement_layer_formula():
     y = phi(x)
     old = y + 0.05 * y.pow(2).mean().sqrt() * torch.randn(300, generator=torch.Generator().manual_seed(5))
     assert torch.equal(Measurement(phi, GaussianNoise(relative=0.05), seed=5)(x), old)
+
+
+def test_photometric_noise_is_poisson_plus_read_noise_in_electrons():
+    from cssat.physics import PhotometricNoise
+
+    pn = PhotometricNoise(magnitude=14.0, diameter_m=0.5, exposure_s=0.5, read_noise_e=8.0, sky_mag_arcsec2=19.0)
+    S = pn.electrons(14.0)
+    bg = pn.n_pix * (pn.sky_e_per_pixel + pn.dark_e_per_pixel)
+    y = torch.full((1, 200000), 3.0, dtype=torch.float64)  # a constant light curve whose scene flux is 3
+    out = pn(y, torch.Generator().manual_seed(0), flux=torch.tensor([3.0]))
+    e = out * (S / 3.0)  # back to electrons, background subtracted
+    var = S + bg + pn.n_pix * 8.0 ** 2
+    assert float(e.mean()) == pytest.approx(S, abs=4 * math.sqrt(var / 2e5))  # unbiased: noise in flux
+    assert float(e.var()) == pytest.approx(var, rel=0.02)
+    # the CCD equation: SNR = S / √(S + n_pix (B + D + R²))
+    assert pn.snr() == pytest.approx(S / math.sqrt(var), rel=1e-12)
+    assert float(e.mean() / e.std()) == pytest.approx(pn.snr(), rel=0.02)
+    # same seed, same noise
+    assert torch.equal(out, pn(y, torch.Generator().manual_seed(0), flux=torch.tensor([3.0])))
+
+
+def test_magnitudes_and_electrons_round_trip_and_the_v_zero_point():
+    from cssat.physics import PhotometricNoise
+    from cssat.physics.photometry import V_ZERO_POINT_PHOTONS, magnitude_to_photon_rate, photon_rate_to_magnitude
+
+    pn = PhotometricNoise(diameter_m=1.0, throughput=0.4, exposure_s=2.0)
+    for mag in (-2.0, 5.5, 12.0, 19.3):
+        assert pn.magnitude_of(pn.electrons(mag)) == pytest.approx(mag, abs=1e-12)
+        assert photon_rate_to_magnitude(magnitude_to_photon_rate(mag)) == pytest.approx(mag, abs=1e-12)
+    # five magnitudes are a factor 100 in flux (Pogson)
+    assert pn.electrons(10.0) / pn.electrons(15.0) == pytest.approx(100.0, rel=1e-12)
+    # V = 0 is about 1000 photons s⁻¹ cm⁻² Å⁻¹ over the 880 Å V band (Bessell 1979's rule of thumb)
+    assert V_ZERO_POINT_PHOTONS == pytest.approx(1000 * 1e4 * 880, rel=0.05)
+    # electrons = photons × area × throughput × time
+    assert pn.electrons(0.0) == pytest.approx(V_ZERO_POINT_PHOTONS * math.pi / 4 * 0.4 * 2.0, rel=1e-12)
+    with pytest.raises(ValueError, match="^throughput"):
+        PhotometricNoise(throughput=1.5)
+
+
+def test_photometric_noise_on_a_light_curve_in_watts():
+    from cssat.optics import SOLAR_IRRADIANCE_W_M2, apparent_magnitude
+    from cssat.physics import PhotometricNoise
+
+    pn = PhotometricNoise(magnitude=None, read_noise_e=0.0, dark_e_per_s=0.0, sky_mag_arcsec2=40.0)
+    flux = SOLAR_IRRADIANCE_W_M2 * 10 ** (-0.4 * (10.0 + 26.74))  # a V ≈ 10 satellite, W/m²
+    y = torch.full((100000,), flux, dtype=torch.float64)
+    out = pn(y, torch.Generator().manual_seed(1))
+    mag = float(apparent_magnitude(torch.tensor(flux)))
+    S = pn.electrons(mag)
+    assert float(out.mean()) == pytest.approx(flux, rel=4 / math.sqrt(S * 1e5))
+    assert float(out.std() / out.mean()) == pytest.approx(1 / math.sqrt(S), rel=0.02)  # shot noise only

@@ -28,6 +28,7 @@ EXPERIMENTS = {
     "sim3": "cssat.experiments.sim3",
     "solvers": "cssat.experiments.solvers",
     "lightcurve": "cssat.experiments.lightcurve",
+    "realism": "cssat.experiments.realism",
 }
 
 

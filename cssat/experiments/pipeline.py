@@ -16,7 +16,7 @@ from torch import Tensor
 
 from cssat.experiments.common import ConfigError
 
-__all__ = ["Reconstruction", "reconstruct", "denoise", "scores", "solver_name"]
+__all__ = ["Reconstruction", "reconstruct", "denoise", "scores", "solver_name", "is_positive", "phi_stats"]
 
 #: the experiments' images lie in [0, 1]
 IMAGE_RANGE = (0.0, 1.0)
@@ -56,14 +56,53 @@ def denoise(denoiser: Any, x: np.ndarray, *, field: str = "denoiser", clip: tupl
     return out, {"denoiser": solver_name(denoiser), **info, "seconds_denoise": time.perf_counter() - t}
 
 
+def phi_stats(cfg: Any, phi: Any, shape: Sequence[int]) -> dict[str, Any]:
+    """:func:`cssat.physics.sensing_stats` of the run's Φ, as ``phi_stats`` says: ``true`` (all),
+    ``false`` (none), ``auto`` (mean and scintillation index always; the effective rank and the
+    coherence of ΦΨ when Φ has at most 2²⁴ entries, e.g. 64² pixels × 3277 samples — at 128² their
+    SVD and Gram would cost minutes)."""
+    from cssat.physics import sensing_stats
+
+    mode = cfg.get("phi_stats", "auto")
+    if mode not in (True, False, "auto"):
+        raise ConfigError(f"phi_stats: expected true, false or auto, got {mode!r}")
+    if mode is False:
+        return {}
+    mat = phi.matrix() if hasattr(phi, "matrix") else phi
+    return sensing_stats(mat, shape, full=mode is True or mat.numel() <= 2**24)
+
+
+def is_positive(phi: Any) -> bool:
+    """Whether a sensing matrix is a mean-1-like, positive one: its mean exceeds 3× its std."""
+    mat = phi.matrix() if hasattr(phi, "matrix") else phi
+    return bool(mat.mean().abs() > 3 * mat.std())
+
+
 def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoiser: Any = None,
-                field: str = "solver") -> Reconstruction:
+                field: str = "solver", center: bool | str = False, dtype=None) -> Reconstruction:
     """Reconstruct the image of ``shape`` from the light curve ``y (m,)`` measured through ``phi``
     with ``solver``, clip it to [0, 1], and denoise it with ``denoiser`` (``None``: no denoising).
 
+    ``center`` (``True``, ``False`` or ``"auto"``: when :func:`is_positive`) hands the solver the
+    system centred on its common term, :func:`cssat.physics.centered` (fluctuations + one total-flux
+    row), formed in float64 and cast to ``dtype`` (default ``y``'s): give a float64 ``phi`` and
+    ``y`` to keep the fluctuations' digits when the solver runs in float32.
+
     Metrics: ``solver`` (its name), the scalars of the solver's info, ``seconds_solver``
-    (``seconds_dictionary`` apart when the solver reports it), and those of :func:`denoise`.
+    (``seconds_dictionary`` apart when the solver reports it), ``centered``, and those of
+    :func:`denoise`.
     """
+    if center not in (True, False, "auto"):
+        raise ConfigError(f"center: expected true, false or auto, got {center!r}")
+    if center == "auto":
+        center = is_positive(phi)
+    if center:
+        from cssat.physics import centered
+
+        A, b = centered(phi.matrix() if hasattr(phi, "matrix") else phi, y)
+        phi, y = A.to(dtype or y.dtype), b.to(dtype or y.dtype)
+    elif dtype is not None:
+        phi, y = (phi.matrix() if hasattr(phi, "matrix") else phi).to(dtype), y.to(dtype)
     t = time.perf_counter()
     x_raw, info = solver(phi, y, tuple(shape))
     seconds = time.perf_counter() - t
@@ -71,7 +110,7 @@ def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoi
         raise ValueError(f"{field}: {solver_name(solver)} returned {type(x_raw).__name__} of shape "
                          f"{tuple(getattr(x_raw, 'shape', ()))}, expected an image tensor of shape {tuple(shape)}")
     arrays = {k: v for k, v in info.items() if isinstance(v, Tensor)}
-    metrics: dict[str, Any] = {"solver": solver_name(solver)}
+    metrics: dict[str, Any] = {"solver": solver_name(solver), "centered": bool(center)}
     metrics.update({k: v for k, v in info.items() if k not in arrays})
     metrics["seconds_solver"] = seconds - float(info.get("seconds_dictionary", 0.0))
     image = x_raw.clamp(*IMAGE_RANGE).double().cpu().numpy()

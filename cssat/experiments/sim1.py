@@ -33,7 +33,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
     from cssat.experiments.common import run_settings, write_npz
-    from cssat.experiments.pipeline import reconstruct, scores
+    from cssat.experiments.pipeline import phi_stats, reconstruct, scores
     from cssat.experiments.resources import check_memory
     from cssat.plots import save_figure, sim1_figure
 
@@ -48,13 +48,14 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     y = meas(torch.as_tensor(x, dtype=dtype, device=device).reshape(N))
     t_measure = time.perf_counter() - t
 
-    r = reconstruct(solver, meas.operator, y, (n, n), denoiser=denoiser)
+    stats = phi_stats(cfg, meas.operator, (n, n))
+    r = reconstruct(solver, meas.operator, y, (n, n), denoiser=denoiser, center=cfg.get("center", "auto"))
     noise = meas.describe()
     del meas
     metrics: dict[str, Any] = {
         **scores(r.image, r.denoised, x),
         "m": m, "n": n, "n_pixels": N, "measurement_ratio": m / N,
-        **atm.describe(), **noise,
+        **atm.describe(), **noise, **stats,
         "seed": seed, "dtype": str(cfg.get("dtype", "float32")), "device": str(device), "target": str(cfg.target.image),
         "peak_memory_estimate_gb": est / 2**30,
         "seconds_measure": t_measure,

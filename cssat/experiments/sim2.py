@@ -44,7 +44,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
     from cssat.experiments.common import ConfigError, require_int, run_settings, torch_dtype, write_npz
-    from cssat.experiments.pipeline import reconstruct, scores
+    from cssat.experiments.pipeline import phi_stats, reconstruct, scores
     from cssat.experiments.refsets import reference_set, reference_settings
     from cssat.experiments.resources import check_memory, peak_rss_bytes
     from cssat.plots import save_figure, sim2_figure
@@ -84,17 +84,17 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         raise ConfigError(f"reference: {err}") from err
     del Xt, Y_ref
     timings["seconds_estimate"] = time.perf_counter() - t
-    phi_err = relative_error(phi_hat, phi)
+    phi_err, stats = relative_error(phi_hat, phi), phi_stats(cfg, phi, (n, n))
     noise = meas.describe()
     del phi, meas
 
-    r = reconstruct(solver, phi_hat.to(dtype), y, (n, n), denoiser=denoiser)  # Eq. 5/6, or l1/tv/pnp
+    r = reconstruct(solver, phi_hat.to(dtype), y, (n, n), denoiser=denoiser, center=cfg.get("center", "auto"))  # Eq. 5/6
     del phi_hat
     metrics: dict[str, Any] = {
         **scores(r.image, r.denoised, x),
         "phi_relative_error": phi_err, "x_ref_rcond": rcond, "reference_dtype": str(cfg.reference.get("dtype", "float64")),
         "m": m, "n": n, "n_pixels": N, "reference_n": n_ref, "reference_noise": float(cfg.reference.get("noise", 0.0)),
-        "reference_cached": cached, **atm.describe(), **noise,
+        "reference_cached": cached, **atm.describe(), **noise, **stats,
         "seed": seed, "dtype": str(cfg.get("dtype", "float32")), "device": str(device),
         "peak_memory_estimate_gb": est / 2**30, "peak_rss_gb": peak_rss_bytes() / 2**30,
         **r.metrics, **timings,

@@ -55,7 +55,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
     from cssat.experiments.common import require_int, run_settings, write_npz
-    from cssat.experiments.pipeline import denoise
+    from cssat.experiments.pipeline import denoise, phi_stats
     from cssat.experiments.refsets import Progress, reference_set, reference_settings
     from cssat.experiments.resources import check_memory, peak_rss_bytes
     from cssat.metrics import psnr
@@ -78,6 +78,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     meas, atm = build_measurement(cfg, m, N, seed, dtype, device, experiment="sim3")
     y = meas(torch.as_tensor(x, dtype=dtype, device=device).reshape(N))
     timings["seconds_measure"] = time.perf_counter() - t
+    stats = phi_stats(cfg, meas.operator, (n, n))
     t = time.perf_counter()
     pool_imgs, cached = reference_set(cfg, n, pool, ref_seed)
     timings["seconds_references"] = time.perf_counter() - t
@@ -104,7 +105,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     metrics = {**_summary(per, psnr3), "m": m, "n": n, "n_pixels": N, "reference_n": n_ref, "reference_pool": pool,
                "repeats": repeats, "reference_n_nonzero_coefs": estimate[0], "reference_tol": estimate[1],
                "reference_cached": cached, **{k: v for k, v in recs[-1].metrics.items() if k.startswith("solver")},
-               **atm.describe(), **noise, "seed": seed, "dtype": str(cfg.get("dtype", "float32")), "device": str(device),
+               **atm.describe(), **noise, **stats, "seed": seed, "dtype": str(cfg.get("dtype", "float32")), "device": str(device),
                "peak_memory_estimate_gb": est / 2**30, "peak_rss_gb": peak_rss_bytes() / 2**30,
                "denoiser": recs[-1].metrics["denoiser"], "denoiser_3d": dm3.get("denoiser"), **timings}
     write_npz(out_dir / "arrays.npz", truth=x, y=y, reconstructions=stack, denoised_2d=den2, denoised_3d=den3)
@@ -135,7 +136,8 @@ def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed
     timings["seconds_estimate"] += time.perf_counter() - t
     row = {"phi_relative_error": relative_error(phi_dense, phi), "estimate_mean_atoms": float(info.n_iter.double().mean())}
     del phi_dense
-    rec = reconstruct(solver, DictionarySensing(info.coefficients, (n, n)), y, (n, n), denoiser=denoiser)  # Φ̂Ψ = Âᵀ
+    rec = reconstruct(solver, DictionarySensing(info.coefficients, (n, n)), y, (n, n), denoiser=denoiser,
+                      center=cfg.get("center", "auto"))  # Φ̂Ψ = Âᵀ
     timings["seconds_solver"] += rec.metrics["seconds_solver"] + rec.metrics.get("seconds_dictionary", 0.0)
     timings["seconds_denoise"] += rec.metrics["seconds_denoise"]
     if bool(cfg.reference.get("baseline", True)):

@@ -30,7 +30,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
     from cssat.experiments.common import ConfigError, _atomic, require_int, run_settings, write_npz
-    from cssat.experiments.pipeline import reconstruct, scores
+    from cssat.experiments.pipeline import phi_stats, reconstruct, scores
     from cssat.experiments.resources import check_memory
     from cssat.experiments.sim1 import memory_parts
     from cssat.plots import save_figure, solvers_figure
@@ -55,7 +55,8 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         y = meas(torch.as_tensor(x, dtype=dtype, device=device).reshape(N))
         for label in labels:
             t = time.perf_counter()
-            r = reconstruct(solvers[label], meas.operator, y, (n, n), denoiser=denoiser if label in post else None)
+            r = reconstruct(solvers[label], meas.operator, y, (n, n), denoiser=denoiser if label in post else None,
+                            center=cfg.get("center", "auto"))
             sec = time.perf_counter() - t
             out = r.denoised if label in post else r.image
             row = {"m": m, "m_over_N": m / N, "solver": label, **scores(out, None, x), "seconds": sec,
@@ -64,7 +65,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
             images[f"{label}_m{m}"] = out
             metrics[f"psnr_{label}_m{m}"], metrics[f"seconds_{label}_m{m}"] = row["psnr"], sec
             log.info("solvers: m=%d %-10s PSNR %.2f dB, SSIM %.3f, %.1f s", m, label, row["psnr"], row["ssim"], sec)
-        metrics.update(atm.describe(), **meas.describe())
+        metrics.update(atm.describe(), **meas.describe(), **{f"{k}_m{m}": v for k, v in phi_stats(cfg, meas.operator, (n, n)).items()})
         del meas
     for m in ms:
         best = max((r for r in rows if r["m"] == m), key=lambda r: r["psnr"])

@@ -7,8 +7,16 @@ dataset take their light curves from here; the Hydra groups ``atmosphere`` and `
 the two parts.
 """
 
-from cssat.physics.atmosphere import Atmosphere, GaussianAtmosphere
-from cssat.physics.measurement import Measurement
-from cssat.physics.noise import GaussianNoise, NoiseModel, NoNoise
+from cssat.physics.atmosphere import (
+    Atmosphere,
+    CorrelatedAtmosphere,
+    GaussianAtmosphere,
+    LognormalAtmosphere,
+    PhaseScreenAtmosphere,
+)
+from cssat.physics.measurement import Measurement, centered
+from cssat.physics.noise import GaussianNoise, NoiseModel, NoNoise, PhotometricNoise
+from cssat.physics.stats import sensing_stats
 
-__all__ = ["Atmosphere", "GaussianAtmosphere", "Measurement", "NoiseModel", "NoNoise", "GaussianNoise"]
+__all__ = ["Atmosphere", "GaussianAtmosphere", "LognormalAtmosphere", "CorrelatedAtmosphere", "PhaseScreenAtmosphere",
+           "Measurement", "centered", "NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise", "sensing_stats"]

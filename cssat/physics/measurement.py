@@ -11,7 +11,7 @@ from torch import Tensor, nn
 from cssat.physics.noise import NoiseModel, NoNoise
 from cssat.sparse.operators import LinearOperator, MatrixOperator
 
-__all__ = ["Measurement"]
+__all__ = ["Measurement", "centered"]
 
 
 class Measurement(nn.Module):
@@ -69,19 +69,20 @@ class Measurement(nn.Module):
 
     def forward(self, x: Tensor, generator: torch.Generator | None = None) -> Tensor:
         """The measured light curve ``noise(Φx)``; refuses a non-finite result."""
-        y = self.add_noise(self.A(x), generator)
+        y = self.add_noise(self.A(x), generator, flux=self._flat(x).sum(-1))
         if not bool(torch.isfinite(y).all()):
             raise ValueError("y: the light curve contains NaN or Inf")
         return y
 
-    def add_noise(self, y: Tensor, generator: torch.Generator | None = None) -> Tensor:
+    def add_noise(self, y: Tensor, generator: torch.Generator | None = None, *, flux: Tensor | None = None) -> Tensor:
         """``noise(y)`` with the measurement's seeded generator (or ``generator``); ``y`` itself
-        when the model is :class:`~cssat.physics.NoNoise`."""
+        when the model is :class:`~cssat.physics.NoNoise`. ``flux``: the scene's atmosphere-free
+        flux per light curve (the photometric model's scale)."""
         if isinstance(self.noise, NoNoise):
             return y
         if generator is None:
             generator = torch.Generator(device="cpu").manual_seed(self.seed)
-        return self.noise(y, generator)
+        return self.noise(y, generator, flux=flux)
 
     def frames(self, x_t: Tensor, generator: torch.Generator | None = None) -> Tensor:
         """The light curve of a changing scene: ``y_t = Σⱼ Φ[t, j] x_t[j]`` (Eq. 11, 12).
@@ -93,7 +94,7 @@ class Measurement(nn.Module):
         if flat.ndim != 2 or flat.shape[0] != self.operator.n_out:
             raise ValueError(f"x_t: expected {self.operator.n_out} frames, got shape {tuple(x_t.shape)}")
         w = self.operator.matrix(dtype=flat.dtype, device=flat.device)
-        y = self.add_noise((w * flat).sum(-1), generator)
+        y = self.add_noise((w * flat).sum(-1), generator, flux=flat.sum(-1).mean())
         if not bool(torch.isfinite(y).all()):
             raise ValueError("x_t: the light curve contains NaN or Inf")
         return y
@@ -109,3 +110,30 @@ class Measurement(nn.Module):
     def extra_repr(self) -> str:
         m, n = self.shape
         return f"m={m}, N={n}, noise={self.noise!r}, seed={self.seed}"
+
+
+def centered(phi: Tensor, y: Tensor, *, flux_weight: float | None = None) -> tuple[Tensor, Tensor]:
+    """The system ``y = Φx`` rewritten around its common term, for a mean-1 (positive) ``Φ``.
+
+    With ``φ̄`` the mean row of ``Φ (m, N)`` and ``ȳ`` the mean of ``y (m,)`` or ``(B, m)``:
+
+        ``[Φ − 𝟙φ̄ᵀ ; w φ̄ᵀ] x = [y − ȳ𝟙 ; w ȳ]``
+
+    — the fluctuations of the atmosphere, which carry the image, and one row for the total
+    (weighted) flux. With ``w = √m`` (the default, ``flux_weight = 1``) the map is an isometry of
+    the rows: every least-squares objective, and OMP's correlations, are those of the original
+    system; the gain is numerical. A mean-1 Φ with 1 % fluctuations keeps only ~5 of float32's
+    digits for the part that depends on the image; centred in float64 before the solver casts
+    them, the fluctuations keep their own precision. ``flux_weight`` scales ``w`` (relative to
+    ``√m``): > 1 enforces the total flux harder, < 1 trusts it less (e.g. under scintillation-free
+    photon noise on the common term). Returns ``(A (m + 1, N), b)`` in float64.
+    """
+    p = phi.double()
+    yy = y.double()
+    m = p.shape[0]
+    w = math.sqrt(m) * (1.0 if flux_weight is None else float(flux_weight))
+    mean_row = p.mean(0, keepdim=True)
+    A = torch.cat([p - mean_row, w * mean_row])
+    ybar = yy.mean(-1, keepdim=True)
+    b = torch.cat([yy - ybar, w * ybar], -1)
+    return A, b

@@ -8,7 +8,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-__all__ = ["NoiseModel", "NoNoise", "GaussianNoise"]
+__all__ = ["NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise"]
 
 
 class NoiseModel:
@@ -17,7 +17,9 @@ class NoiseModel:
 
     name = "noise"
 
-    def __call__(self, y: Tensor, generator: torch.Generator) -> Tensor:  # pragma: no cover - abstract
+    def __call__(self, y: Tensor, generator: torch.Generator, *, flux: Tensor | None = None) -> Tensor:  # pragma: no cover
+        """``flux``: the atmosphere-free total flux of the scene (``Σ x`` per light curve), for
+        models that need the light curve's physical scale."""
         raise NotImplementedError
 
     def describe(self) -> dict[str, Any]:
@@ -30,7 +32,7 @@ class NoNoise(NoiseModel):
 
     name = "none"
 
-    def __call__(self, y: Tensor, generator: torch.Generator | None = None) -> Tensor:
+    def __call__(self, y: Tensor, generator: torch.Generator | None = None, *, flux: Tensor | None = None) -> Tensor:
         return y
 
     def __repr__(self) -> str:
@@ -59,7 +61,7 @@ class GaussianNoise(NoiseModel):
         self.relative = float(relative or 0.0)
         self.sigma = float(sigma or 0.0)
 
-    def __call__(self, y: Tensor, generator: torch.Generator) -> Tensor:
+    def __call__(self, y: Tensor, generator: torch.Generator, *, flux: Tensor | None = None) -> Tensor:
         if self.relative == 0 and self.sigma == 0:
             return y
         eps = torch.randn(*y.shape, generator=generator, dtype=y.dtype).to(y.device)
@@ -74,3 +76,126 @@ class GaussianNoise(NoiseModel):
 
     def __repr__(self) -> str:
         return f"GaussianNoise(relative={self.relative:g}, sigma={self.sigma:g})"
+
+
+class PhotometricNoise(NoiseModel):
+    """The noise of CCD photometry, in electrons: Poisson shot noise of the source, the sky and the
+    dark current, and Gaussian read noise; the known mean background is subtracted, as in aperture
+    photometry, and the result is returned in the light curve's own units.
+
+    Scale: with ``magnitude`` given, the atmosphere-free flux of the scene (``flux``, ``Σ x``)
+    is a source of that V magnitude; with ``magnitude: null`` the light curve is taken to be in
+    W/m² (cssat's photometry, Eq. 8) and converted through the Sun's V magnitude (−26.74 at
+    1361 W/m²). Source electrons per sample: ``S = F₀ 10^(−0.4 V) A τ t`` with ``A`` the
+    aperture's area (``diameter_m``, central ``obstruction``), ``τ`` the throughput × QE and
+    ``t`` the exposure. Sky: ``sky_mag_arcsec2`` over each pixel of ``pixel_scale_arcsec``;
+    ``n_pix`` pixels in a photometric aperture of ``aperture_radius_arcsec``. SNR of the
+    atmosphere-free sample: the CCD equation (:func:`cssat.physics.photometry.ccd_snr`).
+
+    A sample whose expected source count is negative (the paper's zero-mean Gaussian weights) has
+    no Poisson law: its shot noise is drawn as Gaussian of variance ``|S|``.
+    """
+
+    name = "photometric"
+
+    def __init__(self, magnitude: float | None = 12.0, diameter_m: float = 1.0, obstruction: float = 0.0,
+                 throughput: float = 0.5, exposure_s: float = 1.0, sky_mag_arcsec2: float = 21.0,
+                 aperture_radius_arcsec: float = 3.0, pixel_scale_arcsec: float = 0.5, dark_e_per_s: float = 0.01,
+                 read_noise_e: float = 5.0):
+        def num(field, v, lo, strict=False):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (v <= lo if strict else v < lo):
+                raise ValueError(f"{field}: must be a finite number {'>' if strict else '>='} {lo:g}, got {v!r}")
+            return float(v)
+
+        if magnitude is not None and (isinstance(magnitude, bool) or not isinstance(magnitude, (int, float)) or not math.isfinite(magnitude)):
+            raise ValueError(f"magnitude: expected null (the light curve in W/m²) or a finite V magnitude, got {magnitude!r}")
+        self.magnitude = None if magnitude is None else float(magnitude)
+        self.diameter_m = num("diameter_m", diameter_m, 0.0, True)
+        self.obstruction = num("obstruction", obstruction, 0.0)
+        if self.obstruction >= 1:
+            raise ValueError(f"obstruction: the central obstruction's diameter ratio must be < 1, got {obstruction}")
+        self.throughput = num("throughput", throughput, 0.0, True)
+        if self.throughput > 1:
+            raise ValueError(f"throughput: throughput × QE must be <= 1, got {throughput}")
+        self.exposure_s = num("exposure_s", exposure_s, 0.0, True)
+        self.sky_mag_arcsec2 = num("sky_mag_arcsec2", sky_mag_arcsec2, -100.0)
+        self.aperture_radius_arcsec = num("aperture_radius_arcsec", aperture_radius_arcsec, 0.0, True)
+        self.pixel_scale_arcsec = num("pixel_scale_arcsec", pixel_scale_arcsec, 0.0, True)
+        self.dark_e_per_s = num("dark_e_per_s", dark_e_per_s, 0.0)
+        self.read_noise_e = num("read_noise_e", read_noise_e, 0.0)
+
+    # --- the photometric budget ---
+    @property
+    def area_m2(self) -> float:
+        return math.pi / 4 * self.diameter_m ** 2 * (1 - self.obstruction ** 2)
+
+    @property
+    def n_pix(self) -> float:
+        """Pixels in the photometric aperture."""
+        return math.pi * self.aperture_radius_arcsec ** 2 / self.pixel_scale_arcsec ** 2
+
+    def electrons(self, magnitude: float) -> float:
+        """Source electrons per exposure of a source of V ``magnitude``."""
+        from cssat.physics.photometry import magnitude_to_photon_rate
+
+        return magnitude_to_photon_rate(magnitude) * self.area_m2 * self.throughput * self.exposure_s
+
+    def magnitude_of(self, electrons: float) -> float:
+        """The V magnitude whose source gives ``electrons`` per exposure (inverse of :meth:`electrons`)."""
+        from cssat.physics.photometry import photon_rate_to_magnitude
+
+        return photon_rate_to_magnitude(electrons / (self.area_m2 * self.throughput * self.exposure_s))
+
+    @property
+    def sky_e_per_pixel(self) -> float:
+        return self.electrons(self.sky_mag_arcsec2) * self.pixel_scale_arcsec ** 2
+
+    @property
+    def dark_e_per_pixel(self) -> float:
+        return self.dark_e_per_s * self.exposure_s
+
+    def snr(self, magnitude: float | None = None) -> float:
+        """SNR of one atmosphere-free sample of a source of ``magnitude`` (default: the model's)."""
+        from cssat.physics.photometry import ccd_snr
+
+        mag = self.magnitude if magnitude is None else magnitude
+        if mag is None:
+            raise ValueError("magnitude: give the source's magnitude (the model has none: its light curves are in W/m²)")
+        return ccd_snr(self.electrons(mag), self.n_pix, self.sky_e_per_pixel, self.dark_e_per_pixel, self.read_noise_e)
+
+    def _scale(self, y: Tensor, flux: Tensor | None) -> Tensor:
+        """Electrons per unit of ``y``, per light curve ``(B, 1)``."""
+        if self.magnitude is None:  # y in W/m²: through the Sun's V magnitude
+            from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V
+
+            return torch.full((*y.shape[:-1], 1), self.electrons(SUN_MAGNITUDE_V) / SOLAR_IRRADIANCE_W_M2,
+                              dtype=torch.float64, device=y.device)
+        if flux is None:
+            raise ValueError("flux: the photometric model with a magnitude needs the scene's atmosphere-free flux")
+        f = torch.as_tensor(flux, dtype=torch.float64, device=y.device).reshape(*y.shape[:-1], 1)
+        if not bool((f > 0).all()):
+            raise ValueError("flux: the scene's atmosphere-free flux must be > 0 to carry a magnitude")
+        return self.electrons(self.magnitude) / f
+
+    def __call__(self, y: Tensor, generator: torch.Generator, *, flux: Tensor | None = None) -> Tensor:
+        scale = self._scale(y, flux)
+        signal = y.double() * scale  # expected source electrons per sample
+        bg = self.n_pix * (self.sky_e_per_pixel + self.dark_e_per_pixel)
+        counts = torch.poisson((signal.clamp_min(0) + bg).cpu(), generator=generator)  # source + sky + dark
+        neg = (signal < 0).cpu()
+        if bool(neg.any()):  # no Poisson law for a negative mean: a Gaussian source of variance |S|
+            s = signal.cpu()
+            counts = torch.where(neg, counts + s + s.abs().sqrt() * torch.randn(s.shape, generator=generator, dtype=torch.float64), counts)
+        read = torch.randn(counts.shape, generator=generator, dtype=torch.float64) * (self.read_noise_e * math.sqrt(self.n_pix))
+        measured = (counts + read - bg).to(y.device)  # background-subtracted electrons
+        return (measured / scale).to(y.dtype)
+
+    def describe(self) -> dict:
+        out = {"noise": self.name, "noise_magnitude": self.magnitude, "noise_diameter_m": self.diameter_m,
+               "noise_exposure_s": self.exposure_s, "noise_n_pix": self.n_pix, "noise_sky_e_per_pixel": self.sky_e_per_pixel}
+        if self.magnitude is not None:
+            out.update(noise_signal_e=self.electrons(self.magnitude), noise_snr=self.snr())
+        return out
+
+    def __repr__(self) -> str:
+        return f"PhotometricNoise(magnitude={self.magnitude}, diameter_m={self.diameter_m:g}, exposure_s={self.exposure_s:g})"
