@@ -252,7 +252,7 @@ def solvers_figure(truth, ms: Sequence[int], labels: Sequence[str], images: dict
 
 
 def realism_figures(rows: list[dict], stats: list[dict], solvers: Sequence[str], sizes: Sequence[float],
-                    mags: Sequence[float], n: int) -> dict[str, Any]:
+                    mags: Sequence[float], n: int, flux_only: float | None = None) -> dict[str, Any]:
     """The realism maps: per solver, PSNR over (angular size, V magnitude) with the paper's
     Gaussian Φ as the first column; and Φ's effective rank and scintillation index against the
     angular size. Returns ``{name: Figure}``."""
@@ -277,7 +277,8 @@ def realism_figures(rows: list[dict], stats: list[dict], solvers: Sequence[str],
         ax.axvline(0.5, color="w", lw=2)
         ax.set_xlabel("angular size of the image (object at the range that gives it)")
         fig.colorbar(im, ax=ax, label="PSNR (dB)")
-        ax.set_title(f"{solver}: PSNR of a {n}×{n} image from its light curve", fontsize=10)
+        ax.set_title(f"{solver}: PSNR of a {n}×{n} image from its light curve"
+                     + (f"\n(the total flux alone gives {flux_only:.1f} dB)" if flux_only is not None else ""), fontsize=10)
         fig.tight_layout()
         figs[solver] = fig
     phys = [s for s in stats if s["angular_size_arcsec"] is not None]
@@ -292,8 +293,10 @@ def realism_figures(rows: list[dict], stats: list[dict], solvers: Sequence[str],
     ax.set_xlabel("angular size of the image (arcsec)")
     ax.set_ylabel("effective rank")
     ax2 = ax.twinx()
-    ax2.semilogx(a, [s["phi_scintillation_index"] for s in phys], "s:", color="tab:red")
-    ax2.set_ylabel("scintillation index σ_I²", color="tab:red")
+    si = [s["phi_scintillation_index"] for s in phys]
+    ax2.semilogx(a, si, "s:", color="tab:red")
+    ax2.set_ylim(0, 1.5 * max(si))
+    ax2.set_ylabel("scintillation index σ_I² (set by the telescope)", color="tab:red")
     ax.legend(fontsize=8, loc="upper left")
     ax.set_title(f"What the atmosphere can measure ({n}×{n} pixels)", fontsize=10)
     fig.tight_layout()

@@ -10,7 +10,6 @@ row holds the swept values, every scalar metric of its ``metrics.json``, ``secon
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import logging
 from pathlib import Path
@@ -77,7 +76,7 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
 
 def summarize(sweep_dir: str | Path, metric: str = "psnr") -> tuple[Path, Path | None]:
     """Write ``summary.csv`` and ``summary_<metric>.png`` into ``sweep_dir``; return their paths."""
-    from cssat.experiments.common import _atomic
+    from cssat.experiments.common import write_csv
     from cssat.plots import save_figure, sweep_figure
 
     sweep_dir = Path(sweep_dir)
@@ -85,15 +84,8 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr") -> tuple[Path, Path |
     first = ["job", *swept, "status", metric]
     cols = first + sorted({k for r in rows for k in r} - set(first))
 
-    def w(tmp):
-        with open(tmp, "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=cols, restval="")
-            wr.writeheader()
-            for r in rows:
-                wr.writerow(r)
-
     csv_path = sweep_dir / "summary.csv"
-    _atomic(csv_path, w)
+    write_csv(csv_path, rows, cols)
     fig = sweep_figure(rows, swept, metric)
     png = None
     if fig is not None:

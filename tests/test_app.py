@@ -33,7 +33,7 @@ def test_every_experiment_config_composes():
 
 def test_sim1_end_to_end(tmp_path):
     cfg = cfg_of(*SMALL)
-    metrics = run_experiment(cfg, tmp_path)
+    run_experiment(cfg, tmp_path)
     saved = json.loads((tmp_path / "metrics.json").read_text())
     assert saved["status"] == "ok" and saved["m"] == 200 and saved["n_pixels"] == 256
     for key in ("psnr", "ssim", "seconds", "solver_n_nonzero_coefs", "atmosphere", "noise"):
@@ -294,14 +294,14 @@ def test_every_experiment_refuses_a_run_that_does_not_fit_before_any_work(tmp_pa
 def test_realism_experiment_maps(tmp_path):
     cfg = cfg_of("experiment=realism", "target.size=12", "cs.m=115", "threads=1", "realism.angular_size_arcsec=[0.058,60]",
                  "realism.magnitudes=[2,14]", "atmosphere.n_radial=32", "atmosphere.n_angular=6", "atmosphere.n_layers=4",
-                 "realism.solvers.tv.max_iter=300")
+                 "realism.solvers.tv.max_iter=300", "realism.solvers.tv_strong.max_iter=300")
     met = run_experiment(cfg, tmp_path)
     with open(tmp_path / "realism.csv", newline="") as f:
         import csv
 
         rows = list(csv.DictReader(f))
-    assert len(rows) == 3 * 2 * 2  # (paper + 2 sizes) × 2 magnitudes × 2 solvers
-    for fig in ("realism_omp.png", "realism_tv.png", "realism_rank.png"):
+    assert len(rows) == 3 * 2 * 3  # (paper + 2 sizes) × 2 magnitudes × 3 solvers (omp, tv, tv_strong)
+    for fig in ("realism_omp.png", "realism_tv.png", "realism_tv_strong.png", "realism_rank.png"):
         assert (tmp_path / "figures" / fig).stat().st_size > 5000
     # the physics: at GEO one transmission for all pixels; at 60″ the pixels decorrelate
     assert met["phi_effective_rank_centered_a0"] <= 2 < met["phi_effective_rank_centered_a1"]
@@ -311,3 +311,8 @@ def test_realism_experiment_maps(tmp_path):
     tv = {(r["column"], float(r["magnitude"])): float(r["psnr"]) for r in rows if r["solver"] == "tv"}
     assert tv[("paper", 2.0)] > tv[("paper", 14.0)] and tv[("paper", 2.0)] > 25
     assert met["psnr"] == max(float(r["psnr"]) for r in rows if r["column"] == "a1" and float(r["magnitude"]) == 2.0)
+    # the flux-only reference: the PSNR of the flat image at the truth's mean
+    from cssat.data import load_target
+
+    t = load_target("tess", 12)
+    assert met["psnr_flux_only"] == pytest.approx(10 * np.log10(1 / np.mean((t - t.mean()) ** 2)), rel=1e-9)

@@ -123,3 +123,12 @@ def test_at_geo_a_satellite_sees_one_atmosphere():
     assert st["phi_effective_rank_centered"] <= 2  # the 0.058″ of a 10 m satellite: one transmission
     leo = PhaseScreenAtmosphere(range_km=40.0, n_radial=48, n_angular=8)  # 10 m at 40 km: 52″
     assert sensing_stats(leo.operator(300, 16 * 16, seed=0, dtype=torch.float64).matrix(), (16, 16))["phi_effective_rank_centered"] > 10
+
+
+@pytest.mark.parametrize("diameter_m", [0.3, 0.5, 1.0, 2.0])
+@pytest.mark.parametrize("exposure_s", [0.5, 1.0, 5.0, 10.0])
+def test_telescope_scintillation_is_within_30_percent_of_youngs_formula(diameter_m, exposure_s):
+    # Young (1967), the observers' empirical rule, at the zenith; the HV 5/7 model profile gives
+    # 0.72-0.86 of it over this grid (its airmass law is X^3, Young's X^3.5: see the README)
+    atm = PhaseScreenAtmosphere(diameter_m=diameter_m, exposure_s=exposure_s, n_angular=48)
+    assert atm.log_variance == pytest.approx(tb.young_index(diameter_m, 1.0, exposure_s, osborn=1.0), rel=0.3)

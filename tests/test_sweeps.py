@@ -43,7 +43,13 @@ def test_named_sweeps_name_valid_values_of_their_experiment(sweep):
         for value in str(values).split(","):
             cfg = compose_hydra(f"sweep={sweep}", f"{key}={value}")
             exp = cfg.experiment_name
-            assert str(OmegaConf.select(cfg, key)) == value  # the key exists in the experiment's config
+            node = OmegaConf.select(cfg, key)
+            if OmegaConf.is_config(node):  # a config group: the option builds
+                from cssat.experiments.build import build
+
+                build(node, key)
+            else:
+                assert str(node) == value  # the key exists in the experiment's config
             N = cfg.target.size ** 2
             assert 1 <= cfg.cs.m <= N
             if exp == "sim3":

@@ -19,6 +19,7 @@ __all__ = [
     "torch_device",
     "write_json",
     "write_npz",
+    "write_csv",
 ]
 
 
@@ -119,5 +120,21 @@ def write_npz(path: str | os.PathLike, **arrays) -> None:
     def w(tmp):
         with open(tmp, "wb") as f:
             np.savez_compressed(f, **conv)
+
+    _atomic(Path(path), w)
+
+
+def write_csv(path: str | os.PathLike, rows: list[dict[str, Any]], fieldnames: list[str] | None = None) -> None:
+    """Write ``rows`` (dicts) as a CSV with a header, atomically; columns ``fieldnames`` (default:
+    the first row's keys), missing values empty."""
+    import csv
+
+    cols = fieldnames or list(rows[0])
+
+    def w(tmp):
+        with open(tmp, "w", newline="") as f:
+            wr = csv.DictWriter(f, fieldnames=cols, restval="")
+            wr.writeheader()
+            wr.writerows(rows)
 
     _atomic(Path(path), w)

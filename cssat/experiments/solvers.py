@@ -14,7 +14,6 @@ Headline metrics: ``psnr``/``ssim`` of the best solver at the last m of ``compar
 
 from __future__ import annotations
 
-import csv
 import logging
 import time
 from pathlib import Path
@@ -29,7 +28,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
-    from cssat.experiments.common import ConfigError, _atomic, require_int, run_settings, write_npz
+    from cssat.experiments.common import ConfigError, require_int, run_settings, write_csv, write_npz
     from cssat.experiments.pipeline import phi_stats, reconstruct, scores
     from cssat.experiments.resources import check_memory
     from cssat.experiments.sim1 import memory_parts
@@ -72,13 +71,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         metrics[f"best_m{m}"] = best["solver"]
     metrics.update(psnr=best["psnr"], ssim=best["ssim"], best_solver=best["solver"], m=ms[-1])
 
-    def w(tmp):
-        with open(tmp, "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=list(rows[0]))
-            wr.writeheader()
-            wr.writerows(rows)
-
-    _atomic(out_dir / "comparison.csv", w)
+    write_csv(out_dir / "comparison.csv", rows)
     write_npz(out_dir / "arrays.npz", truth=x, **images)
     save_figure(solvers_figure(x, ms, labels, images, rows), out_dir / "figures" / "solvers.png")
     return metrics

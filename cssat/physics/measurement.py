@@ -115,25 +115,30 @@ class Measurement(nn.Module):
 def centered(phi: Tensor, y: Tensor, *, flux_weight: float | None = None) -> tuple[Tensor, Tensor]:
     """The system ``y = Φx`` rewritten around its common term, for a mean-1 (positive) ``Φ``.
 
-    With ``φ̄`` the mean row of ``Φ (m, N)`` and ``ȳ`` the mean of ``y (m,)`` or ``(B, m)``:
+    With ``φ̄`` the mean row of ``Φ (m, N)``, ``ȳ`` the mean of ``y (m,)`` or ``(B, m)`` and
+    ``s`` the rms of the fluctuations ``Φ − 𝟙φ̄ᵀ``:
 
-        ``[Φ − 𝟙φ̄ᵀ ; w φ̄ᵀ] x = [y − ȳ𝟙 ; w ȳ]``
+        ``[(Φ − 𝟙φ̄ᵀ)/s ; c φ̄ᵀ] x = [(y − ȳ𝟙)/s ; c ȳ]``,   ``c = w √N / ‖φ̄‖``
 
-    — the fluctuations of the atmosphere, which carry the image, and one row for the total
-    (weighted) flux. With ``w = √m`` (the default, ``flux_weight = 1``) the map is an isometry of
-    the rows: every least-squares objective, and OMP's correlations, are those of the original
-    system; the gain is numerical. A mean-1 Φ with 1 % fluctuations keeps only ~5 of float32's
-    digits for the part that depends on the image; centred in float64 before the solver casts
-    them, the fluctuations keep their own precision. ``flux_weight`` scales ``w`` (relative to
-    ``√m``): > 1 enforces the total flux harder, < 1 trusts it less (e.g. under scintillation-free
-    photon noise on the common term). Returns ``(A (m + 1, N), b)`` in float64.
+    — the fluctuations of the atmosphere, which alone depend on where the light comes from,
+    scaled to unit rms like the paper's Gaussian rows, and one row for the total (weighted) flux
+    with the norm of an average row times ``w = flux_weight`` (default 1). Why: with 1 %
+    fluctuations the common term holds 99.99 % of ``‖y‖²``, so every scale-relative setting of the
+    solvers (ℓ1/TV's λ relative to ‖Aᵀy‖∞, OMP's round-off floor) would see only the flux, and a
+    float32 Φ keeps only ~5 digits of the part that depends on the image. This is a re-weighting,
+    not an isometry: the total flux counts as one sample. Formed in float64; returns
+    ``(A (m + 1, N), b)`` in float64.
     """
     p = phi.double()
     yy = y.double()
-    m = p.shape[0]
-    w = math.sqrt(m) * (1.0 if flux_weight is None else float(flux_weight))
+    N = p.shape[1]
     mean_row = p.mean(0, keepdim=True)
-    A = torch.cat([p - mean_row, w * mean_row])
+    fluct = p - mean_row
+    s = float(fluct.pow(2).mean().sqrt())
+    if not s > 0:
+        raise ValueError("phi: its rows are all equal (rank 1): only the total flux is measured")
+    c = (1.0 if flux_weight is None else float(flux_weight)) * math.sqrt(N) / float(mean_row.norm())
+    A = torch.cat([fluct / s, c * mean_row])
     ybar = yy.mean(-1, keepdim=True)
-    b = torch.cat([yy - ybar, w * ybar], -1)
+    b = torch.cat([(yy - ybar) / s, c * ybar], -1)
     return A, b

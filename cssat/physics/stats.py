@@ -20,7 +20,8 @@ def effective_rank(phi: Tensor, energy: float = 0.99) -> int:
 def sensing_stats(phi: Tensor, shape: Sequence[int] | None = None, *, max_rows: int = 4096,
                   full: bool = True) -> dict[str, float]:
     """``phi_mean``, ``phi_scintillation_index`` (``Var/mean²`` of the entries, per pixel then
-    averaged), ``phi_effective_rank`` (99 % of the energy; of ``Φ`` itself, so a mean-1 ``Φ`` with
+    averaged; null for a Φ that is not a positive transmission, like the paper's zero-mean one),
+    ``phi_effective_rank`` (99 % of the energy; of ``Φ`` itself, so a mean-1 ``Φ`` with
     fluctuations under 10 % has rank 1: its common row holds > 99 %), ``phi_effective_rank_centered``
     (of ``Φ`` less its mean row: the independent patterns the atmosphere adds to the common
     transmission, which is what a reconstruction can use) and ``phi_coherence`` (the largest ``|⟨aᵢ, aⱼ⟩| / ‖aᵢ‖‖aⱼ‖`` over columns of
@@ -31,8 +32,9 @@ def sensing_stats(phi: Tensor, shape: Sequence[int] | None = None, *, max_rows: 
 
     p = phi[:max_rows].double()
     mean = p.mean(0)
+    positive = bool(p.mean() > 3 * p.std())  # a transmission; the paper's zero-mean Φ has no index
     out = {"phi_mean": float(p.mean()), "phi_std": float(p.std()),
-           "phi_scintillation_index": float((p.var(0) / mean.pow(2).clamp_min(1e-300)).mean())}
+           "phi_scintillation_index": float((p.var(0) / mean.pow(2)).mean()) if positive else None}
     if not full:
         return out
     out["phi_effective_rank"] = effective_rank(p)

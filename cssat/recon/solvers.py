@@ -21,7 +21,6 @@ import time
 from typing import Any, Sequence
 
 import numpy as np
-import torch
 from torch import Tensor
 
 from cssat.recon._checks import choice_param, float_param, int_param, opt
