@@ -51,6 +51,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         raise ConfigError("noise.magnitude: the realism maps set the magnitude themselves; use noise=photometric")
     check_memory({"Φ": 8 * m * N, "ΦΨ": 8 * m * N, "Gram": 8 * N * N}, cfg, "lower target.size or cs.m")
     x = torch.as_tensor(load_target(str(cfg.target.image), n), dtype=torch.float64).reshape(N)
+    center = cfg.get("center", "auto")  # the physical Φ: centred unless center=false
     rows: list[dict[str, Any]] = []
     stats: list[dict[str, Any]] = []
     columns = [("paper", None)] + [(f"a{i}", a) for i, a in enumerate(sizes)]
@@ -71,7 +72,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
                 noise.magnitude = mag
             y = Measurement(phi, noise, seed=seed + 1 + 7919 * j)(x)
             for lab, solver in solvers.items():
-                rows.append(_cell(solver, lab, phi, y, x, n, dtype, center=arcsec is not None)
+                rows.append(_cell(solver, lab, phi, y, x, n, dtype, center=center if arcsec is not None else False)
                             | {"column": col, "angular_size_arcsec": arcsec, "magnitude": mag, 
                                "snr": noise.snr(mag) if hasattr(noise, "snr") else float("inf"),
                                "phi_effective_rank_centered": st["phi_effective_rank_centered"]})
