@@ -18,7 +18,7 @@ from omegaconf import DictConfig
 log = logging.getLogger("cssat")
 
 
-def task(cfg: Any, output_dir: str | Path, multirun: bool = False) -> float | None:
+def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize=None) -> float | None:
     """Run one job of the app into ``output_dir`` and return the metric named by
     ``cfg.optimized_metric`` (default ``psnr``; ``None`` when it is null or not a number), the
     value a sweeper such as Optuna's optimises.
@@ -30,7 +30,7 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False) -> float | No
     from cssat.experiments import ConfigError, run_experiment
 
     try:
-        metrics = run_experiment(cfg, output_dir)
+        metrics = run_experiment(cfg, output_dir, finalize=finalize)
     except Exception as err:
         if multirun:
             log.error("job failed: %s", err)
@@ -50,7 +50,23 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     from hydra.types import RunMode
 
     hc = HydraConfig.get()
-    return task(cfg, hc.runtime.output_dir, multirun=hc.mode == RunMode.MULTIRUN)
+
+    def save_hydra_files() -> None:
+        """Hydra wrote ``.hydra/`` before this run took the directory's lock; a second run refused
+        by the lock may have overwritten them since: write this run's again, under the lock."""
+        from omegaconf import OmegaConf
+
+        from cssat.experiments.common import _atomic
+
+        sub = hc.output_subdir
+        if not sub:
+            return
+        d = Path(hc.runtime.output_dir) / sub
+        task_cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
+        for name, node in (("config.yaml", task_cfg), ("overrides.yaml", OmegaConf.create(list(hc.overrides.task)))):
+            _atomic(d / name, lambda tmp, node=node: OmegaConf.save(node, tmp))
+
+    return task(cfg, hc.runtime.output_dir, multirun=hc.mode == RunMode.MULTIRUN, finalize=save_hydra_files)
 
 
 def main() -> None:

@@ -13,7 +13,7 @@ import logging
 import time
 import traceback
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from cssat.experiments.common import ConfigError, require_int, write_json
 
@@ -32,60 +32,72 @@ EXPERIMENTS = {
 }
 
 
-def run_experiment(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
+def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] | None = None) -> dict[str, Any]:
     """Run the experiment ``cfg.experiment_name`` into ``out_dir`` and return its metrics.
 
     The experiment is the module :data:`EXPERIMENTS` names, or ``cfg.experiment_module`` (a module
     of your own with ``run(cfg, out_dir) -> metrics``: a new experiment is that module and its YAML).
 
-    Writes ``out_dir/metrics.json`` in every case: the experiment's flat metrics plus ``status``,
-    ``seconds``, ``experiment`` and ``config_sha`` (a hash of the config without ``threads`` and
-    ``resume``); on failure ``status: failed`` and ``error``, and the exception is re-raised.
-    Other outputs are written atomically by the experiment only once computed, and
-    ``metrics.json`` last.
+    The run holds a lock on ``out_dir`` (a second run into it is refused, naming it). It removes
+    the old ``metrics.json`` first, so a run killed at any moment leaves no complete-looking set,
+    and writes ``metrics.json`` last: the experiment's flat metrics plus ``status``, ``seconds``,
+    ``experiment``, ``config_sha`` (a hash of the config without ``threads``, ``resume`` …),
+    provenance, ``files`` (every result file with its content hash) and ``inputs`` (the hashes of
+    the input files read). On failure ``status: failed`` and ``error``, and the exception is
+    re-raised. ``finalize`` runs under the lock after that (the app re-writes Hydra's ``.hydra/``
+    files there, which a refused second run may have overwritten).
 
-    Resuming: when ``cfg.resume`` is true (the default) and ``out_dir`` already holds a
-    ``metrics.json`` with ``status: ok`` and the same ``config_sha``, the run is skipped and the
-    saved metrics are returned — re-running a sweep into the same directory redoes only the jobs
-    that failed, were interrupted or changed.
+    Resuming: when ``cfg.resume`` is true (the default) and ``out_dir`` holds a complete, current
+    result set — ``status: ok``, the same ``config_sha``, every listed file with its hash, the same
+    input files — the run is skipped and the saved metrics are returned; otherwise the log says
+    why it runs again.
     """
     import torch
+
+    from cssat.experiments.results import (
+        check_complete, clear_results, input_files, load_saved, result_files, run_lock,
+    )
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     name = cfg.get("experiment_name")
     sha = config_sha(cfg)
-    saved = out_dir / "metrics.json"
-    if cfg.get("resume", True) and saved.exists():
+    with run_lock(out_dir):
+        saved = load_saved(out_dir)
+        if cfg.get("resume", True) and saved is not None:
+            why = check_complete(out_dir, saved, sha, cfg)
+            if why is None:
+                log.info("%s: complete results already in %s, skipped (resume=false to redo)", name, out_dir)
+                if finalize is not None:
+                    finalize()
+                return saved
+            log.info("%s: running again in %s: %s", name, out_dir, why)
+        clear_results(out_dir)
+        t0 = time.perf_counter()
+        metrics: dict[str, Any] = {"experiment": name, "config_sha": sha, **provenance()}
         try:
-            old = json.loads(saved.read_text())
-        except (OSError, ValueError):
-            old = {}
-        if old.get("status") == "ok" and old.get("config_sha") == sha:
-            log.info("%s: complete results already in %s, skipped (resume=false to redo)", name, out_dir)
-            return old
-    t0 = time.perf_counter()
-    metrics: dict[str, Any] = {"experiment": name, "config_sha": sha, **provenance()}
-    try:
-        module_name = cfg.get("experiment_module") or EXPERIMENTS.get(name)
-        if module_name is None:
-            raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)} (or an experiment_module), got {name!r}")
-        torch.set_num_threads(require_int(cfg.get("threads", 1), "threads", 1, 1024))
-        try:
-            module = importlib.import_module(str(module_name))
-        except ImportError as err:
-            raise ConfigError(f"experiment_module: cannot import {module_name!r}: {err}") from err
-        metrics.update(module.run(cfg, out_dir))
-        metrics["status"] = "ok"
-    except BaseException as err:
-        metrics.update(status="failed", error=f"{type(err).__name__}: {err}")
+            module_name = cfg.get("experiment_module") or EXPERIMENTS.get(name)
+            if module_name is None:
+                raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)} (or an experiment_module), got {name!r}")
+            torch.set_num_threads(require_int(cfg.get("threads", 1), "threads", 1, 1024))
+            try:
+                module = importlib.import_module(str(module_name))
+            except ImportError as err:
+                raise ConfigError(f"experiment_module: cannot import {module_name!r}: {err}") from err
+            metrics.update(module.run(cfg, out_dir))
+            metrics.update(status="ok", inputs=input_files(cfg))
+        except BaseException as err:
+            metrics.update(status="failed", error=f"{type(err).__name__}: {err}")
+            metrics["seconds"] = time.perf_counter() - t0
+            write_json(out_dir / "metrics.json", metrics)
+            if not isinstance(err, ConfigError):
+                log.debug("%s", traceback.format_exc())
+            raise
         metrics["seconds"] = time.perf_counter() - t0
+        metrics["files"] = result_files(out_dir)
         write_json(out_dir / "metrics.json", metrics)
-        if not isinstance(err, ConfigError):
-            log.debug("%s", traceback.format_exc())
-        raise
-    metrics["seconds"] = time.perf_counter() - t0
-    write_json(out_dir / "metrics.json", metrics)
+        if finalize is not None:
+            finalize()
     return metrics
 
 

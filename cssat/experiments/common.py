@@ -82,13 +82,23 @@ def run_settings(cfg: Any, max_size: int = 4096):
     return dtype, device, seed, n, N, m
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _atomic(path: Path, write) -> None:
+    """Write ``path`` through ``write(tmp)`` on a temporary file beside it, then rename it into
+    place: a reader sees the old file or the new one, never a part. The file gets the mode the
+    user's umask gives a new file (``mkstemp`` would leave 0600, unreadable to collaborators)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -1,0 +1,135 @@
+"""A run's results are one set: kills, stale or damaged files, changed inputs, two runs at once,
+the user's umask (issue 13)."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_module
+
+from cssat.experiments import run_experiment
+from cssat.experiments.results import check_complete, load_saved
+
+APP = [sys.executable, "-m", "cssat.app"]
+SMALL = ["target.size=16", "threads=1", "denoiser.n_iter=2"]
+
+
+def cfg_of(*overrides):
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))
+
+
+def consistent(d: Path) -> bool:
+    """A directory is either without a complete set, or its metrics describe its files."""
+    saved = load_saved(d)
+    if saved is None or saved.get("status") != "ok":
+        return True
+    arrays = np.load(d / "arrays.npz")
+    return len(arrays["y"]) == saved["m"] and check_complete(d, saved, saved["config_sha"], cfg_of(*SMALL, f"cs.m={saved['m']}")) is None
+
+
+def test_a_kill_while_writing_never_leaves_new_arrays_beside_old_metrics(tmp_path):
+    d = tmp_path / "run"
+    assert subprocess.run(APP + SMALL + ["cs.m=200", f"hydra.run.dir={d}"], capture_output=True, cwd=tmp_path).returncode == 0
+    before = (d / "arrays.npz").stat().st_mtime_ns
+    proc = subprocess.Popen(APP + SMALL + ["cs.m=100", f"hydra.run.dir={d}"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t = time.time()
+    while time.time() - t < 120 and proc.poll() is None:  # kill as soon as arrays.npz changes
+        if (d / "arrays.npz").exists() and (d / "arrays.npz").stat().st_mtime_ns != before:
+            proc.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.002)
+    proc.wait()
+    assert consistent(d)
+    assert load_saved(d) is None or load_saved(d)["m"] == 100
+    # the old run's config is not "complete" any more: it runs again
+    res = subprocess.run(APP + SMALL + ["cs.m=200", f"hydra.run.dir={d}"], capture_output=True, text=True, cwd=tmp_path)
+    assert res.returncode == 0 and "skipped" not in res.stdout + res.stderr
+    assert consistent(d) and load_saved(d)["m"] == 200
+
+
+@pytest.mark.parametrize("delay", [0.3, 1.0, 2.0, 3.0])
+def test_kills_at_any_moment_then_resume(tmp_path, delay):
+    d = tmp_path / "run"
+    proc = subprocess.Popen(APP + SMALL + ["cs.m=150", f"hydra.run.dir={d}"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(delay)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    if d.exists():
+        assert consistent(d)
+    res = subprocess.run(APP + SMALL + ["cs.m=150", f"hydra.run.dir={d}"], capture_output=True, text=True, cwd=tmp_path)
+    assert res.returncode == 0
+    assert consistent(d) and load_saved(d)["status"] == "ok"
+    assert not list(d.rglob(".*.tmp"))  # what a kill left is cleaned by the next run
+
+
+@pytest.mark.parametrize("damage", ["truncate arrays", "delete figure", "replace image", "zero arrays"])
+def test_resume_skips_only_a_complete_current_set_and_says_why(tmp_path, damage, caplog):
+    from PIL import Image
+
+    img = tmp_path / "target.png"
+    Image.fromarray((np.arange(256).reshape(16, 16) % 251).astype(np.uint8)).save(img)
+    over = [*SMALL, "cs.m=150", f"target.image={img}"]
+    d = tmp_path / "run"
+    run_experiment(cfg_of(*over), d)
+    with caplog.at_level("INFO", logger="cssat"):
+        run_experiment(cfg_of(*over), d)
+    assert "skipped" in caplog.text
+    caplog.clear()
+    if damage == "truncate arrays":
+        data = (d / "arrays.npz").read_bytes()
+        (d / "arrays.npz").write_bytes(data[: len(data) // 2])
+    elif damage == "zero arrays":
+        data = bytearray((d / "arrays.npz").read_bytes())
+        data[100:200] = bytes(100)
+        (d / "arrays.npz").write_bytes(bytes(data))
+    elif damage == "delete figure":
+        (d / "figures" / "fig9_sim1.png").unlink()
+    else:  # the image behind target.image replaced at the same path
+        Image.fromarray((255 - np.arange(256).reshape(16, 16) % 251).astype(np.uint8)).save(img)
+    with caplog.at_level("INFO", logger="cssat"):
+        met = run_experiment(cfg_of(*over), d)
+    assert "skipped" not in caplog.text and "running again" in caplog.text
+    reason = {"truncate arrays": "arrays.npz", "zero arrays": "arrays.npz", "delete figure": "fig9_sim1.png",
+              "replace image": "input file"}[damage]
+    assert reason in caplog.text
+    assert met["status"] == "ok" and check_complete(d, load_saved(d), met["config_sha"], cfg_of(*over)) is None
+
+
+def test_two_runs_into_one_directory_one_is_refused(tmp_path):
+    refused = 0
+    for trial in range(3):
+        d = tmp_path / f"run{trial}"
+        procs = [subprocess.Popen(APP + SMALL + [f"cs.m={m}", f"hydra.run.dir={d}"], cwd=tmp_path,
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) for m in (150, 200)]
+        outs = [p.communicate(timeout=300)[0] for p in procs]
+        codes = sorted(p.returncode for p in procs)
+        if codes == [0, 0]:  # the second started after the first had finished: both ran, in turn
+            pass
+        else:
+            assert codes == [0, 2], outs
+            refused += 1
+            loser = outs[[p.returncode for p in procs].index(2)]
+            assert "hydra.run.dir" in loser and "in use by another cssat run" in loser
+        saved = load_saved(d)
+        overrides = (d / ".hydra" / "overrides.yaml").read_text()
+        assert f"cs.m={saved['m']}" in overrides  # the results and .hydra/ belong to the same run
+        assert consistent(d)
+    assert refused >= 1  # the race happened (both start at once; a run takes seconds)
+
+
+def test_result_files_follow_the_umask(tmp_path):
+    d = tmp_path / "run"
+    res = subprocess.run(["bash", "-c", f"umask 022 && {' '.join(APP + SMALL)} cs.m=100 hydra.run.dir={d}"],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    for name in ("metrics.json", "arrays.npz", "figures/fig9_sim1.png"):
+        assert (d / name).stat().st_mode & 0o777 == 0o644, name
