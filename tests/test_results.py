@@ -133,3 +133,49 @@ def test_result_files_follow_the_umask(tmp_path):
     assert res.returncode == 0, res.stderr
     for name in ("metrics.json", "arrays.npz", "figures/fig9_sim1.png"):
         assert (d / name).stat().st_mode & 0o777 == 0o644, name
+
+
+SIM3 = ["experiment=sim3", "target.size=16", "cs.m=200", "threads=1", "reference.pool=300", "reference.n=200",
+        "reference.repeats=1", "reference.n_nonzero_coefs=10", "reference.baseline=false", "denoiser=none",
+        "denoiser@denoiser3d=none"]
+
+
+@pytest.mark.parametrize("damage", ["zero half in place", "truncate", "garbage", "empty", "swap with another entry"])
+def test_a_damaged_cache_entry_is_logged_removed_and_rendered_again(tmp_path, damage, caplog):
+    cache = tmp_path / "cache"
+    first = run_experiment(cfg_of(*SIM3, f"cache_dir={cache}"), tmp_path / "a")
+    (entry,) = cache.glob("refs-*.npy")
+    if damage == "zero half in place":
+        with open(entry, "r+b") as f:
+            size = entry.stat().st_size
+            f.seek(size // 2)
+            f.write(bytes(size - size // 2))
+    elif damage == "truncate":
+        entry.write_bytes(entry.read_bytes()[:1000])
+    elif damage == "garbage":
+        entry.write_bytes(os.urandom(5000))
+    elif damage == "empty":
+        entry.write_bytes(b"")
+    else:  # a valid array of the right shape, but not this entry's
+        np.save(entry, np.zeros((300, 16, 16), np.float32))
+    with caplog.at_level("WARNING", logger="cssat"):
+        again = run_experiment(cfg_of(*SIM3, f"cache_dir={cache}"), tmp_path / "b")
+    assert str(entry) in caplog.text and "damaged" in caplog.text
+    assert not again["reference_cached"] and again["psnr"] == first["psnr"]  # rendered again: the same numbers
+    third = run_experiment(cfg_of(*SIM3, f"cache_dir={cache}"), tmp_path / "c")
+    assert third["reference_cached"] and third["psnr"] == first["psnr"]  # and stored again, intact
+
+
+def test_concurrent_runs_share_one_cache_entry(tmp_path):
+    cache = tmp_path / "cache"
+    procs = [subprocess.Popen(APP + SIM3 + [f"cache_dir={cache}", f"hydra.run.dir={tmp_path / str(i)}"], cwd=tmp_path,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for i in range(2)]
+    assert [p.wait(timeout=300) for p in procs] == [0, 0]
+    met = [load_saved(tmp_path / str(i)) for i in range(2)]
+    assert sorted(m["reference_cached"] for m in met) == [False, True]  # one rendered, the other waited and read it
+    assert met[0]["psnr"] == met[1]["psnr"]
+    assert len(list(cache.glob("refs-*.npy"))) == 1 and len(list(cache.glob("refs-*.json"))) == 1
+    mask = os.umask(0)
+    os.umask(mask)
+    for p in [*cache.glob("refs-*.npy"), *cache.glob("refs-*.json")]:
+        assert p.stat().st_mode & 0o777 == 0o666 & ~mask  # shared with collaborators as the umask says

@@ -5,8 +5,10 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import os
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +18,7 @@ from cssat.experiments.common import _atomic, require_float, require_int
 
 log = logging.getLogger("cssat")
 
-CACHE_VERSION = 1  # bump when the rendering of reference images changes
+CACHE_VERSION = 2  # bump when the rendering of reference images (or the entry format) changes
 
 
 class Progress:
@@ -70,32 +72,98 @@ def _model_and_key(ref: Any, size: int, n: int, seed: int, noise: float, shadows
     return mesh, key, spec
 
 
+def _array_hash(a: np.ndarray) -> str:
+    return hashlib.blake2b(np.ascontiguousarray(a).data, digest_size=16).hexdigest()
+
+
+def _read_entry(path: Path, key: str, shape: tuple[int, ...]) -> np.ndarray | None:
+    """The cached array at ``path`` when its sidecar ``.json`` names ``key`` and the array has
+    ``shape``, float32 and the recorded content hash; ``None`` when there is no complete entry.
+    A damaged entry (unreadable, truncated, wrong shape or hash) is logged with its path and
+    removed, so that it is rendered again."""
+    meta_path = path.with_suffix(".json")
+    if not meta_path.exists():
+        return None  # absent, or being written by another run (its .json comes last)
+    try:
+        meta = json.loads(meta_path.read_text())
+        arr = np.load(path, allow_pickle=False)
+        why = None
+        if meta.get("key") != key:
+            why = f"its key {meta.get('key')!r} is not {key!r}"
+        elif arr.shape != shape or arr.dtype != np.float32:
+            why = f"it holds {arr.dtype} {arr.shape}, expected float32 {shape}"
+        elif meta.get("hash") != _array_hash(arr):
+            why = "its content hash differs from the one recorded (the file was changed or damaged)"
+    except (OSError, ValueError, EOFError) as err:
+        why, arr = f"it cannot be read ({type(err).__name__}: {err})", None
+    if why is None:
+        return arr
+    log.warning("reference cache: %s is damaged (%s): removed, rendering it again", path, why)
+    for p in (path, meta_path):
+        p.unlink(missing_ok=True)
+    return None
+
+
+@contextmanager
+def _key_lock(path: Path):
+    """An exclusive lock per cache entry: concurrent sweeps render each set once (the second
+    waits for the first, then reads its entry)."""
+    import fcntl
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path.with_suffix(".lock"), os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
+
+
 def reference_set(cfg: Any, size: int, n: int, seed: int):
     """``(n, size, size)`` float32 reference images (Astra-like model by default, random Sun and
     view directions, white noise ``reference.noise`` × each image's maximum), rendered in chunks
     with a progress bar, or read from the on-disk cache.
 
-    The cache file (``cache_dir/refs-<key>.npy``) is keyed by everything that defines the set —
-    the mesh's vertices, faces and BRDF constants, size, count, seed, noise, shadows and a version
-    — so a sweep renders each set once. ``cache_dir: null`` disables the cache.
+    A cache entry (``cache_dir/refs-<key>.npy`` and its ``.json``) is keyed by everything that
+    defines the set — the mesh's vertices, faces and BRDF constants, size, count, seed, noise,
+    shadows and a version — so a sweep renders each set once; the ``.json`` (written last) holds
+    the key and the array's content hash, checked on every read: a damaged entry is logged,
+    removed and rendered again. Runs that need one entry at once take turns on a lock file.
+    ``cache_dir: null`` disables the cache.
     """
-    import torch
-
-    from cssat.data import ReferenceImages
-
     ref = cfg.reference
     noise = require_float(ref.get("noise", 0.0), "reference.noise", lo=0.0)
     shadows = bool(ref.get("shadows", True))
     mesh, key, spec = _model_and_key(ref, size, n, seed, noise, shadows)
     cache_dir = cfg.get("cache_dir")
-    path = Path(str(cache_dir)) / f"refs-{key}.npy" if cache_dir else None
-    if path is not None and path.exists():
-        arr = np.load(path, mmap_mode="r")
-        if arr.shape == (n, size, size) and arr.dtype == np.float32:
-            t = time.perf_counter()
-            out = torch.from_numpy(np.array(arr))
+    if not cache_dir:
+        return _render(mesh, size, n, seed, noise, shadows), False
+    path = Path(str(cache_dir)) / f"refs-{key}.npy"
+    with _key_lock(path):
+        t = time.perf_counter()
+        arr = _read_entry(path, key, (n, size, size))
+        if arr is not None:
+            import torch
+
             log.info("reference set: %d images %d² from the cache %s (%.1f s)", n, size, path, time.perf_counter() - t)
-            return out, True
+            return torch.from_numpy(arr), True
+        out = _render(mesh, size, n, seed, noise, shadows)
+
+        def w(tmp):
+            with open(tmp, "wb") as f:
+                np.save(f, out.numpy())
+
+        _atomic(path, w)
+        meta = {"key": key, "hash": _array_hash(out.numpy()), "shape": [n, size, size], "dtype": "float32", "spec": spec}
+        _atomic(path.with_suffix(".json"), lambda tmp: Path(tmp).write_text(json.dumps(meta, indent=1)))
+    return out, False
+
+
+def _render(mesh, size: int, n: int, seed: int, noise: float, shadows: bool):
+    import torch
+
+    from cssat.data import ReferenceImages
+
     ds = ReferenceImages(mesh, size, n, seed=seed, noise=noise, shadows=shadows, dtype=torch.float32)
     out = torch.empty(n, size, size, dtype=torch.float32)
     chunk = max(1, min(1024, (64 << 20) // (size * size * 8)))
@@ -105,14 +173,4 @@ def reference_set(cfg: Any, size: int, n: int, seed: int):
         out[s:e] = ds.batch(s, e)
         bar.update(e - s)
     bar.close()
-    if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-
-        def w(tmp):
-            with open(tmp, "wb") as f:
-                np.save(f, out.numpy())
-
-        _atomic(path, w)
-        _atomic(path.with_suffix(".json"), lambda tmp: Path(tmp).write_text(json.dumps(spec, indent=1)))
-    return out, False
-
+    return out
