@@ -50,6 +50,15 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     from hydra.types import RunMode
 
     hc = HydraConfig.get()
+    multirun = hc.mode == RunMode.MULTIRUN
+    if multirun:  # mark the job directory with its sweep's id (the summary keeps this sweep's jobs)
+        from cssat.summary import SWEEP_MARK, sweep_id
+
+        sid = sweep_id(hc.sweep.dir)
+        if sid is not None:
+            out = Path(hc.runtime.output_dir)
+            out.mkdir(parents=True, exist_ok=True)
+            (out / SWEEP_MARK).write_text(sid + "\n")
 
     def save_hydra_files() -> None:
         """Hydra wrote ``.hydra/`` before this run took the directory's lock; a second run refused
@@ -66,12 +75,18 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         for name, node in (("config.yaml", task_cfg), ("overrides.yaml", OmegaConf.create(list(hc.overrides.task)))):
             _atomic(d / name, lambda tmp, node=node: OmegaConf.save(node, tmp))
 
-    return task(cfg, hc.runtime.output_dir, multirun=hc.mode == RunMode.MULTIRUN, finalize=save_hydra_files)
+    return task(cfg, hc.runtime.output_dir, multirun=multirun, finalize=save_hydra_files)
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
+    after every job has run and the summary is written."""
+    from cssat import summary
+
     _hydra_main()
+    if summary.SWEEP_FAILED:
+        log.error("sweep: not every job ended ok (see summary.csv)")
+        sys.exit(1)
 
 
 if __name__ == "__main__":

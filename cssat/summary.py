@@ -41,13 +41,31 @@ def _number(text: Any) -> Any:
     return text
 
 
+SWEEP_MARK = ".cssat-sweep"
+
+
+def sweep_id(directory: str | Path) -> str | None:
+    """The id of the sweep that last ran in ``directory`` (a sweep or a job directory), if any."""
+    try:
+        return (Path(directory) / SWEEP_MARK).read_text().strip() or None
+    except OSError:
+        return None
+
+
 def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
-    """Rows of a sweep (one per job directory, in job order) and the override keys that vary."""
+    """Rows of a sweep (one per job directory, in job order) and the override keys that vary.
+
+    Only the jobs of the sweep that last ran in ``sweep_dir`` count: each job marks its directory
+    with the sweep's id, so folders left by an earlier, larger sweep into the same directory are
+    left out. A job whose ``metrics.json`` cannot be read is a row with ``status: corrupt``."""
     sweep_dir = Path(sweep_dir)
+    current = sweep_id(sweep_dir)
     jobs = sorted(
         (p.parent.parent for p in sweep_dir.glob("*/.hydra/overrides.yaml")),
         key=lambda p: (0, int(p.name)) if p.name.isdigit() else (1, p.name),
     )
+    if current is not None:
+        jobs = [j for j in jobs if sweep_id(j) == current]
     rows, overrides = [], []
     for job in jobs:
         ov = _parse_overrides(job / ".hydra" / "overrides.yaml")
@@ -55,7 +73,12 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
         row: dict[str, Any] = {"job": job.name}
         metrics_path = job / "metrics.json"
         if metrics_path.exists():
-            metrics = json.loads(metrics_path.read_text())
+            try:
+                metrics = json.loads(metrics_path.read_text())
+                if not isinstance(metrics, dict):
+                    raise ValueError("not a JSON object")
+            except (OSError, ValueError) as err:
+                metrics = {"status": "corrupt", "error": f"{metrics_path}: {err}"}
             for k, v in metrics.items():
                 if v is None or isinstance(v, (int, float, str, bool)):
                     row[k] = v
@@ -102,14 +125,31 @@ except ImportError:  # pragma: no cover
     Callback = object  # type: ignore[misc,assignment]
 
 
+#: set when the last multirun of this process had a job that did not end ``ok`` (the app then exits 1)
+SWEEP_FAILED = False
+
+
 class SummaryCallback(Callback):
-    """Hydra callback: :func:`summarize` the sweep directory when a multirun ends."""
+    """Hydra callback: marks the sweep directory with a new sweep id when a multirun starts, and
+    :func:`summarize` s it when the multirun ends (noting whether every job ended ``ok``)."""
 
     def __init__(self, metric: str = "psnr"):
         self.metric = metric
 
+    def on_multirun_start(self, config, **kwargs) -> None:
+        import uuid
+
+        from cssat.experiments.common import _atomic
+
+        d = Path(config.hydra.sweep.dir)
+        d.mkdir(parents=True, exist_ok=True)
+        _atomic(d / SWEEP_MARK, lambda tmp: Path(tmp).write_text(uuid.uuid4().hex + "\n"))
+
     def on_multirun_end(self, config, **kwargs) -> None:
+        global SWEEP_FAILED
         try:
+            rows, _ = collect(config.hydra.sweep.dir)
+            SWEEP_FAILED = any(r.get("status") != "ok" for r in rows) or not rows
             summarize(config.hydra.sweep.dir, self.metric)
         except Exception as err:  # a summary must never turn a finished sweep into a failure
             log.error("sweep summary failed: %s (run cssat-summarize %s)", err, config.hydra.sweep.dir)
@@ -127,6 +167,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not any(d.glob("*/.hydra/overrides.yaml")):
         ap.error(f"sweep_dir: no job directories (*/.hydra/overrides.yaml) in {d}")
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    rows, _ = collect(d)
+    if not any(args.metric in r for r in rows):
+        columns = sorted({k for r in rows for k in r if isinstance(r[k], (int, float)) and not isinstance(r[k], bool)})
+        ap.error(f"--metric: no job has {args.metric!r}; numeric columns: {', '.join(columns) or 'none'}")
     csv_path, png = summarize(d, args.metric)
     print(csv_path)
     if png:

@@ -76,7 +76,7 @@ def test_joblib_sweep_2x2_summary_failed_job_and_resume(tmp_path):
     args = ["target.size=16", "cs.m=0,120", "solver.k_ratio=0.05,0.2", "launcher=local",
             "denoiser.n_iter=2", f"hydra.sweep.dir={sweep}"]
     res = subprocess.run(EXE + args, capture_output=True, text=True, cwd=tmp_path, timeout=600)
-    assert res.returncode == 0, res.stderr
+    assert res.returncode == 1, res.stderr  # cs.m=0 fails: the sweep finishes, then exits 1
     rows = rows_of(sweep / "summary.csv")
     assert len(rows) == 4
     assert {(r["cs.m"], r["solver.k_ratio"]) for r in rows} == {(m, k) for m in ("0", "120") for k in ("0.05", "0.2")}
@@ -89,7 +89,7 @@ def test_joblib_sweep_2x2_summary_failed_job_and_resume(tmp_path):
     # resume: the same sweep into the same directory skips the complete jobs and redoes the failed
     before = {r["job"]: json.loads((sweep / r["job"] / "metrics.json").read_text())["seconds"] for r in rows}
     res = subprocess.run(EXE + args, capture_output=True, text=True, cwd=tmp_path, timeout=600)
-    assert res.returncode == 0, res.stderr
+    assert res.returncode == 1, res.stderr
     assert res.stderr.count("skipped") + res.stdout.count("skipped") == 2
     after = {r["job"]: json.loads((sweep / r["job"] / "metrics.json").read_text())["seconds"] for r in rows_of(sweep / "summary.csv")}
     for job, sec in before.items():
@@ -130,3 +130,31 @@ def test_m_n_sweep_writes_psnr_in_every_row_and_a_map(tmp_path):
         assert float(r["psnr"]) == pytest.approx(max(met["repeat_psnr"])) and float(r["psnr"]) > 5
     assert (sweep / "summary_psnr.png").stat().st_size > 5000
     assert len(list((tmp_path / "cache").glob("refs-*.npy"))) == 1  # the pool is rendered once, shared
+
+
+def test_a_smaller_sweep_into_an_old_sweep_directory_summarises_only_its_jobs(tmp_path):
+    sweep = tmp_path / "sweep"
+    base = ["target.size=16", "threads=1", "denoiser=none", f"hydra.sweep.dir={sweep}"]
+    assert subprocess.run(EXE + base + ["cs.m=60,90,120"], capture_output=True, cwd=tmp_path, timeout=600).returncode == 0
+    assert len(rows_of(sweep / "summary.csv")) == 3
+    res = subprocess.run(EXE + base + ["cs.m=60"], capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr
+    rows = rows_of(sweep / "summary.csv")
+    assert [r["job"] for r in rows] == ["0"] and rows[0]["status"] == "ok"  # jobs 1 and 2 are the old sweep's
+    assert "1 jobs (1 ok)" in res.stdout + res.stderr
+
+
+def test_summarize_marks_a_corrupt_metrics_file_and_checks_the_metric(tmp_path, capsys):
+    sweep = tmp_path / "sweep"
+    res = subprocess.run(EXE + ["target.size=16", "cs.m=60,120", "threads=1", "denoiser=none", f"hydra.sweep.dir={sweep}"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr
+    text = (sweep / "1" / "metrics.json").read_text()
+    (sweep / "1" / "metrics.json").write_text(text[: len(text) // 2])  # truncated
+    assert summarize_main([str(sweep)]) == 0
+    rows = rows_of(sweep / "summary.csv")
+    assert [r["status"] for r in rows] == ["ok", "corrupt"] and "metrics.json" in rows[1]["error"]
+    with pytest.raises(SystemExit):
+        summarize_main([str(sweep), "--metric", "psnr_typo"])
+    err = capsys.readouterr().err
+    assert "--metric" in err and "psnr_typo" in err and "psnr" in err
