@@ -10,7 +10,7 @@ import torch
 
 from cssat.optics.photometry import facet_brightness
 from cssat.scene.attitude import nadir_pointing_frame, to_body
-from cssat.scene.mesh import Mesh
+from cssat.scene.mesh import Mesh, as_mesh
 from cssat.scene.orbit import Scenario
 
 __all__ = ["LightCurve", "simulate_light_curve"]
@@ -34,6 +34,7 @@ def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, *
     """The atmosphere-free light curve of ``mesh`` in ``scenario`` with the paper's three-axis
     stabilised attitude: Eq. 8–9 per facet with self- and observer-shadowing (``shadows``), the
     Earth's shadow (``scenario.sunlit``) and the observer's horizon (zero below it)."""
+    mesh = as_mesh(mesh)
     frame = nadir_pointing_frame(scenario.r_sat, scenario.v_sat)
     sun = to_body(frame, scenario.sun_dir)
     obs = to_body(frame, scenario.obs_dir)

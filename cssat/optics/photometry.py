@@ -14,7 +14,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat.scene.mesh import Mesh
+from cssat.scene.mesh import Mesh, as_mesh
 
 __all__ = [
     "SOLAR_IRRADIANCE_W_M2",
@@ -84,6 +84,7 @@ def facet_brightness(
     ``r²/a²`` without the factor π, so this glint is π times that mirror's (a 1 m² facet with
     ``C_s = 0.2`` glints ≈ 2.9·10⁴ times as bright as a Lambertian ``C_d = 1`` facet at normal view).
     """
+    mesh = as_mesh(mesh)
     sun_t = check_unit(sun, "sun")
     dtype = sun_t.dtype if sun_t.dtype in (torch.float32, torch.float64) else torch.float64
     dev = sun_t.device
@@ -161,6 +162,7 @@ def shadow_mask(
     All steps go in one batch through trimesh's ray engine: Embree (``embreex``) when installed,
     else trimesh's pure-Python intersector (``engine="triangle"``, ~100× slower).
     """
+    mesh = as_mesh(mesh)
     sun_t = check_unit(sun, "sun").double().cpu()
     obs_t = check_unit(observer, "observer").double().cpu()
     T, F = sun_t.shape[0], len(mesh)

@@ -18,13 +18,14 @@ import torch
 from torch import Tensor
 
 from cssat.optics.photometry import check_unit, facet_brightness
-from cssat.scene.mesh import Mesh
+from cssat.scene.mesh import Mesh, as_mesh
 
 __all__ = ["render", "image_basis", "default_fov"]
 
 
 def default_fov(mesh: Mesh, margin: float = 1.05) -> float:
     """A field of view (m) that holds ``mesh`` in any orientation: ``2 · radius · margin``."""
+    mesh = as_mesh(mesh)
     return 2.0 * mesh.radius * margin
 
 
@@ -71,6 +72,7 @@ def render(
     (several times faster on meshes with many sub-pixel facets); ``"auto"`` takes numba for CPU
     tensors when it is installed.
     """
+    mesh = as_mesh(mesh)
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
         raise ValueError(f"size: image size must be a positive integer, got {size!r}")
     size = int(size)

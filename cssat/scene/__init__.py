@@ -4,13 +4,14 @@ Knows nothing of compressed sensing.
 """
 
 from cssat.scene.attitude import nadir_pointing_frame, random_unit_vectors, to_body
-from cssat.scene.mesh import MODELS, Mesh, astra_like, box, cylinder, dish, get_model, load_mesh, merge, panel, tess_like
+from cssat.scene.mesh import MODELS, Mesh, as_mesh, astra_like, box, cylinder, dish, get_model, load_mesh, merge, panel, tess_like
 from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, Scenario, check_tle, earth_shadow_fraction, make_scenario
 
 __all__ = [
     "ASTRA_1KR_SYNTHETIC_TLE",
     "MODELS",
     "Mesh",
+    "as_mesh",
     "Scenario",
     "astra_like",
     "box",

@@ -94,6 +94,24 @@ class Mesh:
 
         return trimesh.Trimesh(self.vertices, self.faces, process=False, validate=False)
 
+    @classmethod
+    def from_trimesh(cls, tm, cd: float = 0.8, cs: float = 0.2, name: str | None = None) -> "Mesh":
+        """A :class:`Mesh` of a ``trimesh.Trimesh`` (metres, as it is: no centring or welding).
+        Per-facet ``cd``/``cs`` come from the mesh's ``face_attributes`` of those names when it has
+        them, else the given constants."""
+        attrs = getattr(tm, "face_attributes", None) or {}
+        return cls(np.asarray(tm.vertices), np.asarray(tm.faces), attrs.get("cd", cd), attrs.get("cs", cs),
+                   name=name if name is not None else str(getattr(tm, "metadata", {}).get("name", "") or ""))
+
+
+def as_mesh(mesh) -> Mesh:
+    """``mesh`` as a :class:`Mesh`: a ``trimesh.Trimesh`` is converted (:meth:`Mesh.from_trimesh`)."""
+    if isinstance(mesh, Mesh):
+        return mesh
+    if hasattr(mesh, "vertices") and hasattr(mesh, "faces") and type(mesh).__module__.startswith("trimesh"):
+        return Mesh.from_trimesh(mesh)
+    raise TypeError(f"mesh: expected a cssat.scene.Mesh or a trimesh.Trimesh, got {type(mesh).__name__}")
+
 
 def load_mesh(
     path: str | os.PathLike,

@@ -95,7 +95,8 @@ def ksvd_denoise(
     ----------
     image_or_volume : (H, W) or (k, H, W) tensor or array
         2-D: an image, blocks ``p × p``. 3-D: ``k`` images of one scene stacked on the first axis
-        (the paper stacks 9 reconstructions), cubes ``min(p, k) × p × p``. Float tensors keep
+        (the paper stacks 9 reconstructions), cubes ``min(p, k) × p × p``; a stack of one image
+        ``(1, H, W)`` is denoised in 2-D and keeps its axis. Float tensors keep
         their dtype and device; other input is computed in float32. A numpy input gives a numpy
         output.
     sigma : float, optional
@@ -132,6 +133,15 @@ def ksvd_denoise(
         x = x.to(torch.float32)
     if not bool(torch.isfinite(x).all()):
         raise ValueError("image_or_volume: contains NaN or Inf")
+    if x.ndim == 3 and x.shape[0] == 1:  # a stack of one image: its 2-D denoising, axis kept
+        res = ksvd_denoise(x[0], sigma, block_size=block_size, step=step, n_atoms=n_atoms, base_atoms=base_atoms,
+                           atom_sparsity=atom_sparsity, gain=gain, n_train=n_train, n_iter=n_iter, max_atoms=max_atoms,
+                           lam=lam, mu_thresh=mu_thresh, seed=seed, return_info=return_info)
+        out, info = res if return_info else (res, None)
+        out = out[None]
+        if is_numpy:
+            out = out.cpu().numpy() if isinstance(out, Tensor) else out
+        return (out, info) if return_info else out
     nd = x.ndim
     demo = DEMO_DEFAULTS[nd]
 

@@ -92,7 +92,9 @@ def batch_omp(
         Dictionary with atoms as columns (not assumed normalised). Its dtype (float32/float64) and
         device set those of the computation.
     Y : (B, m) or (m,) tensor
-        Signals as rows.
+        Signals as rows. ``D`` and ``Y`` may be numpy arrays (the codes come back as numpy);
+        integer input is promoted to the default float dtype; float16 is refused (the Cholesky
+        updates need float32 at least); NaN or Inf in ``D`` or ``Y`` is refused on every path.
     n_nonzero_coefs : int, optional
         ``K``, the maximum number of atoms per signal (Eq. 5); ``1 ≤ K ≤ n_atoms``. Steps beyond
         ``m`` atoms stop on linear dependence. If neither ``K`` nor ``tol`` is given,
@@ -146,10 +148,22 @@ def batch_omp(
       already chosen (exact fit; a zero signal gets a zero code);
     * the chosen atom is linearly dependent on the chosen ones (``L_kk² ≤ 16 ε ‖dⱼ‖²``).
     """
+    is_numpy = not isinstance(D, Tensor) or not isinstance(Y, Tensor)
+    if is_numpy:  # numpy in, numpy out
+        out = batch_omp(torch.as_tensor(D), torch.as_tensor(Y), n_nonzero_coefs=n_nonzero_coefs, tol=tol,
+                        gram=None if gram is None else torch.as_tensor(gram), Dty=None if Dty is None else torch.as_tensor(Dty),
+                        precompute=precompute, chunk_size=chunk_size, backend=backend, return_info=return_info)
+        if return_info:
+            return out[0].numpy(), out[1]
+        return out.numpy()
     if D.ndim != 2:
         raise ValueError(f"D: expected a 2-D dictionary (m, n_atoms), got shape {tuple(D.shape)}")
-    if not D.is_floating_point():
-        raise TypeError(f"D: expected a float32 or float64 tensor, got {D.dtype}")
+    if not D.is_floating_point():  # integers: the default float dtype, not integer arithmetic
+        D = D.to(torch.get_default_dtype())
+    if D.dtype not in (torch.float32, torch.float64):
+        raise TypeError(f"D: batch_omp computes in float32 or float64, got {D.dtype}; cast it, e.g. D.float()")
+    if not bool(torch.isfinite(D).all()):
+        raise ValueError("D: the dictionary contains NaN or Inf")
     m, n_atoms = D.shape
     squeeze = Y.ndim == 1
     Y2 = Y.reshape(1, -1) if squeeze else Y

@@ -11,6 +11,7 @@ Conventions (``../shared/DESIGN.md``):
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Sequence
 
@@ -29,17 +30,42 @@ __all__ = [
 ]
 
 
+def _accepts_any_input(method):
+    """Let ``forward``/``adjoint`` take what users hold: a numpy array (numpy comes back) or an
+    integer/bool tensor (promoted to torch's default float dtype, instead of silent integer math)."""
+
+    @functools.wraps(method)
+    def wrapper(self, x, *args, **kwargs):
+        is_numpy = not isinstance(x, Tensor)
+        t = torch.as_tensor(x) if is_numpy else x
+        if not (t.is_floating_point() or t.is_complex()):
+            t = t.to(torch.get_default_dtype())
+        out = method(self, t, *args, **kwargs)
+        return out.detach().cpu().numpy() if is_numpy else out
+
+    wrapper._cssat_input = True
+    return wrapper
+
+
 class LinearOperator(nn.Module):
     """A linear map ``M (n_out, n_in)`` acting on batches of row vectors.
 
     Subclasses implement :meth:`forward` (``(B, n_in) -> (B, n_out)``) and :meth:`adjoint`
-    (``(B, n_out) -> (B, n_in)``). :meth:`matrix` materialises ``M`` by applying the adjoint to
+    (``(B, n_out) -> (B, n_in)``); both accept numpy arrays (and return numpy) and promote integer
+    tensors to the default float dtype, in every subclass. :meth:`matrix` materialises ``M`` by applying the adjoint to
     identity blocks, so it never needs more than one ``(block, n_in)`` temporary beside the result.
     ``A @ B`` composes two operators (``B`` first).
     """
 
     n_in: int
     n_out: int
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        for name in ("forward", "adjoint"):
+            method = cls.__dict__.get(name)
+            if method is not None and not getattr(method, "_cssat_input", False):
+                setattr(cls, name, _accepts_any_input(method))
 
     @property
     def shape(self) -> tuple[int, int]:
