@@ -35,13 +35,29 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize=None
         if multirun:
             log.error("job failed: %s", err)
             return None
-        if isinstance(err, ConfigError):
-            log.error("bad config: %s", err)
+        if isinstance(err, ConfigError) or names_a_field(err, cfg):
+            log.error("bad input: %s", err)
             sys.exit(2)
         raise
     key = cfg.get("optimized_metric", "psnr")
     value = metrics.get(key) if key else None
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+#: the fields that the scene and optics layers name in their errors beside the config's own keys
+_LIBRARY_FIELDS = {"observer", "tle", "mesh", "sunlit", "brightness", "image_or_volume"}
+
+
+def names_a_field(err: BaseException, cfg: Any) -> bool:
+    """Whether ``err`` is a ``ValueError``/``TypeError`` whose message begins with the name of a
+    config field (``target.image: …``, ``scenario.start_utc: …``): bad input, reported in one line
+    with exit status 2, not a traceback."""
+    import re
+
+    if not isinstance(err, (ValueError, TypeError)):
+        return False
+    match = re.match(r"^([a-z_][a-z0-9_]*)(\.[a-z0-9_]+)*: ", str(err))
+    return bool(match) and (match.group(1) in cfg or match.group(1) in _LIBRARY_FIELDS)
 
 
 @hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")

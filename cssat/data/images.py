@@ -76,7 +76,9 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
                     arr = np.asarray(im)
                 else:
                     arr = np.asarray(im.convert("RGB"))  # colour, palette, alpha: luminance below
-        except (UnidentifiedImageError, OSError) as err:
+        except Image.DecompressionBombError as err:
+            raise ValueError(f"{field}: {image!r} is too large to load safely ({err}); resize it first") from None
+        except (UnidentifiedImageError, OSError, ValueError) as err:
             raise ValueError(f"{field}: cannot read {image!r} as an image: {err}") from None
     arr = np.asarray(arr, dtype=np.float64)
     if arr.ndim == 3:

@@ -75,7 +75,7 @@ def run_settings(cfg: Any, max_size: int = 4096):
     ``device``, ``seed``, ``target.size`` (``n``, at most ``max_size``) and ``cs.m`` (``1 ≤ m ≤ N = n²``)."""
     dtype = torch_dtype(cfg.get("dtype", "float32"))
     device = torch_device(cfg.get("device", "cpu"))
-    seed = require_int(cfg.get("seed", 0), "seed", 0)
+    seed = require_int(cfg.get("seed", 0), "seed", 0, 2**63 - 1)
     n = require_int(cfg.target.size, "target.size", 2, max_size)
     N = n * n
     m = require_int(cfg.cs.m, "cs.m", 1, N) if "cs" in cfg else None
@@ -106,12 +106,26 @@ def _atomic(path: Path, write) -> None:
         raise
 
 
+def _finite(v):
+    """JSON has no Infinity or NaN: they are written as null (e.g. the PSNR of an exact
+    reconstruction of a constant image)."""
+    if isinstance(v, (np.floating, np.integer)):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: _finite(u) for k, u in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite(u) for u in v]
+    return v
+
+
 def write_json(path: str | os.PathLike, data: Mapping[str, Any]) -> None:
-    """Write ``data`` as JSON atomically (temporary file + rename)."""
+    """Write ``data`` as JSON atomically (temporary file + rename); non-finite floats as null."""
 
     def w(tmp):
         with open(tmp, "w") as f:
-            json.dump(dict(data), f, indent=2, sort_keys=True, default=_jsonable)
+            json.dump(_finite(dict(data)), f, indent=2, sort_keys=True, default=_jsonable, allow_nan=False)
             f.write("\n")
 
     _atomic(Path(path), w)

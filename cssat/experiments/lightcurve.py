@@ -64,7 +64,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.physics import Measurement
     from cssat.plots import atmosphere_figure, lightcurve_figure, save_figure
 
-    seed = require_int(cfg.get("seed", 0), "seed", 0)
+    seed = require_int(cfg.get("seed", 0), "seed", 0, 2**63 - 1)
     size = require_int(cfg.render.size, "render.size", 1, 4096)
     n_marks = require_int(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
     device = torch_device(cfg.get("device", "cpu"))

@@ -85,6 +85,9 @@ def facet_brightness(
     ``C_s = 0.2`` glints ≈ 2.9·10⁴ times as bright as a Lambertian ``C_d = 1`` facet at normal view).
     """
     mesh = as_mesh(mesh)
+    sl = torch.as_tensor(sunlit, dtype=torch.float64)
+    if not bool(torch.isfinite(sl).all()) or bool((sl < 0).any()) or bool((sl > 1).any()):
+        raise ValueError("sunlit: the sunlit fraction of the solar disk must be in [0, 1]")
     sun_t = check_unit(sun, "sun")
     dtype = sun_t.dtype if sun_t.dtype in (torch.float32, torch.float64) else torch.float64
     dev = sun_t.device

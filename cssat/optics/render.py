@@ -83,6 +83,8 @@ def render(
     brightness = torch.as_tensor(brightness)
     if tuple(brightness.shape) != (T, F):
         raise ValueError(f"brightness: expected shape ({T}, {F}), got {tuple(brightness.shape)}")
+    if not bool(torch.isfinite(brightness).all()):
+        raise ValueError("brightness: contains NaN or Inf")
     if fov_m is None:
         fov_m = default_fov(mesh)
     if not (isinstance(fov_m, (int, float)) and math.isfinite(fov_m) and fov_m > 0):

@@ -144,9 +144,12 @@ def load_mesh(
     if len(faces) == 0:
         raise ValueError(f"{field}: {path!r} holds no triangles")
     verts = verts * float(scale)
-    if center:
+    if center and len(verts):
         verts = verts - 0.5 * (verts.min(0) + verts.max(0))
-    mesh = Mesh(verts, faces, cd, cs, name=os.path.basename(path))
+    try:
+        mesh = Mesh(verts, faces, cd, cs, name=os.path.basename(path))
+    except ValueError as err:  # e.g. a file truncated mid-way: faces pointing past the vertices
+        raise ValueError(f"{field}: {path!r} is not a valid mesh ({err})") from None
     good = mesh.areas > 1e-12 * max(mesh.radius, 1e-300) ** 2
     if not good.any():
         raise ValueError(f"{field}: every facet of {path!r} is degenerate (zero area)")
@@ -157,6 +160,14 @@ def load_mesh(
             "%s: dropped %d zero-area (degenerate) facets of %d in %r", field, int((~good).sum()), len(faces), path
         )
         mesh = Mesh(verts, faces[good], cd, cs, name=mesh.name)
+    outward = float((np.sign(np.einsum("ij,ij->i", mesh.normals, mesh.centroids - mesh.centroids.mean(0))) * mesh.areas).sum()
+                    / mesh.areas.sum())
+    if outward < -0.5:
+        import logging
+
+        logging.getLogger("cssat").warning(
+            "%s: most facets of %r face inward (area-weighted %.0f %%): their winding may be reversed, which "
+            "makes the satellite nearly dark; flip it (e.g. trimesh's mesh.invert())", field, path, 50 * (1 - outward))
     return mesh
 
 

@@ -39,6 +39,10 @@ def _checksum(line: str) -> int:
     return sum(int(c) if c.isdigit() else (1 if c == "-" else 0) for c in line[:68]) % 10
 
 
+#: the dates DE421 (skyfield-data's ephemeris) covers
+EPHEMERIS_RANGE = (datetime(1899, 7, 29), datetime(2053, 10, 9))
+
+
 def check_tle(line1: str, line2: str, field: str = "tle") -> None:
     """Validate a two-line element set; raise ``ValueError`` naming ``field.line1``/``field.line2``.
 
@@ -58,6 +62,14 @@ def check_tle(line1: str, line2: str, field: str = "tle") -> None:
             raise ValueError(f"{name}: checksum {line[68]!r} does not match the computed {_checksum(line)}")
     if line1[2:7] != line2[2:7]:
         raise ValueError(f"{field}: catalogue numbers differ between the lines ({line1[2:7]!r} vs {line2[2:7]!r})")
+    epoch = line1[18:32]
+    try:
+        day = float(epoch[2:])
+        ok = epoch[:2].isdigit() and 1.0 <= day < 367.0
+    except ValueError:
+        ok = False
+    if not ok:
+        raise ValueError(f"{field}.line1: the epoch (columns 19-32, YYDDD.DDDDDDDD) is not a date: {epoch!r}")
 
 
 @dataclass(frozen=True)
@@ -177,15 +189,17 @@ def make_scenario(
     from skyfield.api import EarthSatellite, wgs84
 
     line1, line2 = (s.rstrip() for s in tle)
-    check_tle(line1, line2)
+    check_tle(line1, line2, field="scenario.tle")
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
         raise ValueError(f"scenario.n_steps: must be a positive integer, got {n_steps!r}")
     if not (isinstance(step_s, (int, float)) and math.isfinite(step_s) and step_s > 0):
         raise ValueError(f"scenario.step_s: must be a positive number of seconds, got {step_s!r}")
     if not -90 <= lat_deg <= 90:
-        raise ValueError(f"observer.lat_deg: must be in [-90, 90], got {lat_deg}")
+        raise ValueError(f"scenario.observer.lat_deg: must be in [-90, 90], got {lat_deg}")
     if not -360 <= lon_deg <= 360:
-        raise ValueError(f"observer.lon_deg: must be in [-360, 360], got {lon_deg}")
+        raise ValueError(f"scenario.observer.lon_deg: must be in [-360, 360], got {lon_deg}")
+    if not (isinstance(alt_m, (int, float)) and math.isfinite(alt_m) and -1000 <= alt_m <= 100_000):
+        raise ValueError(f"scenario.observer.alt_m: a ground observer's altitude must be in [-1000, 100000] m, got {alt_m!r}")
     if isinstance(start_utc, str):
         try:
             start = datetime.fromisoformat(start_utc.replace("Z", "+00:00"))
@@ -198,6 +212,10 @@ def make_scenario(
 
     ts, eph = _skyfield()
     offsets = np.arange(n_steps) * float(step_s)
+    end = start + timedelta(seconds=float(offsets[-1]))
+    if not (EPHEMERIS_RANGE[0] <= start and end <= EPHEMERIS_RANGE[1]):
+        raise ValueError(f"scenario.start_utc: {start} – {end} UTC is outside the ephemeris (DE421 covers "
+                         f"{EPHEMERIS_RANGE[0]:%Y-%m-%d} to {EPHEMERIS_RANGE[1]:%Y-%m-%d})")
     t = ts.utc(start.year, start.month, start.day, start.hour, start.minute,
                start.second + start.microsecond * 1e-6 + offsets)
     sat = EarthSatellite(line1, line2, name=name, ts=ts)
@@ -208,12 +226,15 @@ def make_scenario(
     if bad.size:
         code = int(err[bad[0]])
         raise ValueError(
-            f"tle: SGP4 error {code} ({SGP4_ERRORS.get(code, 'unknown')}) at step {bad[0]} "
+            f"scenario.tle: SGP4 error {code} ({SGP4_ERRORS.get(code, 'unknown')}) at step {bad[0]} "
             f"({start + timedelta(seconds=float(offsets[bad[0]]))} UTC)"
         )
     geo = sat.at(t)
     r_sat = geo.position.km.T.copy()
     v_sat = geo.velocity.km_per_s.T.copy()
+    if not (np.isfinite(r_sat).all() and np.isfinite(v_sat).all()):
+        raise ValueError("scenario.tle: SGP4 gives no finite position for these elements (check the epoch, "
+                         "columns 19-32 of line 1, and the mean motion, columns 53-63 of line 2)")
     r_sun = (eph["sun"] - eph["earth"]).at(t).position.km.T.copy()
     topos = wgs84.latlon(lat_deg, lon_deg, elevation_m=alt_m)
     r_obs = topos.at(t).position.km.T.copy()
