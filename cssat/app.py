@@ -94,11 +94,25 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     return task(cfg, hc.runtime.output_dir, multirun=multirun, finalize=save_hydra_files)
 
 
+def _register_launcher() -> None:
+    """Register cssat's joblib launcher with Hydra (``launcher=local``): an editable install maps
+    ``hydra_plugins.cssat_launcher`` into place, where Hydra's own package scan does not look."""
+    try:
+        from hydra.core.plugins import Plugins
+
+        from hydra_plugins.cssat_launcher.launcher import RobustJoblibLauncher
+    except ImportError:  # the launchers extra (hydra-joblib-launcher) is not installed
+        return
+    if isinstance(RobustJoblibLauncher, type) and RobustJoblibLauncher.__mro__[1] is not object:
+        Plugins.instance().register(RobustJoblibLauncher)
+
+
 def main() -> None:
     """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
     after every job has run and the summary is written."""
     from cssat import summary
 
+    _register_launcher()
     _hydra_main()
     if summary.SWEEP_FAILED:
         log.error("sweep: not every job ended ok (see summary.csv)")

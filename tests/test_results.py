@@ -1,7 +1,6 @@
 """A run's results are one set: kills, stale or damaged files, changed inputs, two runs at once,
 the user's umask (issue 13)."""
 
-import json
 import os
 import signal
 import subprocess

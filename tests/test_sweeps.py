@@ -66,7 +66,7 @@ def test_launcher_configs_compose():
     local = compose_hydra("launcher=submitit_local")
     assert "LocalLauncher" in local.hydra.launcher._target_
     joblib = compose_hydra("launcher=local")
-    assert "JoblibLauncher" in joblib.hydra.launcher._target_
+    assert "JoblibLauncher" in joblib.hydra.launcher._target_  # cssat.launcher.RobustJoblibLauncher
     assert joblib.threads * joblib.hydra.launcher.n_jobs <= 2  # no oversubscription of 2 cores
 
 
@@ -158,3 +158,30 @@ def test_summarize_marks_a_corrupt_metrics_file_and_checks_the_metric(tmp_path, 
         summarize_main([str(sweep), "--metric", "psnr_typo"])
     err = capsys.readouterr().err
     assert "--metric" in err and "psnr_typo" in err and "psnr" in err
+
+
+def test_a_worker_killed_by_the_os_fails_its_job_only(tmp_path):
+    """Under launcher=local, a job whose worker process is killed (as by the OOM killer) is a
+    failed row; the other jobs finish, the summary is written, and the sweep exits 1."""
+    pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
+    import os
+
+    (tmp_path / "killer.py").write_text(
+        "import os, signal\n"
+        "def run(cfg, out_dir):\n"
+        "    if cfg.cs.m == 2:\n"
+        "        os.kill(os.getpid(), signal.SIGKILL)  # what the OOM killer does\n"
+        "    return {'psnr': float(cfg.cs.m), 'ssim': None}\n")
+    (tmp_path / "conf" / "experiment").mkdir(parents=True)
+    (tmp_path / "conf" / "experiment" / "killer.yaml").write_text(
+        "# @package _global_\nexperiment_name: killer\nexperiment_module: killer\ncs:\n  m: 1\n")
+    sweep = tmp_path / "sweep"
+    env = {**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+    res = subprocess.run(EXE + [f"hydra.searchpath=[file://{tmp_path / 'conf'}]", "experiment=killer", "cs.m=1,2,3,4",
+                                "launcher=local", f"hydra.sweep.dir={sweep}"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600, env=env)
+    assert res.returncode == 1, res.stdout + res.stderr
+    rows = {r["cs.m"]: r for r in rows_of(sweep / "summary.csv")}
+    assert set(rows) == {"1", "2", "3", "4"}
+    assert rows["2"]["status"] == "failed" and "killed" in rows["2"]["error"]
+    assert all(rows[m]["status"] == "ok" and float(rows[m]["psnr"]) == float(m) for m in ("1", "3", "4"))
