@@ -21,6 +21,7 @@ from typing import NamedTuple, Sequence
 
 import torch
 from torch import Tensor
+from cssat.sparse._io import numpy_io
 
 __all__ = [
     "estimate_sensing_full_rank",
@@ -57,6 +58,7 @@ def _rcond_1norm(lu: Tensor, anorm: float) -> float | None:
     return float(rcond) if info == 0 else None
 
 
+@numpy_io
 def estimate_sensing_full_rank(
     X_ref: Tensor, Y_ref: Tensor, *, rcond_min: float | None = None, return_rcond: bool = False
 ) -> Tensor | tuple[Tensor, float | None]:
@@ -110,6 +112,7 @@ def estimate_sensing_full_rank(
     return (out, lapack_rcond) if return_rcond else out
 
 
+@numpy_io
 def estimate_sensing_min_norm(X_ref: Tensor, Y_ref: Tensor) -> Tensor:
     """The minimum-norm estimate ``Φ̂ = Y_ref X_ref⁺`` (no sparsity model): ``Φ̂ X_ref = Y_ref``
     and every row of ``Φ̂`` lies in the span of the references. For full column rank ``X_ref``
@@ -136,6 +139,7 @@ class SparseEstimate(NamedTuple):
     residual_sq: Tensor
 
 
+@numpy_io
 def estimate_sensing_sparse(
     X_ref: Tensor,
     Y_ref: Tensor,
@@ -189,6 +193,7 @@ def estimate_sensing_sparse(
     return phi_hat
 
 
+@numpy_io
 def relative_error(phi_hat: Tensor, phi: Tensor) -> float:
     """``‖Φ̂ − Φ‖_F / ‖Φ‖_F``, computed in row blocks (no full-size temporary)."""
     if phi_hat.shape != phi.shape:

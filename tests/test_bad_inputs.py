@@ -36,6 +36,7 @@ CASES = [
     ([*SIM1, "target.image=/nonexistent.png"], "target.image"),
     ([*SIM1, "target.image={tmp}/text.png"], "target.image"),
     ([*SIM1, "target.image={tmp}/oblong.png"], "target.image"),
+    ([*SIM1, "target.image={tmp}/bomb.png"], "target.image"),  # 14000² px: PIL's decompression-bomb guard
     ([*SIM1, "seed=18446744073709551616"], "seed"),
     ([*LIGHT, "model=file", "model.path={tmp}/cut.obj"], "model.path"),
     ([*LIGHT, "model=file", "model.path={tmp}/missing.obj"], "model.path"),
@@ -56,6 +57,10 @@ CASES = [
 @pytest.mark.parametrize("overrides, field", CASES, ids=[c[1] + ":" + c[0][-1][:40] for c in CASES])
 def test_a_bad_input_exits_2_naming_its_field(tmp_path, overrides, field):
     files(tmp_path)
+    if any("bomb.png" in o for o in overrides):
+        from PIL import Image
+
+        Image.new("L", (14000, 14000)).save(tmp_path / "bomb.png")
     args = [o.format(tmp=tmp_path) for o in overrides]
     t = time.perf_counter()
     res = subprocess.run(APP + ["threads=1", *args, f"hydra.run.dir={tmp_path / 'run'}"],

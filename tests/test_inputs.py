@@ -69,3 +69,27 @@ def test_optics_accept_a_trimesh():
     assert len(m) == 12 and np.allclose(m.cd, 0.5) and m.areas.sum() == pytest.approx(2 * (2 + 3 + 6))
     with pytest.raises(TypeError, match="^mesh"):
         as_mesh("satellite.obj")
+
+
+def test_numpy_through_the_solvers_the_estimators_and_the_measurement():
+    from cssat.physics import GaussianAtmosphere, GaussianNoise, Measurement
+    from cssat.recon import OMP
+    from cssat.reference import estimate_sensing_full_rank
+    from cssat.sparse.solvers import fista_l1, tv_pdhg
+
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((40, 64)) / 8
+    y = A @ rng.standard_normal(64)
+    g = fista_l1(A, y, lam=1e-3, max_iter=50)
+    assert isinstance(g, np.ndarray) and g.shape == (64,)
+    np.testing.assert_allclose(g, fista_l1(torch.as_tensor(A), torch.as_tensor(y), lam=1e-3, max_iter=50).numpy())
+    x, info = tv_pdhg(A, y, (8, 8), max_iter=20, return_info=True)
+    assert isinstance(x, np.ndarray) and x.shape == (8, 8) and info.n_iter == 20
+    X = rng.standard_normal((16, 16))
+    phi = rng.standard_normal((5, 16))
+    np.testing.assert_allclose(estimate_sensing_full_rank(X, phi @ X), phi, atol=1e-9)
+    img, info = OMP(n_nonzero_coefs=5)(A, y, (8, 8))
+    assert isinstance(img, np.ndarray) and img.shape == (8, 8)
+    meas = Measurement(GaussianAtmosphere().operator(30, 64, seed=0, dtype=torch.float64), GaussianNoise(relative=0.1))
+    out = meas(rng.random((8, 8)))
+    assert isinstance(out, np.ndarray) and out.shape == (30,)

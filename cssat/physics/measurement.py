@@ -9,6 +9,7 @@ import torch
 from torch import Tensor, nn
 
 from cssat.physics.noise import NoiseModel, NoNoise
+from cssat.sparse._io import numpy_io
 from cssat.sparse.operators import LinearOperator, MatrixOperator
 
 __all__ = ["Measurement", "centered"]
@@ -59,14 +60,17 @@ class Measurement(nn.Module):
             return x.reshape(*x.shape[:-2], n)
         raise ValueError(f"x: expected (B, {n}), ({n},) or images with H·W = {n}, got shape {tuple(x.shape)}")
 
+    @numpy_io
     def A(self, x: Tensor) -> Tensor:
         """The noiseless light curve ``Φx``: ``(B, m)`` or ``(m,)``."""
         return self.operator(self._flat(x))
 
+    @numpy_io
     def A_adjoint(self, y: Tensor) -> Tensor:
         """``Φᵀy``: ``(B, N)`` or ``(N,)``."""
         return self.operator.adjoint(y)
 
+    @numpy_io
     def forward(self, x: Tensor, generator: torch.Generator | None = None) -> Tensor:
         """The measured light curve ``noise(Φx)``; refuses a non-finite result."""
         y = self.add_noise(self.A(x), generator, flux=self._flat(x).sum(-1))
@@ -84,6 +88,7 @@ class Measurement(nn.Module):
             generator = torch.Generator(device="cpu").manual_seed(self.seed)
         return self.noise(y, generator, flux=flux)
 
+    @numpy_io
     def frames(self, x_t: Tensor, generator: torch.Generator | None = None) -> Tensor:
         """The light curve of a changing scene: ``y_t = Σⱼ Φ[t, j] x_t[j]`` (Eq. 11, 12).
 

@@ -25,6 +25,7 @@ from torch import Tensor
 
 from cssat.recon._checks import choice_param, float_param, int_param, opt
 from cssat.recon.denoisers import Denoiser
+from cssat.sparse._io import numpy_io
 
 __all__ = ["Solver", "OMP", "L1", "TV", "PnP", "default_sparsity", "tv_default_lam"]
 
@@ -36,6 +37,7 @@ class Solver:
 
     def validate(self, m: int, n_pixels: int) -> None:
         """Check the size-dependent settings for ``m`` samples of ``n_pixels`` pixels."""
+
 
     def __call__(self, phi, y: Tensor, shape: Sequence[int]) -> tuple[Tensor, dict[str, Any]]:  # pragma: no cover
         raise NotImplementedError
@@ -94,6 +96,7 @@ class OMP(Solver):
     def validate(self, m, n_pixels):
         self.settings(m, n_pixels)
 
+    @numpy_io
     def __call__(self, phi, y, shape):
         from cssat.sparse import DCT, batch_omp, sensing_dictionary
 
@@ -147,6 +150,7 @@ class L1(_Convex):
     def __init__(self, lam: float = 1e-3, max_iter: int = 1000, rtol: float = 1e-5):
         super().__init__(lam if lam is not None else 1e-3, max_iter, rtol)
 
+    @numpy_io
     def __call__(self, phi, y, shape):
         from cssat.sparse import DCT, sensing_dictionary
         from cssat.sparse.solvers import fista_l1
@@ -186,6 +190,7 @@ class TV(_Convex):
             raise ValueError(f"nonneg: expected true or false, got {nonneg!r}")
         self.nonneg = nonneg
 
+    @numpy_io
     def __call__(self, phi, y, shape):
         from cssat.sparse.solvers import tv_pdhg
 
@@ -216,6 +221,7 @@ class PnP(Solver):
         self.sigma_end = float_param(sigma_end, "sigma_end", 1e-6)
         self.init = choice_param(init, "init", ("zero", "tv"))
 
+    @numpy_io
     def __call__(self, phi, y, shape):
         from cssat.sparse.solvers import pnp_pgd, tv_pdhg
 

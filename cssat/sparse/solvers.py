@@ -17,6 +17,7 @@ import torch
 from torch import Tensor
 
 from cssat.sparse.operators import LinearOperator, MatrixOperator
+from cssat.sparse._io import numpy_io
 
 __all__ = ["fista_l1", "tv_pdhg", "pnp_pgd", "operator_norm_sq", "SolverInfo", "tv_gradient", "tv_divergence"]
 
@@ -76,6 +77,7 @@ def _check(y: Tensor, n_out: int, lam: float, max_iter: int, rtol: float) -> tup
     return y2, squeeze
 
 
+@numpy_io
 def fista_l1(
     A,
     y: Tensor,
@@ -145,6 +147,7 @@ def tv_divergence(p: Tensor) -> Tensor:
     return d
 
 
+@numpy_io
 def tv_pdhg(
     phi,
     y: Tensor,
@@ -206,6 +209,7 @@ def tv_pdhg(
     return out
 
 
+@numpy_io
 def pnp_pgd(
     phi,
     y: Tensor,
