@@ -110,8 +110,11 @@ def _register_launcher() -> None:
 def main() -> None:
     """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
     after every job has run and the summary is written."""
-    from cssat import summary
+    from cssat import __version__, summary
 
+    if "--version" in sys.argv[1:] or "-V" in sys.argv[1:]:  # cssat's version, not Hydra's
+        print(f"cssat {__version__}")
+        return
     _register_launcher()
     _hydra_main()
     if summary.SWEEP_FAILED:

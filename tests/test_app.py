@@ -317,3 +317,18 @@ def test_realism_experiment_maps(tmp_path):
 
     t = load_target("tess", 12)
     assert met["psnr_flux_only"] == pytest.approx(10 * np.log10(1 / np.mean((t - t.mean()) ** 2)), rel=1e-9)
+
+
+def test_cs_ratio_lets_the_image_size_change_alone(tmp_path):
+    from cssat.experiments.common import measurements
+
+    # the defaults are the paper's m, exactly
+    for exp, m, n in (("sim1", 13225, 128), ("sim2", 8192, 128), ("sim3", 3277, 64), ("realism", 3277, 64)):
+        assert measurements(cfg_of(f"experiment={exp}").cs, n * n) == m
+    met = run_experiment(cfg_of("target.size=16", "threads=1", "denoiser=none"), tmp_path / "a")  # no cs.m given
+    assert met["m"] == round(0.80718994140625 * 256) == 207
+    assert run_experiment(cfg_of("target.size=16", "threads=1", "denoiser=none", "cs.ratio=0.25"), tmp_path / "b")["m"] == 64
+    assert run_experiment(cfg_of("target.size=16", "threads=1", "denoiser=none", "cs.m=100", "cs.ratio=0.25"),
+                          tmp_path / "c")["m"] == 100  # cs.m wins
+    with pytest.raises(ValueError, match=r"^cs.ratio"):
+        run_experiment(cfg_of("target.size=16", "threads=1", "cs.ratio=1.5"), tmp_path / "d")

@@ -39,7 +39,10 @@ def test_every_experiment_composes_with_every_option(experiment, group):
         obj = build(cfg[group], group)
         assert callable(obj) or hasattr(obj, "operator"), (group, option)
         if group == "solver" and "cs" in cfg:
-            build_solver(cfg.solver, cfg.cs.m, cfg.target.size ** 2)
+            from cssat.experiments.common import measurements
+
+            N = cfg.target.size ** 2
+            build_solver(cfg.solver, measurements(cfg.cs, N), N)
 
 
 @pytest.mark.parametrize("experiment", EXPERIMENTS)

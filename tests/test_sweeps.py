@@ -50,11 +50,14 @@ def test_named_sweeps_name_valid_values_of_their_experiment(sweep):
                 build(node, key)
             else:
                 assert str(node) == value  # the key exists in the experiment's config
+            from cssat.experiments.common import measurements
+
             N = cfg.target.size ** 2
-            assert 1 <= cfg.cs.m <= N
+            m = measurements(cfg.cs, N)
+            assert 1 <= m <= N
             if exp == "sim3":
                 assert 1 <= cfg.reference.n <= min(cfg.reference.pool, N)
-            build_solver(cfg.solver, cfg.cs.m, N)  # e.g. K/m in [0, 1]
+            build_solver(cfg.solver, m, N)  # e.g. K/m in [0, 1]
 
 
 def test_launcher_configs_compose():

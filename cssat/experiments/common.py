@@ -78,8 +78,21 @@ def run_settings(cfg: Any, max_size: int = 4096):
     seed = require_int(cfg.get("seed", 0), "seed", 0, 2**63 - 1)
     n = require_int(cfg.target.size, "target.size", 2, max_size)
     N = n * n
-    m = require_int(cfg.cs.m, "cs.m", 1, N) if "cs" in cfg else None
+    m = measurements(cfg.cs, N) if "cs" in cfg else None
     return dtype, device, seed, n, N, m
+
+
+def measurements(cs: Any, N: int) -> int:
+    """``m`` from the ``cs`` config: ``cs.m`` when set (``1 ≤ m ≤ N``), else
+    ``round(cs.ratio · N)`` (``0 < ratio ≤ 1``), so that ``target.size`` can change alone."""
+    if cs.get("m") is not None:
+        return require_int(cs.m, "cs.m", 1, N)
+    if cs.get("ratio") is None:
+        raise ConfigError("cs.m: give the number of samples cs.m or the ratio cs.ratio = m/N")
+    ratio = require_float(cs.ratio, "cs.ratio", lo=0.0, hi=1.0)
+    if ratio == 0:
+        raise ConfigError("cs.ratio: must be in (0, 1], got 0")
+    return max(1, round(ratio * N))
 
 
 def _umask() -> int:
