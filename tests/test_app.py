@@ -159,6 +159,23 @@ def test_lightcurve_experiment_end_to_end(tmp_path):
         assert (tmp_path / "figures" / fig).stat().st_size > 5000
     arrays = np.load(tmp_path / "arrays.npz")
     assert arrays["flux"].shape == (40,) and arrays["mark_images"].shape == (5, 24, 24)
+    # numbers, not strings: seconds since the epoch stored beside them; masks as booleans
+    assert arrays["times"].dtype == np.float64 and str(arrays["epoch_utc"]).startswith("2020-04-01T00:00")
+    np.testing.assert_allclose(arrays["times"], np.arange(40) * 1800.0)
+    assert arrays["lit"].dtype == bool and arrays["above_horizon"].dtype == bool
+    np.testing.assert_array_equal(arrays["lit"], arrays["flux"] > 0)
+    # the phase angle, independently: the Sun and the observer as seen from the satellite (GCRS)
+    from cssat.experiments.lightcurve import build_scenario
+
+    sc = build_scenario(cfg)
+    to_sun, to_obs = sc.r_sun - sc.r_sat, sc.r_obs - sc.r_sat
+    cosang = (to_sun * to_obs).sum(1) / np.linalg.norm(to_sun, axis=1) / np.linalg.norm(to_obs, axis=1)
+    np.testing.assert_allclose(arrays["phase_angle_deg"], np.degrees(np.arccos(cosang)), atol=1e-9)
+    # the light curve as a CSV that numpy (and so pandas/astropy) reads as is
+    table = np.genfromtxt(tmp_path / "lightcurve.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert table.dtype.names == ("time_utc", "flux_W_m2", "magnitude", "phase_angle_deg", "sunlit", "elevation_deg")
+    np.testing.assert_allclose(table["flux_W_m2"], arrays["flux"], rtol=1e-12)
+    assert str(table["time_utc"][1]) == "2020-04-01T00:30:00Z"
     with pytest.raises(ValueError, match="model.name"):
         run_experiment(cfg_of("experiment=lightcurve", "model.name=hubble"), tmp_path / "bad")
 

@@ -8,6 +8,13 @@ rendered images' pixels (both, whatever the model's ``emitters``), with the ``no
 The paper's zero-mean Gaussian weights make the fluxes sums that may be negative: the
 magnitudes shown are those of ``|I(t)|``.
 
+Outputs: ``arrays.npz`` (``times`` in seconds since ``epoch_utc``, the fluxes in W/m², the
+magnitudes, ``sunlit`` — the fraction of the solar disk seen —, the masks ``lit`` and
+``above_horizon`` as booleans, ``phase_angle_deg`` — the Sun–satellite–observer angle —, the
+geometry and the marked renders) and ``lightcurve.csv`` (``time_utc, flux_W_m2, magnitude,
+phase_angle_deg, sunlit, elevation_deg``; a dark step's magnitude is ``inf``), which pandas and
+astropy read as they are.
+
 Headline metrics: no image is reconstructed, so ``psnr`` and ``ssim`` are null; the
 experiment's numbers are the magnitudes, the eclipse times and ``pixel_sum_relative_error``.
 """
@@ -58,7 +65,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     import torch
 
     from cssat.experiments.build import build, build_model
-    from cssat.experiments.common import require_int, torch_device, write_npz
+    from cssat.experiments.common import require_int, torch_device, write_csv, write_npz
     from cssat.experiments.resources import check_memory
     from cssat.optics import apparent_magnitude, render, simulate_light_curve
     from cssat.physics import Measurement
@@ -97,12 +104,20 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     marks = _mark_steps(flux.numpy(), n_marks)
     metrics = {**_metrics(scenario, mesh, flux, images, mag, mag_f, mag_p), "image_size": size, **atm.describe(),
                **noise.describe(), "seed": seed, **timings}
+    epoch = scenario.times[0]
+    seconds = (scenario.times - epoch) / np.timedelta64(1, "s")
+    phase = np.degrees(np.arccos(np.clip((scenario.sun_dir * scenario.obs_dir).sum(1), -1.0, 1.0)))
     write_npz(
-        out_dir / "arrays.npz", times=scenario.times.astype("datetime64[s]").astype(str), minutes=minutes, flux=flux,
+        out_dir / "arrays.npz", times=seconds, epoch_utc=np.array(str(epoch)), minutes=minutes, flux=flux,
         flux_facetwise=facetwise, flux_pixelwise=pixelwise, magnitude=mag, sunlit=scenario.sunlit,
+        lit=flux.numpy() > 0, above_horizon=scenario.elevation_deg > 0, phase_angle_deg=phase,
         elevation_deg=scenario.elevation_deg, azimuth_deg=scenario.azimuth_deg, range_km=scenario.range_km,
         mark_steps=marks, mark_images=images[marks],
     )
+    write_csv(out_dir / "lightcurve.csv", [
+        {"time_utc": f"{np.datetime_as_string(t, unit='s')}Z", "flux_W_m2": float(f), "magnitude": float(mm),
+         "phase_angle_deg": float(a), "sunlit": float(s_), "elevation_deg": float(e)}
+        for t, f, mm, a, s_, e in zip(scenario.times, flux.numpy(), mag, phase, scenario.sunlit, scenario.elevation_deg)])
     save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, scenario.times, scenario.sunlit),
                 out_dir / "figures" / "fig4_lightcurve.png")
     save_figure(atmosphere_figure(minutes, mag, mag_f, mag_p, getattr(atm, "name", "")), out_dir / "figures" / "fig5_atmosphere.png")
