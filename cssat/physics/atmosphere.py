@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from cssat._checks import choice_param, float_param, int_param, opt
 from cssat.sparse.operators import GaussianSensing, LinearOperator
 
 __all__ = ["Atmosphere", "GaussianAtmosphere", "LognormalAtmosphere", "CorrelatedAtmosphere", "PhaseScreenAtmosphere",
@@ -68,14 +69,8 @@ class GaussianAtmosphere(Atmosphere):
     name = "gaussian"
 
     def __init__(self, mean: float = 0.0, std: float | None = None, emitters: str = "pixels"):
-        if isinstance(mean, bool) or not isinstance(mean, (int, float)) or not math.isfinite(mean):
-            raise ValueError(f"mean: expected a finite number, got {mean!r}")
-        if std is not None and (isinstance(std, bool) or not isinstance(std, (int, float))
-                                or not math.isfinite(std) or std < 0):
-            raise ValueError(f"std: expected null (1/√n) or a finite number >= 0, got {std!r}")
-        if emitters not in EMITTERS:
-            raise ValueError(f"emitters: expected one of {list(EMITTERS)}, got {emitters!r}")
-        self.mean, self.std, self.emitters = float(mean), None if std is None else float(std), emitters
+        self.mean, self.std = float_param(mean, "mean"), opt(std, float_param, "std", 0.0)
+        self.emitters = choice_param(emitters, "emitters", EMITTERS)
 
     def operator(self, m, n, *, seed=0, dtype=None, device=None) -> GaussianSensing:
         return GaussianSensing(m, n, seed=seed, dtype=dtype, device=device, mean=self.mean, std=self.std)
@@ -92,17 +87,9 @@ class GaussianAtmosphere(Atmosphere):
 ARCSEC = math.pi / (180 * 3600)
 
 
-def _number(field: str, v: Any, lo: float, strict: bool = False) -> float:
-    """``v`` as a finite float ``≥ lo`` (``> lo`` when ``strict``), else a ValueError naming ``field``."""
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and (v > lo if strict else v >= lo)
-    if not ok:
-        raise ValueError(f"{field}: must be a finite number {'>' if strict else '>='} {lo:g}, got {v!r}")
-    return float(v)
-
-
 def _geometry(object_size_m: float, range_km: float) -> float:
     """The image's angular size (rad) for an object of ``object_size_m`` at ``range_km``."""
-    return _number("object_size_m", object_size_m, 0.0, strict=True) / (_number("range_km", range_km, 0.0, strict=True) * 1e3)
+    return float_param(object_size_m, "object_size_m", 0.0, open_lo=True) / (float_param(range_km, "range_km", 0.0, open_lo=True) * 1e3)
 
 
 def _side(n: int) -> int:
@@ -127,12 +114,12 @@ class _PositiveAtmosphere(Atmosphere):
 
     def __init__(self, scintillation_index: float | None, diameter_m: float, airmass: float, exposure_s: float,
                  site_altitude_m: float, osborn: float):
-        _number("diameter_m", diameter_m, 0.0, strict=True)
-        _number("airmass", airmass, 1.0)
-        _number("exposure_s", exposure_s, 0.0)
-        _number("osborn", osborn, 0.0, strict=True)
+        float_param(diameter_m, "diameter_m", 0.0, open_lo=True)
+        float_param(airmass, "airmass", 1.0)
+        float_param(exposure_s, "exposure_s", 0.0)
+        float_param(osborn, "osborn", 0.0, open_lo=True)
         if scintillation_index is not None:
-            _number("scintillation_index", scintillation_index, 0.0)
+            float_param(scintillation_index, "scintillation_index", 0.0)
         self.diameter_m, self.airmass, self.exposure_s = float(diameter_m), float(airmass), float(exposure_s)
         self.site_altitude_m, self.osborn = float(site_altitude_m), float(osborn)
         self.given_index = scintillation_index
@@ -203,7 +190,7 @@ class CorrelatedAtmosphere(_PositiveAtmosphere):
         super().__init__(scintillation_index, diameter_m, airmass, exposure_s, site_altitude_m, osborn)
         self.fov_rad = _geometry(object_size_m, range_km)
         if correlation_arcsec is not None:
-            _number("correlation_arcsec", correlation_arcsec, 0.0)
+            float_param(correlation_arcsec, "correlation_arcsec", 0.0)
         self.object_size_m, self.range_km, self.wavelength_m = float(object_size_m), float(range_km), float(wavelength_m)
         self.correlation_arcsec = correlation_arcsec
 
@@ -278,14 +265,12 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         super().__init__(None, diameter_m, airmass, exposure_s, site_altitude_m, 1.0)
         self.fov_rad = _geometry(object_size_m, range_km)
         self.object_size_m, self.range_km = float(object_size_m), float(range_km)
-        self.wavelength_m = _number("wavelength_m", wavelength_m, 0.0, strict=True)
-        self.outer_scale_m = _number("outer_scale_m", outer_scale_m, 0.0, strict=True)
-        for field, v in (("n_layers", n_layers), ("n_radial", n_radial), ("n_angular", n_angular)):
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise ValueError(f"{field}: must be an integer >= 1, got {v!r}")
-        self.n_layers, self.n_radial, self.n_angular = n_layers, n_radial, n_angular
-        self.profile = dict(ground_cn2=_number("ground_cn2", ground_cn2, 0.0), rms_wind_m_s=_number("rms_wind_m_s", rms_wind_m_s, 0.0),
-                            ground_wind_m_s=_number("ground_wind_m_s", ground_wind_m_s, 0.0), jet_m_s=_number("jet_m_s", jet_m_s, 0.0))
+        self.wavelength_m = float_param(wavelength_m, "wavelength_m", 0.0, open_lo=True)
+        self.outer_scale_m = float_param(outer_scale_m, "outer_scale_m", 0.0, open_lo=True)
+        self.n_layers, self.n_radial, self.n_angular = (int_param(v, f, 1) for f, v in
+                                                        (("n_layers", n_layers), ("n_radial", n_radial), ("n_angular", n_angular)))
+        self.profile = dict(ground_cn2=float_param(ground_cn2, "ground_cn2", 0.0), rms_wind_m_s=float_param(rms_wind_m_s, "rms_wind_m_s", 0.0),
+                            ground_wind_m_s=float_param(ground_wind_m_s, "ground_wind_m_s", 0.0), jet_m_s=float_param(jet_m_s, "jet_m_s", 0.0))
 
     def layers(self, seed: int = 0):
         """The :class:`~cssat.physics.turbulence.Layers` above the site (wind directions from ``seed``)."""
@@ -358,12 +343,10 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         return MatrixOperator(_lognormal(g, float(w.sum())).to(dtype=dtype or torch.get_default_dtype()))
 
     def describe(self):
-        lay = self.layers()
         from cssat.physics.turbulence import fried_parameter, isoplanatic_angle
 
-        return {**Atmosphere.describe(self), "atmosphere_scintillation_index_model": self.scintillation_index,
-                "atmosphere_diameter_m": self.diameter_m, "atmosphere_airmass": self.airmass,
-                "atmosphere_exposure_s": self.exposure_s, "atmosphere_fov_arcsec": self.fov_rad / ARCSEC,
+        lay = self.layers()
+        return {**super().describe(), "atmosphere_fov_arcsec": self.fov_rad / ARCSEC,
                 "atmosphere_range_km": self.range_km, "atmosphere_object_size_m": self.object_size_m,
                 "atmosphere_r0_m": fried_parameter(lay, self.wavelength_m, self.airmass),
                 "atmosphere_isoplanatic_arcsec": isoplanatic_angle(lay, self.wavelength_m, self.airmass) / ARCSEC}

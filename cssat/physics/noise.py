@@ -8,6 +8,8 @@ from typing import Any
 import torch
 from torch import Tensor
 
+from cssat._checks import float_param, opt
+
 __all__ = ["NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise"]
 
 
@@ -53,9 +55,7 @@ class GaussianNoise(NoiseModel):
     name = "gaussian"
 
     def __init__(self, relative: float | None = None, sigma: float | None = None):
-        for field, v in (("relative", relative), ("sigma", sigma)):
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0):
-                raise ValueError(f"{field}: expected null or a finite number >= 0, got {v!r}")
+        relative, sigma = opt(relative, float_param, "relative", 0.0), opt(sigma, float_param, "sigma", 0.0)
         if relative and sigma:
             raise ValueError(f"sigma: give either relative ({relative}) or sigma ({sigma}), not both")
         self.relative = float(relative or 0.0)
@@ -102,27 +102,18 @@ class PhotometricNoise(NoiseModel):
                  throughput: float = 0.5, exposure_s: float = 1.0, sky_mag_arcsec2: float = 21.0,
                  aperture_radius_arcsec: float = 3.0, pixel_scale_arcsec: float = 0.5, dark_e_per_s: float = 0.01,
                  read_noise_e: float = 5.0):
-        def num(field, v, lo, strict=False):
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (v <= lo if strict else v < lo):
-                raise ValueError(f"{field}: must be a finite number {'>' if strict else '>='} {lo:g}, got {v!r}")
-            return float(v)
-
-        if magnitude is not None and (isinstance(magnitude, bool) or not isinstance(magnitude, (int, float)) or not math.isfinite(magnitude)):
-            raise ValueError(f"magnitude: expected null (the light curve in W/m²) or a finite V magnitude, got {magnitude!r}")
-        self.magnitude = None if magnitude is None else float(magnitude)
-        self.diameter_m = num("diameter_m", diameter_m, 0.0, True)
-        self.obstruction = num("obstruction", obstruction, 0.0)
+        self.magnitude = opt(magnitude, float_param, "magnitude")  # null: the light curve in W/m²
+        self.diameter_m = float_param(diameter_m, "diameter_m", 0.0, open_lo=True)
+        self.obstruction = float_param(obstruction, "obstruction", 0.0)
         if self.obstruction >= 1:
             raise ValueError(f"obstruction: the central obstruction's diameter ratio must be < 1, got {obstruction}")
-        self.throughput = num("throughput", throughput, 0.0, True)
-        if self.throughput > 1:
-            raise ValueError(f"throughput: throughput × QE must be <= 1, got {throughput}")
-        self.exposure_s = num("exposure_s", exposure_s, 0.0, True)
-        self.sky_mag_arcsec2 = num("sky_mag_arcsec2", sky_mag_arcsec2, -100.0)
-        self.aperture_radius_arcsec = num("aperture_radius_arcsec", aperture_radius_arcsec, 0.0, True)
-        self.pixel_scale_arcsec = num("pixel_scale_arcsec", pixel_scale_arcsec, 0.0, True)
-        self.dark_e_per_s = num("dark_e_per_s", dark_e_per_s, 0.0)
-        self.read_noise_e = num("read_noise_e", read_noise_e, 0.0)
+        self.throughput = float_param(throughput, "throughput", 0.0, 1.0, open_lo=True)  # throughput × QE
+        self.exposure_s = float_param(exposure_s, "exposure_s", 0.0, open_lo=True)
+        self.sky_mag_arcsec2 = float_param(sky_mag_arcsec2, "sky_mag_arcsec2", -100.0)
+        self.aperture_radius_arcsec = float_param(aperture_radius_arcsec, "aperture_radius_arcsec", 0.0, open_lo=True)
+        self.pixel_scale_arcsec = float_param(pixel_scale_arcsec, "pixel_scale_arcsec", 0.0, open_lo=True)
+        self.dark_e_per_s = float_param(dark_e_per_s, "dark_e_per_s", 0.0)
+        self.read_noise_e = float_param(read_noise_e, "read_noise_e", 0.0)
 
     # --- the photometric budget ---
     @property

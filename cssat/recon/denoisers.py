@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat.recon._checks import float_param, int_param, opt
+from cssat._checks import float_param, int_param, opt
 
 __all__ = ["Denoiser", "SparseKSVD", "TVDenoiser", "WaveletDenoiser", "NLMDenoiser", "NoDenoiser"]
 

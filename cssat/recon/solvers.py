@@ -23,7 +23,7 @@ from typing import Any, Sequence
 import numpy as np
 from torch import Tensor
 
-from cssat.recon._checks import choice_param, float_param, int_param, opt
+from cssat._checks import choice_param, float_param, int_param, opt
 from cssat.recon.denoisers import Denoiser
 from cssat.sparse._io import numpy_io
 

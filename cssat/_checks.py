@@ -1,4 +1,5 @@
-"""Parameter checks shared by the solver and denoiser objects: errors name the parameter."""
+"""Parameter checks shared by the library's objects (solvers, denoisers, atmospheres, noise models):
+errors are ValueErrors that name the parameter."""
 
 from __future__ import annotations
 
