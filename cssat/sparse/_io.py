@@ -8,14 +8,18 @@ import numpy as np
 import torch
 from torch import Tensor
 
-__all__ = ["numpy_io"]
+__all__ = ["numpy_io", "as_float_tensor"]
+
+
+def as_float_tensor(a):
+    """``a`` (a numpy array or a tensor) as a tensor; integers and booleans promoted to torch's
+    default float dtype instead of integer arithmetic."""
+    t = torch.as_tensor(a)
+    return t if (t.is_floating_point() or t.is_complex()) else t.to(torch.get_default_dtype())
 
 
 def _to_tensor(a):
-    if isinstance(a, np.ndarray):
-        t = torch.as_tensor(a)
-        return t if (t.is_floating_point() or t.is_complex()) else t.to(torch.get_default_dtype())
-    return a
+    return as_float_tensor(a) if isinstance(a, np.ndarray) else a
 
 
 def _to_numpy(o):

@@ -24,6 +24,8 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from cssat.sparse._io import as_float_tensor, numpy_io
+
 __all__ = ["batch_omp", "gram_matrix", "omp_path_costs", "OMPInfo"]
 
 from cssat.sparse._omp_torch import CAP0 as _CAP0  # initial per-signal atom capacity of the work buffers
@@ -71,6 +73,7 @@ def omp_path_costs(m: int, n_atoms: int, n_signals: int, k: int, chunk: int = 25
     return {"gram": float(gram), "nogram": float(nogram)}
 
 
+@numpy_io
 def batch_omp(
     D: Tensor,
     Y: Tensor,
@@ -148,14 +151,6 @@ def batch_omp(
       already chosen (exact fit; a zero signal gets a zero code);
     * the chosen atom is linearly dependent on the chosen ones (``L_kk² ≤ 16 ε ‖dⱼ‖²``).
     """
-    is_numpy = not isinstance(D, Tensor) or not isinstance(Y, Tensor)
-    if is_numpy:  # numpy in, numpy out
-        out = batch_omp(torch.as_tensor(D), torch.as_tensor(Y), n_nonzero_coefs=n_nonzero_coefs, tol=tol,
-                        gram=None if gram is None else torch.as_tensor(gram), Dty=None if Dty is None else torch.as_tensor(Dty),
-                        precompute=precompute, chunk_size=chunk_size, backend=backend, return_info=return_info)
-        if return_info:
-            return out[0].numpy(), out[1]
-        return out.numpy()
     if D.ndim != 2:
         raise ValueError(f"D: expected a 2-D dictionary (m, n_atoms), got shape {tuple(D.shape)}")
     if not D.is_floating_point():  # integers: the default float dtype, not integer arithmetic
@@ -227,13 +222,13 @@ def batch_omp(
     chunk_size = max(1, int(chunk_size))
 
     if use_gram:
-        G = gram.to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
+        G = as_float_tensor(gram).to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
         if tuple(G.shape) != (n_atoms, n_atoms):
             raise ValueError(f"gram: expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
         if Dty is not None:
             if Dty.numel() != B * n_atoms:
                 raise ValueError(f"Dty: expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
-            A0 = Dty.reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
+            A0 = as_float_tensor(Dty).reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
         else:
             A0 = Y2 @ D
         diag = torch.diagonal(G).clone()

@@ -18,6 +18,8 @@ from typing import Sequence
 import torch
 from torch import Tensor, nn
 
+from cssat.sparse._io import as_float_tensor
+
 __all__ = [
     "KroneckerOperator",
     "LinearOperator",
@@ -36,12 +38,8 @@ def _accepts_any_input(method):
 
     @functools.wraps(method)
     def wrapper(self, x, *args, **kwargs):
-        is_numpy = not isinstance(x, Tensor)
-        t = torch.as_tensor(x) if is_numpy else x
-        if not (t.is_floating_point() or t.is_complex()):
-            t = t.to(torch.get_default_dtype())
-        out = method(self, t, *args, **kwargs)
-        return out.detach().cpu().numpy() if is_numpy else out
+        out = method(self, as_float_tensor(x), *args, **kwargs)
+        return out if isinstance(x, Tensor) else out.detach().cpu().numpy()
 
     wrapper._cssat_input = True
     return wrapper
