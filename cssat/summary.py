@@ -97,13 +97,14 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
     return rows, swept
 
 
-def summarize(sweep_dir: str | Path, metric: str = "psnr") -> tuple[Path, Path | None]:
-    """Write ``summary.csv`` and ``summary_<metric>.png`` into ``sweep_dir``; return their paths."""
+def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | None = None) -> tuple[Path, Path | None]:
+    """Write ``summary.csv`` and ``summary_<metric>.png`` into ``sweep_dir``; return their paths.
+    ``collected``: the result of :func:`collect` when the caller has it already."""
     from cssat.experiments.common import write_csv
     from cssat.plots import save_figure, sweep_figure
 
     sweep_dir = Path(sweep_dir)
-    rows, swept = collect(sweep_dir)
+    rows, swept = collected if collected is not None else collect(sweep_dir)
     first = ["job", *swept, "status", metric]
     cols = first + sorted({k for r in rows for k in r} - set(first))
 
@@ -148,9 +149,9 @@ class SummaryCallback(Callback):
     def on_multirun_end(self, config, **kwargs) -> None:
         global SWEEP_FAILED
         try:
-            rows, _ = collect(config.hydra.sweep.dir)
-            SWEEP_FAILED = any(r.get("status") != "ok" for r in rows) or not rows
-            summarize(config.hydra.sweep.dir, self.metric)
+            collected = collect(config.hydra.sweep.dir)
+            SWEEP_FAILED = any(r.get("status") != "ok" for r in collected[0]) or not collected[0]
+            summarize(config.hydra.sweep.dir, self.metric, collected)
         except Exception as err:  # a summary must never turn a finished sweep into a failure
             log.error("sweep summary failed: %s (run cssat-summarize %s)", err, config.hydra.sweep.dir)
 
@@ -167,11 +168,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not any(d.glob("*/.hydra/overrides.yaml")):
         ap.error(f"sweep_dir: no job directories (*/.hydra/overrides.yaml) in {d}")
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    rows, _ = collect(d)
+    collected = collect(d)
+    rows = collected[0]
     if not any(args.metric in r for r in rows):
         columns = sorted({k for r in rows for k in r if isinstance(r[k], (int, float)) and not isinstance(r[k], bool)})
         ap.error(f"--metric: no job has {args.metric!r}; numeric columns: {', '.join(columns) or 'none'}")
-    csv_path, png = summarize(d, args.metric)
+    csv_path, png = summarize(d, args.metric, collected)
     print(csv_path)
     if png:
         print(png)

@@ -34,6 +34,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.experiments.build import build, build_solver
     from cssat.experiments.common import require_float, run_settings, write_csv
     from cssat.experiments.resources import check_memory
+    from cssat.experiments.sim1 import memory_parts
     from cssat.physics import GaussianAtmosphere, Measurement, sensing_stats
     from cssat.plots import realism_figures, save_figure
 
@@ -49,7 +50,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         from cssat.experiments.common import ConfigError
 
         raise ConfigError("noise.magnitude: the realism maps set the magnitude themselves; use noise=photometric")
-    check_memory({"Φ": 8 * m * N, "ΦΨ": 8 * m * N, "Gram": 8 * N * N}, cfg, "lower target.size or cs.m")
+    check_memory(memory_parts(n, m, 8), cfg, "lower target.size or cs.m")  # Φ in float64
     x = torch.as_tensor(load_target(str(cfg.target.image), n), dtype=torch.float64).reshape(N)
     center = cfg.get("center", "auto")  # the physical Φ: centred unless center=false
     rows: list[dict[str, Any]] = []

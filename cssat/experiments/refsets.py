@@ -47,29 +47,26 @@ class Progress:
         return el
 
 
-def reference_settings(cfg: Any, seed: int) -> int:
-    """The reference set's seed (``reference.seed``, null: ``seed + 1000``), with ``reference.noise``
-    and ``reference.model`` checked before any work."""
+def reference_settings(cfg: Any, seed: int):
+    """``(seed, mesh)`` of the reference set: ``reference.seed`` (null: ``seed + 1000``) and the
+    ``reference.model`` mesh, with ``reference.noise`` checked too, before any work."""
     from cssat.experiments.build import build_model
 
     ref = cfg.reference
     require_float(ref.get("noise", 0.0), "reference.noise", lo=0.0)
-    build_model(ref.model, "reference.model")
-    s = ref.get("seed")
-    return seed + 1000 if s is None else require_int(s, "reference.seed", 0)
-
-
-def _model_and_key(ref: Any, size: int, n: int, seed: int, noise: float, shadows: bool):
-    from cssat.experiments.build import build_model
-
     mesh = build_model(ref.model, "reference.model")
+    s = ref.get("seed")
+    return (seed + 1000 if s is None else require_int(s, "reference.seed", 0)), mesh
+
+
+def _key(mesh, size: int, n: int, seed: int, noise: float, shadows: bool):
     h = hashlib.sha256()
     for a in (mesh.vertices, mesh.faces, mesh.cd, mesh.cs):
         h.update(np.ascontiguousarray(np.asarray(a)).tobytes())
     spec = {"v": CACHE_VERSION, "mesh": h.hexdigest(), "size": size, "n": n, "seed": seed,
             "noise": noise, "shadows": bool(shadows), "normalize": True, "fov_m": None}
     key = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:20]
-    return mesh, key, spec
+    return key, spec
 
 
 def _array_hash(a: np.ndarray) -> str:
@@ -119,9 +116,10 @@ def _key_lock(path: Path):
         os.close(fd)
 
 
-def reference_set(cfg: Any, size: int, n: int, seed: int):
-    """``(n, size, size)`` float32 reference images (Astra-like model by default, random Sun and
-    view directions, white noise ``reference.noise`` × each image's maximum), rendered in chunks
+def reference_set(cfg: Any, size: int, n: int, seed: int, mesh):
+    """``(n, size, size)`` float32 reference images of ``mesh`` (``reference.model``, from
+    :func:`reference_settings`; the Astra-like model by default), random Sun and
+    view directions and white noise of ``reference.noise`` × each image's maximum, rendered in chunks
     with a progress bar, or read from the on-disk cache.
 
     A cache entry (``cache_dir/refs-<key>.npy`` and its ``.json``) is keyed by everything that
@@ -134,7 +132,7 @@ def reference_set(cfg: Any, size: int, n: int, seed: int):
     ref = cfg.reference
     noise = require_float(ref.get("noise", 0.0), "reference.noise", lo=0.0)
     shadows = bool(ref.get("shadows", True))
-    mesh, key, spec = _model_and_key(ref, size, n, seed, noise, shadows)
+    key, spec = _key(mesh, size, n, seed, noise, shadows)
     cache_dir = cfg.get("cache_dir")
     if not cache_dir:
         return _render(mesh, size, n, seed, noise, shadows), False

@@ -53,7 +53,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     dtype, device, seed, n, N, m = run_settings(cfg, max_size=1024)
     n_ref = cfg.reference.get("n")
     n_ref = N if n_ref is None else require_int(n_ref, "reference.n", N, N)
-    ref_seed = reference_settings(cfg, seed)
+    ref_seed, ref_mesh = reference_settings(cfg, seed)
     solver, denoiser = build_solver(cfg.solver, m, N), build_denoiser(cfg.get("denoiser"))
     ref_dtype = torch_dtype(cfg.reference.get("dtype", "float64"), field="reference.dtype")
     peak, parts = memory_peak(n, m, torch.finfo(dtype).bits // 8, torch.finfo(ref_dtype).bits // 8)
@@ -68,7 +68,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     y = meas(torch.as_tensor(x, dtype=ref_dtype, device=device).reshape(N)).to(dtype)
     timings["seconds_measure"] = time.perf_counter() - t
     t = time.perf_counter()
-    refs, cached = reference_set(cfg, n, n_ref, ref_seed)  # (N_ref, n, n) float32
+    refs, cached = reference_set(cfg, n, n_ref, ref_seed, ref_mesh)  # (N_ref, n, n) float32
     timings["seconds_references"] = time.perf_counter() - t
     t = time.perf_counter()
     Xt = refs.reshape(n_ref, N).to(dtype=ref_dtype, device=device)  # X_refᵀ: reference k is row k

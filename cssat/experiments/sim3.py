@@ -66,7 +66,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     pool = require_int(ref.pool, "reference.pool", 1)
     n_ref = require_int(ref.n, "reference.n", 1, min(pool, N))
     repeats = require_int(ref.get("repeats", 9), "reference.repeats", 1, 1000)
-    ref_seed, estimate = reference_settings(cfg, seed), estimate_settings(cfg, N)
+    (ref_seed, ref_mesh), estimate = reference_settings(cfg, seed), estimate_settings(cfg, N)
     solver, denoiser = build_solver(cfg.solver, m, N), build_denoiser(cfg.get("denoiser"))
     denoiser3d = build_denoiser(cfg.get("denoiser3d"), "denoiser3d") if repeats >= 2 else None
     est = check_memory(memory_parts(n, m, n_ref, pool, torch.finfo(dtype).bits // 8), cfg,
@@ -80,7 +80,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     timings["seconds_measure"] = time.perf_counter() - t
     stats = phi_stats(cfg, meas.operator, (n, n))
     t = time.perf_counter()
-    pool_imgs, cached = reference_set(cfg, n, pool, ref_seed)
+    pool_imgs, cached = reference_set(cfg, n, pool, ref_seed, ref_mesh)
     timings["seconds_references"] = time.perf_counter() - t
 
     per, recs = [], []
