@@ -64,10 +64,53 @@ def test_kills_at_any_moment_then_resume(tmp_path, delay):
     proc.wait()
     if d.exists():
         assert consistent(d)
+    if d.exists():
+        assert wait_until(lambda: not list(d.rglob(".*.tmp")))  # the kill left no temporary file
     res = subprocess.run(APP + SMALL + ["cs.m=150", f"hydra.run.dir={d}"], capture_output=True, text=True, cwd=tmp_path)
     assert res.returncode == 0
     assert consistent(d) and load_saved(d)["status"] == "ok"
-    assert not list(d.rglob(".*.tmp"))  # what a kill left is cleaned by the next run
+    assert not list(d.rglob(".*.tmp"))
+
+
+def wait_until(cond, seconds=10.0) -> bool:
+    t = time.time()
+    while not cond():
+        if time.time() - t > seconds:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+# A writer killed in the middle of writing a file: its temporary file exists, then is gone.
+WRITER = """
+import sys, time
+from pathlib import Path
+from cssat.experiments.common import _atomic
+def w(tmp):
+    Path(tmp).write_text("part")
+    Path(sys.argv[2]).write_text(tmp)  # tell the test where
+    time.sleep(600)
+_atomic(Path(sys.argv[1]), w)
+"""
+
+
+@pytest.mark.parametrize("how", ["SIGKILL", "SIGKILL to the process group", "SIGTERM", "exception"])
+def test_a_killed_writer_leaves_no_temporary_file(tmp_path, how):
+    target, where = tmp_path / "out" / "metrics.json", tmp_path / "where"
+    code = WRITER if how != "exception" else WRITER.replace("time.sleep(600)", "raise SystemExit(3)")
+    proc = subprocess.Popen([sys.executable, "-c", code, str(target), str(where)], start_new_session=True)
+    assert wait_until(lambda: where.exists() and where.read_text() or proc.poll() is not None, 60)
+    tmp = Path(where.read_text())
+    assert tmp.parent == target.parent and tmp.name.startswith(".metrics.json.") and tmp.name.endswith(".tmp")
+    if how == "SIGKILL":
+        proc.send_signal(signal.SIGKILL)
+    elif how == "SIGTERM":
+        proc.send_signal(signal.SIGTERM)
+    elif how == "SIGKILL to the process group":
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert wait_until(lambda: not tmp.exists()), f"{tmp} left behind"
+    assert not target.exists()  # nothing half-written where the result is expected
 
 
 @pytest.mark.parametrize("damage", ["truncate arrays", "delete figure", "replace image", "zero arrays"])

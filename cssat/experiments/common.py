@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -95,28 +94,24 @@ def measurements(cs: Any, N: int) -> int:
     return max(1, round(ratio * N))
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def _atomic(path: Path, write) -> None:
     """Write ``path`` through ``write(tmp)`` on a temporary file beside it, then rename it into
-    place: a reader sees the old file or the new one, never a part. The file gets the mode the
-    user's umask gives a new file (``mkstemp`` would leave 0600, unreadable to collaborators)."""
+    place: a reader sees the old file or the new one, never a part. The temporary file gets the
+    mode the user's umask gives a new file, and is removed even when this process is killed
+    (see :mod:`cssat._tmpfiles`)."""
+    from cssat._tmpfiles import release, temporary_path
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
+    tmp = temporary_path(path)
     try:
-        write(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())
+        write(str(tmp))
         os.replace(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        tmp.unlink(missing_ok=True)
         raise
+    finally:
+        release(tmp)
 
 
 def _finite(v):

@@ -145,6 +145,9 @@ def reference_set(cfg: Any, size: int, n: int, seed: int, mesh):
 
             log.info("reference set: %d images %d² from the cache %s (%.1f s)", n, size, path, time.perf_counter() - t)
             return torch.from_numpy(arr), True
+        for entry in (path, path.with_suffix(".json")):  # under the entry's lock, any is stale
+            for stale in entry.parent.glob(f".{entry.name}.*.tmp"):
+                stale.unlink(missing_ok=True)
         out = _render(mesh, size, n, seed, noise, shadows)
 
         def w(tmp):

@@ -1,0 +1,90 @@
+"""Temporary files that a kill does not leave behind.
+
+A result is written to a hidden temporary file beside it and renamed into place (atomic on
+POSIX). A process killed with SIGKILL runs no cleanup of its own, so the temporary file of a write
+in progress would stay. To remove it anyway, the first temporary file of a process starts a small
+*guardian*: a child Python process, in a session of its own, that holds the read end of a pipe.
+Before a temporary file is created its path is sent down the pipe, after it was renamed (or
+removed) that is sent too. When the writing process ends — normally, by an exception, or killed
+by any signal, even with its whole process group — the kernel closes the pipe; the guardian reads
+end-of-file and removes whatever is still listed, then exits.
+
+What this cannot cover: the guardian itself killed first (``kill -9`` of every process of the
+user, a power cut, a machine that goes down). For those, the next run into the same directory
+removes what it finds (:func:`cssat.experiments.results.clear_results`), and the reference cache
+ignores and removes stale temporary files on its next write of that entry.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+# The guardian: read every record until the writer's end of the pipe closes, then remove the
+# files registered ("+") and not released ("-"). Records are NUL-terminated file-system paths.
+_GUARDIAN = r"""
+import os, sys
+live = set()
+for rec in sys.stdin.buffer.read().split(b"\0"):
+    if rec[:1] == b"+":
+        live.add(rec[1:])
+    elif rec[:1] == b"-":
+        live.discard(rec[1:])
+for p in live:
+    try:
+        os.unlink(p)
+    except OSError:
+        pass
+"""
+
+_lock = threading.Lock()
+_guard: subprocess.Popen | None = None
+_guard_pid: int | None = None  # the process that started it (a forked child starts its own)
+
+
+def _send(flag: bytes, path: Path) -> None:
+    global _guard, _guard_pid
+    with _lock:
+        if _guard is None or _guard_pid != os.getpid():
+            try:
+                _guard = subprocess.Popen(
+                    [sys.executable, "-I", "-S", "-c", _GUARDIAN],
+                    stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                    start_new_session=True,  # survives a kill of the writer's process group
+                )
+                _guard_pid = os.getpid()
+            except OSError:  # no guardian: the next run's cleanup still removes leftovers
+                _guard, _guard_pid = None, os.getpid()
+                return
+        if _guard is None:
+            return
+        try:
+            _guard.stdin.write(flag + os.fsencode(os.path.abspath(path)) + b"\0")
+            _guard.stdin.flush()
+        except (OSError, ValueError):
+            _guard = None
+
+
+def temporary_path(path: Path) -> Path:
+    """Create an empty hidden temporary file ``.NAME.<random>.tmp`` beside ``path`` (mode from
+    the user's umask) and return its path; it is removed by the guardian if this process dies
+    before :func:`release` is called for it."""
+    path = Path(path)
+    for _ in range(100):
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}.tmp"
+        _send(b"+", tmp)  # listed before it exists: no moment where a kill leaves it unlisted
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return tmp
+        except FileExistsError:  # never ours: do not let the guardian remove it
+            _send(b"-", tmp)
+    raise FileExistsError(f"no free temporary name beside {path}")
+
+
+def release(tmp: Path) -> None:
+    """``tmp`` was renamed into place or removed: the guardian must leave that path alone."""
+    _send(b"-", tmp)
