@@ -168,3 +168,89 @@ def test_scenario_arguments_are_checked():
         make_scenario(start_utc="April 1st")
     with pytest.raises(ValueError, match="observer.lat_deg"):
         make_scenario(lat_deg=91.0, n_steps=2)
+
+
+# --- what users hold: satellites and start times in their libraries' forms (issue 14) ---------
+
+def _tle_as_omm(line1: str, line2: str) -> dict:
+    """An OMM/GP record of a TLE, read off its columns by hand (the TLE format's definition)."""
+    yy, day = int(line1[18:20]), float(line1[20:32])
+    from datetime import datetime, timedelta
+
+    epoch = datetime(2000 + yy if yy < 57 else 1900 + yy, 1, 1) + timedelta(days=day - 1)
+
+    def exp_field(f):  # " 12345-3" → 0.12345e-3
+        f = f.strip()
+        return float(f"{f[0] if f[0] in '+-' else ''}0.{f.lstrip('+-')[:-2]}e{f[-2:]}")
+
+    return {"OBJECT_NAME": "ASTRA 1KR", "NORAD_CAT_ID": int(line1[2:7]), "EPOCH": epoch.isoformat(),
+            "MEAN_MOTION": float(line2[52:63]), "ECCENTRICITY": float("0." + line2[26:33]),
+            "INCLINATION": float(line2[8:16]), "RA_OF_ASC_NODE": float(line2[17:25]),
+            "ARG_OF_PERICENTER": float(line2[34:42]), "MEAN_ANOMALY": float(line2[43:51]),
+            "MEAN_MOTION_DOT": float(line1[33:43]), "MEAN_MOTION_DDOT": exp_field(line1[44:52]),
+            "BSTAR": exp_field(line1[53:61])}
+
+
+def test_every_satellite_form_gives_the_same_orbit():
+    from sgp4.api import Satrec
+    from skyfield.api import EarthSatellite, load
+
+    l1, l2 = ASTRA_1KR_SYNTHETIC_TLE
+    ref = make_scenario(n_steps=30, step_s=600.0)
+    forms = {
+        "3 lines": ("ASTRA 1KR", l1, l2),
+        "3LE text": f"0 ASTRA 1KR\n{l1}\n{l2}\n",
+        "2-line text": f"{l1}\n{l2}",
+        "EarthSatellite": EarthSatellite(l1, l2, "ASTRA 1KR", load.timescale(builtin=True)),
+        "Satrec": Satrec.twoline2rv(l1, l2),
+        "OMM": _tle_as_omm(l1, l2),
+    }
+    for what, sat in forms.items():
+        sc = make_scenario(sat, n_steps=30, step_s=600.0)
+        np.testing.assert_allclose(sc.r_sat, ref.r_sat, atol=1e-3, rtol=0, err_msg=what)  # 1 m
+        np.testing.assert_array_equal(sc.times, ref.times)
+        assert sc.name == ("NORAD 29055" if what in ("Satrec", "2-line text") else "ASTRA 1KR"), what
+    assert ref.name == "Astra 1KR (synthetic TLE)"
+    with pytest.raises(ValueError, match="scenario.tle: an OMM/GP record needs .*missing MEAN_MOTION"):
+        make_scenario({k: v for k, v in forms["OMM"].items() if k != "MEAN_MOTION"}, n_steps=2)
+    with pytest.raises(ValueError, match="scenario.tle.line1: checksum"):
+        make_scenario(("X", l1[:68] + "0", l2), n_steps=2)
+    with pytest.raises(TypeError, match="scenario.tle: expected two TLE lines .* an sgp4 Satrec"):
+        make_scenario(42, n_steps=2)
+    with pytest.raises(ValueError, match="scenario.tle: a TLE has 2 lines, or 3"):
+        make_scenario(l1, n_steps=2)
+
+
+def test_every_start_time_form_gives_the_same_times():
+    from datetime import datetime, timedelta, timezone
+
+    from skyfield.api import load
+
+    ref = make_scenario(n_steps=3, step_s=60.0, start_utc="2020-04-01T06:30:00")
+    cet = timezone(timedelta(hours=1))
+    ts = load.timescale(builtin=True)
+    for start in (datetime(2020, 4, 1, 6, 30), datetime(2020, 4, 1, 7, 30, tzinfo=cet),
+                  np.datetime64("2020-04-01T06:30"), ts.utc(2020, 4, 1, 6, 30), "2020-04-01T06:30:00Z"):
+        sc = make_scenario(n_steps=3, step_s=60.0, start_utc=start)
+        np.testing.assert_array_equal(sc.times, ref.times, err_msg=repr(start))
+        np.testing.assert_allclose(sc.r_sat, ref.r_sat, atol=1e-6, rtol=0)
+    with pytest.raises(TypeError, match="scenario.start_utc: expected an ISO string, a datetime"):
+        make_scenario(n_steps=2, start_utc=1585699200)
+    with pytest.raises(ValueError, match="scenario.start_utc: expected one time"):
+        make_scenario(n_steps=2, start_utc=ts.utc(2020, 4, 1, [0, 1]))
+
+
+def test_the_lightcurve_config_takes_three_lines_and_omm_records():
+    from hydra import compose, initialize_config_module
+
+    from cssat.experiments.lightcurve import build_scenario
+
+    l1, l2 = ASTRA_1KR_SYNTHETIC_TLE
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        three = compose(config_name="config", overrides=["experiment=lightcurve", "scenario.n_steps=3",
+                                                         f"scenario.tle=['ASTRA 1KR','{l1}','{l2}']"])
+        omm = compose(config_name="config", overrides=["experiment=lightcurve", "scenario.n_steps=3"])
+    omm.scenario.tle = _tle_as_omm(l1, l2)
+    a, b = build_scenario(three), build_scenario(omm)
+    assert a.name == b.name == "ASTRA 1KR"
+    np.testing.assert_allclose(a.r_sat, b.r_sat, atol=1e-3, rtol=0)

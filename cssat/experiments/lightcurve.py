@@ -38,17 +38,17 @@ def build_scenario(cfg: Any):
     from cssat.experiments.common import require_int
     from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario
 
+    from omegaconf import OmegaConf
+
     sc = cfg.scenario
     tle = sc.get("tle")
-    if tle is None:
-        tle = ASTRA_1KR_SYNTHETIC_TLE
-    elif len(tle) != 2:
-        raise ValueError(f"scenario.tle: expected two lines, got {len(tle)}")
+    # two or three lines, a TLE text, or an OMM/GP record as a mapping of CCSDS keys
+    tle = ASTRA_1KR_SYNTHETIC_TLE if tle is None else OmegaConf.to_container(tle) if OmegaConf.is_config(tle) else tle
     obs = sc.observer
     return make_scenario(
-        tle=(str(tle[0]), str(tle[1])), start_utc=str(sc.start_utc),
+        tle=tle, start_utc=str(sc.start_utc),
         n_steps=require_int(sc.n_steps, "scenario.n_steps", 1), step_s=float(sc.step_s),
-        lat_deg=float(obs.lat_deg), lon_deg=float(obs.lon_deg), alt_m=float(obs.alt_m), name=str(sc.get("name", "")),
+        lat_deg=float(obs.lat_deg), lon_deg=float(obs.lon_deg), alt_m=float(obs.alt_m), name=sc.get("name"),
     )
 
 

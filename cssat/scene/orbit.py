@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 from datetime import datetime, timedelta, timezone
 from functools import lru_cache
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -168,28 +169,131 @@ def earth_shadow_fraction(r_sat_km: np.ndarray, r_sun_km: np.ndarray) -> np.ndar
     return np.clip(frac, 0.0, 1.0)
 
 
+#: OMM/GP keys without which no orbit can be initialised (CCSDS 502.0-B, CelesTrak's GP format)
+OMM_REQUIRED = ("EPOCH", "MEAN_MOTION", "ECCENTRICITY", "INCLINATION", "RA_OF_ASC_NODE",
+                "ARG_OF_PERICENTER", "MEAN_ANOMALY", "NORAD_CAT_ID")
+#: bookkeeping OMM keys, and the values assumed when a record lacks them
+OMM_DEFAULTS = {"CLASSIFICATION_TYPE": "U", "OBJECT_ID": "", "EPHEMERIS_TYPE": 0, "ELEMENT_SET_NO": 999,
+                "REV_AT_EPOCH": 0, "BSTAR": 0.0, "MEAN_MOTION_DOT": 0.0, "MEAN_MOTION_DDOT": 0.0}
+
+SATELLITE_FORMS = ("two TLE lines (line1, line2)", "three (name, line1, line2)", "a 2- or 3-line TLE string",
+                   "a skyfield EarthSatellite", "an sgp4 Satrec", "an OMM/GP record (a dict of CCSDS keys)")
+
+
+def _satellite(tle, ts, field: str = "scenario.tle"):
+    """``(EarthSatellite, name)`` of any of :data:`SATELLITE_FORMS`; TLE lines are checked by
+    :func:`check_tle` first (``name`` is ``""`` when the input carries none)."""
+    from sgp4.api import Satrec
+    from skyfield.api import EarthSatellite
+
+    if isinstance(tle, EarthSatellite):
+        return EarthSatellite.from_satrec(tle.model, ts), tle.name or ""
+    if isinstance(tle, Satrec):
+        return EarthSatellite.from_satrec(tle, ts), ""
+    if isinstance(tle, Mapping):
+        return _from_omm(tle, ts, field)
+    if isinstance(tle, str):
+        lines = [ln for ln in tle.splitlines() if ln.strip()]
+    elif isinstance(tle, (tuple, list)) and all(isinstance(ln, str) for ln in tle):
+        lines = list(tle)
+    else:
+        raise TypeError(f"{field}: expected {', '.join(SATELLITE_FORMS)}; got {type(tle).__name__}")
+    if len(lines) not in (2, 3):
+        raise ValueError(f"{field}: a TLE has 2 lines, or 3 with a name line first; got {len(lines)}")
+    name = ""
+    if len(lines) == 3:
+        name = lines[0].strip()
+        name = name[2:].strip() if name.startswith("0 ") else name  # the "0 NAME" form of 3LE files
+        lines = lines[1:]
+    line1, line2 = (ln.rstrip() for ln in lines)
+    check_tle(line1, line2, field=field)
+    return EarthSatellite(line1, line2, name=name or None, ts=ts), name
+
+
+def _from_omm(rec, ts, field: str):
+    from sgp4 import omm
+    from sgp4.api import Satrec
+    from skyfield.api import EarthSatellite
+
+    missing = [k for k in OMM_REQUIRED if rec.get(k) is None]
+    if missing:
+        raise ValueError(f"{field}: an OMM/GP record needs {', '.join(OMM_REQUIRED)}; missing {', '.join(missing)}")
+    fields = {**OMM_DEFAULTS, **{k: v for k, v in rec.items() if v is not None}}
+    try:
+        epoch = datetime.fromisoformat(str(fields["EPOCH"]).replace("Z", "+00:00"))
+    except ValueError:
+        raise ValueError(f"{field}.EPOCH: not an ISO date-time: {fields['EPOCH']!r}") from None
+    if epoch.tzinfo is not None:
+        epoch = epoch.astimezone(timezone.utc).replace(tzinfo=None)
+    fields["EPOCH"] = epoch.strftime("%Y-%m-%dT%H:%M:%S.%f")  # the one form sgp4.omm parses
+    fields["OBJECT_ID"] = str(fields["OBJECT_ID"])
+    sat = Satrec()
+    try:
+        omm.initialize(sat, fields)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{field}: not a valid OMM/GP record ({e})") from None
+    return EarthSatellite.from_satrec(sat, ts), str(rec.get("OBJECT_NAME") or "")
+
+
+START_FORMS = "an ISO string, a datetime (naive = UTC), a numpy.datetime64 or a skyfield Time"
+
+
+def _start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
+    """A naive UTC ``datetime`` of any of :data:`START_FORMS` (a scalar)."""
+    if isinstance(start_utc, str):
+        try:
+            start = datetime.fromisoformat(start_utc.strip().replace("Z", "+00:00"))
+        except ValueError:
+            raise ValueError(f"{field}: not an ISO date-time: {start_utc!r}") from None
+    elif isinstance(start_utc, datetime):  # also pandas.Timestamp
+        start = start_utc
+    elif isinstance(start_utc, np.datetime64):
+        if np.isnat(start_utc):
+            raise ValueError(f"{field}: NaT is not a time")
+        us = start_utc.astype("datetime64[us]").astype(np.int64)
+        start = datetime(1970, 1, 1) + timedelta(microseconds=int(us))
+    elif type(start_utc).__module__.startswith("skyfield") and hasattr(start_utc, "utc_datetime"):
+        if np.ndim(start_utc.tt) != 0:
+            raise ValueError(f"{field}: expected one time, got a skyfield Time of shape {np.shape(start_utc.tt)}")
+        start = start_utc.utc_datetime()
+    else:
+        raise TypeError(f"{field}: expected {START_FORMS}; got {type(start_utc).__name__}")
+    if start.tzinfo is not None:
+        start = start.astimezone(timezone.utc).replace(tzinfo=None)
+    return start
+
+
 def make_scenario(
-    tle: tuple[str, str] = ASTRA_1KR_SYNTHETIC_TLE,
-    start_utc: str | datetime = "2020-04-01T00:00:00",
+    tle: Any = ASTRA_1KR_SYNTHETIC_TLE,
+    start_utc: Any = "2020-04-01T00:00:00",
     n_steps: int = 1437,
     step_s: float = 60.0,
     lat_deg: float = 51.17,
     lon_deg: float = 10.45,
     alt_m: float = 0.0,
-    name: str = "Astra 1KR (synthetic TLE)",
+    name: str | None = None,
 ) -> Scenario:
-    """Propagate ``tle`` with SGP4 over ``n_steps`` times ``step_s`` seconds apart from
-    ``start_utc`` and compute the Sun, the observer at geodetic ``lat_deg``/``lon_deg``/``alt_m``
+    """Propagate the satellite ``tle`` with SGP4 over ``n_steps`` times ``step_s`` seconds apart
+    from ``start_utc`` and compute the Sun, the observer at geodetic ``lat_deg``/``lon_deg``/``alt_m``
     (WGS84), the topocentric azimuth/elevation/range and the Earth shadow, all batched.
+
+    ``tle`` is any of :data:`SATELLITE_FORMS`: two TLE lines, three with a name, a TLE text, a
+    skyfield ``EarthSatellite``, an sgp4 ``Satrec`` or an OMM/GP record (CelesTrak's JSON/CSV
+    rows, ``sgp4.omm.parse_xml`` output; keys :data:`OMM_REQUIRED`, others default to
+    :data:`OMM_DEFAULTS`). ``start_utc`` is any of :data:`START_FORMS`; an aware datetime is
+    converted to UTC. ``name`` defaults to the one the satellite carries.
 
     The defaults are the paper's scenario: Astra 1KR, 1437 one-minute steps from 2020-04-01
     00:00 UTC, an observer at 51.17°N 10.45°E.
     """
     from sgp4.api import SGP4_ERRORS
-    from skyfield.api import EarthSatellite, wgs84
+    from skyfield.api import wgs84
 
-    line1, line2 = (s.rstrip() for s in tle)
-    check_tle(line1, line2, field="scenario.tle")
+    ts, eph = _skyfield()
+    sat, own_name = _satellite(tle, ts)
+    if name is None:
+        default = tle is ASTRA_1KR_SYNTHETIC_TLE
+        name = "Astra 1KR (synthetic TLE)" if default else own_name or f"NORAD {sat.model.satnum}"
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
         raise ValueError(f"scenario.n_steps: must be a positive integer, got {n_steps!r}")
     if not (isinstance(step_s, (int, float)) and math.isfinite(step_s) and step_s > 0):
@@ -200,17 +304,8 @@ def make_scenario(
         raise ValueError(f"scenario.observer.lon_deg: must be in [-360, 360], got {lon_deg}")
     if not (isinstance(alt_m, (int, float)) and math.isfinite(alt_m) and -1000 <= alt_m <= 100_000):
         raise ValueError(f"scenario.observer.alt_m: a ground observer's altitude must be in [-1000, 100000] m, got {alt_m!r}")
-    if isinstance(start_utc, str):
-        try:
-            start = datetime.fromisoformat(start_utc.replace("Z", "+00:00"))
-        except ValueError:
-            raise ValueError(f"scenario.start_utc: not an ISO date-time: {start_utc!r}") from None
-    else:
-        start = start_utc
-    if start.tzinfo is not None:
-        start = start.astimezone(timezone.utc).replace(tzinfo=None)
+    start = _start_datetime(start_utc)
 
-    ts, eph = _skyfield()
     offsets = np.arange(n_steps) * float(step_s)
     end = start + timedelta(seconds=float(offsets[-1]))
     if not (EPHEMERIS_RANGE[0] <= start and end <= EPHEMERIS_RANGE[1]):
@@ -218,7 +313,6 @@ def make_scenario(
                          f"{EPHEMERIS_RANGE[0]:%Y-%m-%d} to {EPHEMERIS_RANGE[1]:%Y-%m-%d})")
     t = ts.utc(start.year, start.month, start.day, start.hour, start.minute,
                start.second + start.microsecond * 1e-6 + offsets)
-    sat = EarthSatellite(line1, line2, name=name, ts=ts)
     # SGP4 error codes, checked on the raw propagator before trusting any position
     jd = np.floor(t.ut1)
     err, _, _ = sat.model.sgp4_array(jd, t.ut1 - jd)
