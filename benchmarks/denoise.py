@@ -97,10 +97,10 @@ def bench_2d(size, sigmas, repeats, rng):
     for name, img in imgs.items():
         for s in sigmas:
             noisy = img + rng.normal(0, s, img.shape)
-            row = {"image": name, "σ": s, "noisy": psnr(noisy, img)}
+            row = {"image": name, "σ": s, "noisy": psnr(img, noisy)}
             for mname, fn in meth.items():
                 t, _, out = median_time(lambda: fn(noisy, float(s)), repeats)
-                row[mname] = psnr(out, img)
+                row[mname] = psnr(img, out)
                 times[mname].append(t)
             rows.append(row)
             print(f"{name:20s} σ={s:2d} " + " ".join(f"{k}={v:.2f}" for k, v in row.items() if k not in ("image", "σ")), flush=True)
@@ -121,9 +121,9 @@ def bench_3d(size, repeats, rng):
         for k in range(9):
             t2, _, d2 = median_time(lambda: ksvd_denoise(torch.as_tensor(stack[k])).numpy(), repeats)
             t2s.append(t2)
-            p2.append(psnr(d2, img))
-        p3 = [psnr(d3[k], img) for k in range(9)]
-        pn = [psnr(stack[k], img) for k in range(9)]
+            p2.append(psnr(img, d2))
+        p3 = [psnr(img, d3[k]) for k in range(9)]
+        pn = [psnr(img, stack[k]) for k in range(9)]
         out.append((name, sig, pn, p2, p3, t3, sum(t2s)))
     return out
 

@@ -137,7 +137,7 @@ def run_large(args):
         return batch_omp(A, y, n_nonzero_coefs=K)
 
     t, ts, g = median_time(ours, args.repeats)
-    p_ours = psnr(psi(g).reshape(n, n).clamp(0, 1).numpy(), x, data_range=1.0)
+    p_ours = psnr(x, psi(g).reshape(n, n).clamp(0, 1).numpy(), data_range=1.0)
     ours_sup = g.numpy() != 0
     # the floor: K passes Dᵀr over the dictionary (one matrix-vector product each)
     from cssat.sparse._omp_torch import _mv
@@ -156,7 +156,7 @@ def run_large(args):
             return orthogonal_mp(Af, yn, n_nonzero_coefs=K, copy_X=True)
 
         t2, ts2, g2 = median_time(sk, args.sklearn_repeats)
-        p_sk = psnr(np.clip(psi(torch.from_numpy(g2).float()).reshape(n, n).numpy(), 0, 1), x, data_range=1.0)
+        p_sk = psnr(x, np.clip(psi(torch.from_numpy(g2).float()).reshape(n, n).numpy(), 0, 1), data_range=1.0)
         agree = float(np.mean(ours_sup == (g2 != 0)))
         rows.append(("scikit-learn orthogonal_mp", t2, ts2, agree, p_sk))
     except ImportError:

@@ -12,11 +12,44 @@ def test_psnr_matches_the_formula():
     ref = rng.uniform(0, 1, (16, 16))
     x = ref + rng.normal(0, 0.05, ref.shape)
     mse = np.mean((x - ref) ** 2)
-    assert psnr(x, ref, data_range=1.0) == pytest.approx(10 * np.log10(1.0 / mse), rel=1e-12)
-    assert psnr(x * 255, ref * 255, data_range=255) == pytest.approx(10 * np.log10(1.0 / mse), rel=1e-12)
-    # torch tensors are accepted; the default range is the reference's span
+    assert psnr(ref, x, data_range=1.0) == pytest.approx(10 * np.log10(1.0 / mse), rel=1e-12)
+    assert psnr(ref * 255, x * 255, data_range=255) == pytest.approx(10 * np.log10(1.0 / mse), rel=1e-12)
+    # torch tensors are accepted; the default range is the span of image_true (the first argument)
     span = ref.max() - ref.min()
-    assert psnr(torch.tensor(x), torch.tensor(ref)) == pytest.approx(10 * np.log10(span**2 / mse), rel=1e-12)
+    assert psnr(torch.tensor(ref), torch.tensor(x)) == pytest.approx(10 * np.log10(span**2 / mse), rel=1e-12)
+    assert psnr(image_test=x, image_true=ref) == pytest.approx(10 * np.log10(span**2 / mse), rel=1e-12)
+
+
+def test_metrics_take_scikit_image_argument_order():
+    from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+
+    rng = np.random.default_rng(4)
+    true = rng.uniform(0.2, 0.6, (24, 24))  # spans differ: the order decides the default range
+    test = np.clip(true + rng.normal(0, 0.3, true.shape), -1, 2)
+    assert psnr(true, test) == pytest.approx(peak_signal_noise_ratio(true, test, data_range=np.ptp(true)), rel=1e-12)
+    assert ssim(true, test) == pytest.approx(structural_similarity(true, test, data_range=np.ptp(true)), rel=1e-12)
+    assert psnr(true, test) != pytest.approx(psnr(test, true))
+
+
+def test_a_batch_gives_one_value_per_image():
+    from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+
+    rng = np.random.default_rng(5)
+    true = rng.uniform(0, 1, (3, 20, 20))
+    test = true + rng.normal(0, 1, (3, 1, 1)) * 0.05 * rng.standard_normal(true.shape)
+    p, s = psnr(true, test, data_range=1.0), ssim(true, test, data_range=1.0)
+    assert p.shape == s.shape == (3,)
+    np.testing.assert_allclose(p, [peak_signal_noise_ratio(a, b, data_range=1.0) for a, b in zip(true, test)], rtol=1e-12)
+    np.testing.assert_allclose(s, [structural_similarity(a, b, data_range=1.0) for a, b in zip(true, test)], rtol=1e-12)
+    # deepinv's (B, C, H, W): C = 1 as (B, H, W); C = 3 scored per image over its channels
+    np.testing.assert_allclose(psnr(torch.tensor(true[:, None]), torch.tensor(test[:, None]), data_range=1.0), p, rtol=1e-12)
+    rgb_t, rgb = np.stack([true] * 3, 1), np.stack([test] * 3, 1)
+    np.testing.assert_allclose(psnr(rgb_t, rgb, data_range=1.0), p, rtol=1e-12)
+    np.testing.assert_allclose(ssim(rgb_t, rgb, data_range=1.0), s, rtol=1e-12)
+    # a volume, on request, is one value with a 3-D SSIM window
+    vol_t, vol = rng.uniform(0, 1, (8, 16, 16)), rng.uniform(0, 1, (8, 16, 16))
+    assert ssim(vol_t, vol, data_range=1.0, volume=True) == pytest.approx(
+        structural_similarity(vol_t, vol, data_range=1.0), rel=1e-12)
 
 
 def test_ssim_properties():
@@ -25,16 +58,18 @@ def test_ssim_properties():
     assert ssim(ref, ref, data_range=1.0) == pytest.approx(1.0)
     noisy = ref + rng.normal(0, 0.2, ref.shape)
     less = ref + rng.normal(0, 0.05, ref.shape)
-    assert ssim(noisy, ref, data_range=1.0) < ssim(less, ref, data_range=1.0) < 1.0
+    assert ssim(ref, noisy, data_range=1.0) < ssim(ref, less, data_range=1.0) < 1.0
 
 
 def test_metric_errors():
     with pytest.raises(ValueError, match="data_range"):
         psnr(np.ones((8, 8)), np.ones((8, 8)))
-    with pytest.raises(ValueError, match="x: shape"):
+    with pytest.raises(ValueError, match="image_test: shape"):
         psnr(np.ones((8, 8)), np.ones((8, 9)), data_range=1)
-    with pytest.raises(ValueError, match="x: contains NaN"):
-        ssim(np.full((8, 8), np.nan), np.ones((8, 8)), data_range=1)
+    with pytest.raises(ValueError, match="image_test: contains NaN"):
+        ssim(np.ones((8, 8)), np.full((8, 8), np.nan), data_range=1)
+    with pytest.raises(ValueError, match="image_true: expected"):
+        psnr(np.ones(8), np.ones(8), data_range=1)
 
 
 def test_load_builtin_and_file_images(tmp_path):

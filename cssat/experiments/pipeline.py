@@ -128,7 +128,7 @@ def scores(rec: np.ndarray, den: np.ndarray | None, truth: np.ndarray) -> dict[s
     """PSNR and SSIM of a reconstruction, and of its denoised version, against the truth (range 1)."""
     from cssat.metrics import psnr, ssim
 
-    out = {"psnr": psnr(rec, truth, data_range=1.0), "ssim": ssim(rec, truth, data_range=1.0)}
+    out = {"psnr": psnr(truth, rec, data_range=1.0), "ssim": ssim(truth, rec, data_range=1.0)}
     if den is not None:
-        out.update(psnr_denoised=psnr(den, truth, data_range=1.0), ssim_denoised=ssim(den, truth, data_range=1.0))
+        out.update(psnr_denoised=psnr(truth, den, data_range=1.0), ssim_denoised=ssim(truth, den, data_range=1.0))
     return out

@@ -85,7 +85,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.metrics import psnr
 
     truth = x.reshape(n, n).numpy()
-    flux_only = psnr(np.full_like(truth, truth.mean()), truth, data_range=1.0)  # what the total flux alone gives
+    flux_only = psnr(truth, np.full_like(truth, truth.mean()), data_range=1.0)  # what the total flux alone gives
     metrics: dict[str, Any] = {"m": m, "n": n, "n_pixels": N, "seed": seed, "solvers": list(solvers), "psnr_flux_only": flux_only,
                                "angular_size_arcsec": sizes, "magnitudes": mags, **atm.describe(), **noise.describe()}
     metrics.update({f"psnr_{r_['solver']}_{r_['column']}_v{mags.index(r_['magnitude'])}": r_["psnr"] for r_ in rows})

@@ -101,7 +101,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     stack, den2 = np.stack([r.image for r in recs]), np.stack([r.denoised for r in recs])
     den3, dm3 = denoise(denoiser3d, stack, field="denoiser3d") if denoiser3d is not None else (stack.copy(), {"denoiser": "none"})
     timings["seconds_denoise_3d"] = dm3.pop("seconds_denoise", 0.0)
-    psnr3 = [psnr(d, x, data_range=1.0) for d in den3]
+    psnr3 = [psnr(x, d, data_range=1.0) for d in den3]
     metrics = {**_summary(per, psnr3), "m": m, "n": n, "n_pixels": N, "reference_n": n_ref, "reference_pool": pool,
                "repeats": repeats, "reference_n_nonzero_coefs": estimate[0], "reference_tol": estimate[1],
                "reference_cached": cached, **{k: v for k, v in recs[-1].metrics.items() if k.startswith("solver")},
@@ -144,7 +144,7 @@ def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed
         t = time.perf_counter()
         phi_mn = estimate_sensing_min_norm(Xt.T, Y_ref)
         row["phi_relative_error_min_norm"] = relative_error(phi_mn, phi)
-        row["psnr_min_norm"] = psnr(reconstruct(solver, phi_mn, y, (n, n)).image, x, data_range=1.0)
+        row["psnr_min_norm"] = psnr(x, reconstruct(solver, phi_mn, y, (n, n)).image, data_range=1.0)
         timings["seconds_baseline"] += time.perf_counter() - t
     row.update(scores(rec.image, rec.denoised, x))
     return row, rec
