@@ -77,7 +77,7 @@ def test_trained_atoms_are_sparse_and_normalised():
     X, _, base = _synthetic(noise=0.05)
     D, info = sparse_ksvd(X, base, n_atoms=40, atom_sparsity=4, tol=X.shape[1] * 0.06**2, n_iter=4,
                           init="data", seed=0, return_info=True)
-    assert int((D.A != 0).sum(0).max()) <= 4
+    assert int((D.atoms != 0).sum(0).max()) <= 4
     torch.testing.assert_close(D.matrix().norm(dim=0), torch.ones(40, dtype=torch.float64))
     assert len(info.mean_atoms) == 4 and all(m > 0 for m in info.mean_atoms)
 

@@ -106,8 +106,12 @@ def test_composition_materialised_equals_dense_product():
 def test_shape_errors_name_the_argument():
     with pytest.raises(ValueError, match="x: trailing shape"):
         DCT((4, 4)).adjoint(torch.randn(2, 15))
-    with pytest.raises(ValueError, match="x: last dimension"):
+    with pytest.raises(ValueError, match=r"x: expected rows \(B, 5\), images \(B, C, H, W\)"):
         GaussianSensing(3, 5)(torch.randn(2, 4))
+    with pytest.raises(ValueError, match=r"x: expected .*or \(B, \*\(1, 2, 3\)\)"):
+        GaussianSensing(3, (1, 2, 3))(torch.randn(2, 5))
+    with pytest.raises(ValueError, match="y: last dimension"):
+        GaussianSensing(3, 5).A_dagger(torch.randn(2, 4))
     with pytest.raises(ValueError, match="shape"):
         DCT((2, 2, 2, 2))
 
@@ -158,3 +162,51 @@ def test_kronecker_operator_equals_the_dense_kronecker_product(shapes):
     x = torch.randn(5, op.n_in, generator=g, dtype=torch.float64)
     torch.testing.assert_close(op(x), x @ dense.T)
     assert dot_test(op) < 1e-12
+
+
+def test_images_in_deepinv_layout():
+    """(B, C, H, W) and (B, H, W) images are flattened in C order; with a shape for n the
+    adjoint and A_dagger give the images back."""
+    phi = GaussianSensing(30, 48, seed=4, dtype=torch.float64)
+    shaped = GaussianSensing(30, (3, 4, 4), seed=4, dtype=torch.float64)
+    torch.testing.assert_close(shaped.matrix(), phi.matrix())  # the same draws
+    x = torch.randn(5, 3, 4, 4, dtype=torch.float64)
+    ref = x.reshape(5, 48) @ phi.matrix().T
+    torch.testing.assert_close(phi(x), ref)
+    torch.testing.assert_close(shaped.A(x), ref)
+    y = torch.randn(5, 30, dtype=torch.float64)
+    assert shaped.adjoint(y).shape == (5, 3, 4, 4) and phi.adjoint(y).shape == (5, 48)
+    torch.testing.assert_close(shaped.A_adjoint(y).reshape(5, 48), y @ phi.matrix())
+    gray = GaussianSensing(30, 16, seed=1, dtype=torch.float64)
+    img = torch.randn(2, 1, 4, 4, dtype=torch.float64)
+    torch.testing.assert_close(gray(img), gray(img.reshape(2, 4, 4)))  # (B, 1, H, W) as (B, H, W): (B, m)
+    assert gray(img[0, 0]).shape == (30,)  # one (H, W) image: one light curve
+    assert gray(torch.randn(7, 2, 16, dtype=torch.float64)).shape == (7, 2, 30)  # rows keep their batch axes
+    psi = DCT((4, 4))
+    comp = gray @ psi
+    torch.testing.assert_close(comp(img), comp(img.reshape(2, 16)))
+
+
+@pytest.mark.parametrize("m,n", [(40, 24), (24, 40), (30, 30)])
+def test_a_dagger_is_the_minimum_norm_least_squares_solution(m, n):
+    rng = np.random.default_rng(m + n)
+    M = rng.standard_normal((m, n))
+    if m == n:  # rank deficient: the minimum-norm solution is the one asked for
+        M[:, -5:] = M[:, :5]
+    y = rng.standard_normal((3, m))
+    ref = np.linalg.lstsq(M, y.T, rcond=None)[0].T  # numpy's SVD solve, the reference
+    op = MatrixOperator(torch.tensor(M))
+    np.testing.assert_allclose(op.A_dagger(torch.tensor(y)).numpy(), ref, atol=1e-8)
+    np.testing.assert_allclose(op.A_dagger(y), ref, atol=1e-8)  # numpy in, numpy out
+    # the matrix-free CGLS of any operator converges to the same solution
+    comp = ComposedOperator(op, MatrixOperator(torch.eye(n, dtype=torch.float64)))
+    np.testing.assert_allclose(comp.A_dagger(torch.tensor(y), max_iter=500, rtol=1e-12).numpy(), ref, atol=1e-6)
+    psi = DCT((4, 6))
+    x = torch.randn(2, 24, dtype=torch.float64)
+    torch.testing.assert_close(psi.A_dagger(psi(x)), x)  # orthonormal: Ψ⁺ = Ψᵀ
+
+
+def test_reprs_show_sizes_and_seed():
+    assert repr(GaussianSensing(5, 16, seed=7)).startswith("GaussianSensing(m=5, n=16, seed=7")
+    assert "shape=(4, 4)" in repr(DCT((4, 4)))
+    assert "n_out=5, n_in=16" in repr(GaussianSensing(5, 16) @ DCT((4, 4)))

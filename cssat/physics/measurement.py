@@ -19,8 +19,9 @@ class Measurement(nn.Module):
     """A light-curve measurement: a sensing operator ``Φ (m, N)`` followed by a noise model.
 
     In deepinv's ``LinearPhysics`` shape: :meth:`A` is the noiseless ``Φx``, :meth:`A_adjoint`
-    its transpose ``Φᵀy``, and ``forward(x) = noise(A(x))``. Batch-first: ``x (B, N)``,
-    ``(N,)``, or images ``(B, H, W)`` / ``(H, W)`` with ``H W = N``; ``y (B, m)`` or ``(m,)``.
+    its transpose ``Φᵀy``, :meth:`A_dagger` the least-squares ``Φ⁺y``, and
+    ``forward(x) = noise(A(x))``. Batch-first: ``x (B, N)``, ``(N,)``, or images
+    ``(B, C, H, W)``, ``(B, H, W)``, ``(H, W)`` with ``C H W = N``; ``y (B, m)`` or ``(m,)``.
     Everything follows the input's device and dtype.
 
     The noise is seeded: ``forward(x)`` draws it from a generator seeded with ``seed``
@@ -53,12 +54,7 @@ class Measurement(nn.Module):
         return self.operator.shape
 
     def _flat(self, x: Tensor) -> Tensor:
-        n = self.operator.n_in
-        if x.shape[-1] == n:
-            return x
-        if x.ndim >= 2 and math.prod(x.shape[-2:]) == n:
-            return x.reshape(*x.shape[:-2], n)
-        raise ValueError(f"x: expected (B, {n}), ({n},) or images with H·W = {n}, got shape {tuple(x.shape)}")
+        return self.operator.flatten_input(x)
 
     @numpy_io
     def A(self, x: Tensor) -> Tensor:
@@ -69,6 +65,11 @@ class Measurement(nn.Module):
     def A_adjoint(self, y: Tensor) -> Tensor:
         """``Φᵀy``: ``(B, N)`` or ``(N,)``."""
         return self.operator.adjoint(y)
+
+    @numpy_io
+    def A_dagger(self, y: Tensor) -> Tensor:
+        """The minimum-norm least-squares ``Φ⁺y`` (:meth:`LinearOperator.A_dagger`)."""
+        return self.operator.A_dagger(y)
 
     @numpy_io
     def forward(self, x: Tensor, generator: torch.Generator | None = None) -> Tensor:

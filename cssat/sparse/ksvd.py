@@ -40,7 +40,8 @@ class SparseDictionary(LinearOperator):
     """``D = B A`` (Eq. 20) as an operator from codes ``(n, L)`` to signals ``(n, p)``.
 
     ``B`` is a :class:`~cssat.sparse.KroneckerOperator` ``(p, K₀)``; ``A (K₀, L)`` is stored dense
-    (it is small: ``K₀ × L``) but has at most ``T_dict`` non-zeros per column.
+    (it is small: ``K₀ × L``) but has at most ``T_dict`` non-zeros per column; it is the buffer
+    :attr:`atoms` (``A`` itself is deepinv's name for the forward map, as on every operator).
     """
 
     def __init__(self, base: KroneckerOperator, A: Tensor):
@@ -48,24 +49,24 @@ class SparseDictionary(LinearOperator):
         if A.ndim != 2 or A.shape[0] != base.n_in:
             raise ValueError(f"A: expected shape ({base.n_in}, n_atoms) for the base dictionary, got {tuple(A.shape)}")
         self.base = base
-        self.register_buffer("A", A)
+        self.register_buffer("atoms", A)
         self.n_out, self.n_in = base.n_out, int(A.shape[1])
 
     def forward(self, codes: Tensor) -> Tensor:
         """``D γ`` for rows ``codes (n, L)``; returns ``(n, p)``."""
-        return self.base(codes @ self.A.to(codes).T)
+        return self.base(codes @ self.atoms.to(codes).T)
 
     def adjoint(self, x: Tensor) -> Tensor:
         """``Dᵀ x = Aᵀ (Bᵀ x)`` for rows ``x (n, p)``; returns ``(n, L)``."""
-        return self.base.adjoint(x) @ self.A.to(x)
+        return self.base.adjoint(x) @ self.atoms.to(x)
 
     def matrix(self, dtype=None, device=None) -> Tensor:
-        A = self.A.to(dtype=dtype or self.A.dtype, device=device)
+        A = self.atoms.to(dtype=dtype or self.atoms.dtype, device=device)
         return self.base(A.T).T.contiguous()
 
     def gram(self) -> Tensor:
         """``DᵀD = Aᵀ (⊗ BₐᵀBₐ) A`` ``(L, L)``, through the separable base Gram."""
-        return self.A.T @ _base_gram(self.base, self.A)
+        return self.atoms.T @ _base_gram(self.base, self.atoms)
 
 
 def odct_base(block: Sequence[int], atoms: Sequence[int] | None = None, dtype=torch.float32) -> KroneckerOperator:

@@ -53,14 +53,21 @@ class LinearOperator(nn.Module):
     tensors to the default float dtype, in every subclass. :meth:`matrix` materialises ``M`` by applying the adjoint to
     identity blocks, so it never needs more than one ``(block, n_in)`` temporary beside the result.
     ``A @ B`` composes two operators (``B`` first).
+
+    deepinv's names are there too: :meth:`A` (``forward``), :meth:`A_adjoint` (``adjoint``) and
+    :meth:`A_dagger`, the minimum-norm least-squares solution ``M⁺y``. An operator with an
+    ``in_shape`` (e.g. ``GaussianSensing(m, (1, H, W))``) takes inputs ``(B, *in_shape)`` and its
+    adjoint returns that shape; any operator takes images ``(B, C, H, W)`` or ``(B, H, W)``
+    whose trailing sizes multiply to ``n_in`` (see :meth:`flatten_input`).
     """
 
     n_in: int
     n_out: int
+    in_shape: tuple[int, ...] | None = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
-        for name in ("forward", "adjoint"):
+        for name in ("forward", "adjoint", "A_dagger"):
             method = cls.__dict__.get(name)
             if method is not None and not getattr(method, "_cssat_input", False):
                 setattr(cls, name, _accepts_any_input(method))
@@ -70,8 +77,71 @@ class LinearOperator(nn.Module):
         """``(n_out, n_in)``, the shape of the matrix."""
         return (self.n_out, self.n_in)
 
+    def flatten_input(self, x: Tensor) -> Tensor:
+        """``x`` as rows ``(..., n_in)``. Accepted: rows ``(..., n_in)`` (every leading axis is a
+        batch axis); ``(..., *in_shape)``; images ``(B, C, H, W)``, ``(B, H, W)`` or one ``(H, W)``
+        whose trailing sizes multiply to ``n_in`` — as many trailing axes as possible are joined,
+        keeping the first as the batch axis (one unbatched image becomes one row ``(n_in,)``)."""
+        n = self.n_in
+        if x.shape[-1] == n:
+            return x
+        s = self.in_shape
+        if s is not None and tuple(x.shape[x.ndim - len(s):]) == s:
+            return x.reshape(*x.shape[: x.ndim - len(s)], n)
+        for k in range(x.ndim - 1, 0, -1):
+            if math.prod(x.shape[x.ndim - k:]) == n:
+                return x.reshape(*x.shape[: x.ndim - k], n)
+        if math.prod(x.shape) == n:
+            return x.reshape(n)
+        raise ValueError(f"x: expected rows (B, {n}), images (B, C, H, W) or (B, H, W) with C·H·W = {n}"
+                         f"{'' if s is None else f', or (B, *{s})'}; got shape {tuple(x.shape)}")
+
+    def _shape_output(self, x: Tensor) -> Tensor:
+        """Rows ``(..., n_in)`` as ``(..., *in_shape)`` when the operator has an ``in_shape``."""
+        return x if self.in_shape is None else x.reshape(*x.shape[:-1], *self.in_shape)
+
     def adjoint(self, y: Tensor) -> Tensor:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    def A(self, x: Tensor) -> Tensor:
+        """deepinv's name for :meth:`forward`."""
+        return self(x)
+
+    def A_adjoint(self, y: Tensor) -> Tensor:
+        """deepinv's name for :meth:`adjoint`."""
+        return self.adjoint(y)
+
+    def A_dagger(self, y: Tensor, max_iter: int = 1000, rtol: float = 1e-7) -> Tensor:
+        """The minimum-norm least-squares solution ``x = M⁺y`` of ``min ‖Mx − y‖``, for rows
+        ``y (B, n_out)``; returns ``(B, n_in)`` (or ``(B, *in_shape)``).
+
+        Matrix-free CGLS (conjugate gradients on the normal equations, started from 0, so the
+        iterates stay in the row space of ``M`` and converge to the minimum-norm solution); it
+        stops when ``‖Mᵀr‖`` falls below ``rtol`` times its start, or after ``max_iter``
+        iterations. :class:`MatrixOperator` solves exactly instead, :class:`DCT` is orthogonal.
+        """
+        _check_last(y, self.n_out, "y")
+        batch = y.shape[:-1]
+        b = y.reshape(-1, self.n_out)
+        x = b.new_zeros(b.shape[0], self.n_in)
+        r = b.clone()
+        s = self.flatten_input(self.adjoint(r))
+        p = s.clone()
+        gamma = (s * s).sum(-1)
+        stop = rtol**2 * gamma
+        for _ in range(int(max_iter)):
+            active = gamma > stop
+            if not bool(active.any()):
+                break
+            q = self(p)
+            alpha = torch.where(active, gamma / (q * q).sum(-1).clamp_min(torch.finfo(q.dtype).tiny), 0)
+            x += alpha[:, None] * p
+            r -= alpha[:, None] * q
+            s = self.flatten_input(self.adjoint(r))
+            gamma_new = (s * s).sum(-1)
+            p = s + torch.where(active, gamma_new / gamma.clamp_min(torch.finfo(q.dtype).tiny), 0)[:, None] * p
+            gamma = gamma_new
+        return self._shape_output(x.reshape(*batch, self.n_in))
 
     def matrix(
         self, dtype: torch.dtype | None = None, device: torch.device | str | None = None
@@ -87,7 +157,7 @@ class LinearOperator(nn.Module):
             stop = min(start + block, self.n_out)
             eye = torch.zeros(stop - start, self.n_out, dtype=dtype, device=device)
             eye[:, start:stop] = torch.eye(stop - start, dtype=dtype, device=device)
-            out[start:stop] = self.adjoint(eye)
+            out[start:stop] = self.flatten_input(self.adjoint(eye))
         return out
 
     def __matmul__(self, other: "LinearOperator") -> "ComposedOperator":
@@ -96,34 +166,63 @@ class LinearOperator(nn.Module):
         return ComposedOperator(self, other)
 
 
-class MatrixOperator(LinearOperator):
-    """An explicit matrix ``M (n_out, n_in)`` stored as a buffer."""
+def _as_shape(n: int | Sequence[int], field: str = "n") -> tuple[int, tuple[int, ...] | None]:
+    """``(n_in, in_shape)`` of a size or a signal shape such as ``(C, H, W)``."""
+    if isinstance(n, (tuple, list, torch.Size)):
+        shape = tuple(n)
+        if not shape or any(isinstance(d, bool) or not isinstance(d, int) or d < 1 for d in shape):
+            raise ValueError(f"{field}: a signal shape needs positive integer sizes, got {shape!r}")
+        return math.prod(shape), shape
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ValueError(f"{field}: number of columns must be a positive integer or a shape such as (C, H, W), got {n!r}")
+    return n, None
 
-    def __init__(self, matrix: Tensor):
+
+class MatrixOperator(LinearOperator):
+    """An explicit matrix ``M (n_out, n_in)`` stored as a buffer; ``in_shape`` (optional) is the
+    shape of one input signal, e.g. ``(C, H, W)``, with ``prod(in_shape) = n_in``."""
+
+    def __init__(self, matrix: Tensor, in_shape: Sequence[int] | None = None):
         super().__init__()
         if matrix.ndim != 2:
             raise ValueError(f"matrix: expected a 2-D tensor (n_out, n_in), got shape {tuple(matrix.shape)}")
         self.register_buffer("weight", matrix)
         self.n_out, self.n_in = matrix.shape
+        if in_shape is not None:
+            n, self.in_shape = _as_shape(tuple(in_shape), "in_shape")
+            if n != self.n_in:
+                raise ValueError(f"in_shape: {self.in_shape} has {n} entries, the matrix {self.n_in} columns")
 
     def _w(self, like: Tensor) -> Tensor:
         return self.weight.to(device=like.device, dtype=like.dtype)
 
     def forward(self, x: Tensor) -> Tensor:
-        """``Mx`` for rows ``x (B, n_in)`` (or one ``(n_in,)`` vector); returns ``(B, n_out)``."""
-        _check_last(x, self.n_in, "x")
+        """``Mx`` for rows ``x (B, n_in)``, one ``(n_in,)`` vector or images (see
+        :meth:`LinearOperator.flatten_input`); returns ``(B, n_out)``."""
+        x = self.flatten_input(x)
         return x @ self._w(x).T
 
     def adjoint(self, y: Tensor) -> Tensor:
-        """``Mᵀy`` for rows ``y (B, n_out)``; returns ``(B, n_in)``."""
+        """``Mᵀy`` for rows ``y (B, n_out)``; returns ``(B, n_in)`` (or ``(B, *in_shape)``)."""
         _check_last(y, self.n_out, "y")
-        return y @ self._w(y)
+        return self._shape_output(y @ self._w(y))
+
+    def A_dagger(self, y: Tensor, max_iter: int = 1000, rtol: float = 1e-7) -> Tensor:
+        """``M⁺y`` exactly, by an SVD-based least-squares solve (LAPACK ``gelsd`` on the CPU,
+        ``pinv`` elsewhere): the minimum-norm solution for a wide or rank-deficient ``M``.
+        ``max_iter``/``rtol`` are unused (the iterative method's). Costs ``O(m n min(m, n))``."""
+        _check_last(y, self.n_out, "y")
+        w = self._w(y)
+        b = y.reshape(-1, self.n_out).T
+        x = torch.linalg.lstsq(w, b, driver="gelsd").solution if w.device.type == "cpu" else torch.linalg.pinv(w) @ b
+        return self._shape_output(x.T.reshape(*y.shape[:-1], self.n_in))
 
     def matrix(self, dtype=None, device=None) -> Tensor:
         return self.weight.to(dtype=dtype or self.weight.dtype, device=device or self.weight.device)
 
     def extra_repr(self) -> str:
-        return f"n_out={self.n_out}, n_in={self.n_in}, dtype={self.weight.dtype}"
+        shape = "" if self.in_shape is None else f", in_shape={self.in_shape}"
+        return f"n_out={self.n_out}, n_in={self.n_in}{shape}, dtype={self.weight.dtype}"
 
 
 def dct_matrix(n: int, dtype: torch.dtype = torch.float64, device=None) -> Tensor:
@@ -193,6 +292,13 @@ class DCT(LinearOperator):
         """Analysis ``γ = Ψᵀx`` (forward orthonormal DCT-II), same layouts as :meth:`forward`."""
         return self._separable(x, transpose=True)
 
+    def A_dagger(self, y: Tensor, max_iter: int = 1000, rtol: float = 1e-7) -> Tensor:
+        """``Ψ⁺ = Ψᵀ``: Ψ is orthonormal, so the least-squares solution is the analysis."""
+        return self.adjoint(y)
+
+    def extra_repr(self) -> str:
+        return f"shape={self.dims}"
+
     def matrix(self, dtype=None, device=None) -> Tensor:
         """Dense ``Ψ (N, N)`` (columns are atoms): ``(C₁ ⊗ C₂ ⊗ …)ᵀ``. Costs ``N²`` memory."""
         dtype = dtype or torch.get_default_dtype()
@@ -217,20 +323,23 @@ class GaussianSensing(MatrixOperator):
     CPU block), so a 13225 × 16384 float32 matrix needs its own 0.87 GB and no temporary copy.
     The draw depends on ``dtype``: float32 and float64 matrices of one seed are different samples.
     ``mean`` and ``std`` (default ``1/√n``) shift and scale the same draws.
+
+    ``n`` may be a signal shape such as ``(C, H, W)`` (deepinv's ``img_shape``): the matrix is the
+    same as for ``n = C·H·W``, inputs ``(B, C, H, W)`` are flattened and the adjoint returns that
+    shape.
     """
 
     def __init__(
         self,
         m: int,
-        n: int,
+        n: int | Sequence[int],
         seed: int = 0,
         dtype: torch.dtype | None = None,
         device: torch.device | str | None = None,
         mean: float = 0.0,
         std: float | None = None,
     ):
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise ValueError(f"n: number of columns must be a positive integer, got {n!r}")
+        n, in_shape = _as_shape(n)
         if isinstance(m, bool) or not isinstance(m, int) or m < 1:
             raise ValueError(f"m: number of measurements must be a positive integer, got {m!r}")
         seed = int(seed)
@@ -255,11 +364,13 @@ class GaussianSensing(MatrixOperator):
                 buf[i if on_cpu else i - start].normal_(mean, std, generator=gen)
             if not on_cpu:
                 w[start:stop] = buf[: stop - start].to(w.device)
-        super().__init__(w)
+        super().__init__(w, in_shape)
         self.seed, self.mean, self.std = seed, mean, std
 
     def extra_repr(self) -> str:
-        return f"m={self.n_out}, n={self.n_in}, seed={self.seed}, mean={self.mean:g}, std={self.std:.4g}, dtype={self.weight.dtype}"
+        shape = "" if self.in_shape is None else f", in_shape={self.in_shape}"
+        return (f"m={self.n_out}, n={self.n_in}{shape}, seed={self.seed}, mean={self.mean:g}, std={self.std:.4g}, "
+                f"dtype={self.weight.dtype}")
 
 
 def _row_seed(seed: int, row: int) -> int:
@@ -289,6 +400,9 @@ class ComposedOperator(LinearOperator):
 
     def forward(self, x: Tensor) -> Tensor:
         return self.outer(self.inner(x))
+
+    def extra_repr(self) -> str:
+        return f"n_out={self.n_out}, n_in={self.n_in}"
 
     def adjoint(self, y: Tensor) -> Tensor:
         return self.inner.adjoint(self.outer.adjoint(y))
@@ -350,6 +464,9 @@ class KroneckerOperator(LinearOperator):
         self.rows = tuple(int(m.shape[0]) for m in mats)
         self.cols = tuple(int(m.shape[1]) for m in mats)
         self.n_out, self.n_in = math.prod(self.rows), math.prod(self.cols)
+
+    def extra_repr(self) -> str:
+        return f"rows={self.rows}, cols={self.cols}"
 
     def _mats(self, like: Tensor) -> list[Tensor]:
         return [getattr(self, f"m{d}").to(device=like.device, dtype=like.dtype) for d in range(len(self.rows))]
