@@ -37,6 +37,13 @@ def choice_param(value: Any, field: str, allowed: Sequence[str]) -> str:
     return str(value)
 
 
+def progress_param(value: Any, field: str = "progress") -> bool | None:
+    """A progress flag: ``True``, ``False`` or ``None`` (a bar on a terminal only)."""
+    if value is not None and not isinstance(value, bool):
+        raise ValueError(f"{field}: expected true, false or null (a bar on a terminal only), got {value!r}")
+    return value
+
+
 def opt(value: Any, check, *args, **kw):
     """``None`` stays ``None``; anything else goes through ``check``."""
     return None if value is None else check(value, *args, **kw)

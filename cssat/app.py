@@ -27,10 +27,13 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize=None
     failed job is logged and returns ``None`` (its ``metrics.json`` says ``status: failed``), so
     the sweep goes on.
     """
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
     from cssat.experiments import ConfigError, run_experiment
 
     try:
-        metrics = run_experiment(cfg, output_dir, finalize=finalize)
+        with logging_redirect_tqdm():  # log lines printed above the progress bars, not through them
+            metrics = run_experiment(cfg, output_dir, finalize=finalize)
     except Exception as err:
         if multirun:
             log.error("job failed: %s", err)

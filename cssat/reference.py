@@ -149,6 +149,7 @@ def estimate_sensing_sparse(
     shape: Sequence[int] | None = None,
     normalize: bool = True,
     return_info: bool = False,
+    progress: bool | None = None,
 ) -> Tensor | tuple[Tensor, SparseEstimate]:
     """Rank-deficient estimate (Eq. 26–30): ``Φᵀ = Ψ A`` with sparse columns ``āᵢ``.
 
@@ -163,7 +164,8 @@ def estimate_sensing_sparse(
     (``normalize=False``: select on the raw columns, scikit-learn's convention).
 
     ``shape`` is the image shape (default: square ``√n_pixel``). Returns ``Φ̂ (m, n_pixel)`` and,
-    with ``return_info``, a :class:`SparseEstimate`.
+    with ``return_info``, a :class:`SparseEstimate`. ``progress``: the OMP's tqdm bar
+    (:func:`~cssat.sparse.batch_omp`).
     """
     from cssat.sparse import DCT, batch_omp
 
@@ -185,7 +187,8 @@ def estimate_sensing_sparse(
     if not normalize:
         norms = torch.ones_like(norms)
     Dn = D / torch.where(ok, norms, torch.ones_like(norms))
-    coef, oinfo = batch_omp(Dn, Y_ref.to(D.dtype), n_nonzero_coefs=n_nonzero_coefs, tol=tol, return_info=True)
+    coef, oinfo = batch_omp(Dn, Y_ref.to(D.dtype), n_nonzero_coefs=n_nonzero_coefs, tol=tol, return_info=True,
+                            progress=progress)
     coef = torch.where(ok, coef / torch.where(ok, norms, torch.ones_like(norms)), torch.zeros_like(coef))
     phi_hat = psi(coef)  # rows: Φ̂ᵢ = Ψ āᵢ
     if return_info:

@@ -75,7 +75,8 @@ class ReferenceImages(Dataset):
         dirs = [self.directions(i) for i in idx]
         sun = np.stack([d[0] for d in dirs])
         obs = np.stack([d[1] for d in dirs])
-        img = render(self.mesh, sun, obs, self.size, fov_m=self.fov_m, shadows=self.shadows, dtype=torch.float64)
+        img = render(self.mesh, sun, obs, self.size, fov_m=self.fov_m, shadows=self.shadows, dtype=torch.float64,
+                     progress=False)
         if self.normalize:
             peak = img.amax((1, 2), keepdim=True)
             img = torch.where(peak > 0, img / torch.where(peak > 0, peak, torch.ones_like(peak)), img)

@@ -102,7 +102,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
 
 
 #: config keys that do not change a run's results (left out of its config hash)
-_NOT_RESULTS = ("threads", "resume", "hydra", "optimized_metric")
+_NOT_RESULTS = ("threads", "resume", "hydra", "optimized_metric", "progress")
 
 
 def provenance() -> dict[str, Any]:
@@ -147,12 +147,19 @@ def _git_commit(root: Path) -> str | None:
 
 def config_sha(cfg: Any) -> str:
     """A short hash of the resolved config, without the keys that do not change the results
-    (``threads``, ``resume``)."""
+    (``threads``, ``resume``, ``progress`` — also the ``progress`` of the solver and denoiser
+    nodes, …)."""
     from omegaconf import DictConfig, OmegaConf
 
     if isinstance(cfg, DictConfig):
         data = OmegaConf.to_container(cfg, resolve=True)
     else:
         data = dict(cfg)
-    data = {k: v for k, v in data.items() if k not in _NOT_RESULTS}
+
+    def strip(node):
+        if isinstance(node, dict):
+            return {k: strip(v) for k, v in node.items() if k != "progress"}
+        return [strip(v) for v in node] if isinstance(node, list) else node
+
+    data = strip({k: v for k, v in data.items() if k not in _NOT_RESULTS})
     return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()[:16]

@@ -81,6 +81,14 @@ def run_settings(cfg: Any, max_size: int = 4096):
     return dtype, device, seed, n, N, m
 
 
+def progress_setting(cfg: Any) -> bool | None:
+    """The top-level ``progress`` flag (tqdm bars): ``true``, ``false`` or ``null`` (a terminal only)."""
+    v = cfg.get("progress")
+    if v is not None and not isinstance(v, bool):
+        raise ConfigError(f"progress: expected true, false or null (bars on a terminal only), got {v!r}")
+    return v
+
+
 def measurements(cs: Any, N: int) -> int:
     """``m`` from the ``cs`` config: ``cs.m`` when set (``1 ≤ m ≤ N``), else
     ``round(cs.ratio · N)`` (``0 < ratio ≤ 1``), so that ``target.size`` can change alone."""

@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from cssat.experiments.common import progress_setting
+
 log = logging.getLogger("cssat")
 
 
@@ -90,7 +92,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     t = time.perf_counter()
     # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
     images = render(mesh, lc.sun, lc.observer, size, fov_m=cfg.render.get("fov_m"), brightness=lc.facets.to(device),
-                    dtype=torch.float64).cpu()
+                    dtype=torch.float64, progress=progress_setting(cfg)).cpu()
     timings["seconds_render"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -6,7 +6,6 @@ import hashlib
 import json
 import logging
 import os
-import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -14,37 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from cssat.experiments.common import _atomic, require_float, require_int
+from cssat.experiments.common import _atomic, progress_setting, require_float, require_int
 
 log = logging.getLogger("cssat")
 
 CACHE_VERSION = 2  # bump when the rendering of reference images (or the entry format) changes
-
-
-class Progress:
-    """A one-line progress bar on stderr, silent when stderr is not a terminal."""
-
-    def __init__(self, total: int, label: str):
-        self.total, self.label, self.t0 = max(int(total), 1), label, time.perf_counter()
-        self.on = sys.stderr.isatty()
-        self.done = 0
-
-    def update(self, n: int = 1) -> None:
-        self.done += n
-        if self.on:
-            frac = self.done / self.total
-            el = time.perf_counter() - self.t0
-            eta = el / frac - el if frac > 0 else 0.0
-            bar = "#" * int(30 * frac)
-            sys.stderr.write(f"\r{self.label} [{bar:<30}] {self.done}/{self.total} {el:.0f}s eta {eta:.0f}s")
-            sys.stderr.flush()
-
-    def close(self) -> float:
-        el = time.perf_counter() - self.t0
-        if self.on:
-            sys.stderr.write("\n")
-        log.info("%s: %.1f s", self.label, el)
-        return el
 
 
 def reference_settings(cfg: Any, seed: int):
@@ -135,7 +108,7 @@ def reference_set(cfg: Any, size: int, n: int, seed: int, mesh):
     key, spec = _key(mesh, size, n, seed, noise, shadows)
     cache_dir = cfg.get("cache_dir")
     if not cache_dir:
-        return _render(mesh, size, n, seed, noise, shadows), False
+        return _render(mesh, size, n, seed, noise, shadows, progress_setting(cfg)), False
     path = Path(str(cache_dir)) / f"refs-{key}.npy"
     with _key_lock(path):
         t = time.perf_counter()
@@ -148,7 +121,7 @@ def reference_set(cfg: Any, size: int, n: int, seed: int, mesh):
         for entry in (path, path.with_suffix(".json")):  # under the entry's lock, any is stale
             for stale in entry.parent.glob(f".{entry.name}.*.tmp"):
                 stale.unlink(missing_ok=True)
-        out = _render(mesh, size, n, seed, noise, shadows)
+        out = _render(mesh, size, n, seed, noise, shadows, progress_setting(cfg))
 
         def w(tmp):
             with open(tmp, "wb") as f:
@@ -160,18 +133,21 @@ def reference_set(cfg: Any, size: int, n: int, seed: int, mesh):
     return out, False
 
 
-def _render(mesh, size: int, n: int, seed: int, noise: float, shadows: bool):
+def _render(mesh, size: int, n: int, seed: int, noise: float, shadows: bool, progress: bool | None):
     import torch
+
+    from cssat._progress import progress_bar
 
     from cssat.data import ReferenceImages
 
     ds = ReferenceImages(mesh, size, n, seed=seed, noise=noise, shadows=shadows, dtype=torch.float32)
     out = torch.empty(n, size, size, dtype=torch.float32)
     chunk = max(1, min(1024, (64 << 20) // (size * size * 8)))
-    bar = Progress(n, f"rendering {n} reference images {size}²")
-    for s in range(0, n, chunk):
-        e = min(n, s + chunk)
-        out[s:e] = ds.batch(s, e)
-        bar.update(e - s)
-    bar.close()
+    t = time.perf_counter()
+    with progress_bar(n, f"rendering {n} reference images {size}²", progress, unit="image") as bar:
+        for s in range(0, n, chunk):
+            e = min(n, s + chunk)
+            out[s:e] = ds.batch(s, e)
+            bar.update(e - s)
+    log.info("rendered %d reference images %d² in %.1f s", n, size, time.perf_counter() - t)
     return out

@@ -3,7 +3,6 @@ reached (``peak_rss_gb`` in ``metrics.json``)."""
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 from cssat.experiments.common import ConfigError, require_float
@@ -14,20 +13,16 @@ GB = 2**30
 
 
 def available_memory_bytes() -> int:
-    """Memory available to this process now (``MemAvailable``; else total physical memory)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    """Memory available to this process now, bytes (``psutil.virtual_memory().available``: what
+    can be allocated without swapping, page cache included)."""
+    import psutil
+
+    return int(psutil.virtual_memory().available)
 
 
 def peak_rss_bytes() -> int:
-    """Peak resident memory of this process so far, bytes (Linux ``ru_maxrss`` is in KiB; it is
-    already the running maximum)."""
+    """Peak resident memory of this process so far, bytes: ``getrusage``'s running maximum
+    (Linux reports KiB; psutil has no peak on Linux, so the standard library gives it)."""
     import resource
 
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024

@@ -24,6 +24,9 @@ from typing import Any
 
 import numpy as np
 
+from cssat._progress import progress_bar
+from cssat.experiments.common import progress_setting
+
 log = logging.getLogger("cssat")
 
 
@@ -56,7 +59,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
     from cssat.experiments.common import require_int, run_settings, write_npz
     from cssat.experiments.pipeline import denoise, phi_stats
-    from cssat.experiments.refsets import Progress, reference_set, reference_settings
+    from cssat.experiments.refsets import reference_set, reference_settings
     from cssat.experiments.resources import check_memory, peak_rss_bytes
     from cssat.metrics import psnr
     from cssat.plots import save_figure, sim3_figures
@@ -84,7 +87,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     timings["seconds_references"] = time.perf_counter() - t
 
     per, recs = [], []
-    bar = Progress(repeats, f"sim3: {repeats} repeats of Eq. 26-30 with N_ref={n_ref}")
+    bar = progress_bar(repeats, f"sim3: repeats of Eq. 26-30 with N_ref={n_ref}", progress_setting(cfg), unit="repeat")
     for r in range(repeats):
         idx = torch.randperm(pool, generator=torch.Generator().manual_seed(ref_seed * 1_000_003 + r))[:n_ref]
         Xt = pool_imgs.reshape(pool, N)[idx].to(dtype=dtype, device=device)  # X_refᵀ (N_ref, N)
@@ -132,7 +135,8 @@ def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed
     Y_ref = meas.add_noise(phi @ Xt.T, torch.Generator().manual_seed(noise_seed))
     t = time.perf_counter()
     phi_dense, info = estimate_sensing_sparse(Xt.T, Y_ref, n_nonzero_coefs=estimate[0], tol=estimate[1], shape=(n, n),
-                                              normalize=bool(cfg.reference.get("normalize", True)), return_info=True)
+                                              normalize=bool(cfg.reference.get("normalize", True)), return_info=True,
+                                              progress=progress_setting(cfg))
     timings["seconds_estimate"] += time.perf_counter() - t
     row = {"phi_relative_error": relative_error(phi_dense, phi), "estimate_mean_atoms": float(info.n_iter.double().mean())}
     del phi_dense

@@ -56,6 +56,7 @@ def render(
     dtype: torch.dtype = torch.float32,
     views_per_chunk: int = 128,
     backend: str = "auto",
+    progress: bool | None = None,
     **brightness_kwargs,
 ) -> Tensor:
     """Render ``(T, size, size)`` images of ``mesh`` for body-frame unit vectors ``sun`` and
@@ -70,8 +71,11 @@ def render(
     ``backend``: ``"torch"`` rasterises all views of a chunk at once with tensor operations (any
     device); ``"numba"`` runs a compiled CPU kernel, one view per thread, with the same rules
     (several times faster on meshes with many sub-pixel facets); ``"auto"`` takes numba for CPU
-    tensors when it is installed.
+    tensors when it is installed. ``progress``: a tqdm bar of the views rendered (``None``: on a
+    terminal, after a second).
     """
+    from cssat._progress import progress_bar
+
     mesh = as_mesh(mesh)
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
         raise ValueError(f"size: image size must be a positive integer, got {size!r}")
@@ -104,6 +108,7 @@ def render(
 
     use_numba = dev.type == "cpu" and (backend == "numba" or (backend == "auto" and _render_numba.available()))
     images = torch.zeros(T, size, size, dtype=dtype, device=dev)
+    bar = progress_bar(T, f"rendering {T} views {size}²", progress, unit="view")
     for s in range(0, T, views_per_chunk):
         e = min(s + views_per_chunk, T)
         if use_numba:
@@ -119,6 +124,8 @@ def render(
                 verts, faces, normals, obs[s:e], ex[s:e], ey[s:e], brightness[s:e].to(dtype),
                 size, float(fov_m), bias, images[s:e].view(e - s, -1),
             )
+        bar.update(e - s)
+    bar.close()
     return images
 
 

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat._checks import float_param, int_param, opt
+from cssat._checks import float_param, int_param, opt, progress_param
 
 __all__ = ["Denoiser", "SparseKSVD", "TVDenoiser", "WaveletDenoiser", "NLMDenoiser", "NoDenoiser"]
 
@@ -138,11 +138,13 @@ class SparseKSVD(Denoiser):
     SETTINGS = ("block_size", "step", "n_atoms", "atom_sparsity", "gain", "n_train", "n_iter", "max_atoms", "lam")
 
     def __init__(self, sigma: float | None = None, *, seed: int = 0, dtype: str | torch.dtype = "float32",
-                 device: str | torch.device = "cpu", **settings: Any):
+                 device: str | torch.device = "cpu", progress: bool | None = None, **settings: Any):
         """``settings``: any of :data:`SETTINGS` — ``block_size``, ``step`` (int or per-axis ints),
         ``n_atoms``, ``atom_sparsity``, ``n_train``, ``n_iter``, ``max_atoms`` (ints ≥ 1), ``gain``
-        (> 0), ``lam`` (≥ 0)."""
+        (> 0), ``lam`` (≥ 0). ``progress``: tqdm bars of the training and the coding (``None``: on
+        a terminal only)."""
         super().__init__(sigma)
+        self.progress = progress_param(progress)
         unknown = sorted(set(settings) - set(self.SETTINGS))
         if unknown:
             raise ValueError(f"{unknown[0]}: not a sparse-KSVD setting; expected one of {list(self.SETTINGS)}")
@@ -174,7 +176,7 @@ class SparseKSVD(Denoiser):
         _check_image(x)
         if sigma is None:
             sigma = self.sigma
-        out, info = ksvd_denoise(x, sigma, seed=self.seed, return_info=True, **self.kw)
+        out, info = ksvd_denoise(x, sigma, seed=self.seed, return_info=True, progress=self.progress, **self.kw)
         extra = {
             "denoise_sigma": info.sigma,
             "denoise_sigma_estimated": info.sigma_estimated,

@@ -10,7 +10,8 @@ shape ``(H, W)`` with ``H W = N``. ``x`` is the reconstruction ``shape`` or ``(B
 *not* clipped to the image range, in ``y``'s dtype and on its device; ``info`` is a flat dict for
 ``metrics.json`` (tensors in it, such as OMP's ``coefficients``, are arrays to save).
 ``validate(m, N)`` checks the settings that depend on the problem size before any work.
-Settings are checked when the object is built. Build them from the ``solver`` config group
+Settings are checked when the object is built. Every solver takes ``progress`` (keyword): a tqdm
+bar of its iterations — ``None`` (default) on a terminal only, ``True`` always, ``False`` never. Build them from the ``solver`` config group
 (``_target_``) or directly; a class of your own with the same call works everywhere these do.
 """
 
@@ -23,7 +24,7 @@ from typing import Any, Sequence
 import numpy as np
 from torch import Tensor
 
-from cssat._checks import choice_param, float_param, int_param, opt
+from cssat._checks import choice_param, float_param, int_param, opt, progress_param
 from cssat.recon.denoisers import Denoiser
 from cssat.sparse._io import numpy_io
 
@@ -79,7 +80,9 @@ class OMP(Solver):
 
     name = "omp"
 
-    def __init__(self, n_nonzero_coefs: int | None = None, k_ratio: float | None = None, epsilon: float | None = None):
+    def __init__(self, n_nonzero_coefs: int | None = None, k_ratio: float | None = None, epsilon: float | None = None,
+                 *, progress: bool | None = None):
+        self.progress = progress_param(progress)
         self.n_nonzero_coefs = opt(n_nonzero_coefs, int_param, "n_nonzero_coefs", 1)
         self.k_ratio = opt(k_ratio, float_param, "k_ratio", 0.0, 1.0)
         self.epsilon = opt(epsilon, float_param, "epsilon", 0.0)
@@ -105,7 +108,7 @@ class OMP(Solver):
         t = time.perf_counter()
         D = sensing_dictionary(phi, shape)
         t_dict = time.perf_counter() - t
-        gamma, info = batch_omp(D, y.to(D.dtype), n_nonzero_coefs=K, tol=tol, return_info=True)
+        gamma, info = batch_omp(D, y.to(D.dtype), n_nonzero_coefs=K, tol=tol, return_info=True, progress=self.progress)
         del D
         x = DCT(shape)(gamma).reshape(*y.shape[:-1], *shape)
         res = info.residual_sq.double().sqrt().reshape(-1) / y.double().reshape(-1, m).norm(dim=1).clamp_min(1e-300)
@@ -125,7 +128,8 @@ class OMP(Solver):
 
 
 class _Convex(Solver):
-    def __init__(self, lam: float | None, max_iter: int, rtol: float):
+    def __init__(self, lam: float | None, max_iter: int, rtol: float, progress: bool | None = None):
+        self.progress = progress_param(progress)
         self.lam = opt(lam, float_param, "lam", 0.0)
         self.max_iter = int_param(max_iter, "max_iter", 1)
         self.rtol = float_param(rtol, "rtol", 0.0)
@@ -147,8 +151,8 @@ class L1(_Convex):
 
     name = "l1"
 
-    def __init__(self, lam: float = 1e-3, max_iter: int = 1000, rtol: float = 1e-5):
-        super().__init__(lam if lam is not None else 1e-3, max_iter, rtol)
+    def __init__(self, lam: float = 1e-3, max_iter: int = 1000, rtol: float = 1e-5, *, progress: bool | None = None):
+        super().__init__(lam if lam is not None else 1e-3, max_iter, rtol, progress)
 
     @numpy_io
     def __call__(self, phi, y, shape):
@@ -159,7 +163,8 @@ class L1(_Convex):
         t = time.perf_counter()
         A = sensing_dictionary(phi, shape)
         t_dict = time.perf_counter() - t
-        gamma, sinfo = fista_l1(A, y.to(A.dtype), lam=self.lam, max_iter=self.max_iter, rtol=self.rtol, return_info=True)
+        gamma, sinfo = fista_l1(A, y.to(A.dtype), lam=self.lam, max_iter=self.max_iter, rtol=self.rtol, return_info=True,
+                                progress=self.progress)
         del A
         x = DCT(shape)(gamma).reshape(*y.shape[:-1], *shape)
         return x, {**self._info(self.lam, sinfo), "seconds_dictionary": t_dict, "coefficients": gamma}
@@ -184,8 +189,9 @@ class TV(_Convex):
 
     name = "tv"
 
-    def __init__(self, lam: float | None = None, nonneg: bool = True, max_iter: int = 2000, rtol: float = 1e-5):
-        super().__init__(lam, max_iter, rtol)
+    def __init__(self, lam: float | None = None, nonneg: bool = True, max_iter: int = 2000, rtol: float = 1e-5,
+                 *, progress: bool | None = None):
+        super().__init__(lam, max_iter, rtol, progress)
         if not isinstance(nonneg, bool):
             raise ValueError(f"nonneg: expected true or false, got {nonneg!r}")
         self.nonneg = nonneg
@@ -197,7 +203,7 @@ class TV(_Convex):
         m, N, shape = _problem(phi, y, shape)
         lam = self.lam if self.lam is not None else tv_default_lam(m / N)
         x, sinfo = tv_pdhg(phi, y, shape, lam=lam, nonneg=self.nonneg, max_iter=self.max_iter, rtol=self.rtol,
-                           return_info=True)
+                           return_info=True, progress=self.progress)
         return x, self._info(lam, sinfo)
 
 
@@ -212,7 +218,8 @@ class PnP(Solver):
     name = "pnp"
 
     def __init__(self, denoiser: Denoiser, max_iter: int = 30, sigma_start: float = 0.1, sigma_end: float = 0.005,
-                 init: str = "zero"):
+                 init: str = "zero", *, progress: bool | None = None):
+        self.progress = progress_param(progress)
         if not callable(denoiser):
             raise ValueError(f"denoiser: expected a denoiser object (image, sigma) -> (image, info), got {denoiser!r}")
         self.denoiser = denoiser
@@ -226,9 +233,10 @@ class PnP(Solver):
         from cssat.sparse.solvers import pnp_pgd, tv_pdhg
 
         m, N, shape = _problem(phi, y, shape)
-        x0 = tv_pdhg(phi, y, shape, lam=1e-3, max_iter=300) if self.init == "tv" else None
+        x0 = tv_pdhg(phi, y, shape, lam=1e-3, max_iter=300, progress=self.progress) if self.init == "tv" else None
         sig = np.geomspace(self.sigma_start, self.sigma_end, self.max_iter)
-        x, sinfo = pnp_pgd(phi, y, shape, lambda img, s: self.denoiser(img, s)[0], sigmas=sig, x0=x0, return_info=True)
+        x, sinfo = pnp_pgd(phi, y, shape, lambda img, s: self.denoiser(img, s)[0], sigmas=sig, x0=x0, return_info=True,
+                           progress=self.progress)
         return x, {
             "solver_denoiser": getattr(self.denoiser, "name", type(self.denoiser).__name__),
             "solver_iterations": sinfo.n_iter,

@@ -50,9 +50,10 @@ def _grow1(a, cap):
 
 
 @njit(cache=True, nogil=True)
-def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor):
+def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor, steps, slot):
     """Continue one signal from ``k`` atoms; stop when done (status 0) or when the work
-    arrays are full (status 1: grow them and call again)."""
+    arrays are full (status 1: grow them and call again). ``steps[slot]`` counts the atoms
+    selected (read by a progress bar in another thread)."""
     n = a0.shape[0]
     dt = a0.dtype.type
     cap = idx.shape[0]
@@ -94,6 +95,7 @@ def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, f
             sel[k, t] = gj[t]
         err -= z[k] * z[k]
         k += 1
+        steps[slot] += 1
         # 3. γ = L⁻ᵀ z by back substitution
         for i in range(k - 1, -1, -1):
             s = z[i]
@@ -120,7 +122,7 @@ def build(parallel: bool):
     """The batch kernel, parallel over signals or serial."""
 
     @njit(parallel=parallel, cache=True, nogil=True)
-    def _batch(G, A0, ynorm2, K, tol, use_tol, out, n_iter, res, n_blocks, cap0):
+    def _batch(G, A0, ynorm2, K, tol, use_tol, out, n_iter, res, n_blocks, cap0, steps):
         B, n = A0.shape
         is_parallel = parallel  # a closure cell: numba's cache keys the two variants apart  # noqa: F841
         dt = A0.dtype.type
@@ -144,7 +146,8 @@ def build(parallel: bool):
                     if abs(a0[t]) > floor:
                         floor = abs(a0[t])
                 floor = dt(16.0) * eps * floor
-                k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, 0, ynorm2[b], K, tol, use_tol, eps, floor)
+                k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, 0, ynorm2[b], K, tol, use_tol, eps, floor,
+                                      steps, blk)
                 while status == 1:
                     cap = min(K, 2 * cap)
                     L = _grow_square(L, cap)
@@ -153,7 +156,8 @@ def build(parallel: bool):
                     z = _grow1(z, cap)
                     w = _grow1(w, cap)
                     gamma = _grow1(gamma, cap)
-                    k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor)
+                    k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor,
+                                          steps, blk)
                 for i in range(k):
                     out[b, idx[i]] = gamma[i]
                 n_iter[b] = k

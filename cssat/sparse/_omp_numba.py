@@ -21,9 +21,38 @@ def _build(parallel: bool):
     return _omp_kernels.build(parallel)
 
 
-def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out, n_iter, res, threads: int, cap0: int = 64):
-    """Run the kernel in place on numpy arrays (all C-contiguous, one float dtype)."""
+def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out, n_iter, res, threads: int,
+             cap0: int = 64, bar=None):
+    """Run the kernel in place on numpy arrays (all C-contiguous, one float dtype). ``bar``: a
+    tqdm bar of atoms selected, advanced from a watcher thread while the kernel (which releases
+    the GIL) runs."""
     use_tol = tol is not None
     dt = A0.dtype.type
     n_blocks = max(1, min(A0.shape[0], 8 * threads))
-    kernel(_build, threads)(G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res, n_blocks, min(K, cap0))
+    steps = np.zeros(n_blocks, np.int64)
+    run = lambda: kernel(_build, threads)(G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res,  # noqa: E731
+                                          n_blocks, min(K, cap0), steps)
+    if bar is None or bar.disable:
+        run()
+        return
+    import threading
+
+    stop, shown = threading.Event(), [0]
+
+    def show():
+        now = int(steps.sum())
+        bar.update(now - shown[0])
+        shown[0] = now
+
+    def watch():
+        while not stop.wait(0.2):
+            show()
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    try:
+        run()
+    finally:
+        stop.set()
+        watcher.join()
+        show()

@@ -62,6 +62,7 @@ def omp_chunk(
     out: Tensor,  # (c, n) written in place
     n_iter_out: Tensor,  # (c,)
     res_out: Tensor,  # (c,)
+    bar=None,  # a tqdm bar of atoms selected, or None
 ) -> None:
     """OMP on one chunk of signals in lockstep.
 
@@ -181,6 +182,8 @@ def omp_chunk(
         else:
             flush(finished, k + 1)
         done = done | finished
+        if bar is not None:
+            bar.update(n_live)
         if bool(done.all()):
             break
         # 4. new correlations α = Dᵀr

@@ -88,6 +88,7 @@ def ksvd_denoise(
     mu_thresh: float = 0.99,
     seed: int = 0,
     return_info: bool = False,
+    progress: bool | None = None,
 ) -> Tensor | np.ndarray | tuple[Tensor | np.ndarray, DenoiseInfo]:
     """Denoise an image ``(n, n)`` in 2-D or a stack ``(k, n, n)`` in 3-D by sparse K-SVD.
 
@@ -122,6 +123,9 @@ def ksvd_denoise(
         Passed to :func:`sparse_ksvd`. Same input and seed ⇒ same output.
     return_info : bool
         Also return a :class:`DenoiseInfo`.
+    progress : bool, optional
+        tqdm bars of the training iterations and of the coding of every block (``None``: on a
+        terminal, for a stage that runs more than a second).
     """
     is_numpy = not isinstance(image_or_volume, Tensor)
     x = torch.as_tensor(np.asarray(image_or_volume) if is_numpy else image_or_volume)
@@ -199,7 +203,7 @@ def ksvd_denoise(
     dictionary, history = sparse_ksvd(
         train, base, n_atoms=L, atom_sparsity=T, tol=tol, n_nonzero_coefs=cap, n_iter=n_iter,
         init="identity" if L <= base.n_in else "data", mu_thresh=mu_thresh, seed=seed,
-        return_info=True,
+        return_info=True, progress=progress,
     )
     del train
 
@@ -210,7 +214,7 @@ def ksvd_denoise(
     D = dictionary.matrix(dtype=x.dtype, device=x.device)
     codes, oinfo = batch_omp(
         D, blocks, n_nonzero_coefs=cap, tol=tol, gram=dictionary.gram(), Dty=dictionary.adjoint(blocks),
-        return_info=True,
+        return_info=True, progress=progress,
     )
     clean = codes @ D.T + dc
     total, count = accumulate_patches(clean, tuple(x.shape), block, stp)

@@ -124,6 +124,7 @@ def sparse_ksvd(
     mu_thresh: float = 0.99,
     seed: int = 0,
     return_info: bool = False,
+    progress: bool | None = None,
 ) -> SparseDictionary | tuple[SparseDictionary, KSVDInfo]:
     """Train a sparse dictionary ``D = B A`` on the rows of ``X`` (Eq. 21, sparse K-SVD).
 
@@ -155,6 +156,9 @@ def sparse_ksvd(
         Seeds the atom order and the data initialisation: same inputs and seed ⇒ same dictionary.
     return_info : bool
         Also return a :class:`KSVDInfo`.
+    progress : bool, optional
+        A tqdm bar of the iterations, with the training RMSE (``None``: on a terminal, after a
+        second; see :mod:`cssat._progress`).
     """
     if not isinstance(base, KroneckerOperator):
         raise TypeError("base: expected a KroneckerOperator (a separable base dictionary)")
@@ -195,7 +199,7 @@ def sparse_ksvd(
         if dense_atoms:
             a = v.clone()
         else:
-            a = batch_omp(Bm, v, n_nonzero_coefs=T, gram=baseG, Dty=Bm.T @ v)
+            a = batch_omp(Bm, v, n_nonzero_coefs=T, gram=baseG, Dty=Bm.T @ v, progress=False)
         nd = torch.linalg.vector_norm(Bm @ a)
         return a / nd if float(nd) > 0 else a
 
@@ -217,20 +221,23 @@ def sparse_ksvd(
         if dense_atoms:
             A = Xi.T.clone()
         else:
-            A = batch_omp(Bm, Xi, n_nonzero_coefs=T, gram=baseG, Dty=base.adjoint(Xi)).T.contiguous()
+            A = batch_omp(Bm, Xi, n_nonzero_coefs=T, gram=baseG, Dty=base.adjoint(Xi), progress=False).T.contiguous()
     else:
         raise ValueError(f"init: expected 'identity', 'data' or a matrix, got {init!r}")
     dn = torch.linalg.vector_norm(Bm @ A, dim=0)
     A = A / torch.where(dn > 0, dn, torch.ones_like(dn))
 
+    from cssat._progress import progress_bar
+
     info = KSVDInfo([], [], [])
     BtX = base.adjoint(X)  # (n, K0): Bᵀx once; Dᵀx = Aᵀ(Bᵀx) every iteration
-    for _ in range(int(n_iter)):
+    bar = progress_bar(None, f"K-SVD ({L} atoms, {n} blocks)", progress, unit="iter", iterable=range(int(n_iter)))
+    for _ in bar:
         # ---- sparse coding (all blocks at once) ----
         D = Bm @ A  # (p, L)
         G = A.T @ _base_gram(base, A)  # DᵀD through the separable BᵀB
         Gamma, oinfo = batch_omp(
-            D, X, n_nonzero_coefs=cap, tol=tol, gram=G, Dty=BtX @ A, return_info=True
+            D, X, n_nonzero_coefs=cap, tol=tol, gram=G, Dty=BtX @ A, return_info=True, progress=False
         )
         info.mean_atoms.append(float(oinfo.n_iter.double().mean()))
         residual = oinfo.residual_sq.clone()  # per-block coding error: picks replacement blocks
@@ -268,6 +275,7 @@ def sparse_ksvd(
         R = X - Gamma @ D.T
         err = (R * R).sum(1)
         info.rmse.append(float(torch.sqrt(err.sum() / (n * p))))
+        bar.set_postfix(rmse=f"{info.rmse[-1]:.4g}", refresh=False)
 
         # ---- clean the dictionary: rarely used or near-duplicate atoms ----
         residual = err
@@ -291,6 +299,7 @@ def sparse_ksvd(
                     Gd[j, :] = col
                     n_clear += 1
         info.replaced.append(int(replaced.sum()) + n_clear)
+    bar.close()
 
     out = SparseDictionary(base, A)
     return (out, info) if return_info else out
@@ -306,14 +315,16 @@ def ksvd(
     mu_thresh: float = 0.99,
     seed: int = 0,
     return_info: bool = False,
+    progress: bool | None = None,
 ):
     """Plain (approximate) K-SVD: :func:`sparse_ksvd` with ``B = I`` and dense atoms, initialised
     from ``n_atoms`` random training blocks (normalised). Returns a :class:`SparseDictionary`
-    whose ``A`` is the dictionary ``D (p, n_atoms)`` itself."""
+    whose ``atoms`` are the dictionary ``D (p, n_atoms)`` itself."""
     p = X.shape[-1] if X.ndim == 2 else -1
     _check_signals(X, p)
     eye = KroneckerOperator([torch.eye(p, dtype=X.dtype)])
     return sparse_ksvd(
         X, eye, n_atoms=n_atoms, atom_sparsity=p, tol=tol, n_nonzero_coefs=n_nonzero_coefs,
         n_iter=n_iter, init="data", mu_thresh=mu_thresh, seed=seed, return_info=return_info,
+        progress=progress,
     )

@@ -86,6 +86,7 @@ def batch_omp(
     chunk_size: int | None = None,
     backend: str = "auto",
     return_info: bool = False,
+    progress: bool | None = None,
 ) -> Tensor | tuple[Tensor, OMPInfo]:
     """Orthogonal matching pursuit for a batch of signals (Batch-OMP; no Python loop over signals).
 
@@ -125,6 +126,9 @@ def batch_omp(
         bound by the ``Dᵀr`` products, which BLAS already streams at memory speed).
     return_info : bool
         Also return an :class:`OMPInfo`.
+    progress : bool, optional
+        A tqdm bar of the atoms selected (up to ``B K``), on either path: ``None`` shows it on a
+        terminal once the call has run a second, ``True`` always, ``False`` never.
 
     Returns
     -------
@@ -221,41 +225,45 @@ def batch_omp(
         chunk_size = int(max(1, min(256 if D.device.type == "cpu" else 65536, budget // max(per_signal, 1))))
     chunk_size = max(1, int(chunk_size))
 
-    if use_gram:
-        G = as_float_tensor(gram).to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
-        if tuple(G.shape) != (n_atoms, n_atoms):
-            raise ValueError(f"gram: expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
-        if Dty is not None:
-            if Dty.numel() != B * n_atoms:
-                raise ValueError(f"Dty: expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
-            A0 = as_float_tensor(Dty).reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
+    from cssat._progress import progress_bar
+
+    path = "gram" if use_gram else "nogram"
+    with progress_bar(B * K, f"OMP ({path}, {B} signal{'s' if B != 1 else ''}, K={K})", progress, unit="atom") as bar:
+        if use_gram:
+            G = as_float_tensor(gram).to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
+            if tuple(G.shape) != (n_atoms, n_atoms):
+                raise ValueError(f"gram: expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
+            if Dty is not None:
+                if Dty.numel() != B * n_atoms:
+                    raise ValueError(f"Dty: expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
+                A0 = as_float_tensor(Dty).reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
+            else:
+                A0 = Y2 @ D
+            diag = torch.diagonal(G).clone()
+            ynorm2 = (Y2 * Y2).sum(1)
+            if use_numba:
+                _omp_numba.omp_gram(
+                    G.contiguous().numpy(), A0.contiguous().numpy(), ynorm2.numpy(), K, tol,
+                    out.numpy(), n_iter.numpy(), res_sq.numpy(), torch.get_num_threads(), _CAP0, bar,
+                )
+            else:
+                for s in range(0, B, chunk_size):
+                    e = min(s + chunk_size, B)
+                    omp_chunk(
+                        A0[s:e], ynorm2[s:e], None, G, None, diag, K, tol,
+                        out[s:e], n_iter[s:e], res_sq[s:e], bar,
+                    )
         else:
-            A0 = Y2 @ D
-        diag = torch.diagonal(G).clone()
-        ynorm2 = (Y2 * Y2).sum(1)
-        if use_numba:
-            _omp_numba.omp_gram(
-                G.contiguous().numpy(), A0.contiguous().numpy(), ynorm2.numpy(), K, tol,
-                out.numpy(), n_iter.numpy(), res_sq.numpy(), torch.get_num_threads(), _CAP0,
-            )
-            return _finish(out, n_iter, res_sq, squeeze, return_info, "gram")
-        for s in range(0, B, chunk_size):
-            e = min(s + chunk_size, B)
-            omp_chunk(
-                A0[s:e], ynorm2[s:e], None, G, None, diag, K, tol,
-                out[s:e], n_iter[s:e], res_sq[s:e],
-            )
-    else:
-        Dt = D.T  # (n_atoms, m): atom j is row j (contiguous when D is a transposed view)
-        diag = torch.linalg.vector_norm(D, dim=0) ** 2
-        for s in range(0, B, chunk_size):
-            e = min(s + chunk_size, B)
-            Yc = Y2[s:e]
-            omp_chunk(
-                correlate(Dt, Yc), (Yc * Yc).sum(1), Yc, None, Dt, diag, K, tol,
-                out[s:e], n_iter[s:e], res_sq[s:e],
-            )
-    return _finish(out, n_iter, res_sq, squeeze, return_info, "gram" if use_gram else "nogram")
+            Dt = D.T  # (n_atoms, m): atom j is row j (contiguous when D is a transposed view)
+            diag = torch.linalg.vector_norm(D, dim=0) ** 2
+            for s in range(0, B, chunk_size):
+                e = min(s + chunk_size, B)
+                Yc = Y2[s:e]
+                omp_chunk(
+                    correlate(Dt, Yc), (Yc * Yc).sum(1), Yc, None, Dt, diag, K, tol,
+                    out[s:e], n_iter[s:e], res_sq[s:e], bar,
+                )
+    return _finish(out, n_iter, res_sq, squeeze, return_info, path)
 
 
 def gram_matrix(D: Tensor, block: int = 512) -> Tensor:

@@ -87,6 +87,7 @@ def fista_l1(
     rtol: float = 1e-6,
     lipschitz: float | None = None,
     return_info: bool = False,
+    progress: bool | None = None,
 ):
     """ℓ1-regularised least squares by FISTA (Beck & Teboulle 2009):
     ``min_γ ½‖Aγ − y‖² + λ‖γ‖₁`` for every row of ``y``.
@@ -94,8 +95,11 @@ def fista_l1(
     ``A`` is the CS dictionary ``ΦΨ (m, n)`` as an operator or matrix; ``y (B, m)`` or ``(m,)``.
     ``λ = lam · ‖Aᵀy‖_∞`` per signal. The step is ``1/L`` with ``L = ‖A‖²`` from a power
     iteration (or ``lipschitz``). Stops when ``‖γₖ − γₖ₋₁‖ ≤ rtol ‖γₖ‖`` for every signal or after
-    ``max_iter`` iterations. Returns ``γ (B, n)`` (and a :class:`SolverInfo`).
+    ``max_iter`` iterations. Returns ``γ (B, n)`` (and a :class:`SolverInfo`). ``progress``: a
+    tqdm bar of the iterations (``None``: on a terminal, after a second).
     """
+    from cssat._progress import progress_bar
+
     op = _as_operator(A)
     y2, squeeze = _check(y, op.n_out, lam, max_iter, rtol)
     L = operator_norm_sq(op, dtype=y2.dtype, device=y2.device) if lipschitz is None else float(lipschitz)
@@ -108,7 +112,9 @@ def fista_l1(
     z = x.clone()
     t = 1.0
     objective, converged, k = [], False, 0
+    bar = progress_bar(int(max_iter), "FISTA (ℓ1)", progress, unit="iter")
     for k in range(1, int(max_iter) + 1):
+        bar.update()
         grad = op.adjoint(op(z) - y2)
         v = z - grad / L
         x_new = torch.sign(v) * torch.clamp(v.abs() - thr, min=0)
@@ -122,6 +128,7 @@ def fista_l1(
         if bool((change <= rtol).all()):
             converged = True
             break
+    bar.close()
     log.debug("fista_l1: %d iterations, converged=%s", k, converged)
     out = x[0] if squeeze else x
     if return_info:
@@ -158,6 +165,7 @@ def tv_pdhg(
     max_iter: int = 1000,
     rtol: float = 1e-5,
     return_info: bool = False,
+    progress: bool | None = None,
 ):
     """Isotropic total variation by the primal–dual method of Chambolle & Pock (2011):
     ``min_x ½‖Φx − y‖² + λ TV(x)`` (``+ x ≥ 0`` when ``nonneg``), ``TV(x) = Σ ‖(∇x)ᵢ‖₂``.
@@ -165,8 +173,11 @@ def tv_pdhg(
     ``phi (m, N)`` as an operator or matrix; ``y (B, m)`` or ``(m,)``; images of ``shape (H, W)``.
     ``λ = lam · ‖Φᵀy‖_∞`` per signal. Step sizes ``σ = τ = 0.99 / ‖K‖`` with
     ``‖K‖² ≤ ‖Φ‖² + 8`` for ``K = [Φ; ∇]``. Stops when ``‖xₖ − xₖ₋₁‖ ≤ rtol ‖xₖ‖`` for every signal.
-    Returns images ``(B, H, W)`` or ``(H, W)`` (and a :class:`SolverInfo`).
+    Returns images ``(B, H, W)`` or ``(H, W)`` (and a :class:`SolverInfo`). ``progress`` as in
+    :func:`fista_l1`.
     """
+    from cssat._progress import progress_bar
+
     op = _as_operator(phi)
     H, W = (int(s) for s in shape)
     if H * W != op.n_in:
@@ -183,7 +194,9 @@ def tv_pdhg(
     p = torch.zeros(B, 2, H, W, dtype=y2.dtype, device=y2.device)
     q = torch.zeros_like(y2)
     objective, converged, k = [], False, 0
+    bar = progress_bar(int(max_iter), "TV (Chambolle-Pock)", progress, unit="iter")
     for k in range(1, int(max_iter) + 1):
+        bar.update()
         p = p + sigma * tv_gradient(xbar)
         norm = torch.sqrt((p * p).sum(1, keepdim=True))
         p = p / torch.clamp(norm / lam_abs.clamp_min(torch.finfo(p.dtype).tiny), min=1.0)
@@ -202,6 +215,7 @@ def tv_pdhg(
         if bool((change <= rtol).all()):
             converged = True
             break
+    bar.close()
     log.debug("tv_pdhg: %d iterations, converged=%s", k, converged)
     out = x[0] if squeeze else x
     if return_info:
@@ -219,6 +233,7 @@ def pnp_pgd(
     sigmas: Sequence[float],
     x0: Tensor | None = None,
     return_info: bool = False,
+    progress: bool | None = None,
 ):
     """Plug-and-play proximal gradient (Venkatakrishnan et al. 2013; PnP-ISTA):
     ``xₖ₊₁ = D(xₖ − Φᵀ(Φxₖ − y)/L, σₖ)`` with a decreasing noise level ``σₖ`` (image units).
@@ -228,7 +243,10 @@ def pnp_pgd(
     (the gradient steps are batched, the denoiser runs image by image); ``x0`` the start
     (default ``0``). One iteration per ``σ`` in ``sigmas``. Returns ``(B, H, W)`` or ``(H, W)``
     (and a :class:`SolverInfo` whose objective is the summed data misfit ``½‖Φx − y‖²``).
+    ``progress`` as in :func:`fista_l1`.
     """
+    from cssat._progress import progress_bar
+
     op = _as_operator(phi)
     H, W = (int(s) for s in shape)
     if H * W != op.n_in:
@@ -244,7 +262,7 @@ def pnp_pgd(
     B = y2.shape[0]
     x = torch.zeros(B, H * W, dtype=y2.dtype, device=y2.device) if x0 is None else x0.reshape(B, -1).to(y2)
     misfit = []
-    for s in sigmas:
+    for s in progress_bar(None, "PnP", progress, unit="iter", iterable=sigmas):
         v = (x - op.adjoint(op(x) - y2) / L).reshape(B, H, W)  # the gradient step, batched
         x = torch.stack([torch.as_tensor(denoiser(v[b], s), dtype=y2.dtype, device=y2.device).reshape(-1)
                          for b in range(B)])  # the denoiser, image by image
