@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["image_panels", "sim1_figure", "sim2_figure", "sim3_figures", "solvers_figure", "realism_figures", "lightcurve_figure",
+__all__ = ["image_panels", "error_panels", "FIGURE_FORMATS", "sim1_figure", "sim2_figure", "sim3_figures", "solvers_figure", "realism_figures", "lightcurve_figure",
            "atmosphere_figure", "sweep_figure", "light_curve_image", "save_figure"]
 
 
@@ -23,11 +24,19 @@ def _figure(figsize):
     return Figure(figsize=figsize)
 
 
+#: the file formats :func:`save_figure` writes (the config's ``figure_format``)
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
 def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
-    """Save ``fig`` as PNG atomically (a reader sees the old file or the new one, never a part)."""
+    """Save ``fig`` atomically (a reader sees the old file or the new one, never a part) in the
+    format of ``path``'s suffix: ``.png`` (``dpi``), ``.pdf`` or ``.svg`` (vector)."""
     from cssat.experiments.common import _atomic
 
-    _atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png"))
+    fmt = Path(path).suffix.lstrip(".").lower()
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure_format: expected one of {list(FIGURE_FORMATS)}, got {fmt!r} (from {path})")
+    _atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=fmt))
 
 
 def light_curve_image(y: np.ndarray) -> np.ndarray:
@@ -39,6 +48,10 @@ def light_curve_image(y: np.ndarray) -> np.ndarray:
     return img.reshape(side, side)
 
 
+#: the colour-bar label of a target-like image (the targets are scaled to [0, 1])
+INTENSITY = "intensity (target scale, 0–1)"
+
+
 def image_panels(
     panels: Sequence[tuple],
     *,
@@ -47,26 +60,35 @@ def image_panels(
     panel_size: tuple[float, float] = (3.1, 3.4),
     row_labels: Sequence[str] | None = None,
     title_size: int = 10,
+    colorbar_label: str | None = INTENSITY,
 ):
-    """A grid of gray images: ``panels`` are ``(image, title)`` or ``(image, title, (vmin, vmax))``
-    (``None`` limits: the image's own range; a ``None`` image leaves the cell empty), filled row
-    by row into ``ncols`` columns (default: all in one row)."""
+    """A grid of images, each with a colour bar: ``panels`` are ``(image, title[, limits[, label[,
+    cmap]]])`` — ``limits`` ``(vmin, vmax)`` (default ``(0, 1)``; ``None``: the image's own
+    range), ``label`` the colour bar's (default ``colorbar_label``; ``None``: no bar), ``cmap``
+    (default gray). A ``None`` image leaves the cell empty. Filled row by row into ``ncols``
+    columns (default: all in one row)."""
     n = len(panels)
     ncols = ncols or n
     nrows = -(-n // ncols)
     fig = _figure((panel_size[0] * ncols, panel_size[1] * nrows))
-    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).reshape(nrows, ncols)
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False, gridspec_kw={"wspace": 0.45})).reshape(nrows, ncols)
     for k, ax in enumerate(axes.flat):
         ax.set_xticks([])
         ax.set_yticks([])
         if k >= n or panels[k][0] is None:
             ax.axis("off")
             continue
-        img, text, *lim = panels[k]
-        lim = lim[0] if lim else (0.0, 1.0)
+        img, text, *rest = panels[k]
+        lim = rest[0] if len(rest) > 0 else (0.0, 1.0)
+        label = rest[1] if len(rest) > 1 else colorbar_label
+        cmap = rest[2] if len(rest) > 2 else "gray"
         kw = {"vmin": lim[0], "vmax": lim[1]} if lim is not None else {}
-        ax.imshow(img, cmap="gray", interpolation="nearest", **kw)
+        im = ax.imshow(img, cmap=cmap, interpolation="nearest", **kw)
         ax.set_title(text, fontsize=9)
+        if label is not None:
+            cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03)
+            cb.set_label(label, fontsize=7)
+            cb.ax.tick_params(labelsize=7)
     for i, label in enumerate(row_labels or []):
         axes[i, 0].set_ylabel(label, fontsize=9)
     if title:
@@ -74,18 +96,45 @@ def image_panels(
     return fig
 
 
-def lightcurve_figure(minutes, mag, images, marks, times, sunlit):
-    """The paper's Fig. 4: rendered images at the marked steps above the atmosphere-free light
-    curve in magnitudes, with the Earth's shadow shaded."""
+def error_panels(truth, estimates: Sequence[tuple[Any, str]]) -> list[tuple]:
+    """Panels of the error maps ``|x̂ − x|`` of ``estimates`` (``(image, title)``) against
+    ``truth``, on one colour scale (0 to the largest error of any of them) so they compare."""
+    errs = [None if e is None else np.abs(np.asarray(e, dtype=float) - np.asarray(truth, dtype=float)) for e, _ in estimates]
+    top = max([float(e.max()) for e in errs if e is not None] + [1e-12])
+    return [(None, "") if e is None else (e, f"|x̂ − x|: {t}", (0.0, top), "absolute error (target scale)", "magma")
+            for e, (_, t) in zip(errs, estimates)]
+
+
+def _scale_bar(ax, fov_m: float, size: int) -> None:
+    """A white scale bar of a round length (1, 2 or 5 × 10ᵏ m) near a quarter of the field."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    target = fov_m / 4
+    k = 10 ** math.floor(math.log10(target))
+    length = max((f * k for f in (1, 2, 5) if f * k <= target), default=k)
+    text = f"{length:g} m" if length >= 1 else f"{length * 100:g} cm"
+    ax.add_artist(AnchoredSizeBar(ax.transData, length / fov_m * size, text, "lower left", pad=0.3, color="w",
+                                  frameon=False, size_vertical=max(size / 120, 0.5), fontproperties={"size": 7}))
+
+
+def lightcurve_figure(minutes, mag, images, marks, times, sunlit, fov_m: float | None = None):
+    """The paper's Fig. 4: rendered images at the marked steps (pixel flux in W/m² at the
+    observer, a scale bar in metres when ``fov_m``, the field of view, is given) above the
+    atmosphere-free light curve in magnitudes, with the Earth's shadow shaded."""
     n = len(marks)
-    fig = _figure((2.2 * n, 6.2))
+    fig = _figure((2.5 * n, 6.4))
     gs = fig.add_gridspec(2, n, height_ratios=[1, 1.25])
     for k, (step, img) in enumerate(zip(marks, images)):
         ax = fig.add_subplot(gs[0, k])
-        ax.imshow(img, cmap="gray", interpolation="nearest", vmin=0, vmax=max(float(img.max()), 1e-300))
+        im = ax.imshow(img, cmap="gray", interpolation="nearest", vmin=0, vmax=max(float(img.max()), 1e-300))
         ax.set_title(f"({k + 1}) {str(times[step])[11:16]} UTC", fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])
+        cb = fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, orientation="horizontal")
+        cb.set_label("pixel flux (W/m²)", fontsize=7)
+        cb.ax.tick_params(labelsize=6)
+        if fov_m is not None:
+            _scale_bar(ax, float(fov_m), img.shape[-1])
     ax = fig.add_subplot(gs[1, :])
     ax.plot(minutes, mag, color="k", lw=1)
     ax.plot(minutes[marks], mag[marks], "o", color="tab:red")
@@ -96,29 +145,48 @@ def lightcurve_figure(minutes, mag, images, marks, times, sunlit):
         ax.axvspan(minutes[ecl][0], minutes[ecl][-1], color="0.85", label="Earth shadow")
         ax.legend(loc="lower right", fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel("minutes since " + str(times[0])[:16].replace("T", " ") + " UTC")
-    ax.set_ylabel("apparent magnitude")
+    ax.set_xlabel(_since(times[0]))
+    ax.set_ylabel("apparent magnitude (V; brighter up)")
     ax.set_title("(b) simulated atmosphere-free light curve", fontsize=10)
     fig.suptitle("(a) synthetic images of the satellite at the marked times", fontsize=10, y=0.99)
     fig.tight_layout()
     return fig
 
 
-def atmosphere_figure(minutes, mag, mag_facetwise, mag_pixelwise, atmosphere: str = "gaussian"):
+def _since(epoch) -> str:
+    return "minutes since " + str(epoch)[:16].replace("T", " ") + " UTC"
+
+
+def atmosphere_figure(minutes, mag, mag_facetwise, mag_pixelwise, atmosphere: str = "gaussian", epoch=None):
     """The paper's Fig. 5: the atmosphere-free light curve against the facet-wise (Eq. 11) and
-    pixel-wise (Eq. 12) attenuated noisy ones, in magnitudes of ``|I|``."""
+    pixel-wise (Eq. 12) attenuated noisy ones, as magnitudes of the flux's size ``|I|`` (the
+    paper's zero-mean Φ makes the attenuated flux negative at times); ``epoch`` (UTC) labels the
+    time axis."""
     fig = _figure((9, 4))
     ax = fig.subplots()
     ax.plot(minutes, mag_pixelwise, color="tab:orange", lw=0.6, label=f"simplified attenuated noisy LC (pixel-wise, Eq. 12, {atmosphere})")
     ax.plot(minutes, mag_facetwise, color="tab:blue", lw=0.6, label=f"attenuated noisy LC (facet-wise, Eq. 11, {atmosphere})")
     ax.plot(minutes, mag, color="k", lw=1.2, label="atmosphere-free (Eq. 10)")
     ax.invert_yaxis()
-    ax.set_xlabel("minutes")
-    ax.set_ylabel("apparent magnitude (of |I|)")
+    ax.set_xlabel(_since(epoch) if epoch is not None else "minutes")
+    ax.set_ylabel("measured flux |I| as apparent magnitude\n(V; brighter up)")
     ax.legend(fontsize=8, loc="lower right")
     ax.set_title("Atmosphere-free light curve and attenuated noisy light curves", fontsize=10)
     fig.tight_layout()
     return fig
+
+
+#: swept config keys, and metrics, in words for the sweep plots
+WORDS = {"cs.m": "m / N (measurement ratio)", "cs.ratio": "m / N (measurement ratio)",
+         "reference.n": "N_ref / N (references per pixel)", "target.size": "image size (pixels per side)",
+         "noise.relative": "relative noise level", "noise.magnitude": "V magnitude", "seed": "seed",
+         "psnr": "PSNR (dB)", "ssim": "SSIM", "psnr_denoised": "PSNR after denoising (dB)",
+         "ssim_denoised": "SSIM after denoising"}
+
+
+def _words(key: str) -> str:
+    """``key`` in words: :data:`WORDS`, else its last part with spaces (``atmosphere.r0_m`` → ``r0 m``)."""
+    return WORDS.get(key, key.rsplit(".", 1)[-1].replace("_", " "))
 
 
 def _axis(rows: Sequence[dict], key: str) -> tuple[list[Any], str]:
@@ -131,8 +199,7 @@ def _axis(rows: Sequence[dict], key: str) -> tuple[list[Any], str]:
         if key in ("cs.m", "reference.n") and isinstance(v, (int, float)) and npix:
             v = v / npix
         vals.append(v)
-    label = {"cs.m": "m / N (measurement ratio)", "reference.n": "N_ref / N (references per pixel)"}.get(key, key)
-    return vals, label
+    return vals, _words(key)
 
 
 def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr"):
@@ -142,7 +209,8 @@ def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr"):
     if not ok or not swept:
         return None
     numeric = [k for k in swept if all(isinstance(r.get(k), (int, float)) for r in ok)]
-    unit = f"{metric} (dB)" if "psnr" in metric else metric
+    unit = _words(metric) if metric in WORDS else (f"{metric} (dB)" if "psnr" in metric else metric)
+    what = unit.split(" (")[0]
     if len(numeric) >= 2:  # a phase-transition map over the first two numeric keys
         kx, ky = numeric[0], numeric[1]
         xs, lx = _axis(ok, kx)
@@ -163,7 +231,7 @@ def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr"):
         ax.set_xlabel(lx)
         ax.set_ylabel(ly)
         fig.colorbar(im, ax=ax, label=unit)
-        ax.set_title(f"{metric} over {lx.split(' (')[0]} × {ly.split(' (')[0]}", fontsize=10)
+        ax.set_title(f"{what} over {lx.split(' (')[0]} × {ly.split(' (')[0]}", fontsize=10)
         return fig
     key = numeric[0] if numeric else swept[0]
     xs, label = _axis(ok, key)
@@ -175,16 +243,16 @@ def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr"):
     ax = fig.subplots()
     for g, idx in groups.items():
         idx = sorted(idx, key=lambda i: (str(type(xs[i])), xs[i]))
-        name = ", ".join(f"{k}={v}" for k, v in zip(others, g))
-        ax.plot([xs[i] for i in idx], [ok[i][metric] for i in idx], "o-", label=f"{metric} {name}".strip())
+        name = ", ".join(f"{_words(k)} = {v}" for k, v in zip(others, g))
+        ax.plot([xs[i] for i in idx], [ok[i][metric] for i in idx], "o-", label=f"{what} {name}".strip())
         den = f"{metric}_denoised"
         if all(isinstance(ok[i].get(den), (int, float)) for i in idx):
-            ax.plot([xs[i] for i in idx], [ok[i][den] for i in idx], "s--", label=f"{den} {name}".strip())
+            ax.plot([xs[i] for i in idx], [ok[i][den] for i in idx], "s--", label=f"{what}, denoised {name}".strip())
     ax.set_xlabel(label)
     ax.set_ylabel(unit)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title(f"{metric} against {label.split(' (')[0]}", fontsize=10)
+    ax.set_title(f"{what} against {label.split(' (')[0]}", fontsize=10)
     return fig
 
 
@@ -203,51 +271,69 @@ def _solver_title(metrics: dict) -> str:
 
 def sim1_figure(y, rec, den, truth, metrics: dict):
     """The paper's Fig. 9 (one row): the light curve as an image, the reconstruction, the
-    denoised reconstruction and the truth."""
+    denoised reconstruction and the truth; below them the error maps ``|x̂ − x|``."""
     return image_panels([
-        (light_curve_image(np.asarray(y)), f"light curve y (m = {metrics['m']})", None),
+        (light_curve_image(np.asarray(y)), f"light curve y (m = {metrics['m']})", None, "flux y (Φx, arbitrary units)"),
         (rec, f"reconstruction\nPSNR {metrics['psnr']:.2f} dB, SSIM {metrics['ssim']:.3f}"),
         (den, f"denoised ({metrics['denoiser']})\nPSNR {metrics['psnr_denoised']:.2f} dB, SSIM {metrics['ssim_denoised']:.3f}"),
         (truth, f"truth ({metrics['n']}×{metrics['n']})"),
-    ], title="Simulation 1: " + _solver_title(metrics), panel_size=(3.125, 3.4))
+        (None, ""), *error_panels(truth, [(rec, "reconstruction"), (den, "denoised")]), (None, ""),
+    ], ncols=4, title="Simulation 1: " + _solver_title(metrics), panel_size=(3.4, 3.4))
 
 
 def sim2_figure(truth, rec, den, metrics: dict):
-    """The paper's Fig. 11: truth, reconstruction from the full-rank Φ̂, denoised."""
+    """The paper's Fig. 11: truth, reconstruction from the full-rank Φ̂, denoised; below them
+    the error maps."""
     return image_panels([
         (truth, f"truth ({metrics['n']}×{metrics['n']})"),
         (rec, f"reconstruction\nPSNR {metrics['psnr']:.2f} dB"),
         (den, f"denoised ({metrics['denoiser']})\nPSNR {metrics['psnr_denoised']:.2f} dB ({metrics['psnr_gain_denoised']:+.2f})"),
-    ], title=f"Simulation 2: full-rank Φ̂ (N_ref = {metrics['reference_n']}, ‖Φ̂−Φ‖/‖Φ‖ = "
-             f"{metrics['phi_relative_error']:.1e}), m = {metrics['m']}, " + _solver_title(metrics),
-       panel_size=(3.17, 3.6), title_size=9)
+        (None, ""), *error_panels(truth, [(rec, "reconstruction"), (den, "denoised")]),
+    ], ncols=3, title=f"Simulation 2: full-rank Φ̂ (N_ref = {metrics['reference_n']}, ‖Φ̂−Φ‖/‖Φ‖ = "
+                      f"{metrics['phi_relative_error']:.1e}), m = {metrics['m']}, " + _solver_title(metrics),
+       panel_size=(3.4, 3.5), title_size=9)
 
 
 def sim3_figures(truth, stack, den2, den3, per: list[dict], psnr3: list[float], best: int, metrics: dict):
-    """The paper's Fig. 13 (the repeats' raw results) and Fig. 14 (truth, best raw, its 2-D and
-    3-D denoised versions): two figures."""
+    """The paper's Fig. 13 (the repeats' raw results, each row of them over its row of error
+    maps) and Fig. 14 (truth, best raw, its 2-D and 3-D denoised versions, over their error
+    maps): two figures."""
     R = stack.shape[0]
-    fig13 = image_panels([(stack[k], f"slice {k + 1}: {per[k]['psnr']:.2f} dB") for k in range(R)],
-                         ncols=min(R, 3 if R <= 9 else 5), panel_size=(2.8, 2.9),
+    ncols = min(R, 3 if R <= 9 else 5)
+    results = [(stack[k], f"slice {k + 1}: {per[k]['psnr']:.2f} dB") for k in range(R)]
+    errors = error_panels(truth, [(stack[k], f"slice {k + 1}") for k in range(R)])
+    panels = []
+    for start in range(0, R, ncols):  # a row of results, then the row of their errors
+        row = slice(start, start + ncols)
+        pad = [(None, "")] * (ncols - len(results[row]))
+        panels += results[row] + pad + errors[row] + pad
+    fig13 = image_panels(panels, ncols=ncols, panel_size=(3.0, 2.9),
                          title=f"Simulation 3: {R} noisy results (N_ref = {metrics['reference_n']} references each)")
     fig14 = image_panels([
         (truth, "(a) truth"),
         (stack[best], f"(b) best raw (slice {best + 1})\nPSNR {per[best]['psnr']:.2f} dB"),
         (den2[best], f"(c) 2-D denoised\nPSNR {per[best]['psnr_denoised']:.2f} dB ({metrics['gain_2d']:+.2f})"),
         (den3[best], f"(d) 3-D denoised\nPSNR {psnr3[best]:.2f} dB ({metrics['gain_3d_over_2d']:+.2f} over 2-D)"),
-    ], panel_size=(3.0, 3.5))
+        (None, ""), *error_panels(truth, [(stack[best], "(b)"), (den2[best], "(c)"), (den3[best], "(d)")]),
+    ], ncols=4, panel_size=(3.3, 3.5))
     return fig13, fig14
 
 
 def solvers_figure(truth, ms: Sequence[int], labels: Sequence[str], images: dict, rows: list[dict]):
-    """The solver comparison: rows = m, columns = solvers and the truth, PSNR and seconds in each panel."""
-    panels = []
+    """The solver comparison: per m a row of the solvers' reconstructions and the truth (PSNR and
+    seconds in each panel) over a row of their error maps (one colour scale for the figure)."""
+    recs, names = [], []
     for m in ms:
         for label in labels:
             r = next(r for r in rows if r["m"] == m and r["solver"] == label)
-            panels.append((images[f"{label}_m{m}"], f"{label}\n{r['psnr']:.2f} dB, {r['seconds']:.0f} s"))
-        panels.append((truth, "truth"))
-    return image_panels(panels, ncols=len(labels) + 1, panel_size=(2.4, 2.6), row_labels=[f"m = {m}" for m in ms],
+            recs.append((images[f"{label}_m{m}"], f"{label}\n{r['psnr']:.2f} dB, {r['seconds']:.0f} s"))
+            names.append((images[f"{label}_m{m}"], label))
+    errs = error_panels(truth, names)
+    panels, row_labels, k = [], [], len(labels)
+    for i, m in enumerate(ms):
+        panels += recs[i * k:(i + 1) * k] + [(truth, "truth")] + errs[i * k:(i + 1) * k] + [(None, "")]
+        row_labels += [f"m = {m}", f"m = {m}: error"]
+    return image_panels(panels, ncols=k + 1, panel_size=(2.7, 2.6), row_labels=row_labels,
                         title="Reconstruction solvers on Simulation 1's target")
 
 

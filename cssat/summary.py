@@ -97,9 +97,10 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
     return rows, swept
 
 
-def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | None = None) -> tuple[Path, Path | None]:
-    """Write ``summary.csv`` and ``summary_<metric>.png`` into ``sweep_dir``; return their paths.
-    ``collected``: the result of :func:`collect` when the caller has it already."""
+def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | None = None,
+              figure_format: str = "png") -> tuple[Path, Path | None]:
+    """Write ``summary.csv`` and ``summary_<metric>.<figure_format>`` into ``sweep_dir``; return
+    their paths. ``collected``: the result of :func:`collect` when the caller has it already."""
     from cssat.experiments.common import write_csv
     from cssat.plots import save_figure, sweep_figure
 
@@ -113,7 +114,7 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | No
     fig = sweep_figure(rows, swept, metric)
     png = None
     if fig is not None:
-        png = sweep_dir / f"summary_{metric}.png"
+        png = sweep_dir / f"summary_{metric}.{figure_format}"
         save_figure(fig, png)
     n_ok = sum(r.get("status") == "ok" for r in rows)
     log.info("sweep summary: %d jobs (%d ok) -> %s", len(rows), n_ok, csv_path)
@@ -151,16 +152,17 @@ class SummaryCallback(Callback):
         try:
             collected = collect(config.hydra.sweep.dir)
             SWEEP_FAILED = any(r.get("status") != "ok" for r in collected[0]) or not collected[0]
-            summarize(config.hydra.sweep.dir, self.metric, collected)
+            summarize(config.hydra.sweep.dir, self.metric, collected, str(config.get("figure_format") or "png"))
         except Exception as err:  # a summary must never turn a finished sweep into a failure
             log.error("sweep summary failed: %s (run cssat-summarize %s)", err, config.hydra.sweep.dir)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``cssat-summarize <sweep dir> [--metric psnr]``."""
+    """``cssat-summarize <sweep dir> [--metric psnr] [--format png|pdf|svg]``."""
     ap = argparse.ArgumentParser(prog="cssat-summarize", description="Summarise a cssat sweep directory.")
     ap.add_argument("sweep_dir", help="a multirun directory (outputs/multirun/<date>/<time>)")
     ap.add_argument("--metric", default="psnr", help="metric to plot (default: psnr)")
+    ap.add_argument("--format", default="png", choices=["png", "pdf", "svg"], help="figure format (default: png)")
     args = ap.parse_args(argv)
     d = Path(args.sweep_dir)
     if not d.is_dir():
@@ -173,7 +175,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not any(args.metric in r for r in rows):
         columns = sorted({k for r in rows for k in r if isinstance(r[k], (int, float)) and not isinstance(r[k], bool)})
         ap.error(f"--metric: no job has {args.metric!r}; numeric columns: {', '.join(columns) or 'none'}")
-    csv_path, png = summarize(d, args.metric, collected)
+    csv_path, png = summarize(d, args.metric, collected, args.format)
     print(csv_path)
     if png:
         print(png)

@@ -51,6 +51,9 @@ CASES = [
     ([*SIM3, "reference.model.cd=-1"], "reference.model.cd"),
     ([*SIM1, "atmosphere=phase_screen", "atmosphere.range_km=0"], "atmosphere.range_km"),
     ([*SIM1, "noise=photometric", "noise.throughput=2"], "noise.throughput"),
+    ([*SIM3, "figure_format=jpg"], "figure_format"),
+    ([*SIM3, "progress=sometimes"], "progress"),
+    ([*SIM1, "solver.progress=1"], "solver.progress"),
 ]
 
 

@@ -15,7 +15,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable
 
-from cssat.experiments.common import ConfigError, require_int, write_json
+from cssat.experiments.common import ConfigError, figure_format, progress_setting, require_int, write_json
 
 __all__ = ["EXPERIMENTS", "run_experiment", "config_sha", "provenance", "ConfigError"]
 
@@ -80,6 +80,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
             if module_name is None:
                 raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)} (or an experiment_module), got {name!r}")
             torch.set_num_threads(require_int(cfg.get("threads", 1), "threads", 1, 1024))
+            figure_format(cfg), progress_setting(cfg)  # settings every experiment reads, checked before any work
             try:
                 module = importlib.import_module(str(module_name))
             except ImportError as err:

@@ -81,6 +81,21 @@ def run_settings(cfg: Any, max_size: int = 4096):
     return dtype, device, seed, n, N, m
 
 
+def figure_format(cfg: Any) -> str:
+    """The config's ``figure_format``: ``png`` (default), ``pdf`` or ``svg``."""
+    from cssat.plots import FIGURE_FORMATS
+
+    fmt = cfg.get("figure_format", "png")
+    if fmt not in FIGURE_FORMATS:
+        raise ConfigError(f"figure_format: expected one of {list(FIGURE_FORMATS)}, got {fmt!r}")
+    return str(fmt)
+
+
+def figure_file(cfg: Any, out_dir: str | os.PathLike, stem: str) -> Path:
+    """``out_dir/figures/<stem>.<figure_format>``."""
+    return Path(out_dir) / "figures" / f"{stem}.{figure_format(cfg)}"
+
+
 def progress_setting(cfg: Any) -> bool | None:
     """The top-level ``progress`` flag (tqdm bars): ``true``, ``false`` or ``null`` (a terminal only)."""
     v = cfg.get("progress")

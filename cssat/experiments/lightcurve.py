@@ -67,9 +67,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     import torch
 
     from cssat.experiments.build import build, build_model
-    from cssat.experiments.common import require_int, torch_device, write_csv, write_npz
+    from cssat.experiments.common import figure_file, require_int, torch_device, write_csv, write_npz
     from cssat.experiments.resources import check_memory
-    from cssat.optics import apparent_magnitude, render, simulate_light_curve
+    from cssat.optics import apparent_magnitude, default_fov, render, simulate_light_curve
     from cssat.physics import Measurement
     from cssat.plots import atmosphere_figure, lightcurve_figure, save_figure
 
@@ -91,7 +91,8 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     timings["seconds_light_curve"] = time.perf_counter() - t
     t = time.perf_counter()
     # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
-    images = render(mesh, lc.sun, lc.observer, size, fov_m=cfg.render.get("fov_m"), brightness=lc.facets.to(device),
+    fov_m = cfg.render.get("fov_m") or default_fov(mesh)
+    images = render(mesh, lc.sun, lc.observer, size, fov_m=fov_m, brightness=lc.facets.to(device),
                     dtype=torch.float64, progress=progress_setting(cfg)).cpu()
     timings["seconds_render"] = time.perf_counter() - t
 
@@ -120,9 +121,10 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
         {"time_utc": f"{np.datetime_as_string(t, unit='s')}Z", "flux_W_m2": float(f), "magnitude": float(mm),
          "phase_angle_deg": float(a), "sunlit": float(s_), "elevation_deg": float(e)}
         for t, f, mm, a, s_, e in zip(scenario.times, flux.numpy(), mag, phase, scenario.sunlit, scenario.elevation_deg)])
-    save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, scenario.times, scenario.sunlit),
-                out_dir / "figures" / "fig4_lightcurve.png")
-    save_figure(atmosphere_figure(minutes, mag, mag_f, mag_p, getattr(atm, "name", "")), out_dir / "figures" / "fig5_atmosphere.png")
+    save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, scenario.times, scenario.sunlit, fov_m),
+                figure_file(cfg, out_dir, "fig4_lightcurve"))
+    save_figure(atmosphere_figure(minutes, mag, mag_f, mag_p, getattr(atm, "name", ""), epoch=epoch),
+                figure_file(cfg, out_dir, "fig5_atmosphere"))
     log.info("lightcurve: %d steps, %s (%d facets), magnitude %.2f..%.2f, eclipse %s-%s, %.1f s",
              len(scenario), mesh.name, len(mesh), metrics["magnitude_min"] or math.nan, metrics["magnitude_max"] or math.nan,
              metrics["eclipse_start_utc"], metrics["eclipse_end_utc"], sum(timings.values()))

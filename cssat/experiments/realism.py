@@ -32,7 +32,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.build import build, build_solver
-    from cssat.experiments.common import require_float, run_settings, write_csv
+    from cssat.experiments.common import figure_file, require_float, run_settings, write_csv
     from cssat.experiments.resources import check_memory
     from cssat.experiments.sim1 import memory_parts
     from cssat.physics import GaussianAtmosphere, Measurement, sensing_stats
@@ -94,7 +94,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     best = max((r_ for r_ in rows if r_["column"] == columns[-1][0] and r_["magnitude"] == min(mags)), key=lambda r_: r_["psnr"])
     metrics.update(psnr=best["psnr"], ssim=best["ssim"], best_solver=best["solver"])
     for name, fig in realism_figures(rows, stats, list(solvers), sizes, mags, n, flux_only).items():
-        save_figure(fig, out_dir / "figures" / f"realism_{name}.png")
+        save_figure(fig, figure_file(cfg, out_dir, f"realism_{name}"))
     return metrics
 
 

@@ -32,7 +32,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
-    from cssat.experiments.common import run_settings, write_npz
+    from cssat.experiments.common import figure_file, run_settings, write_npz
     from cssat.experiments.pipeline import phi_stats, reconstruct, scores
     from cssat.experiments.resources import check_memory
     from cssat.plots import save_figure, sim1_figure
@@ -63,7 +63,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     }
     write_npz(out_dir / "arrays.npz", truth=x, y=y, reconstruction=r.image, reconstruction_unclipped=r.raw,
               denoised=r.denoised, **r.arrays)
-    save_figure(sim1_figure(y.cpu().numpy(), r.image, r.denoised, x, metrics), out_dir / "figures" / "fig9_sim1.png")
+    save_figure(sim1_figure(y.cpu().numpy(), r.image, r.denoised, x, metrics), figure_file(cfg, out_dir, "fig9_sim1"))
     log.info(
         "sim1: PSNR %.2f dB (denoised %.2f dB, %s), SSIM %.3f, m=%d (%.0f%% of N=%d), %s, %.1f s",
         metrics["psnr"], metrics["psnr_denoised"], metrics["denoiser"], metrics["ssim"], m, 100 * m / N, N,

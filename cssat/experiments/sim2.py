@@ -43,7 +43,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
-    from cssat.experiments.common import ConfigError, require_int, run_settings, torch_dtype, write_npz
+    from cssat.experiments.common import ConfigError, figure_file, require_int, run_settings, torch_dtype, write_npz
     from cssat.experiments.pipeline import phi_stats, reconstruct, scores
     from cssat.experiments.refsets import reference_set, reference_settings
     from cssat.experiments.resources import check_memory, peak_rss_bytes
@@ -101,7 +101,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     }
     metrics["psnr_gain_denoised"] = metrics["psnr_denoised"] - metrics["psnr"]
     write_npz(out_dir / "arrays.npz", truth=x, y=y, reconstruction=r.image, denoised=r.denoised, **r.arrays)
-    save_figure(sim2_figure(x, r.image, r.denoised, metrics), out_dir / "figures" / "fig11_sim2.png")
+    save_figure(sim2_figure(x, r.image, r.denoised, metrics), figure_file(cfg, out_dir, "fig11_sim2"))
     log.info("sim2: ‖Φ̂−Φ‖/‖Φ‖ = %.2e, PSNR %.2f dB, denoised %.2f dB (%+.2f), peak RSS %.1f GB",
              phi_err, metrics["psnr"], metrics["psnr_denoised"], metrics["psnr_gain_denoised"], metrics["peak_rss_gb"])
     return metrics

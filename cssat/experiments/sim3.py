@@ -57,7 +57,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
-    from cssat.experiments.common import require_int, run_settings, write_npz
+    from cssat.experiments.common import figure_file, require_int, run_settings, write_npz
     from cssat.experiments.pipeline import denoise, phi_stats
     from cssat.experiments.refsets import reference_set, reference_settings
     from cssat.experiments.resources import check_memory, peak_rss_bytes
@@ -113,8 +113,8 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
                "denoiser": recs[-1].metrics["denoiser"], "denoiser_3d": dm3.get("denoiser"), **timings}
     write_npz(out_dir / "arrays.npz", truth=x, y=y, reconstructions=stack, denoised_2d=den2, denoised_3d=den3)
     fig13, fig14 = sim3_figures(x, stack, den2, den3, per, psnr3, metrics["best_repeat"], metrics)
-    save_figure(fig13, out_dir / "figures" / "fig13_sim3_results.png")
-    save_figure(fig14, out_dir / "figures" / "fig14_sim3_denoised.png")
+    save_figure(fig13, figure_file(cfg, out_dir, "fig13_sim3_results"))
+    save_figure(fig14, figure_file(cfg, out_dir, "fig14_sim3_denoised"))
     log.info("sim3: best repeat %d: PSNR %.2f dB, 2-D %.2f dB (%+.2f), 3-D %.2f dB (%+.2f over 2-D)", metrics["best_repeat"],
              metrics["psnr"], metrics["psnr_denoised"], metrics["gain_2d"], metrics["psnr_denoised_3d"], metrics["gain_3d_over_2d"])
     return metrics

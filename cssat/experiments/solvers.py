@@ -28,7 +28,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     from cssat.data import load_target
     from cssat.experiments.build import build_denoiser, build_measurement, build_solver
-    from cssat.experiments.common import ConfigError, require_int, run_settings, write_csv, write_npz
+    from cssat.experiments.common import ConfigError, figure_file, require_int, run_settings, write_csv, write_npz
     from cssat.experiments.pipeline import phi_stats, reconstruct, scores
     from cssat.experiments.resources import check_memory
     from cssat.experiments.sim1 import memory_parts
@@ -73,5 +73,5 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
 
     write_csv(out_dir / "comparison.csv", rows)
     write_npz(out_dir / "arrays.npz", truth=x, **images)
-    save_figure(solvers_figure(x, ms, labels, images, rows), out_dir / "figures" / "solvers.png")
+    save_figure(solvers_figure(x, ms, labels, images, rows), figure_file(cfg, out_dir, "solvers"))
     return metrics
