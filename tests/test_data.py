@@ -26,6 +26,50 @@ def test_reference_items_do_not_depend_on_order_batch_or_workers(refs):
     assert not torch.equal(other[0], single[0])
 
 
+def test_a_dataloader_fetches_a_batch_in_one_render(refs, monkeypatch):
+    calls = []
+    render_many = ReferenceImages.images
+    monkeypatch.setattr(ReferenceImages, "images", lambda self, idx: calls.append(list(idx)) or render_many(self, idx))
+    order = torch.Generator().manual_seed(3)
+    loader = DataLoader(refs, batch_size=5, shuffle=True, generator=order)
+    batches = list(loader)
+    assert [len(c) for c in calls] == [5, 5, 2]  # __getitems__: one vectorised render per batch
+    seen = [i for c in calls for i in c]
+    assert sorted(seen) == list(range(12))  # shuffled
+    calls.clear()
+    single = torch.stack([refs[i] for i in seen])  # item by item: the same values
+    torch.testing.assert_close(torch.cat(batches), single, rtol=0, atol=0)
+
+
+def test_channel_axis_and_training_pairs():
+    from cssat.physics import GaussianAtmosphere, GaussianNoise, Measurement, NoNoise
+
+    phi = GaussianAtmosphere().operator(40, 256, seed=2, dtype=torch.float32)
+    chan = ReferenceImages(tess_like(), size=16, length=6, seed=5, channel_axis=True)
+    plain = ReferenceImages(tess_like(), size=16, length=6, seed=5)
+    assert chan[0].shape == (1, 16, 16) and chan.batch(0, 6).shape == (6, 1, 16, 16)
+    torch.testing.assert_close(chan.batch(0, 6)[:, 0], plain.batch(0, 6), rtol=0, atol=0)
+    clean = ReferenceImages(tess_like(), size=16, length=6, seed=5, channel_axis=True,
+                            measurement=Measurement(phi, NoNoise()))
+    x, y = clean[2]
+    assert x.shape == (1, 16, 16) and y.shape == (40,)
+    torch.testing.assert_close(y, phi.matrix() @ x.reshape(-1))  # y = Φx, against the dense matrix
+    noisy = ReferenceImages(tess_like(), size=16, length=6, seed=5,
+                            measurement=Measurement(phi, GaussianNoise(relative=0.1)))
+    xb, yb = noisy.batch(0, 6)
+    assert xb.shape == (6, 16, 16) and yb.shape == (6, 40)
+    for i in (0, 3, 5):  # each pair is the same alone, in a batch (Φx to float32 rounding: BLAS
+        torch.testing.assert_close(noisy[i][0], xb[i], rtol=0, atol=0)  # blocks a batch differently)
+        torch.testing.assert_close(noisy[i][1], yb[i], rtol=1e-5, atol=1e-6)
+    xs, ys = next(iter(DataLoader(noisy, batch_size=6)))
+    torch.testing.assert_close(ys, yb, rtol=0, atol=0)
+    lit = [i for i in range(6) if float(xb[i].sum()) > 0]
+    noise = yb - xb.reshape(6, -1) @ phi.matrix().T
+    assert len(lit) >= 2 and not torch.allclose(noise[lit[0]], noise[lit[1]])  # independent noise per item
+    with pytest.raises(ValueError, match="measurement: its operator takes 256 pixels, the images have 8²"):
+        ReferenceImages(tess_like(), size=8, length=2, measurement=Measurement(phi))
+
+
 def test_reference_images_are_normalised_renders_plus_noise():
     clean = ReferenceImages(tess_like(), size=16, length=4, seed=1)
     noisy = ReferenceImages(tess_like(), size=16, length=4, seed=1, noise=0.1)

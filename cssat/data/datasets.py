@@ -26,10 +26,15 @@ class ReferenceImages(Dataset):
     ``size × size`` under random Sun and view directions (uniform on the sphere), with optional
     white Gaussian noise of standard deviation ``noise`` (as a fraction of the image's maximum).
 
-    Item ``i`` is a ``(size, size)`` float tensor; :meth:`batch` renders a range of items in one
-    vectorised call and gives the same values. All images share the field of view ``fov_m``
-    (default: the mesh's bounding sphere), hence the same scale. ``normalize`` divides each image
-    by its maximum (before noise), so images lie in [0, 1].
+    Item ``i`` is a ``(size, size)`` float tensor (``(1, size, size)`` with ``channel_axis``, the
+    ``(C, H, W)`` layout of deepinv and torchvision). With a ``measurement`` (a
+    :class:`cssat.physics.Measurement` of ``size²`` pixels) an item is the training pair
+    ``(x, y)``: the image and its light curve ``y = noise(Φx)``, the noise drawn from the item's
+    own generator. :meth:`batch` renders a range of items in one vectorised call and
+    ``__getitems__`` any list of them (what a ``DataLoader`` asks for), giving the same values as
+    item by item (``y`` to the rounding of a batched ``Φx``). All images share the field of view ``fov_m`` (default: the mesh's bounding
+    sphere), hence the same scale. ``normalize`` divides each image by its maximum (before
+    noise), so images lie in [0, 1].
     """
 
     def __init__(
@@ -43,6 +48,9 @@ class ReferenceImages(Dataset):
         shadows: bool = True,
         normalize: bool = True,
         dtype: torch.dtype = torch.float32,
+        *,
+        channel_axis: bool = False,
+        measurement=None,
     ):
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
             raise ValueError(f"reference.size: must be a positive integer, got {size!r}")
@@ -50,8 +58,17 @@ class ReferenceImages(Dataset):
             raise ValueError(f"reference.n: must be a non-negative integer, got {length!r}")
         if not noise >= 0:
             raise ValueError(f"reference.noise: must be >= 0, got {noise!r}")
+        if measurement is not None:
+            from cssat.physics import Measurement
+
+            if not isinstance(measurement, Measurement):
+                raise TypeError(f"measurement: expected a cssat.physics.Measurement, got {type(measurement).__name__}")
+            if measurement.shape[1] != size * size:
+                raise ValueError(f"measurement: its operator takes {measurement.shape[1]} pixels, the images have "
+                                 f"{size}² = {size * size}")
         self.mesh, self.size, self.length, self.seed = mesh, size, length, int(seed)
         self.noise, self.fov_m, self.shadows, self.normalize, self.dtype = float(noise), fov_m, shadows, normalize, dtype
+        self.channel_axis, self.measurement = bool(channel_axis), measurement
 
     def __len__(self) -> int:
         return self.length
@@ -63,15 +80,22 @@ class ReferenceImages(Dataset):
         d = random_unit_vectors(2, item_rng(self.seed, index, 0))
         return d[0], d[1]
 
-    def batch(self, start: int, stop: int) -> torch.Tensor:
-        """Items ``start .. stop-1`` as one ``(stop - start, size, size)`` tensor."""
+    def _index(self, index: int) -> int:
+        index = int(index)
+        if index < 0:
+            index += self.length
+        if not 0 <= index < self.length:
+            raise IndexError(f"index {index} outside [0, {self.length})")
+        return index
+
+    def images(self, indices) -> torch.Tensor:
+        """The images of ``indices`` (any order, repeats allowed) rendered in one vectorised
+        call: ``(len(indices), size, size)`` (no channel axis)."""
         from cssat.optics import render
 
-        idx = range(start, stop)
+        idx = [self._index(i) for i in indices]
         if not idx:
             return torch.zeros(0, self.size, self.size, dtype=self.dtype)
-        if start < 0 or stop > self.length:
-            raise IndexError(f"index range [{start}, {stop}) outside [0, {self.length})")
         dirs = [self.directions(i) for i in idx]
         sun = np.stack([d[0] for d in dirs])
         obs = np.stack([d[1] for d in dirs])
@@ -87,12 +111,44 @@ class ReferenceImages(Dataset):
                 img[k] += self.noise * float(scale[k]) * torch.from_numpy(g.standard_normal((self.size, self.size)))
         return img.to(self.dtype)
 
-    def __getitem__(self, index: int) -> torch.Tensor:
-        if index < 0:
-            index += self.length
-        if not 0 <= index < self.length:
-            raise IndexError(f"index {index} outside [0, {self.length})")
-        return self.batch(index, index + 1)[0]
+    def light_curves(self, indices, images: torch.Tensor) -> torch.Tensor:
+        """``y = noise(Φx)`` of ``images`` ``(B, size, size)`` of items ``indices`` under the
+        measurement: ``Φx`` batched, the noise of each item from its own generator (stream 3), so
+        a pair is the same in any batch. ``(B, m)``."""
+        meas = self.measurement
+        flat = images.reshape(len(images), -1)
+        y = meas.A(flat)
+        flux = flat.sum(-1)
+        for k, i in enumerate(indices):
+            gen = torch.Generator().manual_seed(int(item_rng(self.seed, self._index(i), 3).integers(0, 2**62)))
+            y[k] = meas.add_noise(y[k], gen, flux=flux[k])
+        return y
+
+    def __getitems__(self, indices) -> list:
+        """Items ``indices`` as a list, rendered (and measured) in one vectorised call: what a
+        ``DataLoader`` fetches for a batch, so loading is as fast as :meth:`batch`."""
+        x = self.images(indices)
+        y = self.light_curves(indices, x) if self.measurement is not None else None
+        if self.channel_axis:
+            x = x[:, None]
+        if y is None:
+            return list(x.unbind(0))
+        return list(zip(x.unbind(0), y.unbind(0)))
+
+    def batch(self, start: int, stop: int):
+        """Items ``start .. stop-1`` stacked: ``(B, size, size)`` (``(B, 1, size, size)`` with
+        ``channel_axis``), or the pair ``(x, y (B, m))`` with a ``measurement``."""
+        if start < 0 or stop > self.length or start > stop:
+            raise IndexError(f"index range [{start}, {stop}) outside [0, {self.length})")
+        idx = range(start, stop)
+        x = self.images(idx)
+        y = self.light_curves(idx, x) if self.measurement is not None else None
+        if self.channel_axis:
+            x = x[:, None]
+        return x if y is None else (x, y)
+
+    def __getitem__(self, index: int):
+        return self.__getitems__([index])[0]
 
 
 class LightCurves(Dataset):
