@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import hydra
 from omegaconf import DictConfig
@@ -18,7 +18,7 @@ from omegaconf import DictConfig
 log = logging.getLogger("cssat")
 
 
-def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize=None) -> float | None:
+def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Callable[[], None] | None = None) -> float | None:
     """Run one job of the app into ``output_dir`` and return the metric named by
     ``cfg.optimized_metric`` (default ``psnr``; ``None`` when it is null or not a number), the
     value a sweeper such as Optuna's optimises.

@@ -10,9 +10,12 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["image_panels", "error_panels", "FIGURE_FORMATS", "sim1_figure", "sim2_figure", "sim3_figures", "solvers_figure", "realism_figures", "lightcurve_figure",
            "atmosphere_figure", "sweep_figure", "light_curve_image", "save_figure"]
@@ -28,7 +31,7 @@ def _figure(figsize):
 FIGURE_FORMATS = ("png", "pdf", "svg")
 
 
-def save_figure(fig, path: str | os.PathLike, dpi: int = 120) -> None:
+def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 120) -> None:
     """Save ``fig`` atomically (a reader sees the old file or the new one, never a part) in the
     format of ``path``'s suffix: ``.png`` (``dpi``), ``.pdf`` or ``.svg`` (vector)."""
     from cssat.experiments.common import _atomic
@@ -61,7 +64,7 @@ def image_panels(
     row_labels: Sequence[str] | None = None,
     title_size: int = 10,
     colorbar_label: str | None = INTENSITY,
-):
+) -> Figure:
     """A grid of images, each with a colour bar: ``panels`` are ``(image, title[, limits[, label[,
     cmap]]])`` — ``limits`` ``(vmin, vmax)`` (default ``(0, 1)``; ``None``: the image's own
     range), ``label`` the colour bar's (default ``colorbar_label``; ``None``: no bar), ``cmap``
@@ -96,7 +99,7 @@ def image_panels(
     return fig
 
 
-def error_panels(truth, estimates: Sequence[tuple[Any, str]]) -> list[tuple]:
+def error_panels(truth: np.ndarray, estimates: Sequence[tuple[Any, str]]) -> list[tuple]:
     """Panels of the error maps ``|x̂ − x|`` of ``estimates`` (``(image, title)``) against
     ``truth``, on one colour scale (0 to the largest error of any of them) so they compare."""
     errs = [None if e is None else np.abs(np.asarray(e, dtype=float) - np.asarray(truth, dtype=float)) for e, _ in estimates]
@@ -117,7 +120,8 @@ def _scale_bar(ax, fov_m: float, size: int) -> None:
                                   frameon=False, size_vertical=max(size / 120, 0.5), fontproperties={"size": 7}))
 
 
-def lightcurve_figure(minutes, mag, images, marks, times, sunlit, fov_m: float | None = None):
+def lightcurve_figure(minutes: np.ndarray, mag: np.ndarray, images: np.ndarray, marks: Sequence[int], times: np.ndarray,
+                      sunlit: np.ndarray, fov_m: float | None = None) -> Figure:
     """The paper's Fig. 4: rendered images at the marked steps (pixel flux in W/m² at the
     observer, a scale bar in metres when ``fov_m``, the field of view, is given) above the
     atmosphere-free light curve in magnitudes, with the Earth's shadow shaded."""
@@ -157,7 +161,8 @@ def _since(epoch) -> str:
     return "minutes since " + str(epoch)[:16].replace("T", " ") + " UTC"
 
 
-def atmosphere_figure(minutes, mag, mag_facetwise, mag_pixelwise, atmosphere: str = "gaussian", epoch=None):
+def atmosphere_figure(minutes: np.ndarray, mag: np.ndarray, mag_facetwise: np.ndarray, mag_pixelwise: np.ndarray,
+                      atmosphere: str = "gaussian", epoch: np.datetime64 | str | None = None) -> Figure:
     """The paper's Fig. 5: the atmosphere-free light curve against the facet-wise (Eq. 11) and
     pixel-wise (Eq. 12) attenuated noisy ones, as magnitudes of the flux's size ``|I|`` (the
     paper's zero-mean Φ makes the attenuated flux negative at times); ``epoch`` (UTC) labels the
@@ -202,7 +207,7 @@ def _axis(rows: Sequence[dict], key: str) -> tuple[list[Any], str]:
     return vals, _words(key)
 
 
-def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr"):
+def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr") -> Figure | None:
     """The sweep plot: ``metric`` against one swept value (and ``<metric>_denoised`` dashed), or
     a map over the first two numeric swept values. ``None`` when no row has the metric."""
     ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get(metric), (int, float))]
@@ -269,7 +274,7 @@ def _solver_title(metrics: dict) -> str:
     return text
 
 
-def sim1_figure(y, rec, den, truth, metrics: dict):
+def sim1_figure(y: np.ndarray, rec: np.ndarray, den: np.ndarray, truth: np.ndarray, metrics: dict) -> Figure:
     """The paper's Fig. 9 (one row): the light curve as an image, the reconstruction, the
     denoised reconstruction and the truth; below them the error maps ``|x̂ − x|``."""
     return image_panels([
@@ -281,7 +286,7 @@ def sim1_figure(y, rec, den, truth, metrics: dict):
     ], ncols=4, title="Simulation 1: " + _solver_title(metrics), panel_size=(3.4, 3.4))
 
 
-def sim2_figure(truth, rec, den, metrics: dict):
+def sim2_figure(truth: np.ndarray, rec: np.ndarray, den: np.ndarray, metrics: dict) -> Figure:
     """The paper's Fig. 11: truth, reconstruction from the full-rank Φ̂, denoised; below them
     the error maps."""
     return image_panels([
@@ -294,7 +299,8 @@ def sim2_figure(truth, rec, den, metrics: dict):
        panel_size=(3.4, 3.5), title_size=9)
 
 
-def sim3_figures(truth, stack, den2, den3, per: list[dict], psnr3: list[float], best: int, metrics: dict):
+def sim3_figures(truth: np.ndarray, stack: np.ndarray, den2: np.ndarray, den3: np.ndarray, per: list[dict],
+                 psnr3: list[float], best: int, metrics: dict) -> tuple[Figure, Figure]:
     """The paper's Fig. 13 (the repeats' raw results, each row of them over its row of error
     maps) and Fig. 14 (truth, best raw, its 2-D and 3-D denoised versions, over their error
     maps): two figures."""
@@ -319,7 +325,7 @@ def sim3_figures(truth, stack, den2, den3, per: list[dict], psnr3: list[float], 
     return fig13, fig14
 
 
-def solvers_figure(truth, ms: Sequence[int], labels: Sequence[str], images: dict, rows: list[dict]):
+def solvers_figure(truth: np.ndarray, ms: Sequence[int], labels: Sequence[str], images: dict, rows: list[dict]) -> Figure:
     """The solver comparison: per m a row of the solvers' reconstructions and the truth (PSNR and
     seconds in each panel) over a row of their error maps (one colour scale for the figure)."""
     recs, names = [], []

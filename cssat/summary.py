@@ -13,7 +13,10 @@ import argparse
 import json
 import logging
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
+
+if TYPE_CHECKING:
+    from omegaconf import DictConfig
 
 log = logging.getLogger("cssat")
 
@@ -138,7 +141,7 @@ class SummaryCallback(Callback):
     def __init__(self, metric: str = "psnr"):
         self.metric = metric
 
-    def on_multirun_start(self, config, **kwargs) -> None:
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         import uuid
 
         from cssat.experiments.common import _atomic
@@ -147,7 +150,7 @@ class SummaryCallback(Callback):
         d.mkdir(parents=True, exist_ok=True)
         _atomic(d / SWEEP_MARK, lambda tmp: Path(tmp).write_text(uuid.uuid4().hex + "\n"))
 
-    def on_multirun_end(self, config, **kwargs) -> None:
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         global SWEEP_FAILED
         try:
             collected = collect(config.hydra.sweep.dir)

@@ -10,8 +10,16 @@ from __future__ import annotations
 import numpy as np
 import torch
 from torch.utils.data import Dataset
+from typing import TYPE_CHECKING
 
 from cssat.scene.mesh import Mesh
+
+if TYPE_CHECKING:
+    from typing import Sequence
+
+    from cssat.physics import Atmosphere, Measurement, NoiseModel
+    from cssat.scene import Scenario
+
 
 __all__ = ["ReferenceImages", "LightCurves", "item_rng"]
 
@@ -50,7 +58,7 @@ class ReferenceImages(Dataset):
         dtype: torch.dtype = torch.float32,
         *,
         channel_axis: bool = False,
-        measurement=None,
+        measurement: Measurement | None = None,
     ):
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
             raise ValueError(f"reference.size: must be a positive integer, got {size!r}")
@@ -88,7 +96,7 @@ class ReferenceImages(Dataset):
             raise IndexError(f"index {index} outside [0, {self.length})")
         return index
 
-    def images(self, indices) -> torch.Tensor:
+    def images(self, indices: Sequence[int]) -> torch.Tensor:
         """The images of ``indices`` (any order, repeats allowed) rendered in one vectorised
         call: ``(len(indices), size, size)`` (no channel axis)."""
         from cssat.optics import render
@@ -111,7 +119,7 @@ class ReferenceImages(Dataset):
                 img[k] += self.noise * float(scale[k]) * torch.from_numpy(g.standard_normal((self.size, self.size)))
         return img.to(self.dtype)
 
-    def light_curves(self, indices, images: torch.Tensor) -> torch.Tensor:
+    def light_curves(self, indices: Sequence[int], images: torch.Tensor) -> torch.Tensor:
         """``y = noise(Φx)`` of ``images`` ``(B, size, size)`` of items ``indices`` under the
         measurement: ``Φx`` batched, the noise of each item from its own generator (stream 3), so
         a pair is the same in any batch. ``(B, m)``."""
@@ -124,7 +132,7 @@ class ReferenceImages(Dataset):
             y[k] = meas.add_noise(y[k], gen, flux=flux[k])
         return y
 
-    def __getitems__(self, indices) -> list:
+    def __getitems__(self, indices: Sequence[int]) -> list:
         """Items ``indices`` as a list, rendered (and measured) in one vectorised call: what a
         ``DataLoader`` fetches for a batch, so loading is as fast as :meth:`batch`."""
         x = self.images(indices)
@@ -135,7 +143,7 @@ class ReferenceImages(Dataset):
             return list(x.unbind(0))
         return list(zip(x.unbind(0), y.unbind(0)))
 
-    def batch(self, start: int, stop: int):
+    def batch(self, start: int, stop: int) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
         """Items ``start .. stop-1`` stacked: ``(B, size, size)`` (``(B, 1, size, size)`` with
         ``channel_axis``), or the pair ``(x, y (B, m))`` with a ``measurement``."""
         if start < 0 or stop > self.length or start > stop:
@@ -147,7 +155,7 @@ class ReferenceImages(Dataset):
             x = x[:, None]
         return x if y is None else (x, y)
 
-    def __getitem__(self, index: int):
+    def __getitem__(self, index: int) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
         return self.__getitems__([index])[0]
 
 
@@ -163,8 +171,9 @@ class LightCurves(Dataset):
     (a :class:`cssat.physics.NoiseModel`, default none). With ``images=True`` also the renders.
     """
 
-    def __init__(self, mesh: Mesh, scenario, length: int, seed: int = 0, atmosphere="default",
-                 noise=None, images: bool = False, size: int = 64, shadows: bool = True):
+    def __init__(self, mesh: Mesh, scenario: Scenario, length: int, seed: int = 0,
+                 atmosphere: Atmosphere | str | None = "default", noise: NoiseModel | None = None,
+                 images: bool = False, size: int = 64, shadows: bool = True):
         from cssat.optics import simulate_light_curve
         from cssat.physics import Atmosphere, GaussianAtmosphere, NoiseModel
 

@@ -3,8 +3,15 @@
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from cssat.scene import Mesh
+
 
 __all__ = ["BUILTIN_IMAGES", "load_target"]
 
@@ -23,7 +30,7 @@ def render_tess(size: int) -> np.ndarray:
     return render_exposed(tess_like(), size)
 
 
-def render_exposed(mesh, size: int, view: dict = TESS_VIEW) -> np.ndarray:
+def render_exposed(mesh: Mesh | trimesh.Trimesh, size: int, view: dict = TESS_VIEW) -> np.ndarray:
     """``mesh`` rendered at ``size × size`` (flat shading, shadows, the model's bounding-sphere field
     of view) from ``view`` (body-frame ``sun`` and ``observer`` directions), exposed like a
     photograph: scaled so the 99th percentile of the lit pixels is 1 and clipped there (a few

@@ -4,9 +4,15 @@ errors turned into :class:`ConfigError`\\ s that name the field, before any work
 from __future__ import annotations
 
 import re
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from cssat.experiments.common import ConfigError
+
+if TYPE_CHECKING:
+    import torch
+
+    from cssat.physics import Measurement
+
 
 __all__ = ["build", "build_solver", "build_denoiser", "build_measurement", "build_atmosphere", "build_model"]
 
@@ -79,8 +85,8 @@ def build_atmosphere(cfg: Any, emitters: str = "pixels", experiment: str = "") -
     return atm
 
 
-def build_measurement(cfg: Any, m: int, n_pixels: int, seed: int, dtype, device, *, atmosphere: Any = None,
-                      sensing_dtype=None, experiment: str = ""):
+def build_measurement(cfg: Any, m: int, n_pixels: int, seed: int, dtype: torch.dtype, device: torch.device | str, *,
+                      atmosphere: Any = None, sensing_dtype: torch.dtype | None = None, experiment: str = "") -> Measurement:
     """The :class:`cssat.physics.Measurement` of an image experiment: ``Φ (m, n_pixels)`` drawn by
     the ``atmosphere`` group from ``seed``, and the ``noise`` group seeded with ``seed + 1``.
     ``sensing_dtype`` draws Φ in another dtype than ``dtype`` (it is then cast to ``dtype``)."""

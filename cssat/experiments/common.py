@@ -6,9 +6,15 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import torch
+
+    from cssat._types import Array
+
 
 __all__ = [
     "ConfigError",
@@ -48,7 +54,7 @@ def require_float(value: Any, field: str, lo: float | None = None, hi: float | N
     return value
 
 
-def torch_dtype(name: str, field: str = "dtype"):
+def torch_dtype(name: str, field: str = "dtype") -> torch.dtype:
     """``"float32"``/``"float64"`` -> torch dtype (config field ``field``)."""
     import torch
 
@@ -58,7 +64,7 @@ def torch_dtype(name: str, field: str = "dtype"):
     return table[name]
 
 
-def torch_device(name: str):
+def torch_device(name: str) -> torch.device:
     """``"cpu"``/``"cuda"``/``"cuda:N"`` -> torch device (field ``device``), checked for availability."""
     import torch
 
@@ -69,7 +75,7 @@ def torch_device(name: str):
     return torch.device(name)
 
 
-def run_settings(cfg: Any, max_size: int = 4096):
+def run_settings(cfg: Any, max_size: int = 4096) -> tuple[torch.dtype, torch.device, int, int, int, int | None]:
     """``(dtype, device, seed, n, N, m)`` of an image experiment, validated: the fields ``dtype``,
     ``device``, ``seed``, ``target.size`` (``n``, at most ``max_size``) and ``cs.m`` (``1 ≤ m ≤ N = n²``)."""
     dtype = torch_dtype(cfg.get("dtype", "float32"))
@@ -168,7 +174,7 @@ def _jsonable(v):
     return str(v)
 
 
-def write_npz(path: str | os.PathLike, **arrays) -> None:
+def write_npz(path: str | os.PathLike, **arrays: Array) -> None:
     """Save arrays (numpy or torch) to a compressed ``.npz``, atomically."""
     conv = {k: (v.detach().cpu().numpy() if hasattr(v, "detach") else np.asarray(v)) for k, v in arrays.items()}
 

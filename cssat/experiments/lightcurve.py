@@ -25,16 +25,20 @@ import logging
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cssat.experiments.common import progress_setting
 
+if TYPE_CHECKING:
+    from cssat.scene import Scenario
+
+
 log = logging.getLogger("cssat")
 
 
-def build_scenario(cfg: Any):
+def build_scenario(cfg: Any) -> Scenario:
     """The :class:`cssat.scene.Scenario` of the ``scenario`` config (the synthetic Astra 1KR TLE
     when ``scenario.tle`` is null)."""
     from cssat.experiments.common import require_int

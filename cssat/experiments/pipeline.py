@@ -9,12 +9,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 from torch import Tensor
 
 from cssat.experiments.common import ConfigError
+
+if TYPE_CHECKING:
+    import torch
+
 
 __all__ = ["Reconstruction", "reconstruct", "denoise", "scores", "solver_name", "is_positive", "phi_stats"]
 
@@ -38,7 +42,8 @@ def solver_name(obj: Any) -> str:
     return str(getattr(obj, "name", type(obj).__name__))
 
 
-def denoise(denoiser: Any, x: np.ndarray, *, field: str = "denoiser", clip: tuple[float, float] | None = IMAGE_RANGE):
+def denoise(denoiser: Any, x: np.ndarray, *, field: str = "denoiser",
+            clip: tuple[float, float] | None = IMAGE_RANGE) -> tuple[np.ndarray, dict[str, Any]]:
     """``(denoised float64, metrics)``: ``denoiser(x)`` clipped to ``clip``; metrics hold
     ``denoiser``, ``seconds_denoise`` and what the denoiser reports. A ``ValueError`` of the
     denoiser (settings that do not fit this image, e.g. blocks larger than it) is a ConfigError
@@ -81,7 +86,7 @@ def is_positive(phi: Any) -> bool:
 
 
 def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoiser: Any = None,
-                field: str = "solver", center: bool | str = False, dtype=None) -> Reconstruction:
+                field: str = "solver", center: bool | str = False, dtype: torch.dtype | None = None) -> Reconstruction:
     """Reconstruct the image of ``shape`` from the light curve ``y (m,)`` measured through ``phi``
     with ``solver``, clip it to [0, 1], and denoise it with ``denoiser`` (``None``: no denoising).
 

@@ -9,18 +9,24 @@ import os
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cssat.experiments.common import _atomic, progress_setting, require_float, require_int
+
+if TYPE_CHECKING:
+    import torch
+
+    from cssat.scene import Mesh
+
 
 log = logging.getLogger("cssat")
 
 CACHE_VERSION = 2  # bump when the rendering of reference images (or the entry format) changes
 
 
-def reference_settings(cfg: Any, seed: int):
+def reference_settings(cfg: Any, seed: int) -> tuple[int, Mesh]:
     """``(seed, mesh)`` of the reference set: ``reference.seed`` (null: ``seed + 1000``) and the
     ``reference.model`` mesh, with ``reference.noise`` checked too, before any work."""
     from cssat.experiments.build import build_model
@@ -89,7 +95,7 @@ def _key_lock(path: Path):
         os.close(fd)
 
 
-def reference_set(cfg: Any, size: int, n: int, seed: int, mesh):
+def reference_set(cfg: Any, size: int, n: int, seed: int, mesh: Mesh) -> tuple[torch.Tensor, bool]:
     """``(n, size, size)`` float32 reference images of ``mesh`` (``reference.model``, from
     :func:`reference_settings`; the Astra-like model by default), random Sun and
     view directions and white noise of ``reference.noise`` × each image's maximum, rendered in chunks

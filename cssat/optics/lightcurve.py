@@ -4,6 +4,7 @@ facet brightnesses over time."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -12,6 +13,9 @@ from cssat.optics.photometry import facet_brightness
 from cssat.scene.attitude import nadir_pointing_frame, to_body
 from cssat.scene.mesh import Mesh, as_mesh
 from cssat.scene.orbit import Scenario
+
+if TYPE_CHECKING:
+    from typing import Any
 
 __all__ = ["LightCurve", "simulate_light_curve"]
 
@@ -30,7 +34,7 @@ class LightCurve:
         return self.facets.sum(1)
 
 
-def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, **kwargs) -> LightCurve:
+def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, **kwargs: Any) -> LightCurve:
     """The atmosphere-free light curve of ``mesh`` in ``scenario`` with the paper's three-axis
     stabilised attitude: Eq. 8–9 per facet with self- and observer-shadowing (``shadows``), the
     Earth's shadow (``scenario.sunlit``) and the observer's horizon (zero below it)."""

@@ -9,12 +9,16 @@ Geometry inputs are body-frame unit vectors *from the object*: ``sun (T, 3)`` (t
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 from torch import Tensor
 
 from cssat.scene.mesh import Mesh, as_mesh
+
+if TYPE_CHECKING:
+    from cssat._types import Array, Vectors
 
 __all__ = [
     "SOLAR_IRRADIANCE_W_M2",
@@ -32,7 +36,7 @@ AU_KM = 149_597_870.7
 SUN_MAGNITUDE_V = -26.74  # apparent V magnitude of the Sun at 1 AU
 
 
-def check_unit(v, name: str, tol: float = 1e-6) -> Tensor:
+def check_unit(v: Vectors, name: str, tol: float = 1e-6) -> Tensor:
     """``v`` as a float tensor ``(T, 3)`` of unit vectors; a clear error naming ``name`` if not."""
     t = torch.as_tensor(v)
     if not t.is_floating_point():
@@ -149,8 +153,8 @@ def facet_brightness(
 
 def shadow_mask(
     mesh: Mesh,
-    sun,
-    observer,
+    sun: Vectors,
+    observer: Vectors,
     candidates: Tensor | np.ndarray | None = None,
     offset: float | None = None,
     engine: str = "auto",
@@ -237,7 +241,7 @@ def _any_hit(inter, origins: np.ndarray, dirs: np.ndarray, threaded: bool) -> np
     return np.concatenate(hits)
 
 
-def apparent_magnitude(flux_w_m2, irradiance: float = SOLAR_IRRADIANCE_W_M2) -> Tensor:
+def apparent_magnitude(flux_w_m2: Array | float, irradiance: float = SOLAR_IRRADIANCE_W_M2) -> Tensor:
     """Apparent visual magnitude of a flux (W/m²) relative to the Sun:
     ``m = m_Sun − 2.5 log10(flux / I₀)``, with ``m_Sun = −26.74``; ``+inf`` for zero flux."""
     f = torch.as_tensor(flux_w_m2, dtype=torch.float64)

@@ -12,6 +12,7 @@ so the pixel sum of every image equals the light curve (Eq. 10) for the same geo
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -19,6 +20,11 @@ from torch import Tensor
 
 from cssat.optics.photometry import check_unit, facet_brightness
 from cssat.scene.mesh import Mesh, as_mesh
+
+if TYPE_CHECKING:
+    from typing import Any, Sequence
+
+    from cssat._types import Vectors
 
 __all__ = ["render", "image_basis", "default_fov"]
 
@@ -29,7 +35,7 @@ def default_fov(mesh: Mesh, margin: float = 1.05) -> float:
     return 2.0 * mesh.radius * margin
 
 
-def image_basis(observer: Tensor, up=(0.0, 0.0, 1.0)) -> tuple[Tensor, Tensor]:
+def image_basis(observer: Tensor, up: Sequence[float] = (0.0, 0.0, 1.0)) -> tuple[Tensor, Tensor]:
     """Image axes ``(e_x, e_y)``, each ``(T, 3)``, perpendicular to the view direction ``V``:
     ``e_y`` is ``up`` projected on the image plane (body +z by default; body +x when ``V`` is
     nearly parallel to it), ``e_x = e_y × V``, so ``e_x × e_y = V`` points to the viewer."""
@@ -46,18 +52,18 @@ def image_basis(observer: Tensor, up=(0.0, 0.0, 1.0)) -> tuple[Tensor, Tensor]:
 
 def render(
     mesh: Mesh,
-    sun,
-    observer,
+    sun: Vectors,
+    observer: Vectors,
     size: int,
     *,
     fov_m: float | None = None,
     brightness: Tensor | None = None,
-    up=(0.0, 0.0, 1.0),
+    up: Sequence[float] = (0.0, 0.0, 1.0),
     dtype: torch.dtype = torch.float32,
     views_per_chunk: int = 128,
     backend: str = "auto",
     progress: bool | None = None,
-    **brightness_kwargs,
+    **brightness_kwargs: Any,
 ) -> Tensor:
     """Render ``(T, size, size)`` images of ``mesh`` for body-frame unit vectors ``sun`` and
     ``observer`` (``(T, 3)`` each, from the object).

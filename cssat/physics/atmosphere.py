@@ -9,7 +9,7 @@ sensing matrix ``Φ (m, n)``. The light curve of a static scene ``x (n,)`` is ``
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from torch import Tensor
 
 from cssat._checks import choice_param, float_param, int_param, opt
 from cssat.sparse.operators import GaussianSensing, LinearOperator
+
+if TYPE_CHECKING:
+    from cssat.physics.turbulence import Layers
 
 __all__ = ["Atmosphere", "GaussianAtmosphere", "LognormalAtmosphere", "CorrelatedAtmosphere", "PhaseScreenAtmosphere",
            "EMITTERS", "ARCSEC"]
@@ -72,7 +75,7 @@ class GaussianAtmosphere(Atmosphere):
         self.mean, self.std = float_param(mean, "mean"), opt(std, float_param, "std", 0.0)
         self.emitters = choice_param(emitters, "emitters", EMITTERS)
 
-    def operator(self, m, n, *, seed=0, dtype=None, device=None) -> GaussianSensing:
+    def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> GaussianSensing:
         return GaussianSensing(m, n, seed=seed, dtype=dtype, device=device, mean=self.mean, std=self.std)
 
     def describe(self) -> dict[str, Any]:
@@ -133,7 +136,7 @@ class _PositiveAtmosphere(Atmosphere):
 
         return young_index(self.diameter_m, self.airmass, max(self.exposure_s, 1e-3), self.site_altitude_m, self.osborn)
 
-    def describe(self):
+    def describe(self) -> dict[str, Any]:
         return {**super().describe(), "atmosphere_scintillation_index_model": self.scintillation_index,
                 "atmosphere_diameter_m": self.diameter_m, "atmosphere_airmass": self.airmass,
                 "atmosphere_exposure_s": self.exposure_s}
@@ -158,7 +161,7 @@ class LognormalAtmosphere(_PositiveAtmosphere):
                  exposure_s: float = 1.0, site_altitude_m: float = 0.0, osborn: float = 1.5):
         super().__init__(scintillation_index, diameter_m, airmass, exposure_s, site_altitude_m, osborn)
 
-    def operator(self, m, n, *, seed=0, dtype=None, device=None):
+    def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
         from cssat.sparse import MatrixOperator
 
         dtype = dtype or torch.get_default_dtype()
@@ -210,7 +213,7 @@ class CorrelatedAtmosphere(_PositiveAtmosphere):
             return torch.eye(side, dtype=torch.float64)
         return torch.exp(-0.5 * (dd / theta) ** 2)
 
-    def operator(self, m, n, *, seed=0, dtype=None, device=None):
+    def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
         from cssat.sparse import MatrixOperator
 
         side = _side(n)
@@ -222,7 +225,7 @@ class CorrelatedAtmosphere(_PositiveAtmosphere):
         w = _lognormal(math.sqrt(s2) * g, s2)
         return MatrixOperator(w.to(dtype=dtype or torch.get_default_dtype(), device=device))
 
-    def describe(self):
+    def describe(self) -> dict[str, Any]:
         return {**super().describe(), "atmosphere_correlation_arcsec": self.correlation_rad / ARCSEC,
                 "atmosphere_fov_arcsec": self.fov_rad / ARCSEC, "atmosphere_size_over_correlation":
                 self.fov_rad / self.correlation_rad if self.correlation_rad > 0 else math.inf}
@@ -272,7 +275,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         self.profile = dict(ground_cn2=float_param(ground_cn2, "ground_cn2", 0.0), rms_wind_m_s=float_param(rms_wind_m_s, "rms_wind_m_s", 0.0),
                             ground_wind_m_s=float_param(ground_wind_m_s, "ground_wind_m_s", 0.0), jet_m_s=float_param(jet_m_s, "jet_m_s", 0.0))
 
-    def layers(self, seed: int = 0):
+    def layers(self, seed: int = 0) -> Layers:
         """The :class:`~cssat.physics.turbulence.Layers` above the site (wind directions from ``seed``)."""
         from cssat.physics.turbulence import layers_from_profile
 
@@ -325,7 +328,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         """``Var Φ = e^{σ²} − 1`` of the model (≈ σ² when weak)."""
         return math.expm1(self.log_variance)
 
-    def operator(self, m, n, *, seed=0, dtype=None, device=None):
+    def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
         from cssat.sparse import MatrixOperator
 
         side = _side(n)
@@ -342,7 +345,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         g = (amp.to(device) @ basis.to(device)).double()
         return MatrixOperator(_lognormal(g, float(w.sum())).to(dtype=dtype or torch.get_default_dtype()))
 
-    def describe(self):
+    def describe(self) -> dict[str, Any]:
         from cssat.physics.turbulence import fried_parameter, isoplanatic_angle
 
         lay = self.layers()

@@ -13,10 +13,13 @@ real scintillation ~1.5× Young's; Kornilov (2012, MNRAS 425, 1549) for the long
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from scipy.integrate import trapezoid as _trapezoid
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = [
     "Layers", "hufnagel_valley", "bufton_wind", "layers_from_profile", "fried_parameter", "isoplanatic_angle",
@@ -34,7 +37,7 @@ class Layers(NamedTuple):
     wind_dir_rad: np.ndarray
 
 
-def hufnagel_valley(h_m, ground_cn2: float = 1.7e-14, rms_wind_m_s: float = 21.0) -> np.ndarray:
+def hufnagel_valley(h_m: ArrayLike, ground_cn2: float = 1.7e-14, rms_wind_m_s: float = 21.0) -> np.ndarray:
     """The Hufnagel–Valley Cn²(h) (m^(-2/3)) at heights ``h_m`` above the ground:
     ``0.00594 (W/27)² (1e-5 h)^10 e^(−h/1000) + 2.7e-16 e^(−h/1500) + A e^(−h/100)``.
     The defaults ``A = 1.7e-14``, ``W = 21 m/s`` are HV 5/7: r₀ = 5 cm and θ₀ = 7 µrad at 0.5 µm."""
@@ -43,7 +46,7 @@ def hufnagel_valley(h_m, ground_cn2: float = 1.7e-14, rms_wind_m_s: float = 21.0
             + 2.7e-16 * np.exp(-h / 1500.0) + ground_cn2 * np.exp(-h / 100.0))
 
 
-def bufton_wind(h_m, ground_m_s: float = 5.0, jet_m_s: float = 30.0) -> np.ndarray:
+def bufton_wind(h_m: ArrayLike, ground_m_s: float = 5.0, jet_m_s: float = 30.0) -> np.ndarray:
     """Bufton's wind profile ``v(h) = v_g + v_jet exp(−((h − 9400)/4800)²)`` (m/s)."""
     h = np.asarray(h_m, dtype=np.float64)
     return ground_m_s + jet_m_s * np.exp(-(((h - 9400.0) / 4800.0) ** 2))
@@ -101,14 +104,15 @@ def young_index(diameter_m: float, airmass: float = 1.0, exposure_s: float = 1.0
     return float((osborn * s) ** 2)
 
 
-def phase_psd(f, cn2dh: float, wavelength_m: float = 550e-9, airmass: float = 1.0, outer_scale_m: float = 25.0):
+def phase_psd(f: ArrayLike, cn2dh: float, wavelength_m: float = 550e-9, airmass: float = 1.0,
+              outer_scale_m: float = 25.0) -> np.ndarray:
     """The von Kármán phase PSD of one layer, ``W_φ(f) = 0.38 λ⁻² X Cn² dh (f² + L₀⁻²)^(−11/6)``,
     rad² m² at spatial frequency ``f`` (cycles/m)."""
     f = np.asarray(f, dtype=np.float64)
     return 0.38 * wavelength_m ** -2 * airmass * cn2dh * (f * f + outer_scale_m ** -2) ** (-11 / 6)
 
 
-def aperture_filter(f, diameter_m: float):
+def aperture_filter(f: ArrayLike, diameter_m: float) -> np.ndarray:
     """``|P̂(f)|²`` of a circular pupil normalised to 1 at f = 0: ``(2 J₁(πDf)/(πDf))²``."""
     from scipy.special import j1
 
@@ -117,8 +121,9 @@ def aperture_filter(f, diameter_m: float):
     return np.where(x > 1e-8, (2 * j1(safe) / safe) ** 2, 1.0)
 
 
-def intensity_psd(f, angle_rad, layers: Layers, index: int, *, wavelength_m=550e-9, airmass=1.0, diameter_m=1.0,
-                  exposure_s=0.0, outer_scale_m=25.0):
+def intensity_psd(f: ArrayLike, angle_rad: ArrayLike, layers: Layers, index: int, *, wavelength_m: float = 550e-9,
+                  airmass: float = 1.0, diameter_m: float = 1.0, exposure_s: float = 0.0,
+                  outer_scale_m: float = 25.0) -> np.ndarray:
     """The PSD of the relative intensity ``δI/I ≈ 2χ`` that layer ``index`` makes in the pupil,
     aperture- and exposure-averaged (weak turbulence, Roddier 1981):
     ``4 W_φ(f) sin²(πλz f²) |P̂(f)|² sinc²(π v t f cos(α − α_wind))`` with ``z = X h``.

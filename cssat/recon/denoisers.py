@@ -15,13 +15,16 @@ config group (``_target_``) or directly.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 import torch
 from torch import Tensor
 
 from cssat._checks import float_param, int_param, opt, progress_param
+
+if TYPE_CHECKING:
+    from cssat._types import Array
 
 __all__ = ["Denoiser", "SparseKSVD", "TVDenoiser", "WaveletDenoiser", "NLMDenoiser", "NoDenoiser"]
 
@@ -43,7 +46,7 @@ class Denoiser:
             return float_param(sigma, "sigma", 0.0)
         return self.sigma if self.sigma is not None else estimate_sigma(x)
 
-    def __call__(self, image, sigma: float | None = None) -> tuple[Any, dict[str, Any]]:
+    def __call__(self, image: Array, sigma: float | None = None) -> tuple[Array, dict[str, Any]]:
         is_tensor = isinstance(image, Tensor)
         x = image.detach().double().cpu().numpy() if is_tensor else np.asarray(image, dtype=np.float64)
         _check_image(x)
@@ -67,7 +70,7 @@ class NoDenoiser(Denoiser):
 
     name = "none"
 
-    def __call__(self, image, sigma: float | None = None):
+    def __call__(self, image: Array, sigma: float | None = None) -> tuple[Array, dict[str, Any]]:
         if isinstance(image, Tensor):
             return image.clone(), {}
         return np.array(image, dtype=np.float64, copy=True), {}
@@ -168,7 +171,7 @@ class SparseKSVD(Denoiser):
             dtype = getattr(torch, dtype)
         self.dtype, self.device = dtype, torch.device(device)
 
-    def __call__(self, image, sigma: float | None = None):
+    def __call__(self, image: Array, sigma: float | None = None) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse import ksvd_denoise
 
         is_tensor = isinstance(image, Tensor)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 from torch import Tensor
@@ -27,6 +27,9 @@ from torch import Tensor
 from cssat._checks import choice_param, float_param, int_param, opt, progress_param
 from cssat.recon.denoisers import Denoiser
 from cssat.sparse._io import numpy_io
+
+if TYPE_CHECKING:
+    from cssat._types import Array, OperatorLike
 
 __all__ = ["Solver", "OMP", "L1", "TV", "PnP", "default_sparsity", "tv_default_lam"]
 
@@ -40,7 +43,7 @@ class Solver:
         """Check the size-dependent settings for ``m`` samples of ``n_pixels`` pixels."""
 
 
-    def __call__(self, phi, y: Tensor, shape: Sequence[int]) -> tuple[Tensor, dict[str, Any]]:  # pragma: no cover
+    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:  # pragma: no cover
         raise NotImplementedError
 
 
@@ -96,11 +99,11 @@ class OMP(Solver):
             k = default_sparsity(m, n_pixels) if self.k_ratio is None else max(1, round(self.k_ratio * m))
         return int_param(k, "n_nonzero_coefs", 1, m), None
 
-    def validate(self, m, n_pixels):
+    def validate(self, m: int, n_pixels: int) -> None:
         self.settings(m, n_pixels)
 
     @numpy_io
-    def __call__(self, phi, y, shape):
+    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse import DCT, batch_omp, sensing_dictionary
 
         m, N, shape = _problem(phi, y, shape)
@@ -155,7 +158,7 @@ class L1(_Convex):
         super().__init__(lam if lam is not None else 1e-3, max_iter, rtol, progress)
 
     @numpy_io
-    def __call__(self, phi, y, shape):
+    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse import DCT, sensing_dictionary
         from cssat.sparse.solvers import fista_l1
 
@@ -197,7 +200,7 @@ class TV(_Convex):
         self.nonneg = nonneg
 
     @numpy_io
-    def __call__(self, phi, y, shape):
+    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse.solvers import tv_pdhg
 
         m, N, shape = _problem(phi, y, shape)
@@ -229,7 +232,7 @@ class PnP(Solver):
         self.init = choice_param(init, "init", ("zero", "tv"))
 
     @numpy_io
-    def __call__(self, phi, y, shape):
+    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse.solvers import pnp_pgd, tv_pdhg
 
         m, N, shape = _problem(phi, y, shape)

@@ -10,8 +10,14 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from typing import Sequence
+
+    import trimesh
 
 __all__ = ["MODELS", "Mesh", "astra_like", "box", "cylinder", "dish", "get_model", "load_mesh", "merge", "panel", "tess_like"]
 
@@ -89,13 +95,13 @@ class Mesh:
         object in every orientation."""
         return float(np.linalg.norm(self.vertices, axis=1).max())
 
-    def to_trimesh(self):
+    def to_trimesh(self) -> trimesh.Trimesh:
         import trimesh
 
         return trimesh.Trimesh(self.vertices, self.faces, process=False, validate=False)
 
     @classmethod
-    def from_trimesh(cls, tm, cd: float = 0.8, cs: float = 0.2, name: str | None = None) -> "Mesh":
+    def from_trimesh(cls, tm: trimesh.Trimesh, cd: float = 0.8, cs: float = 0.2, name: str | None = None) -> "Mesh":
         """A :class:`Mesh` of a ``trimesh.Trimesh`` (metres, as it is: no centring or welding).
         Per-facet ``cd``/``cs`` come from the mesh's ``face_attributes`` of those names when it has
         them, else the given constants."""
@@ -104,7 +110,7 @@ class Mesh:
                    name=name if name is not None else str(getattr(tm, "metadata", {}).get("name", "") or ""))
 
 
-def as_mesh(mesh) -> Mesh:
+def as_mesh(mesh: Mesh | trimesh.Trimesh) -> Mesh:
     """``mesh`` as a :class:`Mesh`: a ``trimesh.Trimesh`` is converted (:meth:`Mesh.from_trimesh`)."""
     if isinstance(mesh, Mesh):
         return mesh
@@ -194,7 +200,7 @@ def _mesh(parts, cd, cs, name=""):
     return Mesh(np.concatenate(verts), np.concatenate(faces), cd, cs, name=name)
 
 
-def box(size, center=(0.0, 0.0, 0.0), divisions: int = 1, cd: float = 0.8, cs: float = 0.2) -> Mesh:
+def box(size: Sequence[float], center: Sequence[float] = (0.0, 0.0, 0.0), divisions: int = 1, cd: float = 0.8, cs: float = 0.2) -> Mesh:
     """A closed axis-aligned box of ``size`` (m) with outward normals; each face is split into a
     ``divisions × divisions`` grid."""
     sx, sy, sz = (float(s) / 2 for s in size)
@@ -212,7 +218,7 @@ def box(size, center=(0.0, 0.0, 0.0), divisions: int = 1, cd: float = 0.8, cs: f
     return _mesh(parts, cd, cs, "box")
 
 
-def panel(u, v, origin, divisions=(1, 1), cd: float = 0.8, cs: float = 0.2, two_sided: bool = True) -> Mesh:
+def panel(u: Sequence[float], v: Sequence[float], origin: Sequence[float], divisions: tuple[int, int] = (1, 1), cd: float = 0.8, cs: float = 0.2, two_sided: bool = True) -> Mesh:
     """A flat panel ``origin + s u + t v`` (m), front normal ``u × v``; ``two_sided`` adds the
     back facets (coincident, opposite normals)."""
     u, v, origin = (np.asarray(a, dtype=np.float64) for a in (u, v, origin))
@@ -231,7 +237,7 @@ def _frame(axis):
     return e1, np.cross(a, e1), a
 
 
-def dish(radius: float, depth: float, center, axis, rings: int = 8, segments: int = 32,
+def dish(radius: float, depth: float, center: Sequence[float], axis: Sequence[float], rings: int = 8, segments: int = 32,
          cd: float = 0.8, cs: float = 0.2, two_sided: bool = True) -> Mesh:
     """A parabolic reflector of aperture ``radius`` and ``depth`` (m), its vertex at ``center``,
     opening along ``axis``; the concave side faces ``axis``. ``rings × segments`` cells."""
@@ -259,7 +265,7 @@ def dish(radius: float, depth: float, center, axis, rings: int = 8, segments: in
     return _mesh(parts, cd, cs, "dish")
 
 
-def cylinder(radius: float, length: float, center, axis, segments: int = 24, capped: bool = True,
+def cylinder(radius: float, length: float, center: Sequence[float], axis: Sequence[float], segments: int = 24, capped: bool = True,
              cd: float = 0.8, cs: float = 0.2) -> Mesh:
     """A closed cylinder (m) along ``axis`` centred at ``center``, outward normals."""
     e1, e2, a = _frame(axis)
@@ -277,7 +283,7 @@ def cylinder(radius: float, length: float, center, axis, segments: int = 24, cap
     return _mesh([(verts, np.concatenate(faces))], cd, cs, "cylinder")
 
 
-def merge(meshes, name: str = "") -> Mesh:
+def merge(meshes: Sequence[Mesh], name: str = "") -> Mesh:
     """One mesh from several, keeping each facet's material."""
     verts, faces, cd, cs, off = [], [], [], [], 0
     for m in meshes:

@@ -39,7 +39,7 @@ class DictionarySensing(LinearOperator):
     def adjoint(self, y: Tensor) -> Tensor:
         return self.psi(y @ self.dictionary.to(y))
 
-    def matrix(self, dtype=None, device=None) -> Tensor:
+    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> Tensor:
         """``Φ (m, N)``: row ``i`` is ``Ψ d_i`` for row ``d_i`` of ``ΦΨ``."""
         d = self.dictionary.to(dtype=dtype or self.dictionary.dtype, device=device or self.dictionary.device)
         out = torch.empty_like(d)

@@ -60,7 +60,7 @@ class SparseDictionary(LinearOperator):
         """``Dᵀ x = Aᵀ (Bᵀ x)`` for rows ``x (n, p)``; returns ``(n, L)``."""
         return self.base.adjoint(x) @ self.atoms.to(x)
 
-    def matrix(self, dtype=None, device=None) -> Tensor:
+    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> Tensor:
         A = self.atoms.to(dtype=dtype or self.atoms.dtype, device=device)
         return self.base(A.T).T.contiguous()
 
@@ -69,7 +69,7 @@ class SparseDictionary(LinearOperator):
         return self.atoms.T @ _base_gram(self.base, self.atoms)
 
 
-def odct_base(block: Sequence[int], atoms: Sequence[int] | None = None, dtype=torch.float32) -> KroneckerOperator:
+def odct_base(block: Sequence[int], atoms: Sequence[int] | None = None, dtype: torch.dtype = torch.float32) -> KroneckerOperator:
     """Separable overcomplete-DCT base dictionary ``B = ODCT(p₁, k₁) ⊗ ODCT(p₂, k₂) (⊗ …)``.
 
     ``atoms`` defaults to ``⌈1.25 pₐ⌉`` per axis: ``odctdict(8, 10)`` as in KSVDSBox's demo.
@@ -316,7 +316,7 @@ def ksvd(
     seed: int = 0,
     return_info: bool = False,
     progress: bool | None = None,
-):
+) -> SparseDictionary | tuple[SparseDictionary, KSVDInfo]:
     """Plain (approximate) K-SVD: :func:`sparse_ksvd` with ``B = I`` and dense atoms, initialised
     from ``n_atoms`` random training blocks (normalised). Returns a :class:`SparseDictionary`
     whose ``atoms`` are the dictionary ``D (p, n_atoms)`` itself."""

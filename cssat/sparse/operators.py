@@ -217,7 +217,7 @@ class MatrixOperator(LinearOperator):
         x = torch.linalg.lstsq(w, b, driver="gelsd").solution if w.device.type == "cpu" else torch.linalg.pinv(w) @ b
         return self._shape_output(x.T.reshape(*y.shape[:-1], self.n_in))
 
-    def matrix(self, dtype=None, device=None) -> Tensor:
+    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> Tensor:
         return self.weight.to(dtype=dtype or self.weight.dtype, device=device or self.weight.device)
 
     def extra_repr(self) -> str:
@@ -225,7 +225,7 @@ class MatrixOperator(LinearOperator):
         return f"n_out={self.n_out}, n_in={self.n_in}{shape}, dtype={self.weight.dtype}"
 
 
-def dct_matrix(n: int, dtype: torch.dtype = torch.float64, device=None) -> Tensor:
+def dct_matrix(n: int, dtype: torch.dtype = torch.float64, device: torch.device | str | None = None) -> Tensor:
     """Orthonormal DCT-II matrix ``C (n, n)``: ``C[k, i] = s_k cos(π (2i + 1) k / (2n))``.
 
     ``s_0 = √(1/n)``, ``s_k = √(2/n)``; ``C @ x`` equals ``scipy.fft.dct(x, norm="ortho")`` and
@@ -299,7 +299,7 @@ class DCT(LinearOperator):
     def extra_repr(self) -> str:
         return f"shape={self.dims}"
 
-    def matrix(self, dtype=None, device=None) -> Tensor:
+    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> Tensor:
         """Dense ``Ψ (N, N)`` (columns are atoms): ``(C₁ ⊗ C₂ ⊗ …)ᵀ``. Costs ``N²`` memory."""
         dtype = dtype or torch.get_default_dtype()
         mats = [getattr(self, f"c{d}").to(dtype=dtype, device=device) for d in range(len(self.dims))]
@@ -407,7 +407,8 @@ class ComposedOperator(LinearOperator):
     def adjoint(self, y: Tensor) -> Tensor:
         return self.inner.adjoint(self.outer.adjoint(y))
 
-    def matrix(self, dtype=None, device=None, block_rows: int = 1024, atoms_contiguous: bool = False) -> Tensor:
+    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None, block_rows: int = 1024,
+               atoms_contiguous: bool = False) -> Tensor:
         """Dense ``(n_out, n_in)``; rows of the outer matrix are pushed through ``innerᵀ`` in blocks.
 
         ``atoms_contiguous``: return a transposed view of a contiguous ``(n_in, n_out)`` tensor, so
@@ -489,7 +490,7 @@ class KroneckerOperator(LinearOperator):
         """``(M₁ ⊗ M₂ ⊗ …)ᵀ y`` for rows ``y (B, Π rₐ)``; returns ``(B, Π cₐ)``."""
         return self._separable(y, transpose=True)
 
-    def matrix(self, dtype=None, device=None) -> Tensor:
+    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> Tensor:
         mats = [getattr(self, f"m{d}").to(dtype=dtype or torch.get_default_dtype(), device=device) for d in range(len(self.rows))]
         k = mats[0]
         for m in mats[1:]:

@@ -26,7 +26,7 @@ def _norm(value, nd: int, name: str) -> tuple[int, ...]:
     return t
 
 
-def patch_positions(shape: Sequence[int], size, step=1) -> list[Tensor]:
+def patch_positions(shape: Sequence[int], size: int | Sequence[int], step: int | Sequence[int] = 1) -> list[Tensor]:
     """Start indices of the patches along each axis of an array of ``shape``."""
     nd = len(shape)
     size, step = _norm(size, nd, "size"), _norm(step, nd, "step")
@@ -64,7 +64,7 @@ def _check(x: Tensor) -> None:
         raise ValueError(f"x: expected a 2-D image (H, W) or a 3-D volume (D, H, W), got shape {tuple(x.shape)}")
 
 
-def extract_patches(x: Tensor, size, step=1) -> Tensor:
+def extract_patches(x: Tensor, size: int | Sequence[int], step: int | Sequence[int] = 1) -> Tensor:
     """All ``size`` patches of ``x`` (2-D ``(H, W)`` or 3-D ``(D, H, W)``) at the positions of
     :func:`patch_positions`, as rows: ``(n_patches, prod(size))``."""
     x = torch.as_tensor(x)
@@ -73,14 +73,15 @@ def extract_patches(x: Tensor, size, step=1) -> Tensor:
     return x.reshape(-1)[idx]
 
 
-def fold_patches(patches: Tensor, shape: Sequence[int], size, step=1) -> Tensor:
+def fold_patches(patches: Tensor, shape: Sequence[int], size: int | Sequence[int], step: int | Sequence[int] = 1) -> Tensor:
     """The inverse of :func:`extract_patches`: every pixel is the average of the values all the
     patches covering it give it. ``patches (n_patches, prod(size))`` → array of ``shape``."""
     total, count = accumulate_patches(patches, shape, size, step)
     return total / count
 
 
-def accumulate_patches(patches: Tensor, shape: Sequence[int], size, step=1) -> tuple[Tensor, Tensor]:
+def accumulate_patches(patches: Tensor, shape: Sequence[int], size: int | Sequence[int],
+                       step: int | Sequence[int] = 1) -> tuple[Tensor, Tensor]:
     """Sum of the patches' values at every pixel, and how many patches cover it: ``(total,
     count)``, both of ``shape`` (for weighted averages such as KSVDSBox's ``(λx + Σ)/(λ + count)``)."""
     shape = tuple(int(s) for s in shape)

@@ -11,13 +11,18 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import NamedTuple, Sequence
+from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import torch
 from torch import Tensor
 
 from cssat.sparse.operators import LinearOperator, MatrixOperator
 from cssat.sparse._io import numpy_io
+
+if TYPE_CHECKING:
+    from typing import Callable
+
+    from cssat._types import Array, OperatorLike
 
 __all__ = ["fista_l1", "tv_pdhg", "pnp_pgd", "operator_norm_sq", "SolverInfo", "tv_gradient", "tv_divergence"]
 
@@ -44,7 +49,8 @@ def _as_operator(A) -> LinearOperator:
     raise TypeError("A: expected a LinearOperator or a 2-D matrix")
 
 
-def operator_norm_sq(A, *, n_iter: int = 50, dtype=torch.float64, device=None, seed: int = 0) -> float:
+def operator_norm_sq(A: OperatorLike, *, n_iter: int = 50, dtype: torch.dtype = torch.float64,
+                     device: torch.device | str | None = None, seed: int = 0) -> float:
     """``‖A‖²`` (the largest eigenvalue of ``AᵀA``) by power iteration, with a 1 % safety margin
     (the Lipschitz constant of the data term's gradient)."""
     op = _as_operator(A)
@@ -79,8 +85,8 @@ def _check(y: Tensor, n_out: int, lam: float, max_iter: int, rtol: float) -> tup
 
 @numpy_io
 def fista_l1(
-    A,
-    y: Tensor,
+    A: OperatorLike,
+    y: Array,
     *,
     lam: float = 1e-3,
     max_iter: int = 500,
@@ -88,7 +94,7 @@ def fista_l1(
     lipschitz: float | None = None,
     return_info: bool = False,
     progress: bool | None = None,
-):
+) -> Array | tuple[Array, SolverInfo]:
     """ℓ1-regularised least squares by FISTA (Beck & Teboulle 2009):
     ``min_γ ½‖Aγ − y‖² + λ‖γ‖₁`` for every row of ``y``.
 
@@ -156,8 +162,8 @@ def tv_divergence(p: Tensor) -> Tensor:
 
 @numpy_io
 def tv_pdhg(
-    phi,
-    y: Tensor,
+    phi: OperatorLike,
+    y: Array,
     shape: Sequence[int],
     *,
     lam: float = 1e-4,
@@ -166,7 +172,7 @@ def tv_pdhg(
     rtol: float = 1e-5,
     return_info: bool = False,
     progress: bool | None = None,
-):
+) -> Array | tuple[Array, SolverInfo]:
     """Isotropic total variation by the primal–dual method of Chambolle & Pock (2011):
     ``min_x ½‖Φx − y‖² + λ TV(x)`` (``+ x ≥ 0`` when ``nonneg``), ``TV(x) = Σ ‖(∇x)ᵢ‖₂``.
 
@@ -225,16 +231,16 @@ def tv_pdhg(
 
 @numpy_io
 def pnp_pgd(
-    phi,
-    y: Tensor,
+    phi: OperatorLike,
+    y: Array,
     shape: Sequence[int],
-    denoiser,
+    denoiser: Callable[[Tensor, float], Array],
     *,
     sigmas: Sequence[float],
     x0: Tensor | None = None,
     return_info: bool = False,
     progress: bool | None = None,
-):
+) -> Array | tuple[Array, SolverInfo]:
     """Plug-and-play proximal gradient (Venkatakrishnan et al. 2013; PnP-ISTA):
     ``xₖ₊₁ = D(xₖ − Φᵀ(Φxₖ − y)/L, σₖ)`` with a decreasing noise level ``σₖ`` (image units).
 
