@@ -115,8 +115,10 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     fig13, fig14 = sim3_figures(x, stack, den2, den3, per, psnr3, metrics["best_repeat"], metrics)
     save_figure(fig13, figure_file(cfg, out_dir, "fig13_sim3_results"))
     save_figure(fig14, figure_file(cfg, out_dir, "fig14_sim3_denoised"))
-    log.info("sim3: best repeat %d: PSNR %.2f dB, 2-D %.2f dB (%+.2f), 3-D %.2f dB (%+.2f over 2-D)", metrics["best_repeat"],
-             metrics["psnr"], metrics["psnr_denoised"], metrics["gain_2d"], metrics["psnr_denoised_3d"], metrics["gain_3d_over_2d"])
+    three_d = (f"3-D {metrics['psnr_denoised_3d']:.2f} dB ({metrics['gain_3d_over_2d']:+.2f} over 2-D)" if denoiser3d is not None
+               else "no 3-D denoising (one repeat: the stack is that image)")
+    log.info("sim3: best repeat %d: PSNR %.2f dB, 2-D %.2f dB (%+.2f), %s", metrics["best_repeat"],
+             metrics["psnr"], metrics["psnr_denoised"], metrics["gain_2d"], three_d)
     return metrics
 
 

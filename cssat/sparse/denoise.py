@@ -140,7 +140,7 @@ def ksvd_denoise(
     if x.ndim == 3 and x.shape[0] == 1:  # a stack of one image: its 2-D denoising, axis kept
         res = ksvd_denoise(x[0], sigma, block_size=block_size, step=step, n_atoms=n_atoms, base_atoms=base_atoms,
                            atom_sparsity=atom_sparsity, gain=gain, n_train=n_train, n_iter=n_iter, max_atoms=max_atoms,
-                           lam=lam, mu_thresh=mu_thresh, seed=seed, return_info=return_info)
+                           lam=lam, mu_thresh=mu_thresh, seed=seed, return_info=return_info, progress=progress)
         out, info = res if return_info else (res, None)
         out = out[None]
         if is_numpy:
