@@ -45,31 +45,43 @@ class OMPInfo(NamedTuple):
 
 #: Rates of the cost model of :func:`omp_path_costs`, measured on a 2-core AVX-512 CPU with 2
 #: threads: dense products (GEMM/SYRK) reach ~70 G multiply-adds/s; streaming a matrix from
-#: memory (a matrix-vector product, the Gram-row updates) ~5 G values/s (~20 GB/s of float32).
+#: memory (a matrix-vector product, the Gram-row updates) ~5 G values/s (~20 GB/s of float32); the
+#: numba kernel's Gram-row updates run at ~15 G values/s while a signal's selected rows
+#: (``K × n`` values) stay in cache, up to ~16 MB.
 _GEMM_RATE = 70e9
 _STREAM_RATE = 5e9
+_CACHE_RATE = 15e9
+_CACHE_BYTES = 16 << 20
+#: the torch no-Gram path runs at about half its modelled rate (per-step kernel launches, the
+#: batched Gram–Schmidt products): measured 1.2–4.8× its model's time on six shapes (BENCHMARKS.md)
+_NOGRAM_OVERHEAD = 2.0
 _GRAM_MAX_BYTES = 4 << 30  # never build a Gram matrix larger than this on "auto"
 
 
-def omp_path_costs(m: int, n_atoms: int, n_signals: int, k: int, chunk: int = 256) -> dict[str, float]:
+def omp_path_costs(m: int, n_atoms: int, n_signals: int, k: int, chunk: int = 256, itemsize: int = 4) -> dict[str, float]:
     """Estimated seconds of the two OMP paths, used to choose between them.
 
     * ``gram``: ``DᵀD`` (``m n²/2`` multiply-adds, :func:`gram_matrix`) and ``DᵀY`` (``B m n``), both
       compute-bound dense products; then per signal ``n k²/2`` for the correlation updates
-      ``α = Dᵀy − G_I γ_I`` (Rubinstein, Zibulevsky & Elad 2008, Batch-OMP), which stream the
-      selected Gram rows from memory.
+      ``α = Dᵀy − G_I γ_I`` (Rubinstein, Zibulevsky & Elad 2008, Batch-OMP), which read the
+      selected Gram rows — from cache while ``k n`` values fit (:data:`_CACHE_BYTES`), else from
+      memory.
     * ``nogram``: per step one product ``Dᵀr`` for each chunk of signals: ``B k m n`` multiply-adds,
       and one pass over ``D`` (``m n`` values) per step and chunk — memory-bound when few signals
       share a pass, e.g. one signal on a 13225 × 16384 dictionary with K = 2815 streams 2.4 TB
       (≈ 120 s here) where the Gram path needs a 3.5 TFLOP Gram (≈ 28 s) and 0.26 TB of row
-      updates (≈ 35 s).
+      updates (≈ 35 s); plus the Gram–Schmidt of each new atom against the ``k`` before it
+      (``B k² m`` values streamed), all times :data:`_NOGRAM_OVERHEAD`.
 
-    The rates are :data:`_GEMM_RATE` and :data:`_STREAM_RATE`; only their ratio matters.
+    Only the rates' ratios matter. They were fitted on a 2-core CPU; the choice can be forced
+    with ``precompute=True/False``.
     """
     B = n_signals
-    gram = (m * n_atoms * n_atoms / 2 + B * m * n_atoms) / _GEMM_RATE + B * n_atoms * k * k / 2 / _STREAM_RATE
+    update_rate = _CACHE_RATE if k * n_atoms * itemsize <= _CACHE_BYTES else _STREAM_RATE
+    gram = (m * n_atoms * n_atoms / 2 + B * m * n_atoms) / _GEMM_RATE + B * n_atoms * k * k / 2 / update_rate
     passes = k * math.ceil(B / max(1, chunk))
-    nogram = max(B * k * m * n_atoms / _GEMM_RATE, passes * m * n_atoms / _STREAM_RATE)
+    nogram = _NOGRAM_OVERHEAD * (max(B * k * m * n_atoms / _GEMM_RATE, passes * m * n_atoms / _STREAM_RATE)
+                                 + B * k * k * m / _STREAM_RATE)
     return {"gram": float(gram), "nogram": float(nogram)}
 
 
@@ -197,7 +209,7 @@ def batch_omp(
     elif precompute == "auto":
         # In error-constrained mode the final K is unknown; assume a quarter of the cap.
         k_est = K if tol is None else max(1, K // 4)
-        costs = omp_path_costs(m, n_atoms, B, k_est)
+        costs = omp_path_costs(m, n_atoms, B, k_est, itemsize=D.element_size())
         use_gram = costs["gram"] < costs["nogram"] and n_atoms * n_atoms * D.element_size() <= _GRAM_MAX_BYTES
     else:
         use_gram = bool(precompute)
