@@ -14,6 +14,8 @@ from __future__ import annotations
 import sys
 from typing import Any
 
+from cssat._checks import progress_param
+
 __all__ = ["progress_bar"]
 
 
@@ -54,9 +56,7 @@ def _on_terminal() -> bool:
 def progress_bar(total: int | None, desc: str, progress: bool | None = None, unit: str = "it", **kwargs: Any):
     """A ``tqdm`` bar of ``total`` ``unit``\\ s named ``desc``, shown as ``progress`` says (a
     no-op object with the same methods when it is not shown)."""
-    if progress is not None and not isinstance(progress, bool):
-        raise ValueError(f"progress: expected true, false or null (on a terminal), got {progress!r}")
-    if progress is False or (progress is None and not _on_terminal()):
+    if progress_param(progress) is False or (progress is None and not _on_terminal()):
         return _Off(kwargs.get("iterable"))
     import warnings
 

@@ -104,10 +104,12 @@ def figure_file(cfg: Any, out_dir: str | os.PathLike, stem: str) -> Path:
 
 def progress_setting(cfg: Any) -> bool | None:
     """The top-level ``progress`` flag (tqdm bars): ``true``, ``false`` or ``null`` (a terminal only)."""
-    v = cfg.get("progress")
-    if v is not None and not isinstance(v, bool):
-        raise ConfigError(f"progress: expected true, false or null (bars on a terminal only), got {v!r}")
-    return v
+    from cssat._checks import progress_param
+
+    try:
+        return progress_param(cfg.get("progress"))
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
 
 
 def measurements(cs: Any, N: int) -> int:
