@@ -7,10 +7,11 @@ DataLoader workers.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import torch
 from torch.utils.data import Dataset
-from typing import TYPE_CHECKING
 
 from cssat.scene.mesh import Mesh
 
@@ -132,27 +133,25 @@ class ReferenceImages(Dataset):
             y[k] = meas.add_noise(y[k], gen, flux=flux[k])
         return y
 
+    def _stacked(self, indices: Sequence[int]) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """``(x, y)`` of ``indices`` stacked: the images in one vectorised render (with the channel
+        axis when asked), their light curves (``None`` without a measurement)."""
+        x = self.images(indices)
+        y = self.light_curves(indices, x) if self.measurement is not None else None
+        return (x[:, None] if self.channel_axis else x), y
+
     def __getitems__(self, indices: Sequence[int]) -> list:
         """Items ``indices`` as a list, rendered (and measured) in one vectorised call: what a
         ``DataLoader`` fetches for a batch, so loading is as fast as :meth:`batch`."""
-        x = self.images(indices)
-        y = self.light_curves(indices, x) if self.measurement is not None else None
-        if self.channel_axis:
-            x = x[:, None]
-        if y is None:
-            return list(x.unbind(0))
-        return list(zip(x.unbind(0), y.unbind(0)))
+        x, y = self._stacked(indices)
+        return list(x.unbind(0)) if y is None else list(zip(x.unbind(0), y.unbind(0)))
 
     def batch(self, start: int, stop: int) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
         """Items ``start .. stop-1`` stacked: ``(B, size, size)`` (``(B, 1, size, size)`` with
         ``channel_axis``), or the pair ``(x, y (B, m))`` with a ``measurement``."""
         if start < 0 or stop > self.length or start > stop:
             raise IndexError(f"index range [{start}, {stop}) outside [0, {self.length})")
-        idx = range(start, stop)
-        x = self.images(idx)
-        y = self.light_curves(idx, x) if self.measurement is not None else None
-        if self.channel_axis:
-            x = x[:, None]
+        x, y = self._stacked(range(start, stop))
         return x if y is None else (x, y)
 
     def __getitem__(self, index: int) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
