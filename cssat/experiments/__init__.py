@@ -103,7 +103,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
 
 
 #: config keys that do not change a run's results (left out of its config hash)
-_NOT_RESULTS = ("threads", "resume", "hydra", "optimized_metric", "progress")
+_NOT_RESULTS = ("threads", "resume", "hydra", "optimized_metric")  # and "progress" at any depth: config_sha
 
 
 def provenance() -> dict[str, Any]:
