@@ -219,12 +219,7 @@ def _from_omm(rec, ts, field: str):
     if missing:
         raise ValueError(f"{field}: an OMM/GP record needs {', '.join(OMM_REQUIRED)}; missing {', '.join(missing)}")
     fields = {**OMM_DEFAULTS, **{k: v for k, v in rec.items() if v is not None}}
-    try:
-        epoch = datetime.fromisoformat(str(fields["EPOCH"]).replace("Z", "+00:00"))
-    except ValueError:
-        raise ValueError(f"{field}.EPOCH: not an ISO date-time: {fields['EPOCH']!r}") from None
-    if epoch.tzinfo is not None:
-        epoch = epoch.astimezone(timezone.utc).replace(tzinfo=None)
+    epoch = _start_datetime(str(fields["EPOCH"]), field=f"{field}.EPOCH")
     fields["EPOCH"] = epoch.strftime("%Y-%m-%dT%H:%M:%S.%f")  # the one form sgp4.omm parses
     fields["OBJECT_ID"] = str(fields["OBJECT_ID"])
     sat = Satrec()
