@@ -201,6 +201,29 @@ def test_bad_arguments_are_refused_with_their_name():
 
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_lone_signal_split_among_threads_matches_scikit_learn(threads, monkeypatch):
+    """One signal with 2 threads takes the kernel whose correlation updates are split among the
+    threads (chunks of 2048 atoms, so n = 5000 makes uneven chunks); the code must be
+    scikit-learn's and the same, bit for bit, as the one-thread run and as that signal in a batch."""
+    pytest.importorskip("numba")
+    import cssat.sparse.omp as omp_mod
+
+    monkeypatch.setattr(omp_mod, "_CAP0", 8)  # the work buffers grow several times up to K
+    D, Y = problem(m=300, n=5000, B=3, seed=3)
+    Dt, Yt = torch.tensor(D), torch.tensor(Y)
+    old = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        lone = batch_omp(Dt, Yt[1], n_nonzero_coefs=120, backend="numba")
+    finally:
+        torch.set_num_threads(old)
+    in_batch = batch_omp(Dt, Yt, n_nonzero_coefs=120, backend="numba")[1]
+    assert torch.equal(lone, in_batch)
+    ref = orthogonal_mp(D, Y[1], n_nonzero_coefs=120)
+    np.testing.assert_allclose(lone.numpy(), ref, atol=1e-8)
+
+
 @pytest.mark.filterwarnings("ignore:Orthogonal matching pursuit ended prematurely")  # the zero signal
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
 @pytest.mark.parametrize("mode", [{"n_nonzero_coefs": 25}, {"tol": 3.0}, {"tol": 3.0, "n_nonzero_coefs": 10}])

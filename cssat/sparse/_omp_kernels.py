@@ -50,10 +50,13 @@ def _grow1(a, cap):
 
 
 @njit(cache=True, nogil=True)
-def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor, steps, slot):
+def _run(G, a0, alpha, U, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor, steps, slot, spread):
     """Continue one signal from ``k`` atoms; stop when done (status 0) or when the work
     arrays are full (status 1: grow them and call again). ``steps[slot]`` counts the atoms
-    selected (read by a progress bar in another thread)."""
+    selected (read by a progress bar in another thread). ``U = Lᵀ`` holds the Cholesky factor
+    by columns, so both substitutions read contiguous rows of ``U`` (the forward one
+    column-oriented, each ``w[i]`` still summed in ascending order): strided reads of ``L`` made
+    a large ``K`` cost ``K³/3`` cache misses."""
     n = a0.shape[0]
     dt = a0.dtype.type
     cap = idx.shape[0]
@@ -72,24 +75,27 @@ def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, f
                 return k, err, 0
         if k == cap:
             return k, err, 1
-        # 2. Cholesky row: w = L⁻¹ G[I, j]
+        # 2. Cholesky row: w = L⁻¹ G[I, j] (forward substitution by columns of L = rows of U)
         gj = G[j]
         ajj = gj[j]
         lkk2 = ajj
         for i in range(k):
-            s = gj[idx[i]]
-            for t in range(i):
-                s -= L[i, t] * w[t]
-            w[i] = s / L[i, i]
-            lkk2 -= w[i] * w[i]
+            w[i] = gj[idx[i]]
+        for t in range(k):
+            w[t] = w[t] / U[t, t]
+            lkk2 -= w[t] * w[t]
+            wt = w[t]
+            row = U[t]
+            for i in range(t + 1, k):
+                w[i] -= row[i] * wt
         if lkk2 <= dt(16.0) * eps * ajj:
             break
         s = a0[j]
         for i in range(k):
-            L[k, i] = w[i]
+            U[i, k] = w[i]
             s -= w[i] * z[i]
-        L[k, k] = np.sqrt(lkk2)
-        z[k] = s / L[k, k]
+        U[k, k] = np.sqrt(lkk2)
+        z[k] = s / U[k, k]
         idx[k] = j
         for t in range(n):
             sel[k, t] = gj[t]
@@ -99,30 +105,51 @@ def _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, f
         # 3. γ = L⁻ᵀ z by back substitution
         for i in range(k - 1, -1, -1):
             s = z[i]
+            row = U[i]
             for t in range(i + 1, k):
-                s -= L[t, i] * gamma[t]
-            gamma[i] = s / L[i, i]
+                s -= row[t] * gamma[t]
+            gamma[i] = s / U[i, i]
         if k == K or (use_tol and err <= tol):
             break
-        # 4. α = Dᵀy − G_I γ, four rows per pass over α
-        for t in range(n):
-            alpha[t] = a0[t]
-        i = 0
-        while i + 4 <= k:
-            _axpy4(alpha, gamma[i], sel[i], gamma[i + 1], sel[i + 1],
-                   gamma[i + 2], sel[i + 2], gamma[i + 3], sel[i + 3])
-            i += 4
-        while i < k:
-            _axpy1(alpha, gamma[i], sel[i])
-            i += 1
+        # 4. α = Dᵀy − G_I γ: over all atoms here, or split among threads (one signal, `spread`)
+        if spread:
+            _update_spread(alpha, a0, gamma, sel, k)
+        else:
+            _update(alpha, a0, gamma, sel, k, 0, n)
     return k, err, 0
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _update(alpha, a0, gamma, sel, k, lo, hi):
+    """``α[lo:hi] = a0[lo:hi] − Σᵢ γᵢ sel[i, lo:hi]``, four rows per pass over ``α``."""
+    a = alpha[lo:hi]
+    for t in range(hi - lo):
+        a[t] = a0[lo + t]
+    i = 0
+    while i + 4 <= k:
+        _axpy4(a, gamma[i], sel[i, lo:hi], gamma[i + 1], sel[i + 1, lo:hi],
+               gamma[i + 2], sel[i + 2, lo:hi], gamma[i + 3], sel[i + 3, lo:hi])
+        i += 4
+    while i < k:
+        _axpy1(a, gamma[i], sel[i, lo:hi])
+        i += 1
+
+
+@njit(parallel=True, cache=True, nogil=True, fastmath=True)
+def _update_spread(alpha, a0, gamma, sel, k):
+    """:func:`_update` over all atoms in chunks run by numba's threads (for a lone signal, whose
+    update streams ``k × n`` values each step; the result is the same, element by element)."""
+    n = alpha.shape[0]
+    size = 2048
+    for c in prange((n + size - 1) // size):
+        _update(alpha, a0, gamma, sel, k, c * size, min(n, (c + 1) * size))
 
 
 def build(parallel: bool):
     """The batch kernel, parallel over signals or serial."""
 
     @njit(parallel=parallel, cache=True, nogil=True)
-    def _batch(G, A0, ynorm2, K, tol, use_tol, out, n_iter, res, n_blocks, cap0, steps):
+    def _batch(G, A0, ynorm2, K, tol, use_tol, out, n_iter, res, n_blocks, cap0, steps, spread):
         B, n = A0.shape
         is_parallel = parallel  # a closure cell: numba's cache keys the two variants apart  # noqa: F841
         dt = A0.dtype.type
@@ -131,7 +158,7 @@ def build(parallel: bool):
         for blk in prange(n_blocks):
             # per-thread work arrays, grown by doubling up to K atoms
             cap = cap0
-            L = np.zeros((cap, cap), A0.dtype)
+            U = np.zeros((cap, cap), A0.dtype)  # Lᵀ
             sel = np.empty((cap, n), A0.dtype)
             idx = np.zeros(cap, np.int64)
             z = np.zeros(cap, A0.dtype)
@@ -146,18 +173,18 @@ def build(parallel: bool):
                     if abs(a0[t]) > floor:
                         floor = abs(a0[t])
                 floor = dt(16.0) * eps * floor
-                k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, 0, ynorm2[b], K, tol, use_tol, eps, floor,
-                                      steps, blk)
+                k, err, status = _run(G, a0, alpha, U, sel, idx, z, w, gamma, 0, ynorm2[b], K, tol, use_tol, eps,
+                                      floor, steps, blk, spread)
                 while status == 1:
                     cap = min(K, 2 * cap)
-                    L = _grow_square(L, cap)
+                    U = _grow_square(U, cap)
                     sel = _grow_rows(sel, cap)
                     idx = _grow1(idx, cap)
                     z = _grow1(z, cap)
                     w = _grow1(w, cap)
                     gamma = _grow1(gamma, cap)
-                    k, err, status = _run(G, a0, alpha, L, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps, floor,
-                                          steps, blk)
+                    k, err, status = _run(G, a0, alpha, U, sel, idx, z, w, gamma, k, err, K, tol, use_tol, eps,
+                                          floor, steps, blk, spread)
                 for i in range(k):
                     out[b, idx[i]] = gamma[i]
                 n_iter[b] = k

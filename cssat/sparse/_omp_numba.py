@@ -1,7 +1,8 @@
 """Compiled CPU kernel for the Gram path of :func:`cssat.sparse.batch_omp` (optional, numba).
 
 One signal at a time per thread, so each signal's working set — the ``K`` Gram rows it has selected,
-``K × n`` values — stays in the core's L2 cache; the torch path runs signals in lockstep and is
+``K × n`` values — stays in the core's cache (fewer signals than threads: one signal at a time,
+its correlation updates split among the threads); the torch path runs signals in lockstep and is
 bound by cache bandwidth and per-operation overhead on a CPU. The arithmetic, the stopping rules
 and the output are those of the torch path (``_omp_torch.omp_chunk``), and the tests compare the two.
 """
@@ -28,10 +29,13 @@ def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out
     the GIL) runs."""
     use_tol = tol is not None
     dt = A0.dtype.type
-    n_blocks = max(1, min(A0.shape[0], 8 * threads))
+    # fewer signals than threads: one signal at a time, its updates split among the threads
+    spread = 1 < threads and A0.shape[0] < threads
+    n_blocks = 1 if spread else max(1, min(A0.shape[0], 8 * threads))
     steps = np.zeros(n_blocks, np.int64)
-    run = lambda: kernel(_build, threads)(G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res,  # noqa: E731
-                                          n_blocks, min(K, cap0), steps)
+    fn = kernel(_build, threads, parallel=not spread and threads > 1)
+    run = lambda: fn(G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res,  # noqa: E731
+                     n_blocks, min(K, cap0), steps, spread)
     if bar is None or bar.disable:
         run()
         return
