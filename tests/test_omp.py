@@ -284,3 +284,30 @@ def test_threaded_matrix_vector_product_matches_float64():
         torch.set_num_threads(1)
     ref = (Dt.double() @ r[0].double()).float()
     torch.testing.assert_close(got[0], ref, rtol=1e-5, atol=1e-4)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_sparse_gram_is_numpys_dense_product(threads):
+    """The sparse Gram kernel (rows' outer products over their non-zeros) against numpy's DᵀD,
+    with empty rows, an empty column and rows of one entry; exactly symmetric; the dense
+    branch gives the same to round-off; a bad `sparse` value is named."""
+    pytest.importorskip("numba")
+    from cssat.sparse import gram_matrix
+
+    rng = np.random.default_rng(4)
+    D = rng.standard_normal((70, 300)) * (rng.random((70, 300)) < 0.04)
+    D[3] = 0
+    D[:, 17] = 0
+    D[9] = 0
+    D[9, 5] = 2.5
+    old = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        G = gram_matrix(torch.tensor(D), sparse=True)
+    finally:
+        torch.set_num_threads(old)
+    np.testing.assert_allclose(G.numpy(), D.T @ D, rtol=1e-12, atol=1e-12)
+    assert torch.equal(G, G.T)
+    torch.testing.assert_close(gram_matrix(torch.tensor(D), sparse=False), G, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError, match="sparse: expected 'auto', True or False"):
+        gram_matrix(torch.tensor(D), sparse="yes")

@@ -190,3 +190,34 @@ def build(parallel: bool):
                 n_iter[b] = k
                 res[b] = err
     return _batch
+
+
+
+def build_sparse_gram(parallel: bool):
+    """The kernel ``sparse_gram(crow, col, val, n, n_blocks)``: ``DᵀD (n, n)`` of a sparse
+    ``D (m, n)`` given as CSR (``crow``, ``col`` sorted within each row, ``val``), as
+    ``Σᵢ dᵢ dᵢᵀ`` over the rows, ``nnzᵢ²`` products each. The rows of the result are split into
+    ``n_blocks`` ranges, one per task, so no two tasks write one entry; each entry sums its
+    products in row order, so ``G[a, b]`` and ``G[b, a]`` are equal bit for bit."""
+
+    @njit(parallel=parallel, cache=True, nogil=True)
+    def sparse_gram(crow, col, val, n, n_blocks):
+        is_parallel = parallel  # a closure cell: numba's cache keys the two variants apart  # noqa: F841
+        G = np.zeros((n, n), val.dtype)
+        m = crow.shape[0] - 1
+        step = (n + n_blocks - 1) // n_blocks
+        for blk in prange(n_blocks):
+            lo, hi = blk * step, min(n, (blk + 1) * step)
+            for i in range(m):
+                s, e = crow[i], crow[i + 1]
+                first = s + np.searchsorted(col[s:e], lo)
+                for p in range(first, e):
+                    a = col[p]
+                    if a >= hi:
+                        break
+                    va = val[p]
+                    ga = G[a]
+                    for q in range(s, e):
+                        ga[col[q]] += va * val[q]
+        return G
+    return sparse_gram

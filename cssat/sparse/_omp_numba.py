@@ -13,7 +13,7 @@ import numpy as np
 
 from cssat.sparse._numba import available, kernel
 
-__all__ = ["available"]
+__all__ = ["available", "sparse_gram"]
 
 
 def _build(parallel: bool):
@@ -60,3 +60,14 @@ def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out
         stop.set()
         watcher.join()
         show()
+
+
+def _build_sparse_gram(parallel: bool):
+    from cssat.sparse import _omp_kernels
+
+    return _omp_kernels.build_sparse_gram(parallel)
+
+
+def sparse_gram(crow: np.ndarray, col: np.ndarray, val: np.ndarray, n: int, threads: int) -> np.ndarray:
+    """``DᵀD`` of a CSR matrix with ``n`` columns (``_omp_kernels.build_sparse_gram``) on ``threads`` threads."""
+    return kernel(_build_sparse_gram, threads)(crow, col, val, n, max(1, 16 * threads))

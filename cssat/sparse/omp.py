@@ -278,10 +278,42 @@ def batch_omp(
     return _finish(out, n_iter, res_sq, squeeze, return_info, path)
 
 
-def gram_matrix(D: Tensor, block: int = 512) -> Tensor:
-    """``DᵀD (n_atoms, n_atoms)``, exactly symmetric, computed block row by block row on and above
-    the diagonal and mirrored: about half the multiply-adds of ``D.T @ D`` (like BLAS ``syrk``)."""
-    n = D.shape[1]
+#: the sparse Gram kernel's rate (scattered multiply-adds per second, 2 threads) and the dense
+#: Gram size (multiply-adds) below which the dense product is always used: there the saving is
+#: under a second, and the dense result — what cssat returned before the sparse kernel — is kept
+_SCATTER_RATE = 0.05e9
+_SPARSE_GRAM_MIN = 7e10
+
+
+def gram_matrix(D: Tensor, block: int = 512, sparse: bool | str = "auto") -> Tensor:
+    """``DᵀD (n_atoms, n_atoms)``, exactly symmetric.
+
+    Dense: block row by block row on and above the diagonal, mirrored — about half the
+    multiply-adds of ``D.T @ D`` (like BLAS ``syrk``), ``m n²/2``. Sparse (CPU, numba): the sum of
+    the rows' outer products over their non-zeros, ``Σᵢ nnzᵢ²`` — e.g. the dictionary ``Âᵀ``
+    of the sparse reference-satellite estimate (Eq. 30), 13108 rows with ≤ 100 non-zeros over
+    16384 atoms: 0.13 G products against 1.76 T. ``sparse="auto"`` takes the sparse kernel when
+    its estimated time is below the dense product's and the dense one would cost over a second
+    (:data:`_SPARSE_GRAM_MIN`); ``True``/``False`` force it.
+    """
+    if sparse not in ("auto", True, False):
+        raise ValueError(f"sparse: expected 'auto', True or False, got {sparse!r}")
+    m, n = D.shape
+    if sparse is not False and D.device.type == "cpu":
+        from cssat.sparse import _omp_numba
+
+        if sparse is True or (m * n * n / 2 >= _SPARSE_GRAM_MIN and _omp_numba.available()):
+            mask = D != 0
+            nnz = mask.sum(1)
+            if sparse is True or float((nnz.double() ** 2).sum()) / _SCATTER_RATE < m * n * n / 2 / _GEMM_RATE:
+                if not _omp_numba.available():
+                    raise ImportError("sparse: the sparse Gram needs the numba package (pip install numba)")
+                crow = torch.zeros(m + 1, dtype=torch.int64)  # CSR by hand: nonzero() lists row by row
+                torch.cumsum(nnz, 0, out=crow[1:])
+                G = _omp_numba.sparse_gram(crow.numpy(), mask.nonzero()[:, 1].contiguous().numpy(),
+                                           D[mask].numpy(), n, torch.get_num_threads())
+                return torch.from_numpy(G)
+            del mask
     G = torch.empty(n, n, dtype=D.dtype, device=D.device)
     for i in range(0, n, block):
         G[i : i + block, i:] = D[:, i : i + block].T @ D[:, i:]
