@@ -11,6 +11,7 @@ import pytest
 from hydra import compose, initialize_config_module
 
 from cssat.experiments import run_experiment
+from cssat.experiments.common import ConfigError
 
 SMALL = ["target.size=16", "cs.m=200", "threads=1"]
 
@@ -219,6 +220,35 @@ def test_sim3_small_runs_repeats_and_3d_denoising(tmp_path):
         assert (tmp_path / "figures" / fig).stat().st_size > 1000
     # the minimum-norm baseline is reported beside the sparse estimate
     assert 0 < met["phi_relative_error_min_norm_mean"] and "psnr_min_norm_mean" in met
+
+
+def test_sim3_sizes_follow_the_target_size():
+    """At 64² the rules give the paper's Simulation 3 (N_ref = 3277, a pool of 8000, T0 = 200,
+    the baseline on all 9 repeats); target.size=128 alone scales them: 0.8 n², the pool with n²,
+    T0 = 100, the baseline on the first repeat."""
+    from cssat.experiments.common import measurements
+    from cssat.experiments.sim3 import baseline_repeats, estimate_settings, reference_sizes
+
+    for size, want in ((64, (3277, 3277, 8000, 200, 9)), (128, (13107, 13107, 32000, 100, 1))):
+        cfg = cfg_of("experiment=sim3", f"target.size={size}")
+        N = size * size
+        m = measurements(cfg.cs, N)
+        (n_ref, pool), (t0, tol) = reference_sizes(cfg, size), estimate_settings(cfg, N)
+        assert (m, n_ref, pool, t0, baseline_repeats(cfg, m, N, 9)) == want and tol is None
+
+
+def test_sim3_baseline_on_the_first_repeat_only(tmp_path):
+    over = ["experiment=sim3", "target.size=16", "cs.m=200", "threads=1", "reference.pool=300", "reference.n=200",
+            "reference.repeats=2", "reference.n_nonzero_coefs=10", f"cache_dir={tmp_path / 'cache'}",
+            "denoiser=none", "denoiser@denoiser3d=none"]
+    met = run_experiment(cfg_of(*over, "reference.baseline=first"), tmp_path / "a")
+    first, second = met["repeat_psnr_min_norm"]
+    assert second is None and met["psnr_min_norm_mean"] == first and met["baseline_repeats"] == 1
+    assert len(met["repeat_psnr"]) == 2 and None not in met["repeat_psnr"]
+    both = run_experiment(cfg_of(*over, "reference.baseline=true"), tmp_path / "b")
+    assert both["repeat_psnr_min_norm"][0] == first and both["repeat_psnr_min_norm"][1] is not None
+    with pytest.raises(ConfigError, match="reference.baseline: expected true, false, first or auto"):
+        run_experiment(cfg_of(*over, "reference.baseline=some"), tmp_path / "c")
 
 
 @pytest.mark.parametrize("exp", ["sim2", "sim3"])

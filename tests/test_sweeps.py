@@ -56,7 +56,11 @@ def test_named_sweeps_name_valid_values_of_their_experiment(sweep):
             m = measurements(cfg.cs, N)
             assert 1 <= m <= N
             if exp == "sim3":
-                assert 1 <= cfg.reference.n <= min(cfg.reference.pool, N)
+                from cssat.experiments.sim3 import estimate_settings, reference_sizes
+
+                n_ref, pool = reference_sizes(cfg, cfg.target.size)  # validates them
+                assert 1 <= n_ref <= min(pool, N)
+                estimate_settings(cfg, N)
             build_solver(cfg.solver, m, N)  # e.g. K/m in [0, 1]
 
 

@@ -18,6 +18,7 @@ repeats as ``psnr_mean*``; per-repeat lists as ``repeat_*``.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -38,16 +39,66 @@ def memory_parts(n: int, m: int, n_ref: int, pool: int, itemsize: int) -> dict[s
             "Gram": N * N * itemsize, "coefficients": 4 * m * N * itemsize}
 
 
+#: ``reference.n_nonzero_coefs: auto``: T₀ = round(200 · 64 / n) — the paper-size default 200 at
+#: 64², 100 at 128². The estimate's Batch-OMP updates cost ``m · N · T₀² / 2``, ∝ n⁴ T₀² with
+#: m ∝ N: this rule holds them ∝ n², what makes 9 repeats at 128² fit 30 minutes on 2 cores.
+#: It is a compute budget, not a model choice: more atoms fit Φ̂ better (BENCHMARKS.md, the T₀
+#: tables at 64² and 128²).
+T0_AUTO = (200, 64)
+
+#: ``reference.baseline: auto`` computes the minimum-norm baseline on every repeat while
+#: ``m · N`` is at most this (64²: 3277 × 4096), else on the first repeat only (at 128² a
+#: baseline — its Cholesky solve, ``Φ̂Ψ`` and its reconstruction — costs ~2 minutes a repeat)
+BASELINE_ALL_MAX = 2**24
+
+
+def reference_sizes(cfg: Any, n: int) -> tuple[int, int]:
+    """``(N_ref, pool)``: ``reference.n`` (null → ``round(reference.ratio · n²)``, 3277 at 64²)
+    and ``reference.pool`` (null → ``round(reference.pool_ratio · n²)``, 8000 at 64², 32000 at
+    128²: the pool grows with the pixel count, so draws of ``N_ref`` overlap as much at any size)."""
+    from cssat.experiments.common import require_float, require_int
+
+    ref, N = cfg.reference, n * n
+    pool = ref.get("pool")
+    if pool is None:
+        pool = max(1, round(require_float(ref.get("pool_ratio"), "reference.pool_ratio", lo=0.0) * N))
+    pool = require_int(pool, "reference.pool", 1)
+    n_ref = ref.get("n")
+    if n_ref is None:
+        n_ref = max(1, round(require_float(ref.get("ratio"), "reference.ratio", lo=0.0, hi=1.0) * N))
+    return require_int(n_ref, "reference.n", 1, min(pool, N)), pool
+
+
 def estimate_settings(cfg: Any, N: int) -> tuple[int | None, float | None]:
-    """``(T₀, ε₀²)`` of the rank-deficient estimate from ``reference.n_nonzero_coefs`` and
-    ``reference.epsilon`` (a norm in the light curves' units)."""
+    """``(T₀, ε₀²)`` of the rank-deficient estimate from ``reference.n_nonzero_coefs`` (an
+    integer, ``auto`` = :data:`T0_AUTO`'s rule, or null) and ``reference.epsilon`` (a norm in the
+    light curves' units)."""
     from cssat.experiments.common import ConfigError, require_float, require_int
 
     t0, eps = cfg.reference.get("n_nonzero_coefs"), cfg.reference.get("epsilon")
+    if t0 == "auto":
+        t0 = min(N, max(1, round(T0_AUTO[0] * T0_AUTO[1] / math.isqrt(N))))
     if t0 is None and eps is None:
-        raise ConfigError("reference.n_nonzero_coefs: give T0 (Eq. 28) or reference.epsilon (Eq. 29)")
+        raise ConfigError("reference.n_nonzero_coefs: give T0 (Eq. 28), auto, or reference.epsilon (Eq. 29)")
     t0 = None if t0 is None else require_int(t0, "reference.n_nonzero_coefs", 1, N)
     return t0, None if eps is None else require_float(eps, "reference.epsilon", lo=0.0) ** 2
+
+
+def baseline_repeats(cfg: Any, m: int, N: int, repeats: int) -> int:
+    """How many repeats (the first ones) get the minimum-norm baseline: ``reference.baseline``
+    true (all), ``first`` (1), false (0) or ``auto`` (all while ``m · N`` ≤ :data:`BASELINE_ALL_MAX`, else 1)."""
+    from cssat.experiments.common import ConfigError
+
+    mode = cfg.reference.get("baseline", "auto")
+    if mode is True:
+        return repeats
+    if mode is False:
+        return 0
+    if mode == "first":
+        return 1
+    if mode == "auto":
+        return repeats if m * N <= BASELINE_ALL_MAX else 1
+    raise ConfigError(f"reference.baseline: expected true, false, first or auto, got {mode!r}")
 
 
 def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
@@ -65,10 +116,9 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     from cssat.plots import save_figure, sim3_figures
 
     dtype, device, seed, n, N, m = run_settings(cfg, max_size=512)
-    ref = cfg.reference
-    pool = require_int(ref.pool, "reference.pool", 1)
-    n_ref = require_int(ref.n, "reference.n", 1, min(pool, N))
-    repeats = require_int(ref.get("repeats", 9), "reference.repeats", 1, 1000)
+    n_ref, pool = reference_sizes(cfg, n)
+    repeats = require_int(cfg.reference.get("repeats", 9), "reference.repeats", 1, 1000)
+    n_baseline = baseline_repeats(cfg, m, N, repeats)
     (ref_seed, ref_mesh), estimate = reference_settings(cfg, seed), estimate_settings(cfg, N)
     solver, denoiser = build_solver(cfg.solver, m, N), build_denoiser(cfg.get("denoiser"))
     denoiser3d = build_denoiser(cfg.get("denoiser3d"), "denoiser3d") if repeats >= 2 else None
@@ -91,7 +141,8 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     for r in range(repeats):
         idx = torch.randperm(pool, generator=torch.Generator().manual_seed(ref_seed * 1_000_003 + r))[:n_ref]
         Xt = pool_imgs.reshape(pool, N)[idx].to(dtype=dtype, device=device)  # X_refᵀ (N_ref, N)
-        row, rec = _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, ref_seed * 1_000_003 + r + 1)
+        row, rec = _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, ref_seed * 1_000_003 + r + 1,
+                           baseline=r < n_baseline)
         per.append(row)
         recs.append(rec)
         bar.update()
@@ -106,7 +157,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     timings["seconds_denoise_3d"] = dm3.pop("seconds_denoise", 0.0)
     psnr3 = [psnr(x, d, data_range=1.0) for d in den3]
     metrics = {**_summary(per, psnr3), "m": m, "n": n, "n_pixels": N, "reference_n": n_ref, "reference_pool": pool,
-               "repeats": repeats, "reference_n_nonzero_coefs": estimate[0], "reference_tol": estimate[1],
+               "repeats": repeats, "baseline_repeats": n_baseline, "reference_n_nonzero_coefs": estimate[0], "reference_tol": estimate[1],
                "reference_cached": cached, **{k: v for k, v in recs[-1].metrics.items() if k.startswith("solver")},
                **atm.describe(), **noise, **stats, "seed": seed, "dtype": str(cfg.get("dtype", "float32")), "device": str(device),
                "peak_memory_estimate_gb": est / 2**30, "peak_rss_gb": peak_rss_bytes() / 2**30,
@@ -122,9 +173,10 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     return metrics
 
 
-def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed):
+def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed, baseline):
     """One repeat: ``Y_ref`` (Eq. 22), the sparse ``Φ̂`` (Eq. 26–30), the reconstruction from it
-    and its 2-D denoising, and the minimum-norm baseline. Returns ``(row of metrics, Reconstruction)``."""
+    and its 2-D denoising, and (``baseline``) the minimum-norm baseline. Returns ``(row of
+    metrics, Reconstruction)``."""
     import torch
 
     from cssat.experiments.pipeline import reconstruct, scores
@@ -146,7 +198,7 @@ def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed
                       center=cfg.get("center", "auto"))  # Φ̂Ψ = Âᵀ
     timings["seconds_solver"] += rec.metrics["seconds_solver"] + rec.metrics.get("seconds_dictionary", 0.0)
     timings["seconds_denoise"] += rec.metrics["seconds_denoise"]
-    if bool(cfg.reference.get("baseline", True)):
+    if baseline:
         t = time.perf_counter()
         phi_mn = estimate_sensing_min_norm(Xt.T, Y_ref)
         row["phi_relative_error_min_norm"] = relative_error(phi_mn, phi)
@@ -164,7 +216,11 @@ def _summary(per: list[dict], psnr3: list[float]) -> dict[str, Any]:
                gain_3d_over_2d=psnr3[best] - per[best]["psnr_denoised"], psnr_mean_denoised_3d=float(np.mean(psnr3)))
     means = {"psnr": "psnr_mean", "psnr_denoised": "psnr_mean_denoised", "phi_relative_error": "phi_relative_error_mean",
              "phi_relative_error_min_norm": "phi_relative_error_min_norm_mean", "psnr_min_norm": "psnr_min_norm_mean"}
-    out.update({name: float(np.mean([p[key] for p in per])) for key, name in means.items() if key in per[0]})
-    out.update({f"repeat_{key}": [p[key] for p in per] for key in per[0]})
+    for key, name in means.items():  # over the repeats that have the value (the baseline may be on the first only)
+        vals = [p[key] for p in per if key in p]
+        if vals:
+            out[name] = float(np.mean(vals))
+    keys = list(dict.fromkeys(k for p in per for k in p))
+    out.update({f"repeat_{key}": [p.get(key) for p in per] for key in keys})
     out["repeat_psnr_denoised_3d"] = psnr3
     return out
