@@ -186,10 +186,15 @@ def estimate_sensing_sparse(
     ok = norms > 0
     if not normalize:
         norms = torch.ones_like(norms)
-    Dn = D / torch.where(ok, norms, torch.ones_like(norms))
-    coef, oinfo = batch_omp(Dn, Y_ref.to(D.dtype), n_nonzero_coefs=n_nonzero_coefs, tol=tol, return_info=True,
+    scale = torch.where(ok, norms, torch.ones_like(norms))
+    Dn = D.div_(scale)  # in place: D (N × n_pixel, 0.9 GB at 128²) is not needed again
+    del D
+    coef, oinfo = batch_omp(Dn, Y_ref.to(Dn.dtype), n_nonzero_coefs=n_nonzero_coefs, tol=tol, return_info=True,
                             progress=progress)
-    coef = torch.where(ok, coef / torch.where(ok, norms, torch.ones_like(norms)), torch.zeros_like(coef))
+    del Dn
+    coef.div_(scale)
+    if not bool(ok.all()):  # atoms of zero norm (a pixel frequency no reference has) get no coefficient
+        coef[:, ~ok] = 0
     phi_hat = psi(coef)  # rows: Φ̂ᵢ = Ψ āᵢ
     if return_info:
         return phi_hat, SparseEstimate(coef, oinfo.n_iter, oinfo.residual_sq)

@@ -225,11 +225,11 @@ def test_sim3_small_runs_repeats_and_3d_denoising(tmp_path):
 def test_sim3_sizes_follow_the_target_size():
     """At 64² the rules give the paper's Simulation 3 (N_ref = 3277, a pool of 8000, T0 = 200,
     the baseline on all 9 repeats); target.size=128 alone scales them: 0.8 n², the pool with n²,
-    T0 = 100, the baseline on the first repeat."""
+    T0 = 71, the baseline on the first repeat."""
     from cssat.experiments.common import measurements
     from cssat.experiments.sim3 import baseline_repeats, estimate_settings, reference_sizes
 
-    for size, want in ((64, (3277, 3277, 8000, 200, 9)), (128, (13107, 13107, 32000, 100, 1))):
+    for size, want in ((64, (3277, 3277, 8000, 200, 9)), (128, (13107, 13107, 32000, 71, 1))):
         cfg = cfg_of("experiment=sim3", f"target.size={size}")
         N = size * size
         m = measurements(cfg.cs, N)

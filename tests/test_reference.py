@@ -87,3 +87,17 @@ def test_min_norm_rows_lie_in_the_span_of_the_references():
     phi_mn = estimate_sensing_min_norm(X, Y)
     # compare with numpy's pseudo-inverse (an independent reference)
     np.testing.assert_allclose(phi_mn.numpy(), Y.numpy() @ np.linalg.pinv(X.numpy()), rtol=1e-8, atol=1e-10)
+
+
+def test_the_pool_light_curves_are_each_repeats_products():
+    """sim3 forms Φ x for the whole pool once when the repeats draw more images than the pool
+    holds; a repeat's columns must be its Φ X_ref (to round-off), including across the blocks."""
+    from cssat.experiments.sim3 import _pool_light_curves, _share_light_curves
+
+    g = torch.Generator().manual_seed(1)
+    phi, flat = torch.randn(50, 64, generator=g), torch.rand(300, 64, generator=g)
+    idx = torch.randperm(300, generator=g)[:120]
+    got = _pool_light_curves(phi, flat, block=70)[:, idx]
+    torch.testing.assert_close(got, phi @ flat[idx].T, rtol=1e-6, atol=1e-5)
+    assert _share_light_curves(8000, 3277, 9) and _share_light_curves(32000, 13107, 9)
+    assert not _share_light_curves(8000, 3277, 1)  # the m_n sweep's one repeat: forming 8000 would cost more

@@ -31,20 +31,22 @@ from cssat.experiments.common import progress_setting
 log = logging.getLogger("cssat")
 
 
-def memory_parts(n: int, m: int, n_ref: int, pool: int, itemsize: int) -> dict[str, int]:
-    """The large arrays (bytes): the pool (float32), ``Φ``, ``Y_ref``, ``D = X_refᵀΨ``, the OMP's
-    Gram ``(N, N)``, and the coefficients ``Âᵀ``, ``Φ̂`` and the baseline's (each ``m × N``)."""
+def memory_parts(n: int, m: int, n_ref: int, pool: int, itemsize: int, repeats: int = 1) -> dict[str, int]:
+    """The large arrays (bytes): the pool (float32) and, when formed once, its light curves
+    ``(m, pool)``; ``Φ``, ``Y_ref``, ``D = X_refᵀΨ``, the OMP's Gram ``(N, N)``, and the
+    coefficients ``Âᵀ``, ``Φ̂`` and the baseline's (each ``m × N``)."""
     N = n * n
-    return {"pool": pool * N * 4, "Φ": m * N * itemsize, "Y_ref": m * n_ref * itemsize, "D": 2 * n_ref * N * itemsize,
-            "Gram": N * N * itemsize, "coefficients": 4 * m * N * itemsize}
+    shared = m * pool * itemsize if _share_light_curves(pool, n_ref, repeats) else 0
+    return {"pool": pool * N * 4, "pool light curves": shared, "Φ": m * N * itemsize, "Y_ref": m * n_ref * itemsize,
+            "D": 2 * n_ref * N * itemsize, "Gram": N * N * itemsize, "coefficients": 4 * m * N * itemsize}
 
 
-#: ``reference.n_nonzero_coefs: auto``: T₀ = round(200 · 64 / n) — the paper-size default 200 at
-#: 64², 100 at 128². The estimate's Batch-OMP updates cost ``m · N · T₀² / 2``, ∝ n⁴ T₀² with
-#: m ∝ N: this rule holds them ∝ n², what makes 9 repeats at 128² fit 30 minutes on 2 cores.
-#: It is a compute budget, not a model choice: more atoms fit Φ̂ better (BENCHMARKS.md, the T₀
-#: tables at 64² and 128²).
-T0_AUTO = (200, 64)
+#: ``reference.n_nonzero_coefs: auto``: T₀ = round(200 · (64 / n)^1.5) — the paper-size default
+#: 200 at 64², 71 at 128². The estimate's Batch-OMP updates cost ``m · N · T₀² / 2`` value reads,
+#: ∝ n⁴ T₀² with m ∝ N: this rule makes them grow only as n, what lets 9 repeats at 128² fit
+#: 30 minutes on 2 cores. It is a compute budget, not a model choice: more atoms fit Φ̂ better
+#: (BENCHMARKS.md, the T₀ tables at 64² and 128²).
+T0_AUTO = (200, 64, 1.5)
 
 #: ``reference.baseline: auto`` computes the minimum-norm baseline on every repeat while
 #: ``m · N`` is at most this (64²: 3277 × 4096), else on the first repeat only (at 128² a
@@ -77,7 +79,7 @@ def estimate_settings(cfg: Any, N: int) -> tuple[int | None, float | None]:
 
     t0, eps = cfg.reference.get("n_nonzero_coefs"), cfg.reference.get("epsilon")
     if t0 == "auto":
-        t0 = min(N, max(1, round(T0_AUTO[0] * T0_AUTO[1] / math.isqrt(N))))
+        t0 = min(N, max(1, round(T0_AUTO[0] * (T0_AUTO[1] / math.sqrt(N)) ** T0_AUTO[2])))
     if t0 is None and eps is None:
         raise ConfigError("reference.n_nonzero_coefs: give T0 (Eq. 28), auto, or reference.epsilon (Eq. 29)")
     t0 = None if t0 is None else require_int(t0, "reference.n_nonzero_coefs", 1, N)
@@ -122,7 +124,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     (ref_seed, ref_mesh), estimate = reference_settings(cfg, seed), estimate_settings(cfg, N)
     solver, denoiser = build_solver(cfg.solver, m, N), build_denoiser(cfg.get("denoiser"))
     denoiser3d = build_denoiser(cfg.get("denoiser3d"), "denoiser3d") if repeats >= 2 else None
-    est = check_memory(memory_parts(n, m, n_ref, pool, torch.finfo(dtype).bits // 8), cfg,
+    est = check_memory(memory_parts(n, m, n_ref, pool, torch.finfo(dtype).bits // 8, repeats), cfg,
                        "lower target.size, reference.pool or cs.m, or use dtype=float32")
     x = load_target(str(cfg.target.image), n)
     timings = dict.fromkeys(("seconds_estimate", "seconds_solver", "seconds_denoise", "seconds_baseline"), 0.0)
@@ -136,13 +138,18 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     pool_imgs, cached = reference_set(cfg, n, pool, ref_seed, ref_mesh)
     timings["seconds_references"] = time.perf_counter() - t
 
+    flat = pool_imgs.reshape(pool, N)
+    t = time.perf_counter()
+    pool_light = _pool_light_curves(meas.matrix(), flat) if _share_light_curves(pool, n_ref, repeats) else None
+    timings["seconds_reference_light_curves"] = time.perf_counter() - t
     per, recs = [], []
     bar = progress_bar(repeats, f"sim3: repeats of Eq. 26-30 with N_ref={n_ref}", progress_setting(cfg), unit="repeat")
     for r in range(repeats):
         idx = torch.randperm(pool, generator=torch.Generator().manual_seed(ref_seed * 1_000_003 + r))[:n_ref]
-        Xt = pool_imgs.reshape(pool, N)[idx].to(dtype=dtype, device=device)  # X_refᵀ (N_ref, N)
+        Xt = flat[idx].to(dtype=dtype, device=device)  # X_refᵀ (N_ref, N)
+        clean = pool_light[:, idx.to(pool_light.device)] if pool_light is not None else None
         row, rec = _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, ref_seed * 1_000_003 + r + 1,
-                           baseline=r < n_baseline)
+                           baseline=r < n_baseline, clean=clean)
         per.append(row)
         recs.append(rec)
         bar.update()
@@ -150,7 +157,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
                  row["phi_relative_error"], row["psnr"], row["psnr_denoised"])
     bar.close()
     noise = meas.describe()
-    del meas, pool_imgs
+    del meas, pool_imgs, flat, pool_light
 
     stack, den2 = np.stack([r.image for r in recs]), np.stack([r.denoised for r in recs])
     den3, dm3 = denoise(denoiser3d, stack, field="denoiser3d") if denoiser3d is not None else (stack.copy(), {"denoiser": "none"})
@@ -173,10 +180,30 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     return metrics
 
 
-def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed, baseline):
-    """One repeat: ``Y_ref`` (Eq. 22), the sparse ``Φ̂`` (Eq. 26–30), the reconstruction from it
-    and its 2-D denoising, and (``baseline``) the minimum-norm baseline. Returns ``(row of
-    metrics, Reconstruction)``."""
+def _share_light_curves(pool: int, n_ref: int, repeats: int) -> bool:
+    """Whether to form the light curves ``Φ x`` of the whole pool once (``m × pool`` values)
+    rather than ``Φ X_ref`` in every repeat: when the repeats draw more images in all than the
+    pool holds (9 × 3277 > 8000; at 128², 9 × 13107 > 32000 saves ~110 s)."""
+    return repeats * n_ref > pool
+
+
+def _pool_light_curves(phi, flat, block: int = 4096):
+    """``Φ x`` for every image of the pool ``flat (pool, N)``: ``(m, pool)``, in blocks of
+    images: each column is the product of Φ with that image, so a repeat's columns are
+    ``Φ X_ref`` (to round-off; bit for bit with this project's BLAS — BENCHMARKS.md)."""
+    import torch
+
+    out = torch.empty(phi.shape[0], flat.shape[0], dtype=phi.dtype, device=phi.device)
+    for s in range(0, flat.shape[0], block):
+        out[:, s : s + block] = phi @ flat[s : s + block].to(dtype=phi.dtype, device=phi.device).T
+    return out
+
+
+def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed, baseline, clean=None):
+    """One repeat: ``Y_ref`` (Eq. 22: ``clean``, the noise-free ``Φ X_ref`` when the pool's
+    light curves were formed once, else formed here), the sparse ``Φ̂`` (Eq. 26–30), the
+    reconstruction from it and its 2-D denoising, and (``baseline``) the minimum-norm baseline.
+    Returns ``(row of metrics, Reconstruction)``."""
     import torch
 
     from cssat.experiments.pipeline import reconstruct, scores
@@ -186,7 +213,9 @@ def _repeat(cfg, meas, Xt, y, x, solver, denoiser, estimate, timings, noise_seed
 
     n = int(cfg.target.size)
     phi = meas.matrix()
-    Y_ref = meas.add_noise(phi @ Xt.T, torch.Generator().manual_seed(noise_seed))
+    t = time.perf_counter()
+    Y_ref = meas.add_noise(phi @ Xt.T if clean is None else clean, torch.Generator().manual_seed(noise_seed))
+    timings["seconds_reference_light_curves"] += time.perf_counter() - t
     t = time.perf_counter()
     phi_dense, info = estimate_sensing_sparse(Xt.T, Y_ref, n_nonzero_coefs=estimate[0], tol=estimate[1], shape=(n, n),
                                               normalize=bool(cfg.reference.get("normalize", True)), return_info=True,
