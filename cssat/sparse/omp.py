@@ -299,20 +299,15 @@ def gram_matrix(D: Tensor, block: int = 512, sparse: bool | str = "auto") -> Ten
     if sparse not in ("auto", True, False):
         raise ValueError(f"sparse: expected 'auto', True or False, got {sparse!r}")
     m, n = D.shape
+    dense_work = m * n * n / 2  # multiply-adds of the dense product
     if sparse is not False and D.device.type == "cpu":
         from cssat.sparse import _omp_numba
 
-        if sparse is True or (m * n * n / 2 >= _SPARSE_GRAM_MIN and _omp_numba.available()):
+        if sparse is True or (dense_work >= _SPARSE_GRAM_MIN and _omp_numba.available()):
             mask = D != 0
             nnz = mask.sum(1)
-            if sparse is True or float((nnz.double() ** 2).sum()) / _SCATTER_RATE < m * n * n / 2 / _GEMM_RATE:
-                if not _omp_numba.available():
-                    raise ImportError("sparse: the sparse Gram needs the numba package (pip install numba)")
-                crow = torch.zeros(m + 1, dtype=torch.int64)  # CSR by hand: nonzero() lists row by row
-                torch.cumsum(nnz, 0, out=crow[1:])
-                G = _omp_numba.sparse_gram(crow.numpy(), mask.nonzero()[:, 1].contiguous().numpy(),
-                                           D[mask].numpy(), n, torch.get_num_threads())
-                return torch.from_numpy(G)
+            if sparse is True or float((nnz.double() ** 2).sum()) / _SCATTER_RATE < dense_work / _GEMM_RATE:
+                return _sparse_gram(D, mask, nnz)
             del mask
     G = torch.empty(n, n, dtype=D.dtype, device=D.device)
     for i in range(0, n, block):
@@ -321,6 +316,20 @@ def gram_matrix(D: Tensor, block: int = 512, sparse: bool | str = "auto") -> Ten
         d = G[i : i + block, i : i + block]  # make the diagonal block exactly symmetric too
         d.copy_(torch.triu(d) + torch.triu(d, 1).T)
     return G
+
+
+def _sparse_gram(D: Tensor, mask: Tensor, nnz: Tensor) -> Tensor:
+    """``DᵀD`` by the numba kernel from ``D``'s non-zeros (``mask``, ``nnz`` per row), built into
+    CSR by hand: ``nonzero()`` lists them row by row, columns ascending."""
+    from cssat.sparse import _omp_numba
+
+    if not _omp_numba.available():
+        raise ImportError("sparse: the sparse Gram needs the numba package (pip install numba)")
+    crow = torch.zeros(D.shape[0] + 1, dtype=torch.int64)
+    torch.cumsum(nnz, 0, out=crow[1:])
+    G = _omp_numba.sparse_gram(crow.numpy(), mask.nonzero()[:, 1].contiguous().numpy(), D[mask].numpy(),
+                               D.shape[1], torch.get_num_threads())
+    return torch.from_numpy(G)
 
 
 def _finish(out, n_iter, res_sq, squeeze, return_info, path):
