@@ -88,3 +88,20 @@ def temporary_path(path: Path) -> Path:
 def release(tmp: Path) -> None:
     """``tmp`` was renamed into place or removed: the guardian must leave that path alone."""
     _send(b"-", tmp)
+
+
+def atomic_write(path: str | os.PathLike, write) -> None:
+    """Write ``path`` through ``write(tmp)`` on a temporary file beside it, then rename it into
+    place: a reader sees the old file or the new one, never a part. The temporary file gets the
+    mode the user's umask gives a new file, and is removed even when this process is killed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temporary_path(path)
+    try:
+        write(str(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        release(tmp)

@@ -29,7 +29,8 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
     """
     from tqdm.contrib.logging import logging_redirect_tqdm
 
-    from cssat.experiments import ConfigError, run_experiment
+    from cssat._checks import FieldError
+    from cssat.experiments import run_experiment
 
     try:
         with logging_redirect_tqdm():  # log lines printed above the progress bars, not through them
@@ -38,7 +39,7 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
         if multirun:
             log.error("job failed: %s", err)
             return None
-        if isinstance(err, ConfigError) or names_a_field(err, cfg):
+        if isinstance(err, FieldError):  # bad input: its field is in the error, not parsed from a message
             log.error("bad input: %s", err)
             sys.exit(2)
         raise
@@ -47,29 +48,19 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
-#: the fields that the scene and optics layers name in their errors beside the config's own keys
-_LIBRARY_FIELDS = {"observer", "tle", "mesh", "sunlit", "brightness", "image_or_volume"}
-
-
-def names_a_field(err: BaseException, cfg: Any) -> bool:
-    """Whether ``err`` is a ``ValueError``/``TypeError`` whose message begins with the name of a
-    config field (``target.image: …``, ``scenario.start_utc: …``): bad input, reported in one line
-    with exit status 2, not a traceback."""
-    import re
-
-    if not isinstance(err, (ValueError, TypeError)):
-        return False
-    match = re.match(r"^([a-z_][a-z0-9_]*)(\.[a-z0-9_]+)*: ", str(err))
-    return bool(match) and (match.group(1) in cfg or match.group(1) in _LIBRARY_FIELDS)
-
-
 @hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
 def _hydra_main(cfg: DictConfig) -> float | None:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
+    from omegaconf import open_dict
+
     hc = HydraConfig.get()
     multirun = hc.mode == RunMode.MULTIRUN
+    choice = hc.runtime.choices.get("experiment")
+    if choice and cfg.get("experiment_name") != choice:  # an experiment is its YAML: the file names it
+        with open_dict(cfg):
+            cfg.experiment_name = choice
     if multirun:  # mark the job directory with its sweep's id (the summary keeps this sweep's jobs)
         from cssat.summary import SWEEP_MARK, sweep_id
 
@@ -84,7 +75,7 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         by the lock may have overwritten them since: write this run's again, under the lock."""
         from omegaconf import OmegaConf
 
-        from cssat.experiments.common import _atomic
+        from cssat._tmpfiles import atomic_write
 
         sub = hc.output_subdir
         if not sub:
@@ -92,7 +83,7 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         d = Path(hc.runtime.output_dir) / sub
         task_cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
         for name, node in (("config.yaml", task_cfg), ("overrides.yaml", OmegaConf.create(list(hc.overrides.task)))):
-            _atomic(d / name, lambda tmp, node=node: OmegaConf.save(node, tmp))
+            atomic_write(d / name, lambda tmp, node=node: OmegaConf.save(node, tmp))
 
     return task(cfg, hc.runtime.output_dir, multirun=multirun, finalize=save_hydra_files)
 

@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from cssat._checks import FieldError
+
 __all__ = ["psnr", "ssim"]
 
 
@@ -29,8 +31,8 @@ def _range(ref: np.ndarray, data_range: float | None) -> float:
     if data_range is None:
         data_range = float(ref.max() - ref.min())
     if not np.isfinite(data_range) or data_range <= 0:
-        raise ValueError(
-            f"data_range: must be a positive finite number, got {data_range} "
+        raise FieldError(
+            "data_range", f"must be a positive finite number, got {data_range} "
             "(a constant reference image needs an explicit data_range)"
         )
     return float(data_range)
@@ -40,12 +42,12 @@ def _score(one, image_true, image_test, data_range: float | None, volume: bool):
     """Apply ``one(true, test, R, channel_axis)`` to an image, a volume, or each image of a batch."""
     ref, x = _np(image_true), _np(image_test)
     if x.shape != ref.shape:
-        raise ValueError(f"image_test: shape {x.shape} differs from image_true's {ref.shape}")
+        raise FieldError("image_test", f"shape {x.shape} differs from image_true's {ref.shape}")
     if not np.isfinite(x).all():
-        raise ValueError("image_test: contains NaN or Inf")
+        raise FieldError("image_test", "contains NaN or Inf")
     if volume:
         if ref.ndim != 3:
-            raise ValueError(f"image_true: volume=True needs a (k, n, n) volume, got shape {ref.shape}")
+            raise FieldError("image_true", f"volume=True needs a (k, n, n) volume, got shape {ref.shape}")
         return float(one(ref, x, _range(ref, data_range), None))
     if ref.ndim == 2:
         return float(one(ref, x, _range(ref, data_range), None))
@@ -55,7 +57,7 @@ def _score(one, image_true, image_test, data_range: float | None, volume: bool):
         ch = None if ref.shape[1] == 1 else 0
         return np.array([one(r[0] if ch is None else r, t[0] if ch is None else t, _range(r, data_range), ch)
                          for r, t in zip(ref, x)])
-    raise ValueError(f"image_true: expected (H, W), (B, H, W) or (B, C, H, W), got shape {ref.shape}")
+    raise FieldError("image_true", f"expected (H, W), (B, H, W) or (B, C, H, W), got shape {ref.shape}")
 
 
 def psnr(image_true: Any, image_test: Any, data_range: float | None = None, *, volume: bool = False) -> Any:

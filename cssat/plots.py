@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
+from cssat._checks import FieldError
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -34,12 +36,12 @@ FIGURE_FORMATS = ("png", "pdf", "svg")
 def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 120) -> None:
     """Save ``fig`` atomically (a reader sees the old file or the new one, never a part) in the
     format of ``path``'s suffix: ``.png`` (``dpi``), ``.pdf`` or ``.svg`` (vector)."""
-    from cssat.experiments.common import _atomic
+    from cssat._tmpfiles import atomic_write
 
     fmt = Path(path).suffix.lstrip(".").lower()
     if fmt not in FIGURE_FORMATS:
-        raise ValueError(f"figure_format: expected one of {list(FIGURE_FORMATS)}, got {fmt!r} (from {path})")
-    _atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=fmt))
+        raise FieldError("figure_format", f"expected one of {list(FIGURE_FORMATS)}, got {fmt!r} (from {path})")
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=fmt))
 
 
 def light_curve_image(y: np.ndarray) -> np.ndarray:
@@ -182,11 +184,10 @@ def atmosphere_figure(minutes: np.ndarray, mag: np.ndarray, mag_facetwise: np.nd
 
 
 #: swept config keys, and metrics, in words for the sweep plots
-WORDS = {"cs.m": "m / N (measurement ratio)", "cs.ratio": "m / N (measurement ratio)",
-         "reference.n": "N_ref / N (references per pixel)", "target.size": "image size (pixels per side)",
-         "noise.relative": "relative noise level", "noise.magnitude": "V magnitude", "seed": "seed",
-         "psnr": "PSNR (dB)", "ssim": "SSIM", "psnr_denoised": "PSNR after denoising (dB)",
-         "ssim_denoised": "SSIM after denoising"}
+#: metric keys in words (the axis labels of the figures)
+WORDS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "psnr_denoised": "PSNR after denoising (dB)",
+         "ssim_denoised": "SSIM after denoising", "phi_effective_rank_centered": "effective rank of Φ's fluctuations",
+         "phi_effective_rank": "effective rank of Φ", "phi_scintillation_index": "scintillation index σ_I²"}
 
 
 def _words(key: str) -> str:
@@ -194,22 +195,16 @@ def _words(key: str) -> str:
     return WORDS.get(key, key.rsplit(".", 1)[-1].replace("_", " "))
 
 
-def _axis(rows: Sequence[dict], key: str) -> tuple[list[Any], str]:
-    """Values of a swept key for the plot; ``cs.m`` as the measurement ratio m/N and
-    ``reference.n`` as N_ref/N when the rows know ``n_pixels``."""
-    vals = []
-    for r in rows:
-        v = r.get(key)
-        npix = r.get("n_pixels")
-        if key in ("cs.m", "reference.n") and isinstance(v, (int, float)) and npix:
-            v = v / npix
-        vals.append(v)
-    return vals, _words(key)
-
-
-def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr") -> Figure | None:
+def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr", labels: dict[str, str] | None = None) -> Figure | None:
     """The sweep plot: ``metric`` against one swept value (and ``<metric>_denoised`` dashed), or
-    a map over the first two numeric swept values. ``None`` when no row has the metric."""
+    a map over the first two numeric swept values; ``rows`` hold the values to plot under the
+    ``swept`` names, ``labels`` their axis labels (default: the names in words). ``None`` when no
+    row has the metric."""
+    labels = labels or {}
+
+    def _axis(rows: Sequence[dict], key: str) -> tuple[list[Any], str]:
+        return [r.get(key) for r in rows], labels.get(key, _words(key))
+
     ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get(metric), (int, float))]
     if not ok or not swept:
         return None
@@ -248,7 +243,7 @@ def sweep_figure(rows: list[dict], swept: list[str], metric: str = "psnr") -> Fi
     ax = fig.subplots()
     for g, idx in groups.items():
         idx = sorted(idx, key=lambda i: (str(type(xs[i])), xs[i]))
-        name = ", ".join(f"{_words(k)} = {v}" for k, v in zip(others, g))
+        name = ", ".join(f"{labels.get(k, _words(k))} = {v}" for k, v in zip(others, g))
         ax.plot([xs[i] for i in idx], [ok[i][metric] for i in idx], "o-", label=f"{what} {name}".strip())
         den = f"{metric}_denoised"
         if all(isinstance(ok[i].get(den), (int, float)) for i in idx):
@@ -325,72 +320,81 @@ def sim3_figures(truth: np.ndarray, stack: np.ndarray, den2: np.ndarray, den3: n
     return fig13, fig14
 
 
-def solvers_figure(truth: np.ndarray, ms: Sequence[int], labels: Sequence[str], images: dict, rows: list[dict]) -> Figure:
-    """The solver comparison: per m a row of the solvers' reconstructions and the truth (PSNR and
-    seconds in each panel) over a row of their error maps (one colour scale for the figure)."""
-    recs, names = [], []
-    for m in ms:
-        for label in labels:
-            r = next(r for r in rows if r["m"] == m and r["solver"] == label)
-            recs.append((images[f"{label}_m{m}"], f"{label}\n{r['psnr']:.2f} dB, {r['seconds']:.0f} s"))
-            names.append((images[f"{label}_m{m}"], label))
-    errs = error_panels(truth, names)
-    panels, row_labels, k = [], [], len(labels)
-    for i, m in enumerate(ms):
-        panels += recs[i * k:(i + 1) * k] + [(truth, "truth")] + errs[i * k:(i + 1) * k] + [(None, "")]
-        row_labels += [f"m = {m}", f"m = {m}: error"]
+def _grid_lookup(axes: Sequence[dict], rows: Sequence[dict]) -> tuple[list[list[Any]], dict[tuple, dict]]:
+    """The labels of each axis in order, and ``{labels tuple: row}``."""
+    labels = [list(dict.fromkeys(r[ax["name"]] for r in rows)) for ax in axes]
+    return labels, {tuple(r[ax["name"]] for ax in axes): r for r in rows}
+
+
+def grid_images_figure(truth: np.ndarray, axes: Sequence[dict], rows: Sequence[dict], images: dict) -> Figure:
+    """A grid's reconstructions: per label of the first axis a row of the cells' images (the
+    other axes' labels across, PSNR and seconds in each panel) and the truth, over a row of their
+    error maps (one colour scale for the figure). ``rows``: the grid's rows (``cell``, ``psnr``,
+    ``seconds`` and one key per axis name); ``images``: cell name → image."""
+    labels, by = _grid_lookup(axes, rows)
+    first, rest = labels[0], list(__import__("itertools").product(*labels[1:]))
+    panels, row_labels, k = [], [], len(rest)
+    name0 = axes[0]["name"]
+    for a in first:
+        cells = [by[(a, *b)] for b in rest]
+        recs = [(images[c["cell"]], f"{' '.join(map(str, b)) or c['cell']}\n{c['psnr']:.2f} dB, {c['seconds']:.0f} s")
+                for c, b in zip(cells, rest)]
+        errs = error_panels(truth, [(images[c["cell"]], c["cell"]) for c in cells])
+        panels += recs + [(truth, "truth")] + errs + [(None, "")]
+        row_labels += [f"{name0} = {a}", f"{name0} = {a}: error"]
     return image_panels(panels, ncols=k + 1, panel_size=(2.7, 2.6), row_labels=row_labels,
-                        title="Reconstruction solvers on Simulation 1's target")
+                        title=f"Reconstructions over {' × '.join(ax['name'] for ax in axes)}")
 
 
-def realism_figures(rows: list[dict], stats: list[dict], solvers: Sequence[str], sizes: Sequence[float],
-                    mags: Sequence[float], n: int, flux_only: float | None = None) -> dict[str, Any]:
-    """The realism maps: per solver, PSNR over (angular size, V magnitude) with the paper's
-    Gaussian Φ as the first column; and Φ's effective rank and scintillation index against the
-    angular size. Returns ``{name: Figure}``."""
+def grid_maps_figure(axes: Sequence[dict], rows: Sequence[dict], flux_only: float | None = None,
+                     metric: str = "psnr") -> dict[str, Figure]:
+    """``metric`` over the first two axes of a grid (columns × rows), one map per label of the
+    third axis (or one map): ``{label: Figure}``; ``flux_only`` (the flat image's PSNR) in the title."""
+    labels, by = _grid_lookup(axes, rows)
+    cols, lines = labels[0], labels[1] if len(labels) > 1 else [None]
     figs = {}
-    cols = ["paper"] + [f"a{i}" for i in range(len(sizes))]
-    labels = ["Gaussian\n(paper)"] + [f"{a:.3g}″" for a in sizes]
-    snr = {r["magnitude"]: r["snr"] for r in rows}
-    for solver in solvers:
-        grid = np.full((len(mags), len(cols)), np.nan)
-        for r in rows:
-            if r["solver"] == solver:
-                grid[list(mags).index(r["magnitude"]), cols.index(r["column"])] = r["psnr"]
-        fig = _figure((1.3 * len(cols) + 2.5, 0.55 * len(mags) + 2.2))
+    for third in (labels[2] if len(labels) > 2 else [None]):
+        grid = np.full((len(lines), len(cols)), np.nan)
+        for i, ln in enumerate(lines):
+            for j, c in enumerate(cols):
+                key = tuple(v for v in (c, ln, third) if v is not None) if len(axes) > 1 else (c,)
+                if key in by and isinstance(by[key].get(metric), (int, float)):
+                    grid[i, j] = by[key][metric]
+        fig = _figure((1.3 * len(cols) + 2.5, 0.55 * len(lines) + 2.2))
         ax = fig.subplots()
         im = ax.imshow(grid, origin="upper", aspect="auto", cmap="viridis")
-        ax.set_xticks(range(len(cols)), labels, fontsize=8)
-        ax.set_yticks(range(len(mags)), [f"V = {v:g} (SNR {snr[v]:.3g})" for v in mags], fontsize=8)
+        ax.set_xticks(range(len(cols)), [str(c) for c in cols], fontsize=8)
+        ax.set_yticks(range(len(lines)), [f"{axes[1]['name']} = {v}" if len(axes) > 1 else "" for v in lines], fontsize=8)
         for i in range(grid.shape[0]):
             for j in range(grid.shape[1]):
                 if not np.isnan(grid[i, j]):
                     ax.text(j, i, f"{grid[i, j]:.1f}", ha="center", va="center", color="w", fontsize=8)
-        ax.axvline(0.5, color="w", lw=2)
-        ax.set_xlabel("angular size of the image (object at the range that gives it)")
-        fig.colorbar(im, ax=ax, label="PSNR (dB)")
-        ax.set_title(f"{solver}: PSNR of a {n}×{n} image from its light curve"
+        ax.set_xlabel(_words(axes[0]["name"]))
+        fig.colorbar(im, ax=ax, label=_words(metric))
+        ax.set_title(f"{third if third is not None else ''}: {_words(metric).split(' (')[0]}"
                      + (f"\n(the total flux alone gives {flux_only:.1f} dB)" if flux_only is not None else ""), fontsize=10)
         fig.tight_layout()
-        figs[solver] = fig
-    phys = [s for s in stats if s["angular_size_arcsec"] is not None]
+        figs[str(third) if third is not None else "map"] = fig
+    return figs
+
+
+def grid_curves_figure(axes: Sequence[dict], rows: Sequence[dict], metrics: Sequence[str]) -> Figure:
+    """The ``metrics`` of a grid's rows against the labels of its first axis (log scale where
+    positive), one line per metric; the first value of the other axes."""
+    labels, by = _grid_lookup(axes, rows)
+    rest = tuple(lab[0] for lab in labels[1:])
     fig = _figure((6.5, 3.6))
     ax = fig.subplots()
-    a = [s["angular_size_arcsec"] for s in phys]
-    ax.semilogx(a, [s["phi_effective_rank_centered"] for s in phys], "o-",
-                label="effective rank of Φ's fluctuations (99 % energy)")
-    ax.axhline(next(s["phi_effective_rank_centered"] for s in stats if s["angular_size_arcsec"] is None), color="0.5",
-               ls="--", label="the paper's Gaussian Φ")
-    ax.set_yscale("log")
-    ax.set_xlabel("angular size of the image (arcsec)")
-    ax.set_ylabel("effective rank")
-    ax2 = ax.twinx()
-    si = [s["phi_scintillation_index"] for s in phys]
-    ax2.semilogx(a, si, "s:", color="tab:red")
-    ax2.set_ylim(0, 1.5 * max(si))
-    ax2.set_ylabel("scintillation index σ_I² (set by the telescope)", color="tab:red")
-    ax.legend(fontsize=8, loc="upper left")
-    ax.set_title(f"What the atmosphere can measure ({n}×{n} pixels)", fontsize=10)
+    xs = list(range(len(labels[0])))
+    for key in metrics:
+        vals = [by[(a, *rest)].get(key) for a in labels[0]]
+        ax.plot(xs, [np.nan if v is None else v for v in vals], "o-", label=_words(key))
+    ax.set_xticks(xs, [str(a) for a in labels[0]])
+    if all(isinstance(v, (int, float)) and v > 0 for r in rows for k, v in r.items() if k in metrics):
+        ax.set_yscale("log")
+    ax.set_xlabel(_words(axes[0]["name"]))
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{', '.join(_words(k) for k in metrics)} over {_words(axes[0]['name'])}", fontsize=10)
     fig.tight_layout()
-    figs["rank"] = fig
-    return figs
+    return fig

@@ -21,6 +21,7 @@ from typing import NamedTuple, Sequence
 
 import torch
 from torch import Tensor
+from cssat._checks import FieldError, FieldTypeError
 from cssat.sparse._io import numpy_io
 
 __all__ = [
@@ -34,16 +35,16 @@ __all__ = [
 
 def _check(X_ref: Tensor, Y_ref: Tensor) -> tuple[int, int, int]:
     if X_ref.ndim != 2:
-        raise ValueError(f"X_ref: expected (n_pixel, N) with reference images as columns, got shape {tuple(X_ref.shape)}")
+        raise FieldError("X_ref", f"expected (n_pixel, N) with reference images as columns, got shape {tuple(X_ref.shape)}")
     if Y_ref.ndim != 2 or Y_ref.shape[1] != X_ref.shape[1]:
-        raise ValueError(
-            f"Y_ref: expected (m, N={X_ref.shape[1]}) light curves of the N references, got shape {tuple(Y_ref.shape)}"
+        raise FieldError(
+            "Y_ref", f"expected (m, N={X_ref.shape[1]}) light curves of the N references, got shape {tuple(Y_ref.shape)}"
         )
     for name, t in (("X_ref", X_ref), ("Y_ref", Y_ref)):
         if not t.is_floating_point():
-            raise TypeError(f"{name}: expected a float32 or float64 tensor, got {t.dtype}")
+            raise FieldTypeError(name, f"expected a float32 or float64 tensor, got {t.dtype}")
         if not bool(torch.isfinite(t).all()):
-            raise ValueError(f"{name}: contains NaN or Inf")
+            raise FieldError(name, f"contains NaN or Inf")
     return int(X_ref.shape[0]), int(X_ref.shape[1]), int(Y_ref.shape[0])
 
 
@@ -79,8 +80,8 @@ def estimate_sensing_full_rank(
     """
     n_pixel, N, m = _check(X_ref, Y_ref)
     if N < n_pixel:
-        raise ValueError(
-            f"X_ref: N={N} reference images for n_pixel={n_pixel} pixels is rank deficient (Eq. 25); "
+        raise FieldError(
+            "X_ref", f"N={N} reference images for n_pixel={n_pixel} pixels is rank deficient (Eq. 25); "
             "use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
         )
     Y = Y_ref.to(X_ref.dtype)
@@ -92,8 +93,8 @@ def estimate_sensing_full_rank(
     eps = torch.finfo(X_ref.dtype).eps
     limit = eps if rcond_min is None else float(rcond_min)
     if int(info) > 0:
-        raise ValueError(
-            f"X_ref: singular (pivot {int(info)} of the LU factorisation is zero): the references are "
+        raise FieldError(
+            "X_ref", f"singular (pivot {int(info)} of the LU factorisation is zero): the references are "
             "linearly dependent; use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
         )
     rcond = lapack_rcond = _rcond_1norm(LU, anorm)
@@ -101,8 +102,8 @@ def estimate_sensing_full_rank(
         d = torch.diagonal(LU).abs()
         rcond = float(d.min() / d.max().clamp_min(torch.finfo(d.dtype).tiny))
     if not rcond > limit:
-        raise ValueError(
-            f"X_ref: numerically singular (reciprocal condition ≈ {rcond:.2e} <= {limit:.2e}): the references "
+        raise FieldError(
+            "X_ref", f"numerically singular (reciprocal condition ≈ {rcond:.2e} <= {limit:.2e}): the references "
             "are (nearly) linearly dependent; use estimate_sensing_sparse (Eq. 26-30) or estimate_sensing_min_norm"
         )
     out = torch.empty(m, n_pixel, dtype=X_ref.dtype, device=X_ref.device)
@@ -173,13 +174,13 @@ def estimate_sensing_sparse(
     if shape is None:
         side = math.isqrt(n_pixel)
         if side * side != n_pixel:
-            raise ValueError(f"shape: n_pixel={n_pixel} is not a square; give the image shape")
+            raise FieldError("shape", f"n_pixel={n_pixel} is not a square; give the image shape")
         shape = (side, side)
     shape = tuple(int(s) for s in shape)
     if math.prod(shape) != n_pixel:
-        raise ValueError(f"shape: {shape} does not have n_pixel={n_pixel} pixels")
+        raise FieldError("shape", f"{shape} does not have n_pixel={n_pixel} pixels")
     if n_nonzero_coefs is None and tol is None:
-        raise ValueError("n_nonzero_coefs/tol: give T0 (Eq. 28), eps0^2 (Eq. 29) or both")
+        raise FieldError("n_nonzero_coefs", "give T0 (Eq. 28), eps0^2 (Eq. 29) or both")
     psi = DCT(shape)
     D = psi.adjoint(X_ref.T.contiguous())  # (N, n_pixel): row k is the DCT of reference k
     norms = torch.linalg.vector_norm(D, dim=0)
@@ -205,7 +206,7 @@ def estimate_sensing_sparse(
 def relative_error(phi_hat: Tensor, phi: Tensor) -> float:
     """``‖Φ̂ − Φ‖_F / ‖Φ‖_F``, computed in row blocks (no full-size temporary)."""
     if phi_hat.shape != phi.shape:
-        raise ValueError(f"phi_hat: shape {tuple(phi_hat.shape)} differs from phi {tuple(phi.shape)}")
+        raise FieldError("phi_hat", f"shape {tuple(phi_hat.shape)} differs from phi {tuple(phi.shape)}")
     num = den = 0.0
     for s in range(0, phi.shape[0], 1024):
         a, b = phi_hat[s : s + 1024].double(), phi[s : s + 1024].double()

@@ -100,11 +100,33 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
     return rows, swept
 
 
+#: swept config keys in words, and those plotted as a ratio of the pixel count
+AXIS_WORDS = {"cs.m": "m / N (measurement ratio)", "cs.ratio": "m / N (measurement ratio)",
+              "reference.n": "N_ref / N (references per pixel)", "target.size": "image size (pixels per side)",
+              "noise.relative": "relative noise level", "noise.magnitude": "V magnitude", "seed": "seed",
+              "geometry.angular_size_arcsec": "angular size (arcsec)"}
+PER_PIXEL = ("cs.m", "reference.n")
+
+
+def plot_values(rows: list[dict[str, Any]], swept: list[str]) -> tuple[list[dict[str, Any]], list[str], dict[str, str]]:
+    """``(rows, swept, labels)`` for :func:`cssat.plots.sweep_figure`: ``cs.m`` and
+    ``reference.n`` as ratios of ``n_pixels`` where the rows know it, the keys in words."""
+    out = []
+    for r in rows:
+        r = dict(r)
+        for key in PER_PIXEL:
+            v, npix = r.get(key), r.get("n_pixels")
+            if isinstance(v, (int, float)) and npix:
+                r[key] = v / npix
+        out.append(r)
+    return out, swept, {k: AXIS_WORDS[k] for k in swept if k in AXIS_WORDS}
+
+
 def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | None = None,
               figure_format: str = "png") -> tuple[Path, Path | None]:
     """Write ``summary.csv`` and ``summary_<metric>.<figure_format>`` into ``sweep_dir``; return
     their paths. ``collected``: the result of :func:`collect` when the caller has it already."""
-    from cssat.experiments.common import write_csv
+    from cssat.experiments.files import write_csv
     from cssat.plots import save_figure, sweep_figure
 
     sweep_dir = Path(sweep_dir)
@@ -114,7 +136,7 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | No
 
     csv_path = sweep_dir / "summary.csv"
     write_csv(csv_path, rows, cols)
-    fig = sweep_figure(rows, swept, metric)
+    fig = sweep_figure(*plot_values(rows, swept), metric)
     png = None
     if fig is not None:
         png = sweep_dir / f"summary_{metric}.{figure_format}"
@@ -144,11 +166,11 @@ class SummaryCallback(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         import uuid
 
-        from cssat.experiments.common import _atomic
+        from cssat._tmpfiles import atomic_write
 
         d = Path(config.hydra.sweep.dir)
         d.mkdir(parents=True, exist_ok=True)
-        _atomic(d / SWEEP_MARK, lambda tmp: Path(tmp).write_text(uuid.uuid4().hex + "\n"))
+        atomic_write(d / SWEEP_MARK, lambda tmp: Path(tmp).write_text(uuid.uuid4().hex + "\n"))
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         global SWEEP_FAILED

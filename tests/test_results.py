@@ -85,7 +85,7 @@ def wait_until(cond, seconds=10.0) -> bool:
 WRITER = """
 import sys, time
 from pathlib import Path
-from cssat.experiments.common import _atomic
+from cssat._tmpfiles import atomic_write as _atomic
 def w(tmp):
     Path(tmp).write_text("part")
     Path(sys.argv[2]).write_text(tmp)  # tell the test where

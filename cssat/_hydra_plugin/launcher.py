@@ -76,7 +76,7 @@ class RobustJoblibLauncher(JoblibLauncher):
         from hydra.core.utils import JobReturn, JobStatus
         from joblib.externals.loky.process_executor import TerminatedWorkerError
 
-        from cssat.experiments.common import write_json
+        from cssat.experiments.files import write_json
 
         pending = list(range(len(job_overrides)))
         results: dict[int, Any] = {}

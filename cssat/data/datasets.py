@@ -13,6 +13,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from cssat._checks import FieldError, FieldTypeError
 from cssat.scene.mesh import Mesh
 
 if TYPE_CHECKING:
@@ -62,18 +63,18 @@ class ReferenceImages(Dataset):
         measurement: Measurement | None = None,
     ):
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-            raise ValueError(f"reference.size: must be a positive integer, got {size!r}")
+            raise FieldError("reference.size", f"must be a positive integer, got {size!r}")
         if isinstance(length, bool) or not isinstance(length, int) or length < 0:
-            raise ValueError(f"reference.n: must be a non-negative integer, got {length!r}")
+            raise FieldError("reference.n", f"must be a non-negative integer, got {length!r}")
         if not noise >= 0:
-            raise ValueError(f"reference.noise: must be >= 0, got {noise!r}")
+            raise FieldError("reference.noise", f"must be >= 0, got {noise!r}")
         if measurement is not None:
             from cssat.physics import Measurement
 
             if not isinstance(measurement, Measurement):
-                raise TypeError(f"measurement: expected a cssat.physics.Measurement, got {type(measurement).__name__}")
+                raise FieldTypeError("measurement", f"expected a cssat.physics.Measurement, got {type(measurement).__name__}")
             if measurement.shape[1] != size * size:
-                raise ValueError(f"measurement: its operator takes {measurement.shape[1]} pixels, the images have "
+                raise FieldError("measurement", f"its operator takes {measurement.shape[1]} pixels, the images have "
                                  f"{size}² = {size * size}")
         self.mesh, self.size, self.length, self.seed = mesh, size, length, int(seed)
         self.noise, self.fov_m, self.shadows, self.normalize, self.dtype = float(noise), fov_m, shadows, normalize, dtype
@@ -179,9 +180,9 @@ class LightCurves(Dataset):
         if isinstance(atmosphere, str) and atmosphere == "default":
             atmosphere = GaussianAtmosphere(emitters="facets")
         if atmosphere is not None and not isinstance(atmosphere, Atmosphere):
-            raise TypeError(f"atmosphere: expected a cssat.physics.Atmosphere or None, got {atmosphere!r}")
+            raise FieldTypeError("atmosphere", f"expected a cssat.physics.Atmosphere or None, got {atmosphere!r}")
         if noise is not None and not isinstance(noise, NoiseModel):
-            raise TypeError(f"noise: expected a cssat.physics.NoiseModel or None, got {noise!r}")
+            raise FieldTypeError("noise", f"expected a cssat.physics.NoiseModel or None, got {noise!r}")
         self.mesh, self.scenario, self.length, self.seed = mesh, scenario, int(length), int(seed)
         self.atmosphere, self.noise, self.images, self.size = atmosphere, noise, images, size
         lc = simulate_light_curve(mesh, scenario, shadows=shadows)

@@ -7,6 +7,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cssat._checks import FieldError
+
 if TYPE_CHECKING:
     import trimesh
 
@@ -57,9 +59,9 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
     from skimage.transform import resize
 
     if not isinstance(size, int) or isinstance(size, bool) or size < 2:
-        raise ValueError(f"target.size: must be an integer >= 2, got {size!r}")
+        raise FieldError("target.size", f"must be an integer >= 2, got {size!r}")
     if not isinstance(image, str) or not image:
-        raise ValueError(f"{field}: expected a file path or one of {list(BUILTIN_IMAGES)}, got {image!r}")
+        raise FieldError(field, f"expected a file path or one of {list(BUILTIN_IMAGES)}, got {image!r}")
     if image == "tess" and not os.path.exists(image):
         return render_tess(size)
     if image in BUILTIN_IMAGES and not os.path.exists(image):
@@ -68,8 +70,8 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
         arr = np.asarray(getattr(skimage.data, image)())
     else:
         if not os.path.isfile(image):
-            raise ValueError(
-                f"{field}: {image!r} is neither a readable file nor a built-in image "
+            raise FieldError(
+                field, f"{image!r} is neither a readable file nor a built-in image "
                 f"({', '.join(BUILTIN_IMAGES)})"
             )
         from PIL import Image, UnidentifiedImageError
@@ -84,20 +86,20 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
                 else:
                     arr = np.asarray(im.convert("RGB"))  # colour, palette, alpha: luminance below
         except Image.DecompressionBombError as err:
-            raise ValueError(f"{field}: {image!r} is too large to load safely ({err}); resize it first") from None
+            raise FieldError(field, f"{image!r} is too large to load safely ({err}); resize it first") from None
         except (UnidentifiedImageError, OSError, ValueError) as err:
-            raise ValueError(f"{field}: cannot read {image!r} as an image: {err}") from None
+            raise FieldError(field, f"cannot read {image!r} as an image: {err}") from None
     arr = np.asarray(arr, dtype=np.float64)
     if arr.ndim == 3:
         rgb = arr[..., :3]
         arr = rgb @ np.array([0.299, 0.587, 0.114]) if rgb.shape[-1] == 3 else rgb[..., 0]
     if arr.ndim != 2:
-        raise ValueError(f"{field}: expected a 2-D gray or colour image, got shape {arr.shape}")
+        raise FieldError(field, f"expected a 2-D gray or colour image, got shape {arr.shape}")
     if not np.isfinite(arr).all():
-        raise ValueError(f"{field}: the image contains NaN or Inf pixels")
+        raise FieldError(field, f"the image contains NaN or Inf pixels")
     h, w = arr.shape
     if h != w:
-        raise ValueError(f"{field}: image is {h}×{w} pixels; a square image is required (crop it first)")
+        raise FieldError(field, f"image is {h}×{w} pixels; a square image is required (crop it first)")
     lo, hi = float(arr.min()), float(arr.max())
     if hi > lo:
         arr = (arr - lo) / (hi - lo)

@@ -1,7 +1,9 @@
-"""Experiments: one ``run(cfg, out_dir) -> metrics`` function each, called by the Hydra app.
+"""Experiments: configurations of one pipeline of stages (:mod:`cssat.experiments.pipeline`).
 
-:func:`run_experiment` wraps any of them with what every run needs: threads, timing, and a
-``metrics.json`` that always ends with a ``status`` ("ok" or "failed", with the error).
+An experiment is a YAML file in ``conf/experiment/`` and nothing else: ``cssat experiment=<name>``
+composes it and runs the pipeline. :func:`run_experiment` wraps a run with what every run needs:
+threads, timing, and a ``metrics.json`` that always ends with a ``status`` ("ok" or "failed",
+with the error).
 """
 
 from __future__ import annotations
@@ -15,28 +17,38 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable
 
-from cssat.experiments.common import ConfigError, figure_format, progress_setting, require_int, write_json
+from cssat._checks import FieldError
+from cssat._checks import FieldError, int_param
 
-__all__ = ["EXPERIMENTS", "run_experiment", "config_sha", "provenance", "ConfigError"]
+__all__ = ["experiment_names", "run_experiment", "config_sha", "provenance", "ConfigError", "FieldError"]
 
 log = logging.getLogger("cssat")
 
-#: experiment name -> module holding its ``run(cfg, out_dir)``.
-EXPERIMENTS = {
-    "sim1": "cssat.experiments.sim1",
-    "sim2": "cssat.experiments.sim2",
-    "sim3": "cssat.experiments.sim3",
-    "solvers": "cssat.experiments.solvers",
-    "lightcurve": "cssat.experiments.lightcurve",
-    "realism": "cssat.experiments.realism",
-}
+#: the error of a bad config value: a :class:`cssat._checks.FieldError` (its ``field`` says where)
+ConfigError = FieldError
+
+
+def experiment_names() -> list[str]:
+    """The experiments: the YAML files of ``conf/experiment/`` (``cssat.conf.experiment``)."""
+    import cssat.conf
+
+    return sorted(p.stem for p in (Path(cssat.conf.__file__).parent / "experiment").glob("*.yaml"))
+
+
+def _process_seconds() -> float:
+    """Seconds since this process started (Python start-up, imports, Hydra's composition)."""
+    import psutil
+
+    return max(0.0, time.time() - psutil.Process().create_time())
 
 
 def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] | None = None) -> dict[str, Any]:
     """Run the experiment ``cfg.experiment_name`` into ``out_dir`` and return its metrics.
 
-    The experiment is the module :data:`EXPERIMENTS` names, or ``cfg.experiment_module`` (a module
-    of your own with ``run(cfg, out_dir) -> metrics``: a new experiment is that module and its YAML).
+    The experiment is the pipeline (:func:`cssat.experiments.pipeline.run`) configured by ``cfg``,
+    or ``cfg.experiment_module``: a module of your own with ``run(cfg, out_dir) -> metrics``.
+    ``seconds_startup`` is the process's time before the run (start-up, imports, composing the
+    config), so the ``seconds_*`` keys add up to the wall time.
 
     The run holds a lock on ``out_dir`` (a second run into it is refused, naming it). It removes
     the old ``metrics.json`` first, so a run killed at any moment leaves no complete-looking set,
@@ -54,10 +66,12 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
     """
     import torch
 
+    from cssat.experiments.files import write_json
     from cssat.experiments.results import (
         check_complete, clear_results, input_files, load_saved, result_files, run_lock,
     )
 
+    startup = _process_seconds()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     name = cfg.get("experiment_name")
@@ -76,22 +90,19 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
         t0 = time.perf_counter()
         metrics: dict[str, Any] = {"experiment": name, "config_sha": sha, **provenance()}
         try:
-            module_name = cfg.get("experiment_module") or EXPERIMENTS.get(name)
-            if module_name is None:
-                raise ConfigError(f"experiment: expected one of {sorted(EXPERIMENTS)} (or an experiment_module), got {name!r}")
-            torch.set_num_threads(require_int(cfg.get("threads", 1), "threads", 1, 1024))
-            figure_format(cfg), progress_setting(cfg)  # settings every experiment reads, checked before any work
+            torch.set_num_threads(int_param(cfg.get("threads", 1), "threads", 1, 1024))
+            module_name = cfg.get("experiment_module") or "cssat.experiments.pipeline"
             try:
                 module = importlib.import_module(str(module_name))
             except ImportError as err:
-                raise ConfigError(f"experiment_module: cannot import {module_name!r}: {err}") from err
+                raise FieldError("experiment_module", f"cannot import {module_name!r}: {err}") from err
             metrics.update(module.run(cfg, out_dir))
-            metrics.update(status="ok", inputs=input_files(cfg))
+            metrics.update(status="ok", inputs=input_files(cfg), seconds_startup=startup)
         except BaseException as err:
             metrics.update(status="failed", error=f"{type(err).__name__}: {err}")
             metrics["seconds"] = time.perf_counter() - t0
             write_json(out_dir / "metrics.json", metrics)
-            if not isinstance(err, ConfigError):
+            if not isinstance(err, FieldError):
                 log.debug("%s", traceback.format_exc())
             raise
         metrics["seconds"] = time.perf_counter() - t0

@@ -1,139 +1,214 @@
-"""The pipeline every image experiment shares: measure → reconstruct → clip → denoise → score.
+"""The one pipeline every experiment is a configuration of.
 
-:func:`reconstruct` runs a solver object on a light curve and a denoiser object on its result;
-:func:`denoise` runs a denoiser alone (sim3's 3-D stack); :func:`scores` gives the metrics of the
-common schema (``psnr``, ``ssim``, ``psnr_denoised``, ``ssim_denoised``).
+    target → forward model (geometry, atmosphere, cs) → noise → operator (reference) → solver
+           → denoiser → [repeats → denoiser3d] → scores, arrays, figures
+
+Each stage is a config group, built and checked by :func:`plan` before any work: ``target``,
+``forward``, ``geometry``, ``atmosphere``, ``noise``, ``cs``, ``reference`` (``known``,
+``full_rank``, ``sparse``, ``min_norm``), ``solver``, ``denoiser``, ``denoiser3d`` and
+``figures``. An experiment is a YAML file in ``conf/experiment/`` that picks options of these
+groups; a grid of such runs (the solver comparison, the realism maps) is the ``grid`` stage
+(:mod:`cssat.experiments.grid`); the light-curve experiment's target is a mesh in a scenario
+(:mod:`cssat.experiments.scene`). Every stage's time is in ``metrics.json`` as ``seconds_<stage>``.
 """
 
 from __future__ import annotations
 
-import time
+import json
+import logging
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any
 
 import numpy as np
-from torch import Tensor
 
-from cssat.experiments.common import ConfigError
+from cssat.experiments.context import Run, as_field
 
-if TYPE_CHECKING:
-    import torch
+log = logging.getLogger("cssat")
 
-
-__all__ = ["Reconstruction", "reconstruct", "denoise", "scores", "solver_name", "is_positive", "phi_stats"]
-
-#: the experiments' images lie in [0, 1]
-IMAGE_RANGE = (0.0, 1.0)
+__all__ = ["Plan", "plan", "execute", "run"]
 
 
 @dataclass
-class Reconstruction:
-    """What :func:`reconstruct` returns."""
+class Plan:
+    """The built stages of one run (what :func:`plan` checked)."""
 
-    raw: Tensor  #: the solver's image, unclipped, ``shape``
-    image: np.ndarray  #: the reconstruction clipped to the image range, float64
-    denoised: np.ndarray  #: ``image`` denoised (and clipped), float64
-    metrics: dict[str, Any] = field(default_factory=dict)  #: solver + denoiser settings and timings
-    arrays: dict[str, Tensor] = field(default_factory=dict)  #: tensors the solver returned (coefficients)
-
-
-def solver_name(obj: Any) -> str:
-    """The name a solver or denoiser object reports (``name``, else its class name)."""
-    return str(getattr(obj, "name", type(obj).__name__))
-
-
-def denoise(denoiser: Any, x: np.ndarray, *, field: str = "denoiser",
-            clip: tuple[float, float] | None = IMAGE_RANGE) -> tuple[np.ndarray, dict[str, Any]]:
-    """``(denoised float64, metrics)``: ``denoiser(x)`` clipped to ``clip``; metrics hold
-    ``denoiser``, ``seconds_denoise`` and what the denoiser reports. A ``ValueError`` of the
-    denoiser (settings that do not fit this image, e.g. blocks larger than it) is a ConfigError
-    naming ``field``."""
-    t = time.perf_counter()
-    try:
-        out, info = denoiser(x, None)
-    except ValueError as err:
-        raise ConfigError(f"{field}: {err}") from err
-    out = out.detach().double().cpu().numpy() if isinstance(out, Tensor) else np.asarray(out, dtype=np.float64)
-    if out.shape != np.shape(x):
-        raise ValueError(f"{field}: {solver_name(denoiser)} returned shape {out.shape} for an image of shape {np.shape(x)}")
-    if clip is not None:
-        out = np.clip(out, *clip)
-    return out, {"denoiser": solver_name(denoiser), **info, "seconds_denoise": time.perf_counter() - t}
+    name: str
+    target: Any
+    forward: Any
+    geometry: Any
+    atmosphere: Any
+    noise: Any
+    m: int
+    reference: Any
+    solver: Any
+    denoiser: Any
+    denoiser3d: Any
+    center: Any
+    phi_stats: Any
+    figures: list[str] = field(default_factory=list)
+    memory_estimate: int = 0
+    forward_key: str = ""  #: the settings Φ depends on (a grid reuses it)
 
 
-def phi_stats(cfg: Any, phi: Any, shape: Sequence[int]) -> dict[str, Any]:
-    """:func:`cssat.physics.sensing_stats` of the run's Φ, as ``phi_stats`` says: ``true`` (all),
-    ``false`` (none), ``auto`` (mean and scintillation index always; the effective rank and the
-    coherence of ΦΨ when Φ has at most 2²⁴ entries, e.g. 64² pixels × 3277 samples — at 128² their
-    SVD and Gram would cost minutes)."""
-    from cssat.physics import sensing_stats
-
-    mode = cfg.get("phi_stats", "auto")
-    if mode not in (True, False, "auto"):
-        raise ConfigError(f"phi_stats: expected true, false or auto, got {mode!r}")
-    if mode is False:
-        return {}
-    mat = phi.matrix() if hasattr(phi, "matrix") else phi
-    full = mode is True or mat.numel() <= 2**24
-    return sensing_stats(mat, shape, full=full, max_rows=4096 if full else 1024)
+def _node(cfg: Any, key: str) -> Any:
+    return cfg.get(key) if hasattr(cfg, "get") else None
 
 
-def is_positive(phi: Any) -> bool:
-    """Whether a sensing matrix is a mean-1-like, positive one: its mean exceeds 3× its std (on
-    its first 1024 rows)."""
-    mat = (phi.matrix() if hasattr(phi, "matrix") else phi)[:1024]  # 1024 samples decide it
-    return bool(mat.mean().abs() > 3 * mat.std())
+def plan(cfg: Any, run: Run) -> Plan:
+    """Build every stage of ``cfg`` and check the run fits in memory, before any work."""
+    import torch
+
+    from cssat._checks import choice_param
+    from cssat.experiments.build import build, build_denoiser, build_solver
+    from cssat.experiments.estimators import Known
+    from cssat.experiments.forward import Geometry, PixelSensing, measurements
+    from cssat.experiments.resources import check_memory
+    from cssat.experiments.report import FIGURES
+
+    target = build(cfg.target, "target")
+    forward = build(cfg.forward, "forward") if _node(cfg, "forward") is not None else PixelSensing()
+    geometry = build(cfg.geometry, "geometry") if _node(cfg, "geometry") is not None else Geometry()
+    atmosphere = build(cfg.get("atmosphere"), "atmosphere", **geometry.kwargs())
+    if getattr(atmosphere, "emitters", "pixels") != "pixels":
+        from cssat._checks import FieldError
+
+        raise FieldError("atmosphere.emitters", f"expected 'pixels' (this forward model measures an image's pixels), "
+                                                f"got {atmosphere.emitters!r}: use atmosphere=gaussian")
+    noise = build(cfg.get("noise"), "noise")
+    shape = forward.shape(target)
+    N = int(np.prod(shape))
+    m = measurements(_node(cfg, "cs"), N)
+    reference = build(cfg.reference, "reference") if _node(cfg, "reference") is not None else Known()
+    solver = build_solver(cfg.solver, m, N)
+    denoiser = build_denoiser(cfg.get("denoiser"))
+    denoiser3d = None
+    if reference.repeated and reference.repeats >= 2 and _node(cfg, "denoiser3d") is not None:
+        denoiser3d = build_denoiser(cfg.denoiser3d, "denoiser3d")
+    figures = list(cfg.get("figures") or [])
+    for name in figures:
+        choice_param(name, "figures", sorted(FIGURES))
+    with as_field("reference"):
+        parts, peak = reference.memory(shape[0], m, torch.finfo(run.dtype).bits // 8)
+    est = check_memory(parts, run.memory_limit_gb, "lower target.size or cs.m (or the reference sizes)", peak=peak)
+    key = json.dumps([_plain(cfg.get(k)) for k in ("target", "forward", "geometry", "atmosphere", "phi_stats")]
+                     + [m, str(reference.precision(run))], sort_keys=True, default=str)
+    return Plan(str(cfg.get("experiment_name") or "experiment"), target, forward, geometry, atmosphere, noise, m,
+                reference, solver, denoiser, denoiser3d, choice_param(cfg.get("center", "auto"), "center", (True, False, "auto")),
+                choice_param(cfg.get("phi_stats", "auto"), "phi_stats", (True, False, "auto")), figures, est, key)
 
 
-def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoiser: Any = None,
-                field: str = "solver", center: bool | str = False, dtype: torch.dtype | None = None) -> Reconstruction:
-    """Reconstruct the image of ``shape`` from the light curve ``y (m,)`` measured through ``phi``
-    with ``solver``, clip it to [0, 1], and denoise it with ``denoiser`` (``None``: no denoising).
+def _plain(node: Any) -> Any:
+    from omegaconf import OmegaConf
 
-    ``center`` (``True``, ``False`` or ``"auto"``: when :func:`is_positive`) hands the solver the
-    system centred on its common term, :func:`cssat.physics.centered` (fluctuations + one total-flux
-    row), formed in float64 and cast to ``dtype`` (default ``y``'s): give a float64 ``phi`` and
-    ``y`` to keep the fluctuations' digits when the solver runs in float32.
+    return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else node
 
-    Metrics: ``solver`` (its name), the scalars of the solver's info, ``seconds_solver``
-    (``seconds_dictionary`` apart when the solver reports it), ``centered``, and those of
-    :func:`denoise`.
-    """
-    if center not in (True, False, "auto"):
-        raise ConfigError(f"center: expected true, false or auto, got {center!r}")
-    if center == "auto":
-        center = is_positive(phi)
-    if center:
-        from cssat.physics import centered
 
-        A, b = centered(phi.matrix() if hasattr(phi, "matrix") else phi, y)
-        phi, y = A.to(dtype or y.dtype), b.to(dtype or y.dtype)
-    elif dtype is not None:
-        phi, y = (phi.matrix() if hasattr(phi, "matrix") else phi).to(dtype), y.to(dtype)
-    t = time.perf_counter()
-    x_raw, info = solver(phi, y, tuple(shape))
-    seconds = time.perf_counter() - t
-    if not isinstance(x_raw, Tensor) or tuple(x_raw.shape[-len(shape):]) != tuple(shape):
-        raise ValueError(f"{field}: {solver_name(solver)} returned {type(x_raw).__name__} of shape "
-                         f"{tuple(getattr(x_raw, 'shape', ()))}, expected an image tensor of shape {tuple(shape)}")
-    arrays = {k: v for k, v in info.items() if isinstance(v, Tensor)}
-    metrics: dict[str, Any] = {"solver": solver_name(solver), "centered": bool(center)}
-    metrics.update({k: v for k, v in info.items() if k not in arrays})
-    metrics["seconds_solver"] = seconds - float(info.get("seconds_dictionary", 0.0))
-    image = x_raw.clamp(*IMAGE_RANGE).double().cpu().numpy()
-    if denoiser is None:
-        den, dm = image.copy(), {"denoiser": "none", "seconds_denoise": 0.0}
+def measure(p: Plan, run: Run, cache: dict | None = None) -> Any:
+    """The target's unknown measured (:class:`cssat.experiments.forward.Measured`), with the
+    statistics of Φ; ``cache`` (the grid's) reuses Φ and its statistics across cells whose forward
+    settings are the same (one Φ at a time: it may be large)."""
+    from cssat.experiments.forward import phi_stats
+
+    with run.stage("target"), as_field("target"):
+        truth = p.target.load()
+    dtype, draw = p.forward.precision(run, *p.reference.precision(run))
+    shape = tuple(truth.shape)
+    if cache is not None and p.forward_key in cache:
+        op, stats = cache[p.forward_key]
     else:
-        den, dm = denoise(denoiser, image)
-    metrics.update(dm)
-    return Reconstruction(x_raw, image, den, metrics, arrays)
+        with run.stage("measure"):
+            op = p.forward.operator(run, p.atmosphere, p.m, shape, dtype, draw)
+        with run.stage("phi_stats"):
+            stats = phi_stats(p.phi_stats, op, shape)
+        if cache is not None:
+            cache.clear()
+            cache[p.forward_key] = (op, stats)
+    with run.stage("measure"):
+        measured = p.forward.measure(run, truth, op, p.noise, dtype)
+    measured.metrics.update({**p.atmosphere.describe(), **stats})
+    return measured
 
 
-def scores(rec: np.ndarray, den: np.ndarray | None, truth: np.ndarray) -> dict[str, float]:
-    """PSNR and SSIM of a reconstruction, and of its denoised version, against the truth (range 1)."""
-    from cssat.metrics import psnr, ssim
+def execute(p: Plan, run: Run, cache: dict | None = None) -> dict[str, Any]:
+    """Run the stages of ``p``; return ``{"metrics", "arrays", "recs", "rows", "measured"}``."""
+    from cssat.experiments.reconstruct import denoise, reconstruct, scores
+    from cssat.metrics import psnr
 
-    out = {"psnr": psnr(truth, rec, data_range=1.0), "ssim": ssim(truth, rec, data_range=1.0)}
-    if den is not None:
-        out.update(psnr_denoised=psnr(truth, den, data_range=1.0), ssim_denoised=ssim(truth, den, data_range=1.0))
+    measured = measure(p, run, cache)
+    x, shape, est = measured.truth, measured.shape, p.reference
+    y = measured.y
+    est.prepare(run, measured)
+    measured.measurement = None  # the estimate holds what it needs of Φ: free the rest now
+    recs, rows = [], []
+    from cssat._progress import progress_bar
+
+    bar = progress_bar(est.repeats, f"{p.name}: repeats", run.progress if est.repeats > 1 else False, unit="repeat")
+    for r in range(est.repeats):
+        op, row = est.operator(run, r)
+        rec = reconstruct(p.solver, op, y, shape, denoiser=p.denoiser, center=p.center, dtype=run.dtype)
+        del op
+        for k in ("solver", "dictionary", "denoise"):
+            run.add_seconds(k, rec.metrics.pop(f"seconds_{k}", 0.0))
+        row.update(est.baseline(run, r, lambda phi: psnr(x, reconstruct(p.solver, phi, y, shape, dtype=run.dtype).image,
+                                                             data_range=1.0)))
+        row.update(scores(rec.image, rec.denoised, x))
+        rows.append(row)
+        recs.append(rec)
+        bar.update()
+        if est.repeated:
+            log.info("%s repeat %d: ‖Φ̂−Φ‖/‖Φ‖ %.3f, PSNR %.2f dB, 2-D denoised %.2f dB", p.name, r,
+                     row.get("phi_relative_error", float("nan")), row["psnr"], row["psnr_denoised"])
+    bar.close()
+    est.finish()
+    out: dict[str, Any] = {"recs": recs, "rows": rows, "measured": measured}
+    if est.repeated:
+        stack, den2 = np.stack([r.image for r in recs]), np.stack([r.denoised for r in recs])
+        if p.denoiser3d is not None:
+            with run.stage("denoise_3d"):
+                den3, dm3 = denoise(p.denoiser3d, stack, field="denoiser3d")
+            dm3.pop("seconds_denoise", None)
+        else:
+            den3, dm3 = stack.copy(), {"denoiser": "none"}
+        out.update(stack=stack, den2=den2, den3=den3, psnr3=[psnr(x, d, data_range=1.0) for d in den3],
+                   denoiser_3d=dm3.get("denoiser"))
     return out
+
+
+def metrics_of(p: Plan, run: Run, res: dict[str, Any]) -> dict[str, Any]:
+    """The flat metrics of an executed plan (the headline ``psnr``/``ssim`` first)."""
+    from cssat.experiments.report import repeats_summary
+
+    measured, recs, rows = res["measured"], res["recs"], res["rows"]
+    n = measured.shape[0]
+    N = int(np.prod(measured.shape))
+    common = {"m": p.m, "n": n, "n_pixels": N, "measurement_ratio": p.m / N, **measured.metrics, **p.geometry.describe(),
+              **p.reference.describe(), "seed": run.seed, "dtype": run.dtype_name, "device": str(run.device),
+              "target": getattr(p.target, "image", None), "peak_memory_estimate_gb": p.memory_estimate / 2**30}
+    if p.reference.repeated:
+        out = repeats_summary(rows, res["psnr3"])
+        out.update(common, **{k: v for k, v in recs[-1].metrics.items() if k.startswith("solver")},
+                   denoiser=recs[-1].metrics["denoiser"], denoiser_3d=res["denoiser_3d"])
+        return out
+    out = {**rows[0], **common, **recs[0].metrics}
+    out["psnr_gain_denoised"] = out["psnr_denoised"] - out["psnr"]
+    return out
+
+
+def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
+    """Run the experiment ``cfg`` into ``out_dir``; return its metrics (timings included)."""
+    from cssat.experiments import grid, report, scene
+
+    run_ = Run.from_config(cfg, out_dir)
+    if cfg.get("grid") is not None:
+        return grid.run(cfg, run_)
+    if getattr(cfg.get("target"), "get", lambda k: None)("_target_") == scene.SCENE_TARGET:
+        return scene.run(cfg, run_)
+    with run_.stage("setup"):
+        p = plan(cfg, run_)
+    res = execute(p, run_)
+    metrics = metrics_of(p, run_, res)
+    with run_.stage("write"):
+        report.write(p, run_, res, metrics)
+    metrics.update(run_.timings())
+    report.log_headline(p, metrics)
+    return metrics

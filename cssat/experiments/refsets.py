@@ -1,4 +1,5 @@
-"""What Simulations 2 and 3 share: the rendered reference set (cached on disk) and a progress bar."""
+"""The rendered reference sets of the operator estimates (``reference=full_rank|sparse|min_norm``),
+cached on disk."""
 
 from __future__ import annotations
 
@@ -9,11 +10,11 @@ import os
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cssat.experiments.common import _atomic, progress_setting, require_float, require_int
+from cssat._tmpfiles import atomic_write
 
 if TYPE_CHECKING:
     import torch
@@ -24,18 +25,6 @@ if TYPE_CHECKING:
 log = logging.getLogger("cssat")
 
 CACHE_VERSION = 2  # bump when the rendering of reference images (or the entry format) changes
-
-
-def reference_settings(cfg: Any, seed: int) -> tuple[int, Mesh]:
-    """``(seed, mesh)`` of the reference set: ``reference.seed`` (null: ``seed + 1000``) and the
-    ``reference.model`` mesh, with ``reference.noise`` checked too, before any work."""
-    from cssat.experiments.build import build_model
-
-    ref = cfg.reference
-    require_float(ref.get("noise", 0.0), "reference.noise", lo=0.0)
-    mesh = build_model(ref.model, "reference.model")
-    s = ref.get("seed")
-    return (seed + 1000 if s is None else require_int(s, "reference.seed", 0)), mesh
 
 
 def _key(mesh, size: int, n: int, seed: int, noise: float, shadows: bool):
@@ -95,11 +84,12 @@ def _key_lock(path: Path):
         os.close(fd)
 
 
-def reference_set(cfg: Any, size: int, n: int, seed: int, mesh: Mesh) -> tuple[torch.Tensor, bool]:
-    """``(n, size, size)`` float32 reference images of ``mesh`` (``reference.model``, from
-    :func:`reference_settings`; the Astra-like model by default), random Sun and
-    view directions and white noise of ``reference.noise`` × each image's maximum, rendered in chunks
-    with a progress bar, or read from the on-disk cache.
+def reference_set(cache_dir: str | None, size: int, n: int, seed: int, mesh: Mesh, noise: float, shadows: bool,
+                  progress: bool | None = None) -> tuple[torch.Tensor, bool]:
+    """``(n, size, size)`` float32 reference images of ``mesh`` (``reference.model``; the
+    Astra-like model by default), random Sun and view directions and white noise of ``noise`` ×
+    each image's maximum, rendered in chunks with a progress bar, or read from the on-disk cache
+    ``cache_dir``; returns ``(images, read from the cache)``.
 
     A cache entry (``cache_dir/refs-<key>.npy`` and its ``.json``) is keyed by everything that
     defines the set — the mesh's vertices, faces and BRDF constants, size, count, seed, noise,
@@ -108,13 +98,9 @@ def reference_set(cfg: Any, size: int, n: int, seed: int, mesh: Mesh) -> tuple[t
     removed and rendered again. Runs that need one entry at once take turns on a lock file.
     ``cache_dir: null`` disables the cache.
     """
-    ref = cfg.reference
-    noise = require_float(ref.get("noise", 0.0), "reference.noise", lo=0.0)
-    shadows = bool(ref.get("shadows", True))
     key, spec = _key(mesh, size, n, seed, noise, shadows)
-    cache_dir = cfg.get("cache_dir")
     if not cache_dir:
-        return _render(mesh, size, n, seed, noise, shadows, progress_setting(cfg)), False
+        return _render(mesh, size, n, seed, noise, shadows, progress), False
     path = Path(str(cache_dir)) / f"refs-{key}.npy"
     with _key_lock(path):
         t = time.perf_counter()
@@ -127,15 +113,15 @@ def reference_set(cfg: Any, size: int, n: int, seed: int, mesh: Mesh) -> tuple[t
         for entry in (path, path.with_suffix(".json")):  # under the entry's lock, any is stale
             for stale in entry.parent.glob(f".{entry.name}.*.tmp"):
                 stale.unlink(missing_ok=True)
-        out = _render(mesh, size, n, seed, noise, shadows, progress_setting(cfg))
+        out = _render(mesh, size, n, seed, noise, shadows, progress)
 
         def w(tmp):
             with open(tmp, "wb") as f:
                 np.save(f, out.numpy())
 
-        _atomic(path, w)
+        atomic_write(path, w)
         meta = {"key": key, "hash": _array_hash(out.numpy()), "shape": [n, size, size], "dtype": "float32", "spec": spec}
-        _atomic(path.with_suffix(".json"), lambda tmp: Path(tmp).write_text(json.dumps(meta, indent=1)))
+        atomic_write(path.with_suffix(".json"), lambda tmp: Path(tmp).write_text(json.dumps(meta, indent=1)))
     return out, False
 
 

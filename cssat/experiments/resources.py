@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from cssat.experiments.common import ConfigError, require_float
+from cssat._checks import FieldError
 
 __all__ = ["available_memory_bytes", "peak_rss_bytes", "check_memory"]
 
@@ -28,20 +28,20 @@ def peak_rss_bytes() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 
-def check_memory(parts: dict[str, int], cfg: Any, hint: str, *, peak: int | None = None, margin: float = 1.2) -> int:
-    """Stop with a ``memory:`` ConfigError when the estimated peak exceeds the limit
-    (``memory_limit_gb``, default: the memory available now); return the estimate in bytes.
+def check_memory(parts: dict[str, int], limit_gb: float | None, hint: str, *, peak: int | None = None, margin: float = 1.2) -> int:
+    """Stop with a ``memory:`` FieldError when the estimated peak exceeds the limit ``limit_gb``
+    (the config's ``memory_limit_gb``; ``None``: the memory available now); return the estimate
+    in bytes.
 
     ``parts`` are the large arrays of the run (bytes); the peak is ``margin ×`` their sum, or
     ``margin × peak`` when the caller knows which of them live together.
     """
     estimate = int(margin * (peak if peak is not None else sum(parts.values())))
-    limit_gb = cfg.get("memory_limit_gb")
-    limit = int(require_float(limit_gb, "memory_limit_gb", lo=0.0) * GB) if limit_gb is not None else available_memory_bytes()
+    limit = int(limit_gb * GB) if limit_gb is not None else available_memory_bytes()
     if estimate > limit:
         detail = ", ".join(f"{k} {v / GB:.2f}" for k, v in parts.items())
-        raise ConfigError(
-            f"memory: this run needs about {estimate / GB:.1f} GB at its peak ({detail} GB) but "
+        raise FieldError(
+            "memory", f"this run needs about {estimate / GB:.1f} GB at its peak ({detail} GB) but "
             f"{limit / GB:.1f} GB are available; {hint}"
         )
     return estimate

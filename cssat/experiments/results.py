@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
-from cssat.experiments.common import ConfigError
+from cssat._checks import FieldError
 
 __all__ = ["run_lock", "file_hash", "result_files", "input_files", "check_complete", "clear_results"]
 
@@ -100,7 +100,7 @@ def clear_results(out_dir: Path) -> None:
 @contextmanager
 def run_lock(out_dir: Path) -> Iterator[None]:
     """Hold an exclusive lock on ``out_dir`` (``flock`` on ``out_dir/.cssat.lock``) for a run; a
-    second run into the same directory is refused at once with a ConfigError naming it."""
+    second run into the same directory is refused at once with a FieldError naming it."""
     import fcntl
 
     out_dir = Path(out_dir)
@@ -111,7 +111,7 @@ def run_lock(out_dir: Path) -> Iterator[None]:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             other = os.pread(fd, 64, 0).decode(errors="replace").strip() or "another process"
-            raise ConfigError(f"hydra.run.dir: {out_dir} is in use by another cssat run (pid {other}); "
+            raise FieldError("hydra.run.dir", f"{out_dir} is in use by another cssat run (pid {other}); "
                               "wait for it or choose another directory") from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, str(os.getpid()).encode(), 0)

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from cssat._checks import FieldError
 from cssat.scene.mesh import Mesh, as_mesh
 
 if TYPE_CHECKING:
@@ -44,13 +45,13 @@ def check_unit(v: Vectors, name: str, tol: float = 1e-6) -> Tensor:
     if t.ndim == 1:
         t = t[None]
     if t.ndim != 2 or t.shape[1] != 3:
-        raise ValueError(f"{name}: expected unit vectors of shape (T, 3), got {tuple(t.shape)}")
+        raise FieldError(name, f"expected unit vectors of shape (T, 3), got {tuple(t.shape)}")
     if not bool(torch.isfinite(t).all()):
-        raise ValueError(f"{name}: contains NaN or Inf")
+        raise FieldError(name, f"contains NaN or Inf")
     err = (torch.linalg.vector_norm(t, dim=1) - 1).abs()
     if t.shape[0] and float(err.max()) > tol:
         i = int(err.argmax())
-        raise ValueError(f"{name}: row {i} has norm {float(torch.linalg.vector_norm(t[i])):.6g}, expected unit vectors")
+        raise FieldError(name, f"row {i} has norm {float(torch.linalg.vector_norm(t[i])):.6g}, expected unit vectors")
     return t
 
 
@@ -91,29 +92,29 @@ def facet_brightness(
     mesh = as_mesh(mesh)
     sl = torch.as_tensor(sunlit, dtype=torch.float64)
     if not bool(torch.isfinite(sl).all()) or bool((sl < 0).any()) or bool((sl > 1).any()):
-        raise ValueError("sunlit: the sunlit fraction of the solar disk must be in [0, 1]")
+        raise FieldError("sunlit", "the sunlit fraction of the solar disk must be in [0, 1]")
     sun_t = check_unit(sun, "sun")
     dtype = sun_t.dtype if sun_t.dtype in (torch.float32, torch.float64) else torch.float64
     dev = sun_t.device
     obs_t = check_unit(observer, "observer").to(dtype=dtype, device=dev)
     T = sun_t.shape[0]
     if obs_t.shape[0] != T:
-        raise ValueError(f"observer: {obs_t.shape[0]} directions for {T} Sun directions")
+        raise FieldError("observer", f"{obs_t.shape[0]} directions for {T} Sun directions")
     if not (math.isfinite(specular_window_deg) and specular_window_deg >= 0):
-        raise ValueError(f"specular_window_deg: must be >= 0, got {specular_window_deg}")
+        raise FieldError("specular_window_deg", f"must be >= 0, got {specular_window_deg}")
 
     def col(x, name):
         t = torch.as_tensor(x, dtype=dtype, device=dev)
         t = t.reshape(-1, 1) if t.ndim else t.reshape(1, 1)
         if t.shape[0] not in (1, T):
-            raise ValueError(f"{name}: expected a scalar or {T} values, got {t.shape[0]}")
+            raise FieldError(name, f"expected a scalar or {T} values, got {t.shape[0]}")
         if not bool(torch.isfinite(t).all()) or bool((t < 0).any()):
-            raise ValueError(f"{name}: must be finite and >= 0")
+            raise FieldError(name, f"must be finite and >= 0")
         return t
 
     r_topo_m = col(range_km, "range_km") * 1e3
     if bool((r_topo_m <= 0).any()):
-        raise ValueError("range_km: must be > 0")
+        raise FieldError("range_km", "must be > 0")
     r_sun = col(sun_range_km, "sun_range_km")
     lit = col(sunlit, "sunlit")
 
@@ -126,7 +127,7 @@ def facet_brightness(
     if visible is not None:
         visible = torch.as_tensor(visible, device=dev)
         if tuple(visible.shape) != (T, F):
-            raise ValueError(f"visible: expected shape ({T}, {F}), got {tuple(visible.shape)}")
+            raise FieldError("visible", f"expected shape ({T}, {F}), got {tuple(visible.shape)}")
     out = torch.empty(T, F, dtype=dtype, device=dev)
     cos_win = math.cos(math.radians(specular_window_deg))
     step = max(1, (1 << 24) // max(F, 1))  # bound the (views, facets) temporaries
@@ -179,7 +180,7 @@ def shadow_mask(
     else:
         cand = torch.as_tensor(candidates).cpu().bool()
         if tuple(cand.shape) != (T, F):
-            raise ValueError(f"candidates: expected shape ({T}, {F}), got {tuple(cand.shape)}")
+            raise FieldError("candidates", f"expected shape ({T}, {F}), got {tuple(cand.shape)}")
     out = torch.zeros(T, F, dtype=torch.bool)
     ti, fi = cand.nonzero(as_tuple=True)
     if len(ti) == 0:
@@ -187,7 +188,7 @@ def shadow_mask(
     if offset is None:
         offset = min(1e-5 * mesh.radius, 1e-3) if mesh.radius > 0 else 1e-6
     if engine not in ("auto", "embree", "triangle"):
-        raise ValueError(f"engine: expected 'auto', 'embree' or 'triangle', got {engine!r}")
+        raise FieldError("engine", f"expected 'auto', 'embree' or 'triangle', got {engine!r}")
     tm = mesh.to_trimesh()
     inter = None
     if engine != "triangle":

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from cssat._checks import FieldError
 from cssat.optics.photometry import check_unit, facet_brightness
 from cssat.scene.mesh import Mesh, as_mesh
 
@@ -84,7 +85,7 @@ def render(
 
     mesh = as_mesh(mesh)
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
-        raise ValueError(f"size: image size must be a positive integer, got {size!r}")
+        raise FieldError("size", f"image size must be a positive integer, got {size!r}")
     size = int(size)
     obs = check_unit(observer, "observer")
     T, F = obs.shape[0], len(mesh)
@@ -92,13 +93,13 @@ def render(
         brightness = facet_brightness(mesh, sun, obs, **brightness_kwargs)
     brightness = torch.as_tensor(brightness)
     if tuple(brightness.shape) != (T, F):
-        raise ValueError(f"brightness: expected shape ({T}, {F}), got {tuple(brightness.shape)}")
+        raise FieldError("brightness", f"expected shape ({T}, {F}), got {tuple(brightness.shape)}")
     if not bool(torch.isfinite(brightness).all()):
-        raise ValueError("brightness: contains NaN or Inf")
+        raise FieldError("brightness", "contains NaN or Inf")
     if fov_m is None:
         fov_m = default_fov(mesh)
     if not (isinstance(fov_m, (int, float)) and math.isfinite(fov_m) and fov_m > 0):
-        raise ValueError(f"fov_m: must be a positive number of metres, got {fov_m!r}")
+        raise FieldError("fov_m", f"must be a positive number of metres, got {fov_m!r}")
     dev = brightness.device
     # geometry in float32: pixel coordinates below 10⁴ and depths within the model's size need no more
     obs = obs.to(device=dev, dtype=torch.float64)
@@ -109,7 +110,7 @@ def render(
     normals = torch.as_tensor(mesh.normals, dtype=torch.float32, device=dev)
     bias = 1e-5 * max(mesh.radius, 1e-12)  # ~100 float32 ulps of a depth
     if backend not in ("auto", "torch", "numba"):
-        raise ValueError(f"backend: expected 'auto', 'torch' or 'numba', got {backend!r}")
+        raise FieldError("backend", f"expected 'auto', 'torch' or 'numba', got {backend!r}")
     from cssat.optics import _render_numba
 
     use_numba = dev.type == "cpu" and (backend == "numba" or (backend == "auto" and _render_numba.available()))

@@ -14,9 +14,9 @@ from cssat.physics.atmosphere import (
     LognormalAtmosphere,
     PhaseScreenAtmosphere,
 )
-from cssat.physics.measurement import Measurement, centered
+from cssat.physics.measurement import Centered, Measurement, centered
 from cssat.physics.noise import GaussianNoise, NoiseModel, NoNoise, PhotometricNoise
 from cssat.physics.stats import sensing_stats
 
 __all__ = ["Atmosphere", "GaussianAtmosphere", "LognormalAtmosphere", "CorrelatedAtmosphere", "PhaseScreenAtmosphere",
-           "Measurement", "centered", "NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise", "sensing_stats"]
+           "Measurement", "centered", "Centered", "NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise", "sensing_stats"]

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat._checks import choice_param, float_param, int_param, opt
+from cssat._checks import FieldError, choice_param, float_param, int_param, opt
 from cssat.sparse.operators import GaussianSensing, LinearOperator
 
 if TYPE_CHECKING:
@@ -55,6 +55,12 @@ class Atmosphere:
         """Flat settings for ``metrics.json`` (``atmosphere``, ``atmosphere_*``)."""
         return {"atmosphere": self.name, "atmosphere_emitters": self.emitters}
 
+    def _geometry(self, object_size_m: float | None, range_km: float | None) -> None:
+        """Record the scene's geometry (every model takes it: the experiments' ``geometry``
+        group); a model whose weights do not depend on where the emitters are ignores it."""
+        self.object_size_m = opt(object_size_m, float_param, "object_size_m", 0.0, open_lo=True)
+        self.range_km = opt(range_km, float_param, "range_km", 0.0, open_lo=True)
+
 
 class GaussianAtmosphere(Atmosphere):
     """The paper's atmosphere (Eq. 11, 12, 15): i.i.d. Gaussian weights ``N(mean, std²)``, by
@@ -71,9 +77,11 @@ class GaussianAtmosphere(Atmosphere):
 
     name = "gaussian"
 
-    def __init__(self, mean: float = 0.0, std: float | None = None, emitters: str = "pixels"):
+    def __init__(self, mean: float = 0.0, std: float | None = None, emitters: str = "pixels", *,
+                 object_size_m: float | None = None, range_km: float | None = None):
         self.mean, self.std = float_param(mean, "mean"), opt(std, float_param, "std", 0.0)
         self.emitters = choice_param(emitters, "emitters", EMITTERS)
+        self._geometry(object_size_m, range_km)  # independent weights: no effect
 
     def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> GaussianSensing:
         return GaussianSensing(m, n, seed=seed, dtype=dtype, device=device, mean=self.mean, std=self.std)
@@ -98,7 +106,7 @@ def _geometry(object_size_m: float, range_km: float) -> float:
 def _side(n: int) -> int:
     side = math.isqrt(n)
     if side * side != n:
-        raise ValueError(f"n: this atmosphere needs a square image (n = side²), got n = {n}")
+        raise FieldError("n", f"this atmosphere needs a square image (n = side²), got n = {n}")
     return side
 
 
@@ -158,8 +166,10 @@ class LognormalAtmosphere(_PositiveAtmosphere):
     name = "lognormal"
 
     def __init__(self, scintillation_index: float | None = None, diameter_m: float = 1.0, airmass: float = 1.0,
-                 exposure_s: float = 1.0, site_altitude_m: float = 0.0, osborn: float = 1.5):
+                 exposure_s: float = 1.0, site_altitude_m: float = 0.0, osborn: float = 1.5, *,
+                 object_size_m: float | None = None, range_km: float | None = None):
         super().__init__(scintillation_index, diameter_m, airmass, exposure_s, site_altitude_m, osborn)
+        self._geometry(object_size_m, range_km)  # independent per pixel: no effect
 
     def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
         from cssat.sparse import MatrixOperator

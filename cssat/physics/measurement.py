@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Sequence
 
 import torch
 from torch import Tensor, nn
 
+from cssat._checks import FieldError, FieldTypeError
 from cssat.physics.noise import NoiseModel, NoNoise
 from cssat.sparse._io import numpy_io
 from cssat.sparse.operators import LinearOperator, MatrixOperator
 
-__all__ = ["Measurement", "centered"]
+__all__ = ["Measurement", "centered", "Centered"]
 
 
 class Measurement(nn.Module):
@@ -36,17 +37,22 @@ class Measurement(nn.Module):
         Default: :class:`~cssat.physics.NoNoise`.
     seed : int
         Seed of the noise.
+    x_shape : sequence of int, optional
+        The unknown's shape (an image ``(H, W)``), so that a solver takes the measurement as its
+        problem: ``solver(measurement, y)``. Default: the operator's ``in_shape``.
     """
 
-    def __init__(self, operator: LinearOperator | Tensor, noise: NoiseModel | None = None, seed: int = 0):
+    def __init__(self, operator: LinearOperator | Tensor, noise: NoiseModel | None = None, seed: int = 0, *,
+                 x_shape: Sequence[int] | None = None):
         super().__init__()
         if isinstance(operator, Tensor):
             operator = MatrixOperator(operator)
         if not isinstance(operator, LinearOperator):
-            raise TypeError(f"operator: expected a LinearOperator or a 2-D tensor, got {type(operator).__name__}")
+            raise FieldTypeError("operator", f"expected a LinearOperator or a 2-D tensor, got {type(operator).__name__}")
         self.operator = operator
         self.noise = noise if noise is not None else NoNoise()
         self.seed = int(seed)
+        self.x_shape = tuple(int(v) for v in x_shape) if x_shape is not None else operator.in_shape
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -76,7 +82,7 @@ class Measurement(nn.Module):
         """The measured light curve ``noise(Φx)``; refuses a non-finite result."""
         y = self.add_noise(self.A(x), generator, flux=self._flat(x).sum(-1))
         if not bool(torch.isfinite(y).all()):
-            raise ValueError("y: the light curve contains NaN or Inf")
+            raise FieldError("y", "the light curve contains NaN or Inf")
         return y
 
     def add_noise(self, y: Tensor, generator: torch.Generator | None = None, *, flux: Tensor | None = None) -> Tensor:
@@ -98,11 +104,11 @@ class Measurement(nn.Module):
         """
         flat = self._flat(x_t)
         if flat.ndim != 2 or flat.shape[0] != self.operator.n_out:
-            raise ValueError(f"x_t: expected {self.operator.n_out} frames, got shape {tuple(x_t.shape)}")
+            raise FieldError("x_t", f"expected {self.operator.n_out} frames, got shape {tuple(x_t.shape)}")
         w = self.operator.matrix(dtype=flat.dtype, device=flat.device)
         y = self.add_noise((w * flat).sum(-1), generator, flux=flat.sum(-1).mean())
         if not bool(torch.isfinite(y).all()):
-            raise ValueError("x_t: the light curve contains NaN or Inf")
+            raise FieldError("x_t", "the light curve contains NaN or Inf")
         return y
 
     def matrix(self) -> Tensor:
@@ -135,16 +141,41 @@ def centered(phi: Tensor, y: Tensor, *, flux_weight: float | None = None) -> tup
     not an isometry: the total flux counts as one sample. Formed in float64; returns
     ``(A (m + 1, N), b)`` in float64.
     """
+    A, rhs = _centering(phi, flux_weight)
+    return A, rhs(y)
+
+
+def _centering(phi: Tensor, flux_weight: float | None):
+    """``(A, y ↦ b)`` of :func:`centered`, in float64."""
     p = phi.double()
-    yy = y.double()
     N = p.shape[1]
     mean_row = p.mean(0, keepdim=True)
     fluct = p - mean_row
     s = float(fluct.pow(2).mean().sqrt())
     if not s > 0:
-        raise ValueError("phi: its rows are all equal (rank 1): only the total flux is measured")
+        raise FieldError("phi", "its rows are all equal (rank 1): only the total flux is measured")
     c = (1.0 if flux_weight is None else float(flux_weight)) * math.sqrt(N) / float(mean_row.norm())
     A = torch.cat([fluct / s, c * mean_row])
-    ybar = yy.mean(-1, keepdim=True)
-    b = torch.cat([(yy - ybar) / s, c * ybar], -1)
-    return A, b
+
+    def rhs(y: Tensor) -> Tensor:
+        yy = y.double()
+        ybar = yy.mean(-1, keepdim=True)
+        return torch.cat([(yy - ybar) / s, c * ybar], -1)
+
+    return A, rhs
+
+
+class Centered(MatrixOperator):
+    """The operator of :func:`centered`: ``A = [(Φ − 𝟙φ̄ᵀ)/s ; c φ̄ᵀ] (m + 1, N)`` as a
+    :class:`~cssat.sparse.MatrixOperator` in ``dtype`` (default ``Φ``'s), formed in float64;
+    :meth:`data` maps a light curve ``y`` of ``Φ`` to the right-hand side ``b`` of ``A``. A wrapper
+    of the operator: a solver takes ``Problem(Centered(Φ), shape)`` and ``data(y)`` like any other."""
+
+    def __init__(self, phi: LinearOperator | Tensor, *, flux_weight: float | None = None, dtype: torch.dtype | None = None):
+        mat = phi.matrix() if isinstance(phi, LinearOperator) else phi
+        A, self._ybar = _centering(mat, flux_weight)
+        super().__init__(A.to(dtype or mat.dtype))
+
+    def data(self, y: Tensor, dtype: torch.dtype | None = None) -> Tensor:
+        """``b = [(y − ȳ𝟙)/s ; c ȳ]`` for ``y (m,)`` or ``(B, m)``, in ``dtype`` (default ``y``'s)."""
+        return self._ybar(y).to(dtype or y.dtype)

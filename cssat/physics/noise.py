@@ -8,7 +8,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from cssat._checks import float_param, opt
+from cssat._checks import FieldError, float_param, opt
 
 __all__ = ["NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise"]
 
@@ -57,7 +57,7 @@ class GaussianNoise(NoiseModel):
     def __init__(self, relative: float | None = None, sigma: float | None = None):
         relative, sigma = opt(relative, float_param, "relative", 0.0), opt(sigma, float_param, "sigma", 0.0)
         if relative and sigma:
-            raise ValueError(f"sigma: give either relative ({relative}) or sigma ({sigma}), not both")
+            raise FieldError("sigma", f"give either relative ({relative}) or sigma ({sigma}), not both")
         self.relative = float(relative or 0.0)
         self.sigma = float(sigma or 0.0)
 
@@ -106,7 +106,7 @@ class PhotometricNoise(NoiseModel):
         self.diameter_m = float_param(diameter_m, "diameter_m", 0.0, open_lo=True)
         self.obstruction = float_param(obstruction, "obstruction", 0.0)
         if self.obstruction >= 1:
-            raise ValueError(f"obstruction: the central obstruction's diameter ratio must be < 1, got {obstruction}")
+            raise FieldError("obstruction", f"the central obstruction's diameter ratio must be < 1, got {obstruction}")
         self.throughput = float_param(throughput, "throughput", 0.0, 1.0, open_lo=True)  # throughput × QE
         self.exposure_s = float_param(exposure_s, "exposure_s", 0.0, open_lo=True)
         self.sky_mag_arcsec2 = float_param(sky_mag_arcsec2, "sky_mag_arcsec2", -100.0)
@@ -151,7 +151,7 @@ class PhotometricNoise(NoiseModel):
 
         mag = self.magnitude if magnitude is None else magnitude
         if mag is None:
-            raise ValueError("magnitude: give the source's magnitude (the model has none: its light curves are in W/m²)")
+            raise FieldError("magnitude", "give the source's magnitude (the model has none: its light curves are in W/m²)")
         return ccd_snr(self.electrons(mag), self.n_pix, self.sky_e_per_pixel, self.dark_e_per_pixel, self.read_noise_e)
 
     def _scale(self, y: Tensor, flux: Tensor | None) -> Tensor:
@@ -162,10 +162,10 @@ class PhotometricNoise(NoiseModel):
             return torch.full((*y.shape[:-1], 1), self.electrons(SUN_MAGNITUDE_V) / SOLAR_IRRADIANCE_W_M2,
                               dtype=torch.float64, device=y.device)
         if flux is None:
-            raise ValueError("flux: the photometric model with a magnitude needs the scene's atmosphere-free flux")
+            raise FieldError("flux", "the photometric model with a magnitude needs the scene's atmosphere-free flux")
         f = torch.as_tensor(flux, dtype=torch.float64, device=y.device).reshape(*y.shape[:-1], 1)
         if not bool((f > 0).all()):
-            raise ValueError("flux: the scene's atmosphere-free flux must be > 0 to carry a magnitude")
+            raise FieldError("flux", "the scene's atmosphere-free flux must be > 0 to carry a magnitude")
         return self.electrons(self.magnitude) / f
 
     def __call__(self, y: Tensor, generator: torch.Generator, *, flux: Tensor | None = None) -> Tensor:

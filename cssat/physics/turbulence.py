@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from scipy.integrate import trapezoid as _trapezoid
 
+from cssat._checks import FieldError
+
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike
 
@@ -60,7 +62,7 @@ def layers_from_profile(n_layers: int = 8, h_max_m: float = 25e3, site_altitude_
     (the first bin starts at the telescope), each a layer at its Cn²-weighted height carrying the
     bin's integral of Cn²; wind from Bufton's profile with directions drawn from ``seed``."""
     if n_layers < 1:
-        raise ValueError(f"n_layers: must be >= 1, got {n_layers}")
+        raise FieldError("n_layers", f"must be >= 1, got {n_layers}")
     edges = np.concatenate([[0.0], np.geomspace(10.0, h_max_m, n_layers)])
     h = np.linspace(0.0, h_max_m, 200001)
     c = hufnagel_valley(h + site_altitude_m, ground_cn2, rms_wind_m_s)

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat._checks import float_param, int_param, opt, progress_param
+from cssat._checks import FieldError, float_param, int_param, opt, progress_param
 
 if TYPE_CHECKING:
     from cssat._types import Array
@@ -62,7 +62,7 @@ class Denoiser:
 
 def _check_image(x) -> None:
     if x.ndim not in (2, 3):
-        raise ValueError(f"image: expected an image (H, W) or a stack (k, H, W), got shape {tuple(x.shape)}")
+        raise FieldError("image", f"expected an image (H, W) or a stack (k, H, W), got shape {tuple(x.shape)}")
 
 
 class NoDenoiser(Denoiser):
@@ -150,7 +150,7 @@ class SparseKSVD(Denoiser):
         self.progress = progress_param(progress)
         unknown = sorted(set(settings) - set(self.SETTINGS))
         if unknown:
-            raise ValueError(f"{unknown[0]}: not a sparse-KSVD setting; expected one of {list(self.SETTINGS)}")
+            raise FieldError(unknown[0], f"not a sparse-KSVD setting; expected one of {list(self.SETTINGS)}")
         self.kw: dict[str, Any] = {}
         for key in ("n_atoms", "atom_sparsity", "n_train", "n_iter", "max_atoms"):
             if settings.get(key) is not None:
@@ -167,7 +167,7 @@ class SparseKSVD(Denoiser):
         self.seed = int_param(seed, "seed", 0)
         if isinstance(dtype, str):
             if dtype not in ("float32", "float64"):
-                raise ValueError(f"dtype: expected one of ['float32', 'float64'], got {dtype!r}")
+                raise FieldError("dtype", f"expected one of ['float32', 'float64'], got {dtype!r}")
             dtype = getattr(torch, dtype)
         self.dtype, self.device = dtype, torch.device(device)
 

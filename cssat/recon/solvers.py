@@ -2,11 +2,13 @@
 
 Every solver is an object with one call signature::
 
-    x, info = solver(phi, y, shape)
+    x, info = solver(problem, y)
 
-``phi`` is the sensing operator ``Φ (m, N)`` (a :class:`~cssat.sparse.LinearOperator` or a dense
-``(m, N)`` tensor), ``y`` the light curve ``(m,)`` or a batch ``(B, m)``, ``shape`` the image
-shape ``(H, W)`` with ``H W = N``. ``x`` is the reconstruction ``shape`` or ``(B, *shape)``,
+``problem`` is a :class:`~cssat.recon.Problem` — the sensing operator ``Φ (m, N)``, the
+unknown's shape ``(H, W)`` with ``H W = N`` and the noise level — or what
+:meth:`Problem.of` turns into one: a :class:`cssat.physics.Measurement` as it is, an operator or
+a dense ``(m, N)`` tensor with ``shape=(H, W)`` (``solver(phi, y, shape)`` as before). ``y`` is
+the light curve ``(m,)`` or a batch ``(B, m)``. ``x`` is the reconstruction ``shape`` or ``(B, *shape)``,
 *not* clipped to the image range, in ``y``'s dtype and on its device; ``info`` is a flat dict for
 ``metrics.json`` (tensors in it, such as OMP's ``coefficients``, are arrays to save).
 ``validate(m, N)`` checks the settings that depend on the problem size before any work.
@@ -24,14 +26,16 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 from torch import Tensor
 
-from cssat._checks import choice_param, float_param, int_param, opt, progress_param
+from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param, opt, progress_param
 from cssat.recon.denoisers import Denoiser
+from cssat.recon.problem import Problem
 from cssat.sparse._io import numpy_io
 
 if TYPE_CHECKING:
-    from cssat._types import Array, OperatorLike
+    from cssat._types import Array, ProblemLike
+    from cssat.sparse import LinearOperator
 
-__all__ = ["Solver", "OMP", "L1", "TV", "PnP", "default_sparsity", "tv_default_lam"]
+__all__ = ["Solver", "OMP", "L1", "TV", "PnP", "Landweber", "default_sparsity", "tv_default_lam"]
 
 
 class Solver:
@@ -43,19 +47,15 @@ class Solver:
         """Check the size-dependent settings for ``m`` samples of ``n_pixels`` pixels."""
 
 
-    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:  # pragma: no cover
+    def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:  # pragma: no cover
         raise NotImplementedError
 
 
-def _problem(phi, y: Tensor, shape: Sequence[int]) -> tuple[int, int, tuple[int, int]]:
-    shape = tuple(int(s) for s in shape)
-    N = math.prod(shape)
-    n_in = phi.n_in if hasattr(phi, "n_in") else phi.shape[-1]
-    if n_in != N:
-        raise ValueError(f"shape: {shape} has {N} pixels but phi has {n_in} columns")
-    if y.shape[-1] != (phi.n_out if hasattr(phi, "n_out") else phi.shape[0]):
-        raise ValueError(f"y: last dimension {y.shape[-1]} does not match phi's {tuple(phi.shape)}")
-    return int(y.shape[-1]), N, shape
+def _problem(problem: Any, y: Tensor, shape: Sequence[int] | None) -> tuple[LinearOperator, int, int, tuple[int, ...]]:
+    """``(operator, m, N, shape)`` of the problem, ``y`` checked against it."""
+    prob = Problem.of(problem, shape)
+    prob.check(y)
+    return prob.operator, prob.m, prob.n, prob.x_shape
 
 
 def default_sparsity(m: int, n_pixels: int) -> int:
@@ -103,10 +103,10 @@ class OMP(Solver):
         self.settings(m, n_pixels)
 
     @numpy_io
-    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
+    def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse import DCT, batch_omp, sensing_dictionary
 
-        m, N, shape = _problem(phi, y, shape)
+        phi, m, N, shape = _problem(problem, y, shape)
         K, tol = self.settings(m, N)
         t = time.perf_counter()
         D = sensing_dictionary(phi, shape)
@@ -158,11 +158,11 @@ class L1(_Convex):
         super().__init__(lam if lam is not None else 1e-3, max_iter, rtol, progress)
 
     @numpy_io
-    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
+    def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse import DCT, sensing_dictionary
         from cssat.sparse.solvers import fista_l1
 
-        m, N, shape = _problem(phi, y, shape)
+        phi, m, N, shape = _problem(problem, y, shape)
         t = time.perf_counter()
         A = sensing_dictionary(phi, shape)
         t_dict = time.perf_counter() - t
@@ -196,14 +196,14 @@ class TV(_Convex):
                  *, progress: bool | None = None):
         super().__init__(lam, max_iter, rtol, progress)
         if not isinstance(nonneg, bool):
-            raise ValueError(f"nonneg: expected true or false, got {nonneg!r}")
+            raise FieldError("nonneg", f"expected true or false, got {nonneg!r}")
         self.nonneg = nonneg
 
     @numpy_io
-    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
+    def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse.solvers import tv_pdhg
 
-        m, N, shape = _problem(phi, y, shape)
+        phi, m, N, shape = _problem(problem, y, shape)
         lam = self.lam if self.lam is not None else tv_default_lam(m / N)
         x, sinfo = tv_pdhg(phi, y, shape, lam=lam, nonneg=self.nonneg, max_iter=self.max_iter, rtol=self.rtol,
                            return_info=True, progress=self.progress)
@@ -224,7 +224,7 @@ class PnP(Solver):
                  init: str = "zero", *, progress: bool | None = None):
         self.progress = progress_param(progress)
         if not callable(denoiser):
-            raise ValueError(f"denoiser: expected a denoiser object (image, sigma) -> (image, info), got {denoiser!r}")
+            raise FieldError("denoiser", f"expected a denoiser object (image, sigma) -> (image, info), got {denoiser!r}")
         self.denoiser = denoiser
         self.max_iter = int_param(max_iter, "max_iter", 1)
         self.sigma_start = float_param(sigma_start, "sigma_start", 1e-6)
@@ -232,10 +232,10 @@ class PnP(Solver):
         self.init = choice_param(init, "init", ("zero", "tv"))
 
     @numpy_io
-    def __call__(self, phi: OperatorLike, y: Array, shape: Sequence[int]) -> tuple[Array, dict[str, Any]]:
+    def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse.solvers import pnp_pgd, tv_pdhg
 
-        m, N, shape = _problem(phi, y, shape)
+        phi, m, N, shape = _problem(problem, y, shape)
         x0 = tv_pdhg(phi, y, shape, lam=1e-3, max_iter=300, progress=self.progress) if self.init == "tv" else None
         sig = np.geomspace(self.sigma_start, self.sigma_end, self.max_iter)
         x, sinfo = pnp_pgd(phi, y, shape, lambda img, s: self.denoiser(img, s)[0], sigmas=sig, x0=x0, return_info=True,
@@ -245,4 +245,32 @@ class PnP(Solver):
             "solver_iterations": sinfo.n_iter,
             "solver_sigma_start": float(sinfo.lam[0]), "solver_sigma_end": float(sinfo.lam[-1]),
             "solver_objective": sinfo.objective[-1],
+        }
+
+
+class Landweber(_Convex):
+    """Projected Landweber (:func:`cssat.sparse.solvers.landweber`):
+    ``xₖ₊₁ = P(xₖ − τ Φᵀ(Φxₖ − y))``, ``τ = relaxation / ‖Φ‖²``, ``P`` the projection on
+    ``x ≥ 0`` when ``nonneg``. Regularised by stopping: ``max_iter`` or the relative change ``rtol``.
+    """
+
+    name = "landweber"
+
+    def __init__(self, relaxation: float = 1.0, nonneg: bool = True, max_iter: int = 500, rtol: float = 1e-6,
+                 *, progress: bool | None = None):
+        super().__init__(None, max_iter, rtol, progress)
+        self.relaxation = float_param(relaxation, "relaxation", 0.0, 2.0, open_lo=True)
+        self.nonneg = bool_param(nonneg, "nonneg")
+
+    @numpy_io
+    def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
+        from cssat.sparse.solvers import landweber
+
+        phi, m, N, shape = _problem(problem, y, shape)
+        x, sinfo = landweber(phi, y, relaxation=self.relaxation, lower=0.0 if self.nonneg else None,
+                             max_iter=self.max_iter, rtol=self.rtol, return_info=True, progress=self.progress)
+        return x.reshape(*y.shape[:-1], *shape), {
+            "solver_relaxation": self.relaxation, "solver_max_iter": self.max_iter, "solver_rtol": self.rtol,
+            "solver_iterations": sinfo.n_iter, "solver_converged": sinfo.converged,
+            "solver_objective": sinfo.objective[-1] if sinfo.objective else None,
         }

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cssat._checks import FieldError
+
 __all__ = ["nadir_pointing_frame", "to_body", "random_unit_vectors"]
 
 
@@ -27,7 +29,7 @@ def nadir_pointing_frame(r_sat: np.ndarray, v_sat: np.ndarray) -> np.ndarray:
     h = np.cross(r, v)
     hn = np.linalg.norm(h, axis=1, keepdims=True)
     if np.any(hn == 0):
-        raise ValueError("v_sat: velocity parallel to position, the orbital plane is undefined")
+        raise FieldError("v_sat", "velocity parallel to position, the orbital plane is undefined")
     y = -h / hn
     x = np.cross(y, z)
     return np.stack([x, y, z], axis=1)

@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cssat._checks import FieldError, FieldTypeError
+
 if TYPE_CHECKING:
     from typing import Sequence
 
@@ -45,16 +47,16 @@ class Mesh:
         self.cd = np.broadcast_to(np.asarray(self.cd, dtype=np.float64), (F,)).copy()
         self.cs = np.broadcast_to(np.asarray(self.cs, dtype=np.float64), (F,)).copy()
         if self.vertices.ndim != 2 or self.vertices.shape[1] != 3:
-            raise ValueError(f"mesh.vertices: expected shape (V, 3), got {self.vertices.shape}")
+            raise FieldError("mesh.vertices", f"expected shape (V, 3), got {self.vertices.shape}")
         if self.faces.ndim != 2 or self.faces.shape[1] != 3:
-            raise ValueError(f"mesh.faces: expected shape (F, 3), got {self.faces.shape}")
+            raise FieldError("mesh.faces", f"expected shape (F, 3), got {self.faces.shape}")
         if F and (self.faces.min() < 0 or self.faces.max() >= len(self.vertices)):
-            raise ValueError("mesh.faces: vertex index out of range")
+            raise FieldError("mesh.faces", "vertex index out of range")
         if not np.isfinite(self.vertices).all():
-            raise ValueError("mesh.vertices: contain NaN or Inf")
+            raise FieldError("mesh.vertices", "contain NaN or Inf")
         for name, arr in (("mesh.cd", self.cd), ("mesh.cs", self.cs)):
             if np.any(arr < 0) or not np.isfinite(arr).all():
-                raise ValueError(f"{name}: reflection coefficients must be finite and >= 0")
+                raise FieldError(name, f"reflection coefficients must be finite and >= 0")
 
     def __len__(self) -> int:
         return len(self.faces)
@@ -116,7 +118,7 @@ def as_mesh(mesh: Mesh | trimesh.Trimesh) -> Mesh:
         return mesh
     if hasattr(mesh, "vertices") and hasattr(mesh, "faces") and type(mesh).__module__.startswith("trimesh"):
         return Mesh.from_trimesh(mesh)
-    raise TypeError(f"mesh: expected a cssat.scene.Mesh or a trimesh.Trimesh, got {type(mesh).__name__}")
+    raise FieldTypeError("mesh", f"expected a cssat.scene.Mesh or a trimesh.Trimesh, got {type(mesh).__name__}")
 
 
 def load_mesh(
@@ -138,27 +140,27 @@ def load_mesh(
 
     path = os.fspath(path)
     if not os.path.isfile(path):
-        raise ValueError(f"{field}: no such file: {path!r}")
+        raise FieldError(field, f"no such file: {path!r}")
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-        raise ValueError(f"model.scale: must be a positive number, got {scale!r}")
+        raise FieldError("model.scale", f"must be a positive number, got {scale!r}")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many types for unreadable files
-        raise ValueError(f"{field}: cannot read {path!r} as a mesh: {err}") from None
+        raise FieldError(field, f"cannot read {path!r} as a mesh: {err}") from None
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     verts = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     if len(faces) == 0:
-        raise ValueError(f"{field}: {path!r} holds no triangles")
+        raise FieldError(field, f"{path!r} holds no triangles")
     verts = verts * float(scale)
     if center and len(verts):
         verts = verts - 0.5 * (verts.min(0) + verts.max(0))
     try:
         mesh = Mesh(verts, faces, cd, cs, name=os.path.basename(path))
     except ValueError as err:  # e.g. a file truncated mid-way: faces pointing past the vertices
-        raise ValueError(f"{field}: {path!r} is not a valid mesh ({err})") from None
+        raise FieldError(field, f"{path!r} is not a valid mesh ({err})") from None
     good = mesh.areas > 1e-12 * max(mesh.radius, 1e-300) ** 2
     if not good.any():
-        raise ValueError(f"{field}: every facet of {path!r} is degenerate (zero area)")
+        raise FieldError(field, f"every facet of {path!r} is degenerate (zero area)")
     if not good.all():
         import logging
 
@@ -345,11 +347,11 @@ def get_model(name: str = "astra_like", path: str | None = None, scale: float = 
     or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``)."""
     for fname, val in (("model.cd", cd), ("model.cs", cs)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
-            raise ValueError(f"{fname}: must be a number >= 0, got {val!r}")
+            raise FieldError(fname, f"must be a number >= 0, got {val!r}")
     if name == "file":
         if not path:
-            raise ValueError("model.path: required when model.name is 'file'")
+            raise FieldError("model.path", "required when model.name is 'file'")
         return load_mesh(path, scale=scale, cd=cd, cs=cs)
     if name not in MODELS:
-        raise ValueError(f"model.name: expected one of {sorted(MODELS) + ['file']}, got {name!r}")
+        raise FieldError("model.name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
     return MODELS[name](cd=cd, cs=cs)

@@ -16,6 +16,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from cssat._checks import FieldError, FieldTypeError
+
 __all__ = [
     "ASTRA_1KR_SYNTHETIC_TLE",
     "Scenario",
@@ -53,16 +55,16 @@ def check_tle(line1: str, line2: str, field: str = "tle") -> None:
     for k, line in ((1, line1), (2, line2)):
         name = f"{field}.line{k}"
         if not isinstance(line, str):
-            raise ValueError(f"{name}: expected a string, got {type(line).__name__}")
+            raise FieldError(name, f"expected a string, got {type(line).__name__}")
         line = line.rstrip()
         if len(line) != 69:
-            raise ValueError(f"{name}: a TLE line has 69 columns, got {len(line)}")
+            raise FieldError(name, f"a TLE line has 69 columns, got {len(line)}")
         if line[0] != str(k) or line[1] != " ":
-            raise ValueError(f"{name}: must start with '{k} ', got {line[:2]!r}")
+            raise FieldError(name, f"must start with '{k} ', got {line[:2]!r}")
         if not line[68].isdigit() or int(line[68]) != _checksum(line):
-            raise ValueError(f"{name}: checksum {line[68]!r} does not match the computed {_checksum(line)}")
+            raise FieldError(name, f"checksum {line[68]!r} does not match the computed {_checksum(line)}")
     if line1[2:7] != line2[2:7]:
-        raise ValueError(f"{field}: catalogue numbers differ between the lines ({line1[2:7]!r} vs {line2[2:7]!r})")
+        raise FieldError(field, f"catalogue numbers differ between the lines ({line1[2:7]!r} vs {line2[2:7]!r})")
     epoch = line1[18:32]
     try:
         day = float(epoch[2:])
@@ -70,7 +72,7 @@ def check_tle(line1: str, line2: str, field: str = "tle") -> None:
     except ValueError:
         ok = False
     if not ok:
-        raise ValueError(f"{field}.line1: the epoch (columns 19-32, YYDDD.DDDDDDDD) is not a date: {epoch!r}")
+        raise FieldError(f"{field}.line1", f"the epoch (columns 19-32, YYDDD.DDDDDDDD) is not a date: {epoch!r}")
 
 
 @dataclass(frozen=True)
@@ -197,9 +199,9 @@ def _satellite(tle, ts, field: str = "scenario.tle"):
     elif isinstance(tle, (tuple, list)) and all(isinstance(ln, str) for ln in tle):
         lines = list(tle)
     else:
-        raise TypeError(f"{field}: expected {', '.join(SATELLITE_FORMS)}; got {type(tle).__name__}")
+        raise FieldTypeError(field, f"expected {', '.join(SATELLITE_FORMS)}; got {type(tle).__name__}")
     if len(lines) not in (2, 3):
-        raise ValueError(f"{field}: a TLE has 2 lines, or 3 with a name line first; got {len(lines)}")
+        raise FieldError(field, f"a TLE has 2 lines, or 3 with a name line first; got {len(lines)}")
     name = ""
     if len(lines) == 3:
         name = lines[0].strip()
@@ -217,7 +219,7 @@ def _from_omm(rec, ts, field: str):
 
     missing = [k for k in OMM_REQUIRED if rec.get(k) is None]
     if missing:
-        raise ValueError(f"{field}: an OMM/GP record needs {', '.join(OMM_REQUIRED)}; missing {', '.join(missing)}")
+        raise FieldError(field, f"an OMM/GP record needs {', '.join(OMM_REQUIRED)}; missing {', '.join(missing)}")
     fields = {**OMM_DEFAULTS, **{k: v for k, v in rec.items() if v is not None}}
     epoch = _start_datetime(str(fields["EPOCH"]), field=f"{field}.EPOCH")
     fields["EPOCH"] = epoch.strftime("%Y-%m-%dT%H:%M:%S.%f")  # the one form sgp4.omm parses
@@ -226,7 +228,7 @@ def _from_omm(rec, ts, field: str):
     try:
         omm.initialize(sat, fields)
     except (TypeError, ValueError) as e:
-        raise ValueError(f"{field}: not a valid OMM/GP record ({e})") from None
+        raise FieldError(field, f"not a valid OMM/GP record ({e})") from None
     return EarthSatellite.from_satrec(sat, ts), str(rec.get("OBJECT_NAME") or "")
 
 
@@ -239,20 +241,20 @@ def _start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
         try:
             start = datetime.fromisoformat(start_utc.strip().replace("Z", "+00:00"))
         except ValueError:
-            raise ValueError(f"{field}: not an ISO date-time: {start_utc!r}") from None
+            raise FieldError(field, f"not an ISO date-time: {start_utc!r}") from None
     elif isinstance(start_utc, datetime):  # also pandas.Timestamp
         start = start_utc
     elif isinstance(start_utc, np.datetime64):
         if np.isnat(start_utc):
-            raise ValueError(f"{field}: NaT is not a time")
+            raise FieldError(field, f"NaT is not a time")
         us = start_utc.astype("datetime64[us]").astype(np.int64)
         start = datetime(1970, 1, 1) + timedelta(microseconds=int(us))
     elif type(start_utc).__module__.startswith("skyfield") and hasattr(start_utc, "utc_datetime"):
         if np.ndim(start_utc.tt) != 0:
-            raise ValueError(f"{field}: expected one time, got a skyfield Time of shape {np.shape(start_utc.tt)}")
+            raise FieldError(field, f"expected one time, got a skyfield Time of shape {np.shape(start_utc.tt)}")
         start = start_utc.utc_datetime()
     else:
-        raise TypeError(f"{field}: expected {START_FORMS}; got {type(start_utc).__name__}")
+        raise FieldTypeError(field, f"expected {START_FORMS}; got {type(start_utc).__name__}")
     if start.tzinfo is not None:
         start = start.astimezone(timezone.utc).replace(tzinfo=None)
     return start
@@ -290,21 +292,21 @@ def make_scenario(
         default = tle is ASTRA_1KR_SYNTHETIC_TLE
         name = "Astra 1KR (synthetic TLE)" if default else own_name or f"NORAD {sat.model.satnum}"
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
-        raise ValueError(f"scenario.n_steps: must be a positive integer, got {n_steps!r}")
+        raise FieldError("scenario.n_steps", f"must be a positive integer, got {n_steps!r}")
     if not (isinstance(step_s, (int, float)) and math.isfinite(step_s) and step_s > 0):
-        raise ValueError(f"scenario.step_s: must be a positive number of seconds, got {step_s!r}")
+        raise FieldError("scenario.step_s", f"must be a positive number of seconds, got {step_s!r}")
     if not -90 <= lat_deg <= 90:
-        raise ValueError(f"scenario.observer.lat_deg: must be in [-90, 90], got {lat_deg}")
+        raise FieldError("scenario.observer.lat_deg", f"must be in [-90, 90], got {lat_deg}")
     if not -360 <= lon_deg <= 360:
-        raise ValueError(f"scenario.observer.lon_deg: must be in [-360, 360], got {lon_deg}")
+        raise FieldError("scenario.observer.lon_deg", f"must be in [-360, 360], got {lon_deg}")
     if not (isinstance(alt_m, (int, float)) and math.isfinite(alt_m) and -1000 <= alt_m <= 100_000):
-        raise ValueError(f"scenario.observer.alt_m: a ground observer's altitude must be in [-1000, 100000] m, got {alt_m!r}")
+        raise FieldError("scenario.observer.alt_m", f"a ground observer's altitude must be in [-1000, 100000] m, got {alt_m!r}")
     start = _start_datetime(start_utc)
 
     offsets = np.arange(n_steps) * float(step_s)
     end = start + timedelta(seconds=float(offsets[-1]))
     if not (EPHEMERIS_RANGE[0] <= start and end <= EPHEMERIS_RANGE[1]):
-        raise ValueError(f"scenario.start_utc: {start} – {end} UTC is outside the ephemeris (DE421 covers "
+        raise FieldError("scenario.start_utc", f"{start} – {end} UTC is outside the ephemeris (DE421 covers "
                          f"{EPHEMERIS_RANGE[0]:%Y-%m-%d} to {EPHEMERIS_RANGE[1]:%Y-%m-%d})")
     t = ts.utc(start.year, start.month, start.day, start.hour, start.minute,
                start.second + start.microsecond * 1e-6 + offsets)
@@ -314,15 +316,15 @@ def make_scenario(
     bad = np.flatnonzero(err)
     if bad.size:
         code = int(err[bad[0]])
-        raise ValueError(
-            f"scenario.tle: SGP4 error {code} ({SGP4_ERRORS.get(code, 'unknown')}) at step {bad[0]} "
+        raise FieldError(
+            "scenario.tle", f"SGP4 error {code} ({SGP4_ERRORS.get(code, 'unknown')}) at step {bad[0]} "
             f"({start + timedelta(seconds=float(offsets[bad[0]]))} UTC)"
         )
     geo = sat.at(t)
     r_sat = geo.position.km.T.copy()
     v_sat = geo.velocity.km_per_s.T.copy()
     if not (np.isfinite(r_sat).all() and np.isfinite(v_sat).all()):
-        raise ValueError("scenario.tle: SGP4 gives no finite position for these elements (check the epoch, "
+        raise FieldError("scenario.tle", "SGP4 gives no finite position for these elements (check the epoch, "
                          "columns 19-32 of line 1, and the mean motion, columns 53-63 of line 2)")
     r_sun = (eph["sun"] - eph["earth"]).at(t).position.km.T.copy()
     topos = wgs84.latlon(lat_deg, lon_deg, elevation_m=alt_m)

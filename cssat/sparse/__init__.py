@@ -9,16 +9,8 @@ from cssat.sparse.denoise import DEMO_DEFAULTS, DenoiseInfo, estimate_sigma, ksv
 from cssat.sparse.ksvd import KSVDInfo, SparseDictionary, ksvd, odct_base, sparse_ksvd
 from cssat.sparse.omp import OMPInfo, batch_omp, gram_matrix, omp_path_costs
 from cssat.sparse.patches import accumulate_patches, extract_patches, fold_patches, patch_positions
-from cssat.sparse.operators import (
-    DCT,
-    ComposedOperator,
-    GaussianSensing,
-    KroneckerOperator,
-    LinearOperator,
-    MatrixOperator,
-    dct_matrix,
-    odct_matrix,
-)
+from cssat.sparse.operators import ComposedOperator, GaussianSensing, LinearOperator, MatrixOperator, as_operator
+from cssat.sparse.transforms import DCT, KroneckerOperator, dct_matrix, odct_matrix
 
 __all__ = [
     "DEMO_DEFAULTS",
@@ -38,6 +30,7 @@ __all__ = [
     "KroneckerOperator",
     "LinearOperator",
     "MatrixOperator",
+    "as_operator",
     "OMPInfo",
     "batch_omp",
     "dct_matrix",

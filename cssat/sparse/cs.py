@@ -7,7 +7,9 @@ from typing import Sequence
 import torch
 from torch import Tensor
 
-from cssat.sparse.operators import DCT, ComposedOperator, LinearOperator, MatrixOperator
+from cssat._checks import FieldError
+from cssat.sparse.operators import ComposedOperator, LinearOperator, MatrixOperator
+from cssat.sparse.transforms import DCT
 
 __all__ = ["sensing_dictionary", "DictionarySensing"]
 
@@ -24,10 +26,10 @@ class DictionarySensing(LinearOperator):
     def __init__(self, dictionary: Tensor, shape: Sequence[int]):
         super().__init__()
         if dictionary.ndim != 2:
-            raise ValueError(f"dictionary: expected a 2-D tensor (m, N), got shape {tuple(dictionary.shape)}")
+            raise FieldError("dictionary", f"expected a 2-D tensor (m, N), got shape {tuple(dictionary.shape)}")
         self.psi = DCT(tuple(shape))
         if dictionary.shape[1] != self.psi.n_in:
-            raise ValueError(f"dictionary: expected {self.psi.n_in} columns for images of shape {tuple(shape)}, "
+            raise FieldError("dictionary", f"expected {self.psi.n_in} columns for images of shape {tuple(shape)}, "
                              f"got {dictionary.shape[1]}")
         self.dictionary = dictionary
         self.dims = tuple(shape)
@@ -66,5 +68,5 @@ def sensing_dictionary(phi: Tensor | LinearOperator, shape: Sequence[int]) -> Te
     op = phi if isinstance(phi, LinearOperator) else MatrixOperator(phi) if isinstance(phi, Tensor) and phi.ndim == 2 else None
     if op is None or op.n_in != psi.n_in:
         got = tuple(phi.shape) if hasattr(phi, "shape") else type(phi).__name__
-        raise ValueError(f"phi: expected shape (m, {psi.n_in}) for images of shape {tuple(shape)}, got {got}")
+        raise FieldError("phi", f"expected shape (m, {psi.n_in}) for images of shape {tuple(shape)}, got {got}")
     return ComposedOperator(op, psi).matrix(atoms_contiguous=True)

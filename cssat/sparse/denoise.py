@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from cssat._checks import FieldError
 from cssat.sparse.ksvd import KSVDInfo, SparseDictionary, odct_base, sparse_ksvd
 from cssat.sparse.omp import batch_omp
 from cssat.sparse.patches import _norm, accumulate_patches, extract_patches, patch_positions
@@ -53,9 +54,9 @@ def estimate_sigma(x: Tensor | np.ndarray) -> float:
     the per-slice estimates (the noise power a 3-D block sees)."""
     x = torch.as_tensor(x)
     if x.ndim not in (2, 3):
-        raise ValueError(f"x: expected an image (H, W) or a stack (k, H, W), got shape {tuple(x.shape)}")
+        raise FieldError("x", f"expected an image (H, W) or a stack (k, H, W), got shape {tuple(x.shape)}")
     if x.shape[-1] < 2 or x.shape[-2] < 2:
-        raise ValueError(f"x: needs at least 2×2 pixels to estimate the noise, got shape {tuple(x.shape)}")
+        raise FieldError("x", f"needs at least 2×2 pixels to estimate the noise, got shape {tuple(x.shape)}")
     x = x.double()
     s = x if x.ndim == 3 else x[None]
     H, W = (s.shape[1] // 2) * 2, (s.shape[2] // 2) * 2
@@ -67,7 +68,7 @@ def estimate_sigma(x: Tensor | np.ndarray) -> float:
 
 def _tuple(value, nd: int, name: str) -> tuple[int, ...]:
     if isinstance(value, bool):
-        raise ValueError(f"{name}: expected an integer or {nd} integers, got {value!r}")
+        raise FieldError(name, f"expected an integer or {nd} integers, got {value!r}")
     return _norm(value, nd, name)
 
 
@@ -130,13 +131,13 @@ def ksvd_denoise(
     is_numpy = not isinstance(image_or_volume, Tensor)
     x = torch.as_tensor(np.asarray(image_or_volume) if is_numpy else image_or_volume)
     if x.ndim not in (2, 3):
-        raise ValueError(
-            f"image_or_volume: expected a 2-D image (H, W) or a 3-D stack (k, H, W), got shape {tuple(x.shape)}"
+        raise FieldError(
+            "image_or_volume", f"expected a 2-D image (H, W) or a 3-D stack (k, H, W), got shape {tuple(x.shape)}"
         )
     if not x.is_floating_point():
         x = x.to(torch.float32)
     if not bool(torch.isfinite(x).all()):
-        raise ValueError("image_or_volume: contains NaN or Inf")
+        raise FieldError("image_or_volume", "contains NaN or Inf")
     if x.ndim == 3 and x.shape[0] == 1:  # a stack of one image: its 2-D denoising, axis kept
         res = ksvd_denoise(x[0], sigma, block_size=block_size, step=step, n_atoms=n_atoms, base_atoms=base_atoms,
                            atom_sparsity=atom_sparsity, gain=gain, n_train=n_train, n_iter=n_iter, max_atoms=max_atoms,
@@ -152,11 +153,11 @@ def ksvd_denoise(
     if block_size is None:
         block = tuple(min(demo["block"], s) for s in x.shape)
         if any(b < demo["block"] for b in block[-2:]):
-            raise ValueError(f"block_size: the default block {demo['block']} is larger than the image {tuple(x.shape)}")
+            raise FieldError("block_size", f"the default block {demo['block']} is larger than the image {tuple(x.shape)}")
     else:
         block = _tuple(block_size, nd, "block_size")
     if any(b > s for b, s in zip(block, x.shape)):
-        raise ValueError(f"block_size: block {block} is larger than the {'image' if nd == 2 else 'stack'} {tuple(x.shape)}")
+        raise FieldError("block_size", f"block {block} is larger than the {'image' if nd == 2 else 'stack'} {tuple(x.shape)}")
     stp = _tuple(demo["step"] if step is None else step, nd, "step")
     stp = tuple(min(s, b) for s, b in zip(stp, block)) if step is None else stp
     p = math.prod(block)
@@ -167,12 +168,12 @@ def ksvd_denoise(
     else:
         sigma = float(sigma)
         if not math.isfinite(sigma) or sigma <= 0:
-            raise ValueError(f"sigma: noise std must be finite and > 0 (or None to estimate it), got {sigma}")
+            raise FieldError("sigma", f"noise std must be finite and > 0 (or None to estimate it), got {sigma}")
     gain = float(demo["gain"] if gain is None else gain)
     if not math.isfinite(gain) or gain <= 0:
-        raise ValueError(f"gain: must be finite and > 0, got {gain}")
+        raise FieldError("gain", f"must be finite and > 0, got {gain}")
     if float(lam) < 0 or not math.isfinite(float(lam)):
-        raise ValueError(f"lam: must be finite and >= 0, got {lam}")
+        raise FieldError("lam", f"must be finite and >= 0, got {lam}")
     base = odct_base(block, base_atoms, dtype=x.dtype)
     n_blocks = math.prod(len(q) for q in patch_positions(x.shape, block, 1))
     # default: the base dictionary's size, fewer on an image too small to train that many atoms
@@ -182,11 +183,11 @@ def ksvd_denoise(
     n_iter = demo["n_iter"] if n_iter is None else int(n_iter)
     cap = min(max(1, p // 2), L) if max_atoms is None else int(max_atoms)
     if not 1 <= cap <= L:
-        raise ValueError(f"max_atoms: must be in [1, n_atoms={L}], got {cap}")
+        raise FieldError("max_atoms", f"must be in [1, n_atoms={L}], got {cap}")
     if n_train < L:
-        raise ValueError(f"n_train: must be at least n_atoms={L}, got {n_train}")
+        raise FieldError("n_train", f"must be at least n_atoms={L}, got {n_train}")
     if L < 1:
-        raise ValueError(f"n_atoms: must be >= 1, got {L}")
+        raise FieldError("n_atoms", f"must be >= 1, got {L}")
 
     # ---- training blocks (step 1, evenly thinned to n_train), means removed ----
     train = extract_patches(x, block, 1)
@@ -194,8 +195,8 @@ def ksvd_denoise(
         pick = torch.linspace(0, train.shape[0] - 1, n_train, dtype=torch.float64).round().long()
         train = train[pick.to(x.device)]
     if train.shape[0] < L:
-        raise ValueError(
-            f"n_atoms: {L} atoms need at least as many training blocks; the image gives {train.shape[0]} "
+        raise FieldError(
+            "n_atoms", f"{L} atoms need at least as many training blocks; the image gives {train.shape[0]} "
             f"blocks of {block} (use a smaller block_size or n_atoms)"
         )
     train = train - train.mean(1, keepdim=True)

@@ -28,8 +28,10 @@ from typing import NamedTuple, Sequence
 import torch
 from torch import Tensor
 
+from cssat._checks import FieldError, FieldTypeError
 from cssat.sparse.omp import batch_omp
-from cssat.sparse.operators import KroneckerOperator, LinearOperator, odct_matrix
+from cssat.sparse.operators import LinearOperator
+from cssat.sparse.transforms import KroneckerOperator, odct_matrix
 
 __all__ = ["SparseDictionary", "KSVDInfo", "sparse_ksvd", "ksvd", "odct_base"]
 
@@ -47,7 +49,7 @@ class SparseDictionary(LinearOperator):
     def __init__(self, base: KroneckerOperator, A: Tensor):
         super().__init__()
         if A.ndim != 2 or A.shape[0] != base.n_in:
-            raise ValueError(f"A: expected shape ({base.n_in}, n_atoms) for the base dictionary, got {tuple(A.shape)}")
+            raise FieldError("A", f"expected shape ({base.n_in}, n_atoms) for the base dictionary, got {tuple(A.shape)}")
         self.base = base
         self.register_buffer("atoms", A)
         self.n_out, self.n_in = base.n_out, int(A.shape[1])
@@ -77,9 +79,9 @@ def odct_base(block: Sequence[int], atoms: Sequence[int] | None = None, dtype: t
     block = [int(b) for b in block]
     atoms = [math.ceil(1.25 * b) for b in block] if atoms is None else [int(a) for a in atoms]
     if len(atoms) != len(block):
-        raise ValueError(f"base_atoms: expected {len(block)} sizes (one per block axis), got {atoms}")
+        raise FieldError("base_atoms", f"expected {len(block)} sizes (one per block axis), got {atoms}")
     if any(a < b for a, b in zip(atoms, block)):
-        raise ValueError(f"base_atoms: each axis needs at least as many atoms as the block size {block}, got {atoms}")
+        raise FieldError("base_atoms", f"each axis needs at least as many atoms as the block size {block}, got {atoms}")
     return KroneckerOperator([odct_matrix(b, a, dtype=dtype) for b, a in zip(block, atoms)])
 
 
@@ -104,11 +106,11 @@ def _base_gram(base: KroneckerOperator, A: Tensor) -> Tensor:
 
 def _check_signals(X: Tensor, p: int) -> None:
     if X.ndim != 2 or X.shape[1] != p:
-        raise ValueError(f"X: expected training signals as rows (n, {p}), got shape {tuple(X.shape)}")
+        raise FieldError("X", f"expected training signals as rows (n, {p}), got shape {tuple(X.shape)}")
     if not X.is_floating_point():
-        raise TypeError(f"X: expected a float32 or float64 tensor, got {X.dtype}")
+        raise FieldTypeError("X", f"expected a float32 or float64 tensor, got {X.dtype}")
     if not bool(torch.isfinite(X).all()):
-        raise ValueError("X: training signals contain NaN or Inf")
+        raise FieldError("X", "training signals contain NaN or Inf")
 
 
 def sparse_ksvd(
@@ -161,35 +163,35 @@ def sparse_ksvd(
         second; see :mod:`cssat._progress`).
     """
     if not isinstance(base, KroneckerOperator):
-        raise TypeError("base: expected a KroneckerOperator (a separable base dictionary)")
+        raise FieldTypeError("base", "expected a KroneckerOperator (a separable base dictionary)")
     p, K0 = base.n_out, base.n_in
     _check_signals(X, p)
     n = X.shape[0]
     L = K0 if n_atoms is None else int(n_atoms)
     if L < 1:
-        raise ValueError(f"n_atoms: must be >= 1, got {L}")
+        raise FieldError("n_atoms", f"must be >= 1, got {L}")
     if L > n:
-        raise ValueError(f"n_atoms: {L} atoms need at least as many training signals, got {n}")
+        raise FieldError("n_atoms", f"{L} atoms need at least as many training signals, got {n}")
     T = int(atom_sparsity)
     if not 1 <= T <= K0:
-        raise ValueError(f"atom_sparsity: must be in [1, K0={K0}], got {T}")
+        raise FieldError("atom_sparsity", f"must be in [1, K0={K0}], got {T}")
     if int(n_iter) < 0:
-        raise ValueError(f"n_iter: must be >= 0, got {n_iter}")
+        raise FieldError("n_iter", f"must be >= 0, got {n_iter}")
     if tol is None and n_nonzero_coefs is None:
-        raise ValueError("tol/n_nonzero_coefs: give the coding error bound tol, a sparsity, or both")
+        raise FieldError("tol", "give the coding error bound tol, a sparsity, or both")
     if tol is not None and (not math.isfinite(float(tol)) or float(tol) < 0):
-        raise ValueError(f"tol: must be finite and >= 0, got {tol}")
+        raise FieldError("tol", f"must be finite and >= 0, got {tol}")
     cap = n_nonzero_coefs if n_nonzero_coefs is not None else max(1, p // 2)
     cap = int(min(cap, L))
     if cap < 1:
-        raise ValueError(f"n_nonzero_coefs: must be >= 1, got {n_nonzero_coefs}")
+        raise FieldError("n_nonzero_coefs", f"must be >= 1, got {n_nonzero_coefs}")
 
     dt, dev = X.dtype, X.device
     base = base.to(device=dev)
     Bm = base.matrix(dtype=dt, device=dev)  # (p, K0): small, used for single-vector steps only
     norms = torch.linalg.vector_norm(Bm, dim=0)
     if bool(((norms - 1).abs() > 1e-2).any()):
-        raise ValueError("base: the base dictionary's atoms must have unit norm")
+        raise FieldError("base", "the base dictionary's atoms must have unit norm")
     baseG = _base_gram(base, torch.eye(K0, dtype=dt, device=dev))  # (K0, K0) = BᵀB
     dense_atoms = T >= K0 and K0 == p and bool(torch.allclose(Bm, torch.eye(p, dtype=dt, device=dev)))
     gen = torch.Generator().manual_seed(int(seed))
@@ -206,16 +208,16 @@ def sparse_ksvd(
     # ---- initial A ----
     if isinstance(init, Tensor):
         if init.ndim != 2 or init.shape[0] != K0 or init.shape[1] < L:
-            raise ValueError(f"init: expected a ({K0}, >= {L}) matrix, got {tuple(init.shape)}")
+            raise FieldError("init", f"expected a ({K0}, >= {L}) matrix, got {tuple(init.shape)}")
         A = init[:, :L].to(dtype=dt, device=dev).clone()
     elif init == "identity":
         if L > K0:
-            raise ValueError(f"init: 'identity' needs n_atoms <= K0={K0}, got {L}; use init='data'")
+            raise FieldError("init", f"'identity' needs n_atoms <= K0={K0}, got {L}; use init='data'")
         A = torch.eye(K0, L, dtype=dt, device=dev)
     elif init == "data":
         ok = torch.nonzero((X * X).sum(1) > 1e-6 * (X * X).sum(1).max().clamp_min(1e-300)).flatten().cpu()
         if ok.numel() < L:
-            raise ValueError(f"init: 'data' needs {L} non-zero training signals, found {ok.numel()}")
+            raise FieldError("init", f"'data' needs {L} non-zero training signals, found {ok.numel()}")
         pick = ok[torch.randperm(ok.numel(), generator=gen)[:L]].to(dev)
         Xi = X[pick]
         if dense_atoms:
@@ -223,7 +225,7 @@ def sparse_ksvd(
         else:
             A = batch_omp(Bm, Xi, n_nonzero_coefs=T, gram=baseG, Dty=base.adjoint(Xi), progress=False).T.contiguous()
     else:
-        raise ValueError(f"init: expected 'identity', 'data' or a matrix, got {init!r}")
+        raise FieldError("init", f"expected 'identity', 'data' or a matrix, got {init!r}")
     dn = torch.linalg.vector_norm(Bm @ A, dim=0)
     A = A / torch.where(dn > 0, dn, torch.ones_like(dn))
 

@@ -24,6 +24,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from cssat._checks import FieldError, FieldTypeError
 from cssat.sparse._io import as_float_tensor, numpy_io
 
 __all__ = ["batch_omp", "gram_matrix", "omp_path_costs", "OMPInfo"]
@@ -168,32 +169,32 @@ def batch_omp(
     * the chosen atom is linearly dependent on the chosen ones (``L_kk² ≤ 16 ε ‖dⱼ‖²``).
     """
     if D.ndim != 2:
-        raise ValueError(f"D: expected a 2-D dictionary (m, n_atoms), got shape {tuple(D.shape)}")
+        raise FieldError("D", f"expected a 2-D dictionary (m, n_atoms), got shape {tuple(D.shape)}")
     if not D.is_floating_point():  # integers: the default float dtype, not integer arithmetic
         D = D.to(torch.get_default_dtype())
     if D.dtype not in (torch.float32, torch.float64):
-        raise TypeError(f"D: batch_omp computes in float32 or float64, got {D.dtype}; cast it, e.g. D.float()")
+        raise FieldTypeError("D", f"batch_omp computes in float32 or float64, got {D.dtype}; cast it, e.g. D.float()")
     if not bool(torch.isfinite(D).all()):
-        raise ValueError("D: the dictionary contains NaN or Inf")
+        raise FieldError("D", "the dictionary contains NaN or Inf")
     m, n_atoms = D.shape
     squeeze = Y.ndim == 1
     Y2 = Y.reshape(1, -1) if squeeze else Y
     if Y2.ndim != 2 or Y2.shape[1] != m:
-        raise ValueError(f"Y: expected shape (B, {m}) or ({m},) to match D (m={m}), got {tuple(Y.shape)}")
+        raise FieldError("Y", f"expected shape (B, {m}) or ({m},) to match D (m={m}), got {tuple(Y.shape)}")
     Y2 = Y2.to(dtype=D.dtype, device=D.device)
     if not bool(torch.isfinite(Y2).all()):
-        raise ValueError("Y: signals contain NaN or Inf")
+        raise FieldError("Y", "signals contain NaN or Inf")
     if tol is not None:
         tol = float(tol)
         if not math.isfinite(tol) or tol < 0:
-            raise ValueError(f"tol: squared residual bound must be finite and >= 0, got {tol}")
+            raise FieldError("tol", f"squared residual bound must be finite and >= 0, got {tol}")
     if n_nonzero_coefs is not None:
         if isinstance(n_nonzero_coefs, bool) or int(n_nonzero_coefs) != n_nonzero_coefs:
-            raise ValueError(f"n_nonzero_coefs: expected an integer, got {n_nonzero_coefs!r}")
+            raise FieldError("n_nonzero_coefs", f"expected an integer, got {n_nonzero_coefs!r}")
         n_nonzero_coefs = int(n_nonzero_coefs)
         if not 1 <= n_nonzero_coefs <= n_atoms:
-            raise ValueError(
-                f"n_nonzero_coefs: must be in [1, n_atoms={n_atoms}], got {n_nonzero_coefs}"
+            raise FieldError(
+                "n_nonzero_coefs", f"must be in [1, n_atoms={n_atoms}], got {n_nonzero_coefs}"
             )
     elif tol is None:
         n_nonzero_coefs = max(1, n_atoms // 10)
@@ -201,9 +202,9 @@ def batch_omp(
     B = Y2.shape[0]
 
     if backend not in ("auto", "torch", "numba"):
-        raise ValueError(f"backend: expected 'auto', 'torch' or 'numba', got {backend!r}")
+        raise FieldError("backend", f"expected 'auto', 'torch' or 'numba', got {backend!r}")
     if precompute not in ("auto", True, False):
-        raise ValueError(f"precompute: expected 'auto', True or False, got {precompute!r}")
+        raise FieldError("precompute", f"expected 'auto', True or False, got {precompute!r}")
     if gram is not None or (backend == "numba" and precompute == "auto"):
         use_gram = True
     elif precompute == "auto":
@@ -221,7 +222,7 @@ def batch_omp(
         return _finish(out, n_iter, res_sq, squeeze, return_info, "gram" if use_gram else "nogram")
 
     if backend == "numba" and not use_gram:
-        raise ValueError("backend: 'numba' runs the Gram path only; drop precompute=False or use backend='torch'")
+        raise FieldError("backend", "'numba' runs the Gram path only; drop precompute=False or use backend='torch'")
     from cssat.sparse import _omp_numba
     from cssat.sparse._omp_torch import correlate, omp_chunk
 
@@ -244,10 +245,10 @@ def batch_omp(
         if use_gram:
             G = as_float_tensor(gram).to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
             if tuple(G.shape) != (n_atoms, n_atoms):
-                raise ValueError(f"gram: expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
+                raise FieldError("gram", f"expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
             if Dty is not None:
                 if Dty.numel() != B * n_atoms:
-                    raise ValueError(f"Dty: expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
+                    raise FieldError("Dty", f"expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
                 A0 = as_float_tensor(Dty).reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
             else:
                 A0 = Y2 @ D
@@ -297,7 +298,7 @@ def gram_matrix(D: Tensor, block: int = 512, sparse: bool | str = "auto") -> Ten
     (:data:`_SPARSE_GRAM_MIN`); ``True``/``False`` force it.
     """
     if sparse not in ("auto", True, False):
-        raise ValueError(f"sparse: expected 'auto', True or False, got {sparse!r}")
+        raise FieldError("sparse", f"expected 'auto', True or False, got {sparse!r}")
     m, n = D.shape
     dense_work = m * n * n / 2  # multiply-adds of the dense product
     if sparse is not False and D.device.type == "cpu":

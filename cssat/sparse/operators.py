@@ -1,4 +1,5 @@
-"""Linear operators of compressed sensing as ``nn.Module``s: the DCT Ψ, a Gaussian Φ, and ΦΨ.
+"""Linear operators of compressed sensing as ``nn.Module``s: the base class, a dense matrix, a
+Gaussian Φ and compositions such as ΦΨ (the transforms Ψ are in :mod:`cssat.sparse.transforms`).
 
 Conventions (``../shared/DESIGN.md``):
 
@@ -18,18 +19,10 @@ from typing import Sequence
 import torch
 from torch import Tensor, nn
 
+from cssat._checks import FieldError, FieldTypeError
 from cssat.sparse._io import as_float_tensor
 
-__all__ = [
-    "KroneckerOperator",
-    "LinearOperator",
-    "MatrixOperator",
-    "DCT",
-    "GaussianSensing",
-    "ComposedOperator",
-    "dct_matrix",
-    "odct_matrix",
-]
+__all__ = ["LinearOperator", "MatrixOperator", "GaussianSensing", "ComposedOperator", "as_operator"]
 
 
 def _accepts_any_input(method):
@@ -93,7 +86,7 @@ class LinearOperator(nn.Module):
                 return x.reshape(*x.shape[: x.ndim - k], n)
         if math.prod(x.shape) == n:
             return x.reshape(n)
-        raise ValueError(f"x: expected rows (B, {n}), images (B, C, H, W) or (B, H, W) with C·H·W = {n}"
+        raise FieldError("x", f"expected rows (B, {n}), images (B, C, H, W) or (B, H, W) with C·H·W = {n}"
                          f"{'' if s is None else f', or (B, *{s})'}; got shape {tuple(x.shape)}")
 
     def _shape_output(self, x: Tensor) -> Tensor:
@@ -166,15 +159,24 @@ class LinearOperator(nn.Module):
         return ComposedOperator(self, other)
 
 
+def as_operator(A: "LinearOperator | Tensor", field: str = "A") -> "LinearOperator":
+    """``A`` as a :class:`LinearOperator`: itself, or a :class:`MatrixOperator` of a 2-D tensor."""
+    if isinstance(A, LinearOperator):
+        return A
+    if isinstance(A, Tensor) and A.ndim == 2:
+        return MatrixOperator(A)
+    raise FieldTypeError(field, f"expected a LinearOperator or a 2-D matrix, got {type(A).__name__}")
+
+
 def _as_shape(n: int | Sequence[int], field: str = "n") -> tuple[int, tuple[int, ...] | None]:
     """``(n_in, in_shape)`` of a size or a signal shape such as ``(C, H, W)``."""
     if isinstance(n, (tuple, list, torch.Size)):
         shape = tuple(n)
         if not shape or any(isinstance(d, bool) or not isinstance(d, int) or d < 1 for d in shape):
-            raise ValueError(f"{field}: a signal shape needs positive integer sizes, got {shape!r}")
+            raise FieldError(field, f"a signal shape needs positive integer sizes, got {shape!r}")
         return math.prod(shape), shape
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise ValueError(f"{field}: number of columns must be a positive integer or a shape such as (C, H, W), got {n!r}")
+        raise FieldError(field, f"number of columns must be a positive integer or a shape such as (C, H, W), got {n!r}")
     return n, None
 
 
@@ -185,13 +187,13 @@ class MatrixOperator(LinearOperator):
     def __init__(self, matrix: Tensor, in_shape: Sequence[int] | None = None):
         super().__init__()
         if matrix.ndim != 2:
-            raise ValueError(f"matrix: expected a 2-D tensor (n_out, n_in), got shape {tuple(matrix.shape)}")
+            raise FieldError("matrix", f"expected a 2-D tensor (n_out, n_in), got shape {tuple(matrix.shape)}")
         self.register_buffer("weight", matrix)
         self.n_out, self.n_in = matrix.shape
         if in_shape is not None:
             n, self.in_shape = _as_shape(tuple(in_shape), "in_shape")
             if n != self.n_in:
-                raise ValueError(f"in_shape: {self.in_shape} has {n} entries, the matrix {self.n_in} columns")
+                raise FieldError("in_shape", f"{self.in_shape} has {n} entries, the matrix {self.n_in} columns")
 
     def _w(self, like: Tensor) -> Tensor:
         return self.weight.to(device=like.device, dtype=like.dtype)
@@ -223,90 +225,6 @@ class MatrixOperator(LinearOperator):
     def extra_repr(self) -> str:
         shape = "" if self.in_shape is None else f", in_shape={self.in_shape}"
         return f"n_out={self.n_out}, n_in={self.n_in}{shape}, dtype={self.weight.dtype}"
-
-
-def dct_matrix(n: int, dtype: torch.dtype = torch.float64, device: torch.device | str | None = None) -> Tensor:
-    """Orthonormal DCT-II matrix ``C (n, n)``: ``C[k, i] = s_k cos(π (2i + 1) k / (2n))``.
-
-    ``s_0 = √(1/n)``, ``s_k = √(2/n)``; ``C @ x`` equals ``scipy.fft.dct(x, norm="ortho")`` and
-    ``C Cᵀ = I``. Built in float64 and then cast, so float32 matrices are correctly rounded.
-    """
-    if n < 1:
-        raise ValueError(f"n: DCT length must be >= 1, got {n}")
-    k = torch.arange(n, dtype=torch.float64, device=device)[:, None]
-    i = torch.arange(n, dtype=torch.float64, device=device)[None, :]
-    c = torch.cos(math.pi * (2 * i + 1) * k / (2 * n)) * math.sqrt(2.0 / n)
-    c[0] /= math.sqrt(2.0)
-    return c.to(dtype)
-
-
-class DCT(LinearOperator):
-    """Separable orthonormal DCT-II dictionary Ψ on arrays of ``shape`` (1-D, 2-D or 3-D).
-
-    ``Ψ (N, N)``, ``N = prod(shape)``, is the *synthesis* operator whose columns are the DCT atoms
-    (paper Eq. 3, ``x = Ψγ``); ``Ψᵀ`` is the type-II DCT of ``scipy.fft.dctn(x, norm="ortho")``.
-    Vectors are flattened in C (row-major) order, so ``Ψᵀ = C₁ ⊗ C₂ (⊗ C₃)``.
-
-    Inputs may be flattened ``(B, N)`` or shaped ``(B, *shape)``; the output has the same layout.
-    The transform is applied one axis at a time with the small ``(n_d, n_d)`` matrices, costing
-    ``N · Σ n_d`` multiply-adds per vector; the ``N × N`` matrix is only formed by :meth:`matrix`.
-    """
-
-    def __init__(self, shape: int | Sequence[int]):
-        super().__init__()
-        shape = (int(shape),) if isinstance(shape, int) else tuple(int(s) for s in shape)
-        if not 1 <= len(shape) <= 3 or any(s < 1 for s in shape):
-            raise ValueError(f"shape: expected 1 to 3 positive sizes, got {shape}")
-        self.dims = shape
-        self.n_in = self.n_out = math.prod(shape)
-        for d, n in enumerate(shape):
-            self.register_buffer(f"c{d}", dct_matrix(n), persistent=False)
-
-    def _mats(self, like: Tensor) -> list[Tensor]:
-        return [getattr(self, f"c{d}").to(device=like.device, dtype=like.dtype) for d in range(len(self.dims))]
-
-    def _separable(self, x: Tensor, transpose: bool) -> Tensor:
-        nd = len(self.dims)
-        if tuple(x.shape[-nd:]) == self.dims:
-            flat = False
-            batch = x.shape[:-nd]
-        elif x.shape[-1] == self.n_in:
-            flat = True
-            batch = x.shape[:-1]
-        else:
-            raise ValueError(
-                f"x: trailing shape must be {self.dims} or ({self.n_in},), got {tuple(x.shape)}"
-            )
-        z = x.reshape(-1, *self.dims)
-        for d, c in enumerate(self._mats(x)):
-            # Contract axis d+1 of z with c (analysis: C @ v along the axis; synthesis: Cᵀ @ v).
-            m = c if transpose else c.T
-            z = torch.movedim(torch.movedim(z, d + 1, -1) @ m.T, -1, d + 1)
-        return z.reshape(*batch, self.n_in) if flat else z.reshape(*batch, *self.dims)
-
-    def forward(self, coeffs: Tensor) -> Tensor:
-        """Synthesis ``x = Ψγ`` (inverse DCT): ``(B, N)`` or ``(B, *shape)`` in, same layout out."""
-        return self._separable(coeffs, transpose=False)
-
-    def adjoint(self, x: Tensor) -> Tensor:
-        """Analysis ``γ = Ψᵀx`` (forward orthonormal DCT-II), same layouts as :meth:`forward`."""
-        return self._separable(x, transpose=True)
-
-    def A_dagger(self, y: Tensor, max_iter: int = 1000, rtol: float = 1e-7) -> Tensor:
-        """``Ψ⁺ = Ψᵀ``: Ψ is orthonormal, so the least-squares solution is the analysis."""
-        return self.adjoint(y)
-
-    def extra_repr(self) -> str:
-        return f"shape={self.dims}"
-
-    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> Tensor:
-        """Dense ``Ψ (N, N)`` (columns are atoms): ``(C₁ ⊗ C₂ ⊗ …)ᵀ``. Costs ``N²`` memory."""
-        dtype = dtype or torch.get_default_dtype()
-        mats = [getattr(self, f"c{d}").to(dtype=dtype, device=device) for d in range(len(self.dims))]
-        k = mats[0]
-        for c in mats[1:]:
-            k = torch.kron(k, c)
-        return k.T.contiguous()
 
 
 class GaussianSensing(MatrixOperator):
@@ -341,17 +259,17 @@ class GaussianSensing(MatrixOperator):
     ):
         n, in_shape = _as_shape(n)
         if isinstance(m, bool) or not isinstance(m, int) or m < 1:
-            raise ValueError(f"m: number of measurements must be a positive integer, got {m!r}")
+            raise FieldError("m", f"number of measurements must be a positive integer, got {m!r}")
         seed = int(seed)
         dtype = dtype or torch.get_default_dtype()
         if dtype not in (torch.float32, torch.float64):
-            raise ValueError(f"dtype: expected torch.float32 or torch.float64, got {dtype}")
+            raise FieldError("dtype", f"expected torch.float32 or torch.float64, got {dtype}")
         std = 1.0 / math.sqrt(n) if std is None else float(std)
         mean = float(mean)
         if not (math.isfinite(std) and std >= 0):
-            raise ValueError(f"std: must be a finite number >= 0, got {std}")
+            raise FieldError("std", f"must be a finite number >= 0, got {std}")
         if not math.isfinite(mean):
-            raise ValueError(f"mean: must be finite, got {mean}")
+            raise FieldError("mean", f"must be finite, got {mean}")
         w = torch.empty(m, n, dtype=dtype, device=device)
         gen = torch.Generator(device="cpu")
         on_cpu = w.device.type == "cpu"
@@ -392,8 +310,8 @@ class ComposedOperator(LinearOperator):
     def __init__(self, outer: LinearOperator, inner: LinearOperator):
         super().__init__()
         if outer.n_in != inner.n_out:
-            raise ValueError(
-                f"inner: output size {inner.n_out} does not match the outer operator's input size {outer.n_in}"
+            raise FieldError(
+                "inner", f"output size {inner.n_out} does not match the outer operator's input size {outer.n_in}"
             )
         self.outer, self.inner = outer, inner
         self.n_out, self.n_in = outer.n_out, inner.n_in
@@ -428,71 +346,4 @@ class ComposedOperator(LinearOperator):
 
 def _check_last(x: Tensor, n: int, name: str) -> None:
     if x.shape[-1] != n:
-        raise ValueError(f"{name}: last dimension must be {n}, got shape {tuple(x.shape)}")
-
-
-def odct_matrix(n: int, atoms: int, dtype: torch.dtype = torch.float64) -> Tensor:
-    """1-D overcomplete DCT dictionary ``(n, atoms)`` (KSVDBox's ``odctdict``): column 0 is the
-    constant ``1/√n``; column ``k`` is ``cos(π k i / atoms)``, ``i = 0..n−1``, with its mean removed
-    and scaled to unit norm. The base dictionary of sparse-KSVD (Rubinstein et al. 2010)."""
-    if n < 1 or atoms < 1:
-        raise ValueError(f"atoms: an (n, atoms) dictionary needs both >= 1, got ({n}, {atoms})")
-    i = torch.arange(n, dtype=torch.float64)[:, None]
-    k = torch.arange(atoms, dtype=torch.float64)[None, :]
-    d = torch.cos(math.pi * i * k / atoms)
-    d[:, 1:] -= d[:, 1:].mean(0, keepdim=True)
-    norms = torch.linalg.vector_norm(d, dim=0)
-    d = torch.where(norms > 1e-12, d / norms.clamp_min(1e-300), d)
-    d[:, 0] = 1.0 / math.sqrt(n)
-    return d.to(dtype)
-
-
-class KroneckerOperator(LinearOperator):
-    """The Kronecker product ``M₁ ⊗ M₂ (⊗ M₃)`` of small matrices, applied one axis at a time.
-
-    ``Mₐ (rₐ, cₐ)``; the operator maps ``(B, Π cₐ)`` to ``(B, Π rₐ)`` with vectors flattened in C
-    order — a separable dictionary for patches (columns of ``Mₐ`` are 1-D atoms) costing
-    ``Σ`` small products instead of one ``Π rₐ × Π cₐ`` matrix.
-    """
-
-    def __init__(self, mats: Sequence[Tensor]):
-        super().__init__()
-        mats = [torch.as_tensor(m) for m in mats]
-        if not 1 <= len(mats) <= 3 or any(m.ndim != 2 for m in mats):
-            raise ValueError("mats: expected 1 to 3 two-dimensional matrices")
-        for d, m in enumerate(mats):
-            self.register_buffer(f"m{d}", m)
-        self.rows = tuple(int(m.shape[0]) for m in mats)
-        self.cols = tuple(int(m.shape[1]) for m in mats)
-        self.n_out, self.n_in = math.prod(self.rows), math.prod(self.cols)
-
-    def extra_repr(self) -> str:
-        return f"rows={self.rows}, cols={self.cols}"
-
-    def _mats(self, like: Tensor) -> list[Tensor]:
-        return [getattr(self, f"m{d}").to(device=like.device, dtype=like.dtype) for d in range(len(self.rows))]
-
-    def _separable(self, x: Tensor, transpose: bool) -> Tensor:
-        dims_in = self.rows if transpose else self.cols
-        _check_last(x, math.prod(dims_in), "x")
-        batch = x.shape[:-1]
-        z = x.reshape(-1, *dims_in)
-        for d, m in enumerate(self._mats(x)):
-            mm = m if transpose else m.T  # forward: contract with M (z @ Mᵀ); adjoint: with Mᵀ
-            z = torch.movedim(torch.movedim(z, d + 1, -1) @ mm, -1, d + 1)
-        return z.reshape(*batch, -1)
-
-    def forward(self, x: Tensor) -> Tensor:
-        """``(M₁ ⊗ M₂ ⊗ …) x`` for rows ``x (B, Π cₐ)``; returns ``(B, Π rₐ)``."""
-        return self._separable(x, transpose=False)
-
-    def adjoint(self, y: Tensor) -> Tensor:
-        """``(M₁ ⊗ M₂ ⊗ …)ᵀ y`` for rows ``y (B, Π rₐ)``; returns ``(B, Π cₐ)``."""
-        return self._separable(y, transpose=True)
-
-    def matrix(self, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> Tensor:
-        mats = [getattr(self, f"m{d}").to(dtype=dtype or torch.get_default_dtype(), device=device) for d in range(len(self.rows))]
-        k = mats[0]
-        for m in mats[1:]:
-            k = torch.kron(k, m)
-        return k
+        raise FieldError(name, f"last dimension must be {n}, got shape {tuple(x.shape)}")

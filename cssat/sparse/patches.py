@@ -14,15 +14,17 @@ from typing import Sequence
 import torch
 from torch import Tensor
 
+from cssat._checks import FieldError
+
 __all__ = ["patch_positions", "extract_patches", "fold_patches", "accumulate_patches"]
 
 
 def _norm(value, nd: int, name: str) -> tuple[int, ...]:
     t = (int(value),) * nd if isinstance(value, int) else tuple(int(v) for v in value)
     if len(t) != nd:
-        raise ValueError(f"{name}: expected {nd} sizes for a {nd}-D array, got {t}")
+        raise FieldError(name, f"expected {nd} sizes for a {nd}-D array, got {t}")
     if any(v < 1 for v in t):
-        raise ValueError(f"{name}: sizes must be >= 1, got {t}")
+        raise FieldError(name, f"sizes must be >= 1, got {t}")
     return t
 
 
@@ -32,10 +34,10 @@ def patch_positions(shape: Sequence[int], size: int | Sequence[int], step: int |
     size, step = _norm(size, nd, "size"), _norm(step, nd, "step")
     out = []
     if any(s > p for p, s in zip(size, step)):
-        raise ValueError(f"step: {step} must not exceed the block size {size}, or pixels would be left out")
+        raise FieldError("step", f"{step} must not exceed the block size {size}, or pixels would be left out")
     for n, p, s in zip(shape, size, step):
         if p > n:
-            raise ValueError(f"size: block size {tuple(size)} is larger than the array {tuple(shape)}")
+            raise FieldError("size", f"block size {tuple(size)} is larger than the array {tuple(shape)}")
         pos = list(range(0, n - p + 1, s))
         if pos[-1] != n - p:
             pos.append(n - p)
@@ -61,7 +63,7 @@ def _index(shape, size, step, device) -> Tensor:
 
 def _check(x: Tensor) -> None:
     if x.ndim not in (2, 3):
-        raise ValueError(f"x: expected a 2-D image (H, W) or a 3-D volume (D, H, W), got shape {tuple(x.shape)}")
+        raise FieldError("x", f"expected a 2-D image (H, W) or a 3-D volume (D, H, W), got shape {tuple(x.shape)}")
 
 
 def extract_patches(x: Tensor, size: int | Sequence[int], step: int | Sequence[int] = 1) -> Tensor:
@@ -86,10 +88,10 @@ def accumulate_patches(patches: Tensor, shape: Sequence[int], size: int | Sequen
     count)``, both of ``shape`` (for weighted averages such as KSVDSBox's ``(λx + Σ)/(λ + count)``)."""
     shape = tuple(int(s) for s in shape)
     if len(shape) not in (2, 3):
-        raise ValueError(f"shape: expected 2 or 3 dimensions, got {shape}")
+        raise FieldError("shape", f"expected 2 or 3 dimensions, got {shape}")
     idx = _index(shape, size, step, patches.device)
     if tuple(patches.shape) != tuple(idx.shape):
-        raise ValueError(f"patches: expected shape {tuple(idx.shape)} for {shape}, size {size}, step {step}; got {tuple(patches.shape)}")
+        raise FieldError("patches", f"expected shape {tuple(idx.shape)} for {shape}, size {size}, step {step}; got {tuple(patches.shape)}")
     n = 1
     for s in shape:
         n *= s

@@ -1,4 +1,9 @@
-"""The light-curve experiment (paper Fig. 4 and Fig. 5).
+"""The light-curve experiment's stages (paper Fig. 4 and Fig. 5): a mesh in a scenario as the
+target, the atmosphere over its facets and its rendered pixels as the forward model.
+
+The target (``target._target_`` = :data:`SCENE_TARGET`) is the ``model`` group's mesh over the
+``scenario`` (orbit, Sun, observer, time steps) rendered at ``render.size``; no unknown is
+reconstructed, so the solver and denoiser stages are skipped.
 
 Fig. 4: the atmosphere-free light curve of the ``model`` over the ``scenario`` (1437 one-minute
 steps from 2020-04-01 00:00 UTC by default) with five rendered images at marked times.
@@ -29,7 +34,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cssat.experiments.common import progress_setting
+from cssat._checks import int_param
+from cssat.experiments.context import Run, as_field
 
 if TYPE_CHECKING:
     from cssat.scene import Scenario
@@ -37,11 +43,20 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("cssat")
 
+#: the ``_target_`` of the scene target (``conf/experiment/lightcurve.yaml``)
+SCENE_TARGET = "cssat.experiments.scene.SceneTarget"
+
+
+class SceneTarget:
+    """A mesh in a scenario (the light-curve experiment's target): its settings are the ``model``,
+    ``scenario``, ``render`` and ``shadows`` groups of the config, read by :func:`run`."""
+
+    kind = "scene"
+
 
 def build_scenario(cfg: Any) -> Scenario:
     """The :class:`cssat.scene.Scenario` of the ``scenario`` config (the synthetic Astra 1KR TLE
     when ``scenario.tle`` is null)."""
-    from cssat.experiments.common import require_int
     from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario
 
     from omegaconf import OmegaConf
@@ -53,7 +68,7 @@ def build_scenario(cfg: Any) -> Scenario:
     obs = sc.observer
     return make_scenario(
         tle=tle, start_utc=str(sc.start_utc),
-        n_steps=require_int(sc.n_steps, "scenario.n_steps", 1), step_s=float(sc.step_s),
+        n_steps=int_param(sc.n_steps, "scenario.n_steps", 1), step_s=float(sc.step_s),
         lat_deg=float(obs.lat_deg), lon_deg=float(obs.lon_deg), alt_m=float(obs.alt_m), name=sc.get("name"),
     )
 
@@ -65,25 +80,27 @@ def memory_parts(n_steps: int, size: int) -> dict[str, int]:
     return {"renders": b, "Φ (pixel-wise)": b, "Φ ⊙ renders": b}
 
 
-def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
-    """Run the light-curve experiment into ``out_dir``: ``arrays.npz``, ``figures/fig4_lightcurve.png``
-    and ``fig5_atmosphere.png``; return the metrics."""
+def run(cfg: Any, run: Run) -> dict[str, Any]:
+    """Run the light-curve experiment into ``run.out_dir``: ``arrays.npz``, ``lightcurve.csv``,
+    ``figures/fig4_lightcurve`` and ``fig5_atmosphere``; return the metrics."""
     import torch
 
     from cssat.experiments.build import build, build_model
-    from cssat.experiments.common import figure_file, require_int, torch_device, write_csv, write_npz
+    from cssat.experiments.files import write_csv, write_npz
+    from cssat.experiments.forward import Geometry
     from cssat.experiments.resources import check_memory
     from cssat.optics import apparent_magnitude, default_fov, render, simulate_light_curve
     from cssat.physics import Measurement
     from cssat.plots import atmosphere_figure, lightcurve_figure, save_figure
 
-    seed = require_int(cfg.get("seed", 0), "seed", 0, 2**63 - 1)
-    size = require_int(cfg.render.size, "render.size", 1, 4096)
-    n_marks = require_int(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
-    device = torch_device(cfg.get("device", "cpu"))
-    atm, noise = build(cfg.get("atmosphere"), "atmosphere"), build(cfg.get("noise"), "noise")
-    check_memory(memory_parts(require_int(cfg.scenario.n_steps, "scenario.n_steps", 1), size), cfg,
-                 "lower render.size or scenario.n_steps")
+    with run.stage("setup"):
+        seed, device = run.seed, run.device
+        size = int_param(cfg.render.size, "render.size", 1, 4096)
+        n_marks = int_param(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
+        geometry = build(cfg.geometry, "geometry") if cfg.get("geometry") is not None else Geometry()
+        atm, noise = build(cfg.get("atmosphere"), "atmosphere", **geometry.kwargs()), build(cfg.get("noise"), "noise")
+        check_memory(memory_parts(int_param(cfg.scenario.n_steps, "scenario.n_steps", 1), size), run.memory_limit_gb,
+                     "lower render.size or scenario.n_steps")
     timings: dict[str, float] = {}
 
     t = time.perf_counter()
@@ -97,7 +114,7 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
     fov_m = cfg.render.get("fov_m") or default_fov(mesh)
     images = render(mesh, lc.sun, lc.observer, size, fov_m=fov_m, brightness=lc.facets.to(device),
-                    dtype=torch.float64, progress=progress_setting(cfg)).cpu()
+                    dtype=torch.float64, progress=run.progress).cpu()
     timings["seconds_render"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -111,27 +128,30 @@ def run(cfg: Any, out_dir: Path) -> dict[str, Any]:
     marks = _mark_steps(flux.numpy(), n_marks)
     metrics = {**_metrics(scenario, mesh, flux, images, mag, mag_f, mag_p), "image_size": size, **atm.describe(),
                **noise.describe(), "seed": seed, **timings}
+    t = time.perf_counter()
     epoch = scenario.times[0]
     seconds = (scenario.times - epoch) / np.timedelta64(1, "s")
     phase = np.degrees(np.arccos(np.clip((scenario.sun_dir * scenario.obs_dir).sum(1), -1.0, 1.0)))
     write_npz(
-        out_dir / "arrays.npz", times=seconds, epoch_utc=np.array(str(epoch)), minutes=minutes, flux=flux,
+        run.out_dir / "arrays.npz", times=seconds, epoch_utc=np.array(str(epoch)), minutes=minutes, flux=flux,
         flux_facetwise=facetwise, flux_pixelwise=pixelwise, magnitude=mag, sunlit=scenario.sunlit,
         lit=flux.numpy() > 0, above_horizon=scenario.elevation_deg > 0, phase_angle_deg=phase,
         elevation_deg=scenario.elevation_deg, azimuth_deg=scenario.azimuth_deg, range_km=scenario.range_km,
         mark_steps=marks, mark_images=images[marks],
     )
-    write_csv(out_dir / "lightcurve.csv", [
+    write_csv(run.out_dir / "lightcurve.csv", [
         {"time_utc": f"{np.datetime_as_string(t, unit='s')}Z", "flux_W_m2": float(f), "magnitude": float(mm),
          "phase_angle_deg": float(a), "sunlit": float(s_), "elevation_deg": float(e)}
         for t, f, mm, a, s_, e in zip(scenario.times, flux.numpy(), mag, phase, scenario.sunlit, scenario.elevation_deg)])
     save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, scenario.times, scenario.sunlit, fov_m),
-                figure_file(cfg, out_dir, "fig4_lightcurve"))
+                run.figure("fig4_lightcurve"))
     save_figure(atmosphere_figure(minutes, mag, mag_f, mag_p, getattr(atm, "name", ""), epoch=epoch),
-                figure_file(cfg, out_dir, "fig5_atmosphere"))
+                run.figure("fig5_atmosphere"))
+    metrics["seconds_write"] = time.perf_counter() - t
+    metrics.update({f"seconds_{k}": v for k, v in run.seconds.items()})
     log.info("lightcurve: %d steps, %s (%d facets), magnitude %.2f..%.2f, eclipse %s-%s, %.1f s",
              len(scenario), mesh.name, len(mesh), metrics["magnitude_min"] or math.nan, metrics["magnitude_max"] or math.nan,
-             metrics["eclipse_start_utc"], metrics["eclipse_end_utc"], sum(timings.values()))
+             metrics["eclipse_start_utc"], metrics["eclipse_end_utc"], sum(v for k, v in metrics.items() if k.startswith("seconds_")))
     return metrics
 
 

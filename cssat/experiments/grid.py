@@ -1,0 +1,166 @@
+"""The grid stage: one pipeline run per cell of a declared grid, in one job (the solver comparison,
+the realism maps).
+
+``grid.axes`` is a list; the first axis varies slowest. An axis is either a config key and its
+values (``{name: m, key: cs.ratio, values: [0.088, 0.25, 0.807], label: m}``: each cell sets
+``cs.ratio``; ``label`` names a metric of the cell that labels it, ``m1444``; default the value) or
+labelled cells of settings (``{name: solver, cells: {omp: {solver: …, denoiser: null}, …}}``:
+each label's settings — dotted keys, whole nodes replaced — applied to the run's config). Every
+cell is a copy of the experiment's config with its settings: no cell edits another's, and a
+cell's measurement is reused by the next cell with the same forward settings (Φ drawn once).
+
+Writes ``grid.csv`` (``grid.csv_name``; one row per cell: its labels, ``psnr``/``ssim`` of its
+final image — denoised when it has a denoiser —, ``seconds`` of its reconstruction, and its
+``phi_*``, ``noise_*``, ``geometry_*`` metrics), ``arrays.npz`` (``truth`` and each cell's image
+under ``grid.name``'s name), the figures of ``grid.figures`` (``images``: reconstructions and error
+maps, rows = the first axis; ``maps``: a PSNR map over the first two axes per label of the third;
+``curves``: the ``grid.curves`` metrics against the first axis). Metrics: ``psnr_<cell>`` for
+every cell; the headline ``psnr``/``ssim``: the best cell over the ``grid.headline.over`` axis at
+the ``grid.headline.at`` index of the others (default the last).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from typing import Any
+
+from cssat._checks import FieldError, choice_param
+
+log = logging.getLogger("cssat")
+
+__all__ = ["run", "cells"]
+
+#: metric prefixes copied into every row of ``grid.csv``
+ROW_PREFIXES = ("phi_", "noise_", "geometry_", "atmosphere_", "solver_")
+
+
+def _axes(grid: Any) -> list[dict[str, Any]]:
+    """The axes as ``{name, label, settings: [(label, {key: value})]}``, checked."""
+    out = []
+    for i, ax in enumerate(grid.get("axes") or []):
+        where = f"grid.axes[{i}]"
+        if "cells" in ax and ax["cells"]:
+            cells = [(str(k), dict(v or {})) for k, v in ax["cells"].items()]
+            out.append({"name": str(ax.get("name") or f"axis{i}"), "label": None, "cells": cells})
+        elif "key" in ax and ax.get("values") is not None:
+            values = list(ax["values"])
+            if not values:
+                raise FieldError(f"{where}.values", "expected at least one value")
+            name = str(ax.get("name") or ax["key"].rsplit(".", 1)[-1])
+            out.append({"name": name, "label": ax.get("label"), "cells": [(v, {str(ax["key"]): v}) for v in values]})
+        else:
+            raise FieldError(where, "expected {key, values} or {cells: {label: settings}}")
+    if not out:
+        raise FieldError("grid.axes", "expected at least one axis")
+    return out
+
+
+def cells(cfg: Any) -> list[tuple[dict[str, Any], Any]]:
+    """``[(labels by axis, cell config)]`` of ``cfg``'s grid, the first axis slowest."""
+    from omegaconf import OmegaConf
+
+    base = OmegaConf.to_container(cfg, resolve=True)
+    base.pop("grid", None)
+    base.pop("hydra", None)
+    out = []
+    axes = _axes(cfg.grid)
+    for combo in itertools.product(*[ax["cells"] for ax in axes]):
+        c = OmegaConf.create(base)
+        labels = {}
+        for ax, (label, settings) in zip(axes, combo):
+            labels[ax["name"]] = label
+            for key, value in settings.items():
+                OmegaConf.update(c, key, value, merge=False, force_add=True)
+        out.append((labels, c))
+    return out
+
+
+def _name(fmt: str | None, labels: dict[str, Any]) -> str:
+    if not fmt:
+        return "_".join(str(v) for v in labels.values())
+    try:
+        return str(fmt).format(**labels)
+    except (KeyError, IndexError, ValueError) as err:
+        raise FieldError("grid.name", f"{fmt!r} names an axis that is not in {list(labels)} ({err})") from None
+
+
+def run(cfg: Any, run_: Any) -> dict[str, Any]:
+    """Run every cell of ``cfg.grid`` into ``run_.out_dir``; return the grid's metrics."""
+    import numpy as np
+
+    from cssat.experiments.files import write_csv, write_npz
+    from cssat.experiments.pipeline import execute, metrics_of, plan
+
+    g = cfg.grid
+    with run_.stage("setup"):
+        axes = _axes(g)
+        todo = cells(cfg)
+        plans = [plan(c, run_) for _, c in todo]  # every cell checked before any work
+        figures = [choice_param(f, "grid.figures", ("images", "maps", "curves")) for f in (g.get("figures") or [])]
+    cache: dict = {}
+    rows, images, truth = [], {}, None
+    for (labels, _), p in zip(todo, plans):
+        before = {k: run_.seconds.get(k, 0.0) for k in ("solver", "dictionary", "denoise")}
+        res = execute(p, run_, cache)
+        met = metrics_of(p, run_, res)
+        seconds = sum(run_.seconds.get(k, 0.0) - v for k, v in before.items())
+        for ax in axes:  # a value axis labelled by a metric of the cell (cs.ratio -> m1444)
+            if ax["label"] is not None:
+                labels[ax["name"]] = met.get(ax["label"], labels[ax["name"]])
+        name = _name(g.get("name"), labels)
+        rec = res["recs"][0]
+        truth = res["measured"].truth
+        images[name] = rec.denoised
+        row = {**labels, "cell": name, "psnr": met["psnr_denoised"], "ssim": met["ssim_denoised"], "psnr_raw": met["psnr"],
+               "seconds": seconds, "iterations": met.get("solver_iterations", met.get("omp_atoms"))}
+        row.update({k: v for k, v in met.items() if k.startswith(ROW_PREFIXES) and isinstance(v, (int, float, str, type(None)))})
+        rows.append(row)
+        log.info("%s: %s PSNR %.2f dB, SSIM %.3f, %.1f s", cfg.get("experiment_name"), name, row["psnr"], row["ssim"], seconds)
+    metrics = _metrics(g, axes, rows, plans[0], truth)
+    with run_.stage("write"):
+        write_csv(run_.out_dir / str(g.get("csv_name") or "grid.csv"), rows)
+        write_npz(run_.out_dir / "arrays.npz", truth=truth, **images)
+        _figures(g, figures, axes, rows, images, truth, run_, metrics)
+    metrics.update(run_.timings())
+    return metrics
+
+
+def _metrics(g: Any, axes: list[dict], rows: list[dict], p: Any, truth: Any) -> dict[str, Any]:
+    """Every cell's PSNR and the headline: the best over ``headline.over`` at ``headline.at``."""
+    import numpy as np
+
+    from cssat.metrics import psnr
+
+    names = [ax["name"] for ax in axes]
+    head = g.get("headline") or {}
+    over = choice_param(head.get("over", names[-1]), "grid.headline.over", names)
+    at = dict(head.get("at") or {})
+    pick = {}
+    for ax in axes:
+        if ax["name"] == over:
+            continue
+        values = list(dict.fromkeys(r[ax["name"]] for r in rows))
+        pick[ax["name"]] = values[int(at.get(ax["name"], -1))]
+    best = max((r for r in rows if all(r[k] == v for k, v in pick.items())), key=lambda r: r["psnr"])
+    out: dict[str, Any] = {"psnr": best["psnr"], "ssim": best["ssim"], f"best_{over}": best[over], "best_cell": best["cell"],
+                           "grid_axes": names, "n": int(truth.shape[0]), "n_pixels": int(truth.size),
+                           "psnr_flux_only": psnr(truth, np.full_like(truth, truth.mean()), data_range=1.0)}
+    out.update({k: v for k, v in pick.items()})
+    for r in rows:
+        out[f"psnr_{r['cell']}"] = r["psnr"]
+        out[f"cell_seconds_{r['cell']}"] = r["seconds"]
+    return out
+
+
+def _figures(g, figures, axes, rows, images, truth, run_, metrics) -> None:
+    from cssat.plots import grid_curves_figure, grid_images_figure, grid_maps_figure, save_figure
+
+    stem = str(g.get("figure_name") or "grid")
+    if "images" in figures:
+        save_figure(grid_images_figure(truth, axes, rows, images), run_.figure(stem))
+    if "maps" in figures:
+        for label, fig in grid_maps_figure(axes, rows, metrics.get("psnr_flux_only")).items():
+            save_figure(fig, run_.figure(f"{stem}_{label}"))
+    if "curves" in figures:
+        save_figure(grid_curves_figure(axes, rows, list(g.get("curves") or [])), run_.figure(f"{stem}_curves"))
