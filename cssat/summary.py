@@ -136,7 +136,8 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | No
 
     csv_path = sweep_dir / "summary.csv"
     write_csv(csv_path, rows, cols)
-    fig = sweep_figure(*plot_values(rows, swept), metric)
+    values, names, labels = plot_values(rows, swept)
+    fig = sweep_figure(values, names, metric, labels=labels)
     png = None
     if fig is not None:
         png = sweep_dir / f"summary_{metric}.{figure_format}"

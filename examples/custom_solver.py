@@ -1,9 +1,12 @@
 """A solver of your own, used exactly where cssat's are.
 
-Any object with ``x, info = solver(phi, y, shape)`` is a solver: here projected Landweber
-iterations (gradient steps on ½‖Φx − y‖², clipped to the image range [0, 1]), compared with OMP
-and cssat's TV on the same light curve. In a Hydra run the same class plugs in through a YAML
-with its ``_target_`` on the search path (README: "Extending cssat").
+Any object with ``x, info = solver(problem, y)`` is a solver: ``problem`` carries the operator
+``Φ`` (``problem.operator``) and the unknown's shape (``problem.x_shape``); a
+``cssat.physics.Measurement`` is passed as it is. Here: Tikhonov-regularised least squares in
+closed form, ``x = Φᵀ(ΦΦᵀ + αI)⁻¹y``, clipped to the image range, compared with cssat's OMP,
+TV and projected Landweber on the same light curve, and with the flat image that the total flux
+alone gives. In a Hydra run the same class plugs in through a YAML with its ``_target_`` on the
+search path (README: "Extending cssat").
 
     python examples/custom_solver.py --size 32
 """
@@ -15,26 +18,25 @@ import torch
 from cssat.data import load_target
 from cssat.metrics import psnr
 from cssat.physics import GaussianAtmosphere, Measurement
-from cssat.recon import OMP, TV
-from cssat.sparse import MatrixOperator
-from cssat.sparse.solvers import operator_norm_sq
+from cssat.recon import OMP, TV, Landweber, Problem
 
 
-class ProjectedLandweber:
-    """``x ← clip(x − Φᵀ(Φx − y) / ‖Φ‖², 0, 1)``, ``n_iter`` times, from ``Φ⁺y``."""
+class Tikhonov:
+    """``min ‖Φx − y‖² + α‖x‖²`` with ``α = alpha · ‖Φ‖_F² / N`` (relative to the mean column
+    energy), solved as ``x = Φᵀ(ΦΦᵀ + αI)⁻¹y`` (an ``m × m`` system)."""
 
-    name = "landweber"
+    name = "tikhonov"
 
-    def __init__(self, n_iter: int = 200):
-        self.n_iter = n_iter
+    def __init__(self, alpha: float = 1e-2):
+        self.alpha = alpha
 
-    def __call__(self, phi, y, shape):
-        op = phi if not isinstance(phi, torch.Tensor) else MatrixOperator(phi)
-        step = 1.0 / operator_norm_sq(op, dtype=y.dtype)
-        x = op.A_dagger(y).clamp(0, 1)                     # start from the least-squares image
-        for _ in range(self.n_iter):
-            x = (x - step * op.A_adjoint(op.A(x) - y)).clamp(0, 1)
-        return x.reshape(*y.shape[:-1], *shape), {"solver_iterations": self.n_iter}
+    def __call__(self, problem, y):
+        problem = Problem.of(problem)                      # a Problem, a Measurement, ...
+        phi = problem.operator.matrix(dtype=y.dtype)
+        a = self.alpha * float((phi * phi).sum()) / phi.shape[1]
+        gram = phi @ phi.T + a * torch.eye(phi.shape[0], dtype=y.dtype)
+        x = phi.T @ torch.linalg.solve(gram, y)
+        return x.reshape(problem.x_shape).clamp(0, 1), {"solver_alpha": a}
 
 
 ap = argparse.ArgumentParser()
@@ -45,7 +47,9 @@ args = ap.parse_args()
 n = args.size
 x = torch.tensor(load_target("tess", n), dtype=torch.float64)
 phi = GaussianAtmosphere().operator(round(args.ratio * n * n), n * n, seed=0, dtype=torch.float64)
-y = Measurement(phi)(x)
-for solver in (ProjectedLandweber(), OMP(), TV()):
-    x_hat, info = solver(phi, y, (n, n))
+meas = Measurement(phi, x_shape=(n, n))
+y = meas(x)
+print(f"{'flat image':>18}: PSNR {psnr(x, torch.full_like(x, float(x.mean())), data_range=1.0):6.2f} dB")
+for solver in (Tikhonov(), OMP(), TV(), Landweber()):
+    x_hat, info = solver(meas, y)
     print(f"{type(solver).__name__:>18}: PSNR {psnr(x, x_hat.clamp(0, 1), data_range=1.0):6.2f} dB")

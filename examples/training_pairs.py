@@ -34,5 +34,7 @@ x, y = next(iter(loader))                                  # (64, 1, n, n), (64,
 x_ls = phi.A_dagger(y).reshape(x.shape).clamp(0, 1)      # the minimum-norm least-squares images
 lit = x.flatten(1).amax(1) > 0                            # a view of the unlit side is black
 scores = psnr(x[lit], x_ls[lit], data_range=1.0)          # one PSNR per image of the batch
+flat = x[lit].mean((1, 2, 3), keepdim=True).expand_as(x[lit])  # what the total flux alone gives
 print(f"batch {tuple(x.shape)} -> light curves {tuple(y.shape)}; least squares on the {int(lit.sum())} lit "
-      f"views: median PSNR {float(np.median(scores)):.2f} dB")
+      f"views: median PSNR {float(np.median(scores)):.2f} dB "
+      f"(flat images: {float(np.median(psnr(x[lit], flat, data_range=1.0))):.2f} dB)")

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 from hydra import compose, initialize_config_module
 
-from cssat.experiments import run_experiment
-from cssat.experiments.common import ConfigError
+from cssat.experiments import ConfigError, run_experiment
 
 SMALL = ["target.size=16", "cs.m=200", "threads=1"]
 
@@ -99,7 +98,7 @@ def test_sim1_is_deterministic_and_recovers_a_compressible_image(tmp_path):
         ("denoiser.sigma=-1", "denoiser.sigma"),
         ("denoiser.block_size=17", "denoiser"),
         ("atmosphere.std=-1", "atmosphere.std"),
-        ("atmosphere=facetwise", "atmosphere.emitters"),
+        ("atmosphere.emitters=facets", "atmosphere.emitters"),
         ("noise=gaussian,noise.relative=-0.1", "noise.relative"),
         ("solver=tv,solver.max_iter=0", "solver.max_iter"),
         ("solver=pnp,solver.init=random", "solver.init"),
@@ -147,7 +146,7 @@ def test_multirun_sweep_records_a_failed_job_and_goes_on(tmp_path):
     status = {json.loads((sweep / str(i) / "metrics.json").read_text())["status"] for i in (0, 1)}
     assert status == {"failed", "ok"}
     bad = json.loads((sweep / "0" / "metrics.json").read_text())
-    assert bad["error"].startswith("ConfigError: cs.m: must be in [1, 256]")
+    assert bad["error"].startswith("FieldError: cs.m: must be in [1, 256]")
 
 
 def test_lightcurve_experiment_end_to_end(tmp_path):
@@ -166,7 +165,7 @@ def test_lightcurve_experiment_end_to_end(tmp_path):
     assert arrays["lit"].dtype == bool and arrays["above_horizon"].dtype == bool
     np.testing.assert_array_equal(arrays["lit"], arrays["flux"] > 0)
     # the phase angle, independently: the Sun and the observer as seen from the satellite (GCRS)
-    from cssat.experiments.lightcurve import build_scenario
+    from cssat.experiments.scene import build_scenario
 
     sc = build_scenario(cfg)
     to_sun, to_obs = sc.r_sun - sc.r_sat, sc.r_obs - sc.r_sat
@@ -226,15 +225,16 @@ def test_sim3_sizes_follow_the_target_size():
     """At 64² the rules give the paper's Simulation 3 (N_ref = 3277, a pool of 8000, T0 = 200,
     the baseline on all 9 repeats); target.size=128 alone scales them: 0.8 n², the pool with n²,
     T0 = 71, the baseline on the first repeat."""
-    from cssat.experiments.common import measurements
-    from cssat.experiments.sim3 import baseline_repeats, estimate_settings, reference_sizes
+    from cssat.experiments.build import build
+    from cssat.experiments.forward import measurements
 
     for size, want in ((64, (3277, 3277, 8000, 200, 9)), (128, (13107, 13107, 32000, 71, 1))):
         cfg = cfg_of("experiment=sim3", f"target.size={size}")
         N = size * size
         m = measurements(cfg.cs, N)
-        (n_ref, pool), (t0, tol) = reference_sizes(cfg, size), estimate_settings(cfg, N)
-        assert (m, n_ref, pool, t0, baseline_repeats(cfg, m, N, 9)) == want and tol is None
+        est = build(cfg.reference, "reference")
+        (n_ref, pool), (t0, tol) = est.sizes(N), est.settings(N)
+        assert (m, n_ref, pool, t0, est.baseline_repeats(m, N)) == want and tol is None
 
 
 def test_sim3_baseline_on_the_first_repeat_only(tmp_path):
@@ -247,7 +247,7 @@ def test_sim3_baseline_on_the_first_repeat_only(tmp_path):
     assert len(met["repeat_psnr"]) == 2 and None not in met["repeat_psnr"]
     both = run_experiment(cfg_of(*over, "reference.baseline=true"), tmp_path / "b")
     assert both["repeat_psnr_min_norm"][0] == first and both["repeat_psnr_min_norm"][1] is not None
-    with pytest.raises(ConfigError, match="reference.baseline: expected true, false, first or auto"):
+    with pytest.raises(ConfigError, match=r"reference.baseline: expected one of \[True, False, 'first', 'auto'\]"):
         run_experiment(cfg_of(*over, "reference.baseline=some"), tmp_path / "c")
 
 
@@ -278,8 +278,8 @@ def test_sim1_with_plug_and_play(tmp_path):
 
 
 def test_solvers_experiment_compares_every_solver(tmp_path):
-    cfg = cfg_of("experiment=solvers", "target.size=16", "comparison.m=[120,200]", "threads=1",
-                 "comparison.solvers.pnp.max_iter=3", "comparison.solvers.pnp.denoiser.n_iter=1", "denoiser.n_iter=2")
+    cfg = cfg_of("experiment=solvers", "target.size=16", "grid.axes.0.values=[0.46875,0.78125]", "threads=1",
+                 "grid_options.pnp.max_iter=3", "grid_options.pnp.denoiser.n_iter=1", "denoiser.n_iter=2")
     met = run_experiment(cfg, tmp_path)
     with open(tmp_path / "comparison.csv", newline="") as f:
         import csv
@@ -327,7 +327,7 @@ def test_the_app_returns_the_optimized_metric(tmp_path):
 @pytest.mark.parametrize("overrides", [
     ("target.size=4096", "cs.m=13225"),                      # Φ and ΦΨ alone would be 1.8 TB
     ("experiment=lightcurve", "render.size=4096"),           # 1437 renders of 4096² would be 193 GB
-    ("experiment=solvers", "target.size=4096", "comparison.m=[13225]"),
+    ("experiment=solvers", "target.size=4096", "grid.axes.0.values=[0.000788]"),
 ])
 def test_every_experiment_refuses_a_run_that_does_not_fit_before_any_work(tmp_path, overrides):
     import time
@@ -340,25 +340,25 @@ def test_every_experiment_refuses_a_run_that_does_not_fit_before_any_work(tmp_pa
 
 
 def test_realism_experiment_maps(tmp_path):
-    cfg = cfg_of("experiment=realism", "target.size=12", "cs.m=115", "threads=1", "realism.angular_size_arcsec=[0.058,60]",
-                 "realism.magnitudes=[2,14]", "atmosphere.n_radial=32", "atmosphere.n_angular=6", "atmosphere.n_layers=4",
-                 "realism.solvers.tv.max_iter=300", "realism.solvers.tv_strong.max_iter=300")
+    cfg = cfg_of("experiment=realism", "target.size=12", "cs.m=115", "threads=1", "grid.axes.0.values=[0.058,60]",
+                 "grid.axes.1.values=[2,14]", "atmosphere.n_radial=32", "atmosphere.n_angular=6", "atmosphere.n_layers=4",
+                 "grid_options.tv.max_iter=300")
     met = run_experiment(cfg, tmp_path)
     with open(tmp_path / "realism.csv", newline="") as f:
         import csv
 
         rows = list(csv.DictReader(f))
     assert len(rows) == 3 * 2 * 3  # (paper + 2 sizes) × 2 magnitudes × 3 solvers (omp, tv, tv_strong)
-    for fig in ("realism_omp.png", "realism_tv.png", "realism_tv_strong.png", "realism_rank.png"):
+    for fig in ("realism_omp.png", "realism_tv.png", "realism_tv_strong.png", "realism_curves.png"):
         assert (tmp_path / "figures" / fig).stat().st_size > 5000
     # the physics: at GEO one transmission for all pixels; at 60″ the pixels decorrelate
-    assert met["phi_effective_rank_centered_a0"] <= 2 < met["phi_effective_rank_centered_a1"]
-    assert met["phi_effective_rank_a0"] == 1  # Φ itself: its common row holds > 99 % of the energy
+    assert met["phi_effective_rank_centered_0.058"] <= 2 < met["phi_effective_rank_centered_60"]
+    assert met["phi_effective_rank_0.058"] == 1  # Φ itself: its common row holds > 99 % of the energy
     assert met["phi_effective_rank_centered_paper"] >= 0.75 * 115  # Gaussian: (nearly) full rank
     # brighter is better, and for the paper's Φ the image is recovered at V = 2
-    tv = {(r["column"], float(r["magnitude"])): float(r["psnr"]) for r in rows if r["solver"] == "tv"}
+    tv = {(r["arcsec"], float(r["magnitude"])): float(r["psnr"]) for r in rows if r["solver"] == "tv"}
     assert tv[("paper", 2.0)] > tv[("paper", 14.0)] and tv[("paper", 2.0)] > 25
-    assert met["psnr"] == max(float(r["psnr"]) for r in rows if r["column"] == "a1" and float(r["magnitude"]) == 2.0)
+    assert met["psnr"] == max(float(r["psnr"]) for r in rows if r["arcsec"] == "60" and float(r["magnitude"]) == 2.0)
     # the flux-only reference: the PSNR of the flat image at the truth's mean
     from cssat.data import load_target
 
@@ -367,7 +367,7 @@ def test_realism_experiment_maps(tmp_path):
 
 
 def test_cs_ratio_lets_the_image_size_change_alone(tmp_path):
-    from cssat.experiments.common import measurements
+    from cssat.experiments.forward import measurements
 
     # the defaults are the paper's m, exactly
     for exp, m, n in (("sim1", 13225, 128), ("sim2", 8192, 128), ("sim3", 3277, 64), ("realism", 3277, 64)):

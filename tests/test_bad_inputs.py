@@ -49,7 +49,7 @@ CASES = [
     ([*LIGHT, f"scenario.tle=['{GOOD_L1[:-1] + '0'}','{GOOD_L2}']"], "scenario.tle.line1"),
     ([*SIM3, "denoiser3d.n_iter=0"], "denoiser3d.n_iter"),
     ([*SIM3, "reference.model.cd=-1"], "reference.model.cd"),
-    ([*SIM1, "atmosphere=phase_screen", "atmosphere.range_km=0"], "atmosphere.range_km"),
+    ([*SIM1, "atmosphere=phase_screen", "geometry.range_km=0"], "geometry.range_km"),
     ([*SIM1, "noise=photometric", "noise.throughput=2"], "noise.throughput"),
     ([*SIM3, "figure_format=jpg"], "figure_format"),
     ([*SIM3, "progress=sometimes"], "progress"),

@@ -9,7 +9,7 @@ import cssat.conf
 from cssat.experiments.build import build, build_denoiser, build_model, build_solver
 
 CONF = Path(cssat.conf.__file__).parent
-GROUPS = ("atmosphere", "noise", "solver", "denoiser", "target", "model")
+GROUPS = ("atmosphere", "noise", "solver", "denoiser", "target", "model", "reference", "forward", "geometry")
 EXPERIMENTS = sorted(p.stem for p in (CONF / "experiment").glob("*.yaml"))
 
 
@@ -23,11 +23,11 @@ def compose_cfg(*overrides):
 
 
 def test_every_group_has_options_and_every_experiment_is_listed():
-    from cssat.experiments import EXPERIMENTS as REGISTERED
+    from cssat.experiments import experiment_names
 
     for g in GROUPS:
         assert options(g), g
-    assert set(EXPERIMENTS) == set(REGISTERED)
+    assert set(EXPERIMENTS) == set(experiment_names()) and {"sim1", "sim2", "sim3", "solvers", "realism", "lightcurve"} <= set(EXPERIMENTS)
 
 
 @pytest.mark.parametrize("experiment", EXPERIMENTS)
@@ -38,8 +38,8 @@ def test_every_experiment_composes_with_every_option(experiment, group):
         assert cfg.experiment_name == experiment
         obj = build(cfg[group], group)
         assert callable(obj) or hasattr(obj, "operator"), (group, option)
-        if group == "solver" and "cs" in cfg:
-            from cssat.experiments.common import measurements
+        if group == "solver" and "size" in cfg.target:  # an image target
+            from cssat.experiments.forward import measurements
 
             N = cfg.target.size ** 2
             build_solver(cfg.solver, measurements(cfg.cs, N), N)
@@ -48,9 +48,9 @@ def test_every_experiment_composes_with_every_option(experiment, group):
 @pytest.mark.parametrize("experiment", EXPERIMENTS)
 def test_every_experiment_builds_its_nested_objects(experiment):
     cfg = compose_cfg(f"experiment={experiment}")
-    if "target" in cfg:
-        for option in options("target"):
-            assert compose_cfg(f"experiment={experiment}", f"target={option}").target.image
+    for option in options("target"):  # an image experiment takes every image target
+        if option != "scene" and "size" in cfg.target:
+            assert build(compose_cfg(f"experiment={experiment}", f"target={option}").target, "target").kind == "image"
     for key in ("model", "reference.model"):
         node = cfg.get(key.split(".")[0])
         if node is not None and (key == "model" or "model" in node):
@@ -64,9 +64,13 @@ def test_every_experiment_builds_its_nested_objects(experiment):
                                 compose_cfg(f"experiment={experiment}", f"{group_key}={option}").reference.model, key)
     if "denoiser3d" in cfg:
         assert callable(build_denoiser(cfg.denoiser3d, "denoiser3d"))
-    if "comparison" in cfg:
-        for label, node in cfg.comparison.solvers.items():
-            assert callable(build_solver(node, min(cfg.comparison.m), cfg.target.size ** 2, f"comparison.solvers.{label}"))
+    if "grid" in cfg:  # every cell of a grid builds its stages
+        from cssat.experiments.context import Run
+        from cssat.experiments.grid import cells
+        from cssat.experiments.pipeline import plan
+
+        for _, cell in cells(cfg):
+            assert callable(plan(cell, Run.from_config(cell, ".")).solver)
 
 
 def test_the_file_model_requires_a_path():

@@ -70,7 +70,7 @@ def test_every_experiment_runs_on_the_gpu(tmp_path, experiment):
         "sim2": ["target.size=16", "cs.m=200", "cache_dir=null"],
         "sim3": ["target.size=16", "cs.m=200", "reference.pool=300", "reference.n=200", "reference.repeats=2",
                  "cache_dir=null"],
-        "solvers": ["target.size=16", "comparison.m=[100]"],
+        "solvers": ["target.size=16", "grid.axes.0.values=[0.4]"],
         "lightcurve": ["scenario.n_steps=60", "render.size=32"],
     }[experiment]
     over = [f"experiment={experiment}", "threads=1", *small]

@@ -1,5 +1,6 @@
-"""Extending cssat without touching it: an atmosphere and an experiment of your own, each one
-module (here: this test file) and one YAML on Hydra's search path."""
+"""Extending cssat without touching it: an atmosphere of your own (one module — here: this test
+file — and one YAML on Hydra's search path), an experiment that recombines the pipeline's stages
+(one YAML and nothing else), and an experiment module of your own."""
 
 import json
 
@@ -28,10 +29,12 @@ def run(cfg, out_dir):
     """An experiment of one's own: the light curve of the target through the configured
     measurement, and its total flux (``run(cfg, out_dir) -> metrics``)."""
     from cssat.data import load_target
-    from cssat.experiments.build import build_measurement
+    from cssat.experiments.build import build
+    from cssat.physics import Measurement
 
     n = cfg.target.size
-    meas, atm = build_measurement(cfg, cfg.cs.m, n * n, cfg.seed, torch.float64, "cpu")
+    atm = build(cfg.atmosphere, "atmosphere")
+    meas = Measurement(atm.operator(cfg.cs.m, n * n, seed=cfg.seed, dtype=torch.float64), build(cfg.noise, "noise"))
     x = torch.as_tensor(load_target(str(cfg.target.image), n), dtype=torch.float64)
     y = meas(x)
     np.save(out_dir / "y.npy", y.numpy())
@@ -50,8 +53,13 @@ def conf(tmp_path):
         (tmp_path / "conf" / g).mkdir(parents=True)
     (tmp_path / "conf" / "atmosphere" / "sign.yaml").write_text(f"_target_: {__name__}.SignAtmosphere\n")
     (tmp_path / "conf" / "experiment" / "flux.yaml").write_text(
-        "# @package _global_\ndefaults:\n  - /target@target: tess\n  - _self_\n"
+        "# @package _global_\n"
         f"experiment_name: flux\nexperiment_module: {__name__}\ntarget:\n  size: 16\ncs:\n  m: 50\n")
+    # a YAML-only experiment: Simulation 1's stages, Φ estimated from references (Eq. 24), TV
+    (tmp_path / "conf" / "experiment" / "mine.yaml").write_text(
+        "# @package _global_\ndefaults:\n  - sim1\n  - _self_\n  - override /reference: full_rank\n"
+        "  - override /solver: tv\n  - override /denoiser: none\n"
+        "target:\n  size: 16\ncs:\n  m: 120\nfigures: [fig11_sim2]\n")
     return tmp_path
 
 
@@ -76,3 +84,24 @@ def test_an_experiment_of_your_own(conf):
     assert met["flux"] == pytest.approx(float(x.sum()))
     with pytest.raises(ValueError, match="^experiment_module"):
         run_experiment(compose_with(conf, "experiment=flux", "experiment_module=no.such.module"), conf / "bad")
+
+
+def test_a_yaml_only_experiment_recombines_the_stages(conf):
+    """``defaults: [sim1, _self_]`` plus overrides in a YAML of one's own runs as
+    ``cssat experiment=mine``, no other file touched; the app names it after its file."""
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "cssat.app", "experiment=mine", "threads=1", "dtype=float64",
+                          f"hydra.searchpath=[file://{conf / 'conf'}]", f"cache_dir={conf / 'cache'}",
+                          f"hydra.run.dir={conf / 'mine'}"], capture_output=True, text=True, cwd=conf, timeout=300)
+    assert res.returncode == 0, res.stderr
+    met = json.loads((conf / "mine" / "metrics.json").read_text())
+    assert met["status"] == "ok" and met["experiment"] == "mine"
+    assert met["reference"] == "full_rank" and met["solver"] == "tv" and met["m"] == 120
+    assert met["phi_relative_error"] < 1e-8 and met["reference_n"] == 256  # Eq. 24 is exact up to round-off
+    assert (conf / "mine" / "figures" / "fig11_sim2.png").stat().st_size > 1000
+    # a flat image at the truth's mean is what the total flux alone gives: TV from Φ̂ does better
+    arrays = np.load(conf / "mine" / "arrays.npz")
+    flat = np.full_like(arrays["truth"], arrays["truth"].mean())
+    assert met["psnr"] > 10 * np.log10(1 / np.mean((flat - arrays["truth"]) ** 2)) + 3

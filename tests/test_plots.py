@@ -61,13 +61,20 @@ def test_fig5_names_its_axes_plainly():
 def test_sweep_plots_are_titled_in_words():
     rows = [{"status": "ok", "cs.m": m, "n_pixels": 1024, "psnr": p, "psnr_denoised": p + 1}
             for m, p in ((256, 15.0), (512, 20.0), (768, 25.0))]
-    ax = plots.sweep_figure(rows, ["cs.m"]).axes[0]
+    from cssat.summary import plot_values
+
+    values, names, labels = plot_values(rows, ["cs.m"])  # the summary gives the plot values and words
+    ax = plots.sweep_figure(values, names, labels=labels).axes[0]
     assert ax.get_xlabel() == "m / N (measurement ratio)" and ax.get_ylabel() == "PSNR (dB)"
     assert "cs.m" not in ax.get_title() and ax.get_title() == "PSNR against m / N"
     np.testing.assert_allclose(ax.lines[0].get_xdata(), [0.25, 0.5, 0.75])
     grid = [{"status": "ok", "cs.m": m, "reference.n": r, "n_pixels": 256, "psnr": 1.0} for m in (64, 128) for r in (128, 256)]
-    ax = plots.sweep_figure(grid, ["cs.m", "reference.n"]).axes[0]
+    values, names, labels = plot_values(grid, ["cs.m", "reference.n"])
+    ax = plots.sweep_figure(values, names, labels=labels).axes[0]
     assert ax.get_title() == "PSNR over m / N × N_ref / N"
+    # plots know no config keys: values and labels come from the caller
+    ax = plots.sweep_figure(rows, ["cs.m"], labels={"cs.m": "samples"}).axes[0]
+    assert ax.get_xlabel() == "samples" and list(ax.lines[0].get_xdata()) == [256, 512, 768]
 
 
 @pytest.mark.parametrize("fmt,magic", [("pdf", b"%PDF"), ("svg", b"<?xml")])

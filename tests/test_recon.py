@@ -130,9 +130,9 @@ class MeanSolver:
     def __init__(self, scale: float = 1.0):
         self.scale = scale
 
-    def __call__(self, phi, y, shape):
-        x = phi.adjoint(y) * self.scale
-        return x.reshape(*shape), {"solver_scale": self.scale}
+    def __call__(self, problem, y):
+        x = problem.operator.adjoint(y) * self.scale
+        return x.reshape(*problem.x_shape), {"solver_scale": self.scale}
 
 
 class HalfDenoiser:

@@ -127,19 +127,19 @@ def test_load_mesh_files_and_errors(tmp_path, caplog):
         assert m.areas.sum() == pytest.approx(b.areas.sum())
     m = load_mesh(tmp_path / "b.obj", scale=0.001)  # millimetres
     assert m.areas.sum() == pytest.approx(b.areas.sum() * 1e-6)
-    with pytest.raises(ValueError, match="model.path: no such file"):
+    with pytest.raises(ValueError, match="^path: no such file"):
         load_mesh(tmp_path / "missing.obj")
     (tmp_path / "empty.obj").write_text("# nothing\n")
-    with pytest.raises(ValueError, match="model.path: .*(no triangles|cannot read)"):
+    with pytest.raises(ValueError, match="^path: .*(no triangles|cannot read)"):
         load_mesh(tmp_path / "empty.obj")
     (tmp_path / "some.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n")
     with caplog.at_level("WARNING", logger="cssat"):
         some = load_mesh(tmp_path / "some.obj")
     assert len(some) == 1 and "dropped 1 zero-area" in caplog.text
     (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n")
-    with pytest.raises(ValueError, match="model.path: every facet .* degenerate"):
+    with pytest.raises(ValueError, match="^path: every facet .* degenerate"):
         load_mesh(tmp_path / "flat.obj")
-    with pytest.raises(ValueError, match="model.scale"):
+    with pytest.raises(ValueError, match="^scale: must be a positive"):
         load_mesh(tmp_path / "b.obj", scale=0)
 
 
@@ -243,7 +243,7 @@ def test_every_start_time_form_gives_the_same_times():
 def test_the_lightcurve_config_takes_three_lines_and_omm_records():
     from hydra import compose, initialize_config_module
 
-    from cssat.experiments.lightcurve import build_scenario
+    from cssat.experiments.scene import build_scenario
 
     l1, l2 = ASTRA_1KR_SYNTHETIC_TLE
     with initialize_config_module(config_module="cssat.conf", version_base="1.3"):

@@ -50,17 +50,18 @@ def test_named_sweeps_name_valid_values_of_their_experiment(sweep):
                 build(node, key)
             else:
                 assert str(node) == value  # the key exists in the experiment's config
-            from cssat.experiments.common import measurements
+            from cssat.experiments.forward import measurements
 
             N = cfg.target.size ** 2
             m = measurements(cfg.cs, N)
             assert 1 <= m <= N
             if exp == "sim3":
-                from cssat.experiments.sim3 import estimate_settings, reference_sizes
+                from cssat.experiments.build import build as build_node
 
-                n_ref, pool = reference_sizes(cfg, cfg.target.size)  # validates them
+                est = build_node(cfg.reference, "reference")
+                n_ref, pool = est.sizes(N)  # validates them
                 assert 1 <= n_ref <= min(pool, N)
-                estimate_settings(cfg, N)
+                est.settings(N)
             build_solver(cfg.solver, m, N)  # e.g. K/m in [0, 1]
 
 

@@ -22,9 +22,11 @@ def _is_node(node: Any) -> bool:
     return isinstance(node, (dict, DictConfig)) and "_target_" in node
 
 
-def build(node: Any, field: str, **kwargs: Any) -> Any:
+def build(node: Any, field: str, *, optional: dict[str, Any] | None = None, **kwargs: Any) -> Any:
     """Instantiate the config ``node`` (which must have a ``_target_``) as the object of config
-    field ``field``; ``kwargs`` are passed to its ``_target_`` besides the node's settings.
+    field ``field``; ``kwargs`` are passed to its ``_target_`` besides the node's settings, and
+    those of ``optional`` that its signature takes (the geometry an atmosphere of one's own may
+    not declare).
 
     A bad setting is a ``FieldError("<field>.<setting>: …")``: the object's own
     :class:`FieldError` prefixed with ``field``, a ``TypeError`` of its call (an unknown or
@@ -42,6 +44,8 @@ def build(node: Any, field: str, **kwargs: Any) -> Any:
         target = get_method(node["_target_"])
     except Exception as err:
         raise FieldError(f"{field}._target_", f"cannot import {node['_target_']!r}: {err}") from None
+    if optional:
+        kwargs.update({k: v for k, v in optional.items() if _takes(target, k) and k not in settings})
     try:
         return target(**settings, **kwargs)
     except FieldError as err:
@@ -50,6 +54,17 @@ def build(node: Any, field: str, **kwargs: Any) -> Any:
         raise FieldTypeError(field, f"{err} (check the settings of its _target_)") from err
     except ValueError as err:
         raise FieldError(field, str(err)) from err
+
+
+def _takes(target: Any, name: str) -> bool:
+    """Whether ``target(**{name: …})`` is a valid call by its signature."""
+    import inspect
+
+    try:
+        params = inspect.signature(target).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return any(p.name == name or p.kind is p.VAR_KEYWORD for p in params)
 
 
 def _callable_with(obj: Any, field: str, signature: str) -> Any:

@@ -222,12 +222,6 @@ class Sparse(_References):
             return self.repeats if m * N <= BASELINE_ALL_MAX else 1
         return {True: self.repeats, False: 0, "first": 1}[mode]
 
-    def _share_light_curves(self, pool: int, n_ref: int) -> bool:
-        """Whether to form the light curves ``Φ x`` of the whole pool once (``m × pool`` values)
-        rather than ``Φ X_ref`` in every repeat: when the repeats draw more images in all than the
-        pool holds (9 × 3277 > 8000; at 128², 9 × 13107 > 32000 saves ~110 s)."""
-        return self.repeats * n_ref > pool
-
     def memory(self, n: int, m: int, itemsize: int) -> tuple[dict[str, int], int | None]:
         """The pool (float32) and, when formed once, its light curves ``(m, pool)``; ``Φ``,
         ``Y_ref``, ``D = X_refᵀΨ``, the OMP's Gram ``(N, N)``, and the coefficients ``Âᵀ``, ``Φ̂``
@@ -235,7 +229,7 @@ class Sparse(_References):
         N = n * n
         n_ref, pool = self.sizes(N)
         self.settings(N)
-        shared = m * pool * itemsize if self._share_light_curves(pool, n_ref) else 0
+        shared = m * pool * itemsize if _share_light_curves(pool, n_ref, self.repeats) else 0
         return {"pool": pool * N * 4, "pool light curves": shared, "Φ": m * N * itemsize, "Y_ref": m * n_ref * itemsize,
                 "D": 2 * n_ref * N * itemsize, "Gram": N * N * itemsize, "coefficients": 4 * m * N * itemsize}, None
 
@@ -247,7 +241,7 @@ class Sparse(_References):
         self.n_baseline = self.baseline_repeats(measured.measurement.shape[0], N)
         self._flat = self.render(run, n, self.pool_n).reshape(self.pool_n, N)
         with run.stage("reference_light_curves"):
-            share = self._share_light_curves(self.pool_n, self.n_ref)
+            share = _share_light_curves(self.pool_n, self.n_ref, self.repeats)
             self._light = _pool_light_curves(self._meas.matrix(), self._flat) if share else None
         self._progress = run.progress
 
@@ -319,6 +313,13 @@ class MinNorm(Sparse):
 
     def baseline(self, run: Run, r: int, solve: Callable[[Any], Any]) -> dict[str, Any]:
         return {}
+
+
+def _share_light_curves(pool: int, n_ref: int, repeats: int) -> bool:
+    """Whether to form the light curves ``Φ x`` of the whole pool once (``m × pool`` values)
+    rather than ``Φ X_ref`` in every repeat: when the repeats draw more images in all than the
+    pool holds (9 × 3277 > 8000; at 128², 9 × 13107 > 32000 saves ~110 s)."""
+    return repeats * n_ref > pool
 
 
 def _pool_light_curves(phi, flat, block: int = 4096):

@@ -3,9 +3,10 @@ the realism maps).
 
 ``grid.axes`` is a list; the first axis varies slowest. An axis is either a config key and its
 values (``{name: m, key: cs.ratio, values: [0.088, 0.25, 0.807], label: m}``: each cell sets
-``cs.ratio``; ``label`` names a metric of the cell that labels it, ``m1444``; default the value) or
+``cs.ratio``; ``label`` names a metric of the cell that labels it, ``m1444``; default the value),
 labelled cells of settings (``{name: solver, cells: {omp: {solver: …, denoiser: null}, …}}``:
-each label's settings — dotted keys, whole nodes replaced — applied to the run's config). Every
+each label's settings — dotted keys, whole nodes replaced — applied to the run's config), or
+both (the labelled cells first: realism's ``paper`` column before its angular sizes). Every
 cell is a copy of the experiment's config with its settings: no cell edits another's, and a
 cell's measurement is reused by the next cell with the same forward settings (Φ drawn once).
 
@@ -40,17 +41,16 @@ def _axes(grid: Any) -> list[dict[str, Any]]:
     out = []
     for i, ax in enumerate(grid.get("axes") or []):
         where = f"grid.axes[{i}]"
-        if "cells" in ax and ax["cells"]:
-            cells = [(str(k), dict(v or {})) for k, v in ax["cells"].items()]
-            out.append({"name": str(ax.get("name") or f"axis{i}"), "label": None, "cells": cells})
-        elif "key" in ax and ax.get("values") is not None:
-            values = list(ax["values"])
-            if not values:
+        cells = [(str(k), dict(v or {})) for k, v in (ax.get("cells") or {}).items()]
+        if ax.get("key") is not None:
+            values = list(ax.get("values") or [])
+            if not values and not cells:
                 raise FieldError(f"{where}.values", "expected at least one value")
-            name = str(ax.get("name") or ax["key"].rsplit(".", 1)[-1])
-            out.append({"name": name, "label": ax.get("label"), "cells": [(v, {str(ax["key"]): v}) for v in values]})
-        else:
-            raise FieldError(where, "expected {key, values} or {cells: {label: settings}}")
+            cells += [(v, {str(ax["key"]): v}) for v in values]
+        if not cells:
+            raise FieldError(where, "expected {key, values} and/or {cells: {label: settings}}")
+        name = str(ax.get("name") or (str(ax["key"]).rsplit(".", 1)[-1] if ax.get("key") else f"axis{i}"))
+        out.append({"name": name, "label": ax.get("label"), "cells": cells})
     if not out:
         raise FieldError("grid.axes", "expected at least one axis")
     return out
@@ -147,6 +147,10 @@ def _metrics(g: Any, axes: list[dict], rows: list[dict], p: Any, truth: Any) -> 
                            "grid_axes": names, "n": int(truth.shape[0]), "n_pixels": int(truth.size),
                            "psnr_flux_only": psnr(truth, np.full_like(truth, truth.mean()), data_range=1.0)}
     out.update({k: v for k, v in pick.items()})
+    first = names[0]
+    for label in dict.fromkeys(r[first] for r in rows):  # Φ's statistics per label of the first axis
+        row = next(r for r in rows if r[first] == label)
+        out.update({f"{k}_{label}": v for k, v in row.items() if k.startswith("phi_")})
     for r in rows:
         out[f"psnr_{r['cell']}"] = r["psnr"]
         out[f"cell_seconds_{r['cell']}"] = r["seconds"]

@@ -68,7 +68,7 @@ def plan(cfg: Any, run: Run) -> Plan:
     target = build(cfg.target, "target")
     forward = build(cfg.forward, "forward") if _node(cfg, "forward") is not None else PixelSensing()
     geometry = build(cfg.geometry, "geometry") if _node(cfg, "geometry") is not None else Geometry()
-    atmosphere = build(cfg.get("atmosphere"), "atmosphere", **geometry.kwargs())
+    atmosphere = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs())
     if getattr(atmosphere, "emitters", "pixels") != "pixels":
         from cssat._checks import FieldError
 

@@ -98,7 +98,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
         size = int_param(cfg.render.size, "render.size", 1, 4096)
         n_marks = int_param(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
         geometry = build(cfg.geometry, "geometry") if cfg.get("geometry") is not None else Geometry()
-        atm, noise = build(cfg.get("atmosphere"), "atmosphere", **geometry.kwargs()), build(cfg.get("noise"), "noise")
+        atm, noise = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs()), build(cfg.get("noise"), "noise")
         check_memory(memory_parts(int_param(cfg.scenario.n_steps, "scenario.n_steps", 1), size), run.memory_limit_gb,
                      "lower render.size or scenario.n_steps")
     timings: dict[str, float] = {}

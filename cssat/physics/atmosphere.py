@@ -39,6 +39,9 @@ class Atmosphere:
     name = "atmosphere"
     emitters = "pixels"
 
+    def __init__(self, *, object_size_m: float | None = None, range_km: float | None = None):
+        self._geometry(object_size_m, range_km)
+
     def operator(
         self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: Any = None
     ) -> LinearOperator:  # pragma: no cover - abstract

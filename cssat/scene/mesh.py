@@ -127,7 +127,7 @@ def load_mesh(
     cd: float = 0.8,
     cs: float = 0.2,
     center: bool = True,
-    field: str = "model.path",
+    field: str = "path",
 ) -> Mesh:
     """Load any mesh file trimesh reads (OBJ, STL, GLB/GLTF, PLY, OFF, …) as one :class:`Mesh`.
 
@@ -142,7 +142,7 @@ def load_mesh(
     if not os.path.isfile(path):
         raise FieldError(field, f"no such file: {path!r}")
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-        raise FieldError("model.scale", f"must be a positive number, got {scale!r}")
+        raise FieldError("scale", f"must be a positive number, got {scale!r}")
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as err:  # trimesh raises many types for unreadable files
@@ -345,13 +345,13 @@ MODELS = {"astra_like": astra_like, "tess_like": tess_like}
 def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float = 0.8, cs: float = 0.2) -> Mesh:
     """A satellite model from config: a procedural one by ``name`` (``astra_like``, ``tess_like``)
     or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``)."""
-    for fname, val in (("model.cd", cd), ("model.cs", cs)):
+    for fname, val in (("cd", cd), ("cs", cs)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
             raise FieldError(fname, f"must be a number >= 0, got {val!r}")
     if name == "file":
         if not path:
-            raise FieldError("model.path", "required when model.name is 'file'")
+            raise FieldError("path", "required when name is 'file'")
         return load_mesh(path, scale=scale, cd=cd, cs=cs)
     if name not in MODELS:
-        raise FieldError("model.name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
+        raise FieldError("name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
     return MODELS[name](cd=cd, cs=cs)
