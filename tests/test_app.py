@@ -15,6 +15,12 @@ from cssat.experiments import ConfigError, run_experiment
 SMALL = ["target.size=16", "cs.m=200", "threads=1"]
 
 
+def flat_psnr(arrays):
+    """The PSNR of the flat image at the truth's mean: what the total flux alone gives (the floor)."""
+    t = arrays["truth"]
+    return 10 * np.log10(1 / np.mean((t - t.mean()) ** 2))
+
+
 def cfg_of(*overrides):
     with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
         return compose(config_name="config", overrides=list(overrides))
@@ -262,14 +268,16 @@ def test_memory_estimate_stops_a_run_that_does_not_fit(tmp_path, exp):
 @pytest.mark.parametrize("solver", ["l1", "tv"])
 def test_sim1_with_convex_solvers(tmp_path, solver):
     met = run_experiment(cfg_of(*SMALL, f"solver={solver}", "denoiser=none"), tmp_path)
-    assert met["solver"] == solver and met["solver_iterations"] >= 1 and met["psnr"] > 15
+    assert met["solver"] == solver and met["solver_iterations"] >= 1
+    assert met["psnr"] > flat_psnr(np.load(tmp_path / "arrays.npz")) + 5
     with pytest.raises(ValueError, match="^solver.lam"):
         run_experiment(cfg_of(*SMALL, f"solver={solver}", "solver.lam=-1"), tmp_path / "bad")
 
 
 def test_sim1_with_plug_and_play(tmp_path):
     met = run_experiment(cfg_of(*SMALL, "solver=pnp", "solver.max_iter=4", "solver.denoiser.n_iter=1", "denoiser=none"), tmp_path)
-    assert met["solver"] == "pnp" and met["solver_iterations"] == 4 and met["psnr"] > 12
+    assert met["solver"] == "pnp" and met["solver_iterations"] == 4
+    assert met["psnr"] > flat_psnr(np.load(tmp_path / "arrays.npz")) + 3
     assert met["solver_denoiser"] == "sparse_ksvd"
     # any denoiser group option is PnP's prior
     tv = run_experiment(cfg_of(*SMALL, "solver=pnp", "solver.max_iter=4", "denoiser@solver.denoiser=tv", "denoiser=none"),

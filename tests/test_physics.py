@@ -11,8 +11,21 @@ from cssat.sparse import GaussianSensing
 
 
 def test_default_atmosphere_is_the_papers_gaussian_sensing_bit_for_bit():
+    """The default Φ follows its documented draw, rebuilt here from the rule alone: row ``i`` is
+    ``N(0, 1/n)`` from a generator seeded by the splitmix64 finaliser of ``seed · φ₆₄ + i + 1`` (low 63 bits)
+    (so the first rows do not depend on ``m``)."""
+    def splitmix(seed, i):
+        mask = (1 << 64) - 1
+        z = (seed * 0x9E3779B97F4A7C15 + i + 1) & mask
+        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+        return (z ^ (z >> 31)) & ((1 << 63) - 1)  # 63 bits: a valid torch seed
+
     op = GaussianAtmosphere().operator(50, 64, seed=3, dtype=torch.float32)
-    assert torch.equal(op.matrix(), GaussianSensing(50, 64, seed=3, dtype=torch.float32).matrix())
+    rows = [torch.empty(64, dtype=torch.float32).normal_(0.0, 1 / 8, generator=torch.Generator().manual_seed(splitmix(3, i)))
+            for i in range(50)]
+    assert torch.equal(op.matrix(), torch.stack(rows))
+    assert torch.equal(GaussianAtmosphere().operator(20, 64, seed=3, dtype=torch.float32).matrix(), op.matrix()[:20])
 
 
 def test_gaussian_atmosphere_moments():

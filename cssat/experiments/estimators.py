@@ -140,7 +140,7 @@ class FullRank(_References):
             Xt = refs.reshape(n_ref, N).to(dtype=self.dtype, device=run.device)  # X_refᵀ: reference k is row k
             del refs
             phi = meas.matrix()
-            Y_ref = meas.add_noise(phi @ Xt.T, torch.Generator().manual_seed(run.seed + 2))  # Eq. 22, (m, N_ref)
+            Y_ref = _noisy(meas, phi @ Xt.T, measured.truth, torch.Generator().manual_seed(run.seed + 2))  # Eq. 22, (m, N_ref)
         with run.stage("estimate"), as_field("reference"):
             self._op, rcond = estimate_sensing_full_rank(Xt.T, Y_ref, return_rcond=True)  # Eq. 24
         del Xt, Y_ref
@@ -234,7 +234,7 @@ class Sparse(_References):
                 "D": 2 * n_ref * N * itemsize, "Gram": N * N * itemsize, "coefficients": 4 * m * N * itemsize}, None
 
     def prepare(self, run: Run, measured: Measured) -> None:
-        self._meas, self._shape = measured.measurement, measured.shape
+        self._meas, self._shape, self._truth = measured.measurement, measured.shape, measured.truth
         n, N = measured.shape[0], math.prod(measured.shape)
         self.n_ref, self.pool_n = self.sizes(N)
         self.estimate = self.settings(N)
@@ -254,7 +254,7 @@ class Sparse(_References):
         Xt = self._flat[idx].to(dtype=run.dtype, device=run.device)
         with run.stage("reference_light_curves"):
             clean = self._light[:, idx.to(self._light.device)] if self._light is not None else self._meas.matrix() @ Xt.T
-            Y_ref = self._meas.add_noise(clean, torch.Generator().manual_seed(base + 1))
+            Y_ref = _noisy(self._meas, clean, self._truth, torch.Generator().manual_seed(base + 1))
         return Xt, Y_ref
 
     def operator(self, run: Run, r: int) -> tuple[Any, dict[str, Any]]:
@@ -313,6 +313,17 @@ class MinNorm(Sparse):
 
     def baseline(self, run: Run, r: int, solve: Callable[[Any], Any]) -> dict[str, Any]:
         return {}
+
+
+def _noisy(meas: Any, clean: torch.Tensor, truth: Any, generator: torch.Generator) -> torch.Tensor:
+    """``Y_ref (m, N_ref)`` with the measurement's noise: each reference's light curve (a column
+    of ``clean``) noised as one light curve, on the target's photometric scale (the flux ``Σ x``
+    of the target carries the noise model's magnitude: the references are observed in the same
+    units and conditions; a dark reference gets sky and read noise only)."""
+    import torch
+
+    flux = torch.full((clean.shape[1],), float(truth.sum()), dtype=torch.float64)
+    return meas.add_noise(clean.T, generator, flux=flux).T
 
 
 def _share_light_curves(pool: int, n_ref: int, repeats: int) -> bool:

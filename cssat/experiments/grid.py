@@ -87,13 +87,11 @@ def _name(fmt: str | None, labels: dict[str, Any]) -> str:
 
 def run(cfg: Any, run_: Any) -> dict[str, Any]:
     """Run every cell of ``cfg.grid`` into ``run_.out_dir``; return the grid's metrics."""
-    import numpy as np
-
-    from cssat.experiments.files import write_csv, write_npz
-    from cssat.experiments.pipeline import execute, metrics_of, plan
-
     g = cfg.grid
     with run_.stage("setup"):
+        from cssat.experiments.files import write_csv, write_npz
+        from cssat.experiments.pipeline import execute, metrics_of, plan
+
         axes = _axes(g)
         todo = cells(cfg)
         plans = [plan(c, run_) for _, c in todo]  # every cell checked before any work
@@ -103,7 +101,8 @@ def run(cfg: Any, run_: Any) -> dict[str, Any]:
     for (labels, _), p in zip(todo, plans):
         before = {k: run_.seconds.get(k, 0.0) for k in ("solver", "dictionary", "denoise")}
         res = execute(p, run_, cache)
-        met = metrics_of(p, run_, res)
+        with run_.stage("score"):
+            met = metrics_of(p, run_, res)
         seconds = sum(run_.seconds.get(k, 0.0) - v for k, v in before.items())
         for ax in axes:  # a value axis labelled by a metric of the cell (cs.ratio -> m1444)
             if ax["label"] is not None:
@@ -117,7 +116,8 @@ def run(cfg: Any, run_: Any) -> dict[str, Any]:
         row.update({k: v for k, v in met.items() if k.startswith(ROW_PREFIXES) and isinstance(v, (int, float, str, type(None)))})
         rows.append(row)
         log.info("%s: %s PSNR %.2f dB, SSIM %.3f, %.1f s", cfg.get("experiment_name"), name, row["psnr"], row["ssim"], seconds)
-    metrics = _metrics(g, axes, rows, plans[0], truth)
+    with run_.stage("score"):
+        metrics = _metrics(g, axes, rows, plans[0], truth)
     with run_.stage("write"):
         write_csv(run_.out_dir / str(g.get("csv_name") or "grid.csv"), rows)
         write_npz(run_.out_dir / "arrays.npz", truth=truth, **images)

@@ -125,7 +125,7 @@ def measure(p: Plan, run: Run, cache: dict | None = None) -> Any:
             cache[p.forward_key] = (op, stats)
     with run.stage("measure"):
         measured = p.forward.measure(run, truth, op, p.noise, dtype)
-    measured.metrics.update({**p.atmosphere.describe(), **stats})
+        measured.metrics.update({**p.atmosphere.describe(), **stats})
     return measured
 
 
@@ -151,7 +151,8 @@ def execute(p: Plan, run: Run, cache: dict | None = None) -> dict[str, Any]:
             run.add_seconds(k, rec.metrics.pop(f"seconds_{k}", 0.0))
         row.update(est.baseline(run, r, lambda phi: psnr(x, reconstruct(p.solver, phi, y, shape, dtype=run.dtype).image,
                                                              data_range=1.0)))
-        row.update(scores(rec.image, rec.denoised, x))
+        with run.stage("score"):
+            row.update(scores(rec.image, rec.denoised, x))
         rows.append(row)
         recs.append(rec)
         bar.update()
@@ -169,8 +170,9 @@ def execute(p: Plan, run: Run, cache: dict | None = None) -> dict[str, Any]:
             dm3.pop("seconds_denoise", None)
         else:
             den3, dm3 = stack.copy(), {"denoiser": "none"}
-        out.update(stack=stack, den2=den2, den3=den3, psnr3=[psnr(x, d, data_range=1.0) for d in den3],
-                   denoiser_3d=dm3.get("denoiser"))
+        with run.stage("score"):
+            out.update(stack=stack, den2=den2, den3=den3, psnr3=[psnr(x, d, data_range=1.0) for d in den3],
+                       denoiser_3d=dm3.get("denoiser"))
     return out
 
 
@@ -196,9 +198,9 @@ def metrics_of(p: Plan, run: Run, res: dict[str, Any]) -> dict[str, Any]:
 
 def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     """Run the experiment ``cfg`` into ``out_dir``; return its metrics (timings included)."""
-    from cssat.experiments import grid, report, scene
-
     run_ = Run.from_config(cfg, out_dir)
+    with run_.stage("setup"):
+        from cssat.experiments import grid, report, scene
     if cfg.get("grid") is not None:
         return grid.run(cfg, run_)
     if getattr(cfg.get("target"), "get", lambda k: None)("_target_") == scene.SCENE_TARGET:
@@ -206,7 +208,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     with run_.stage("setup"):
         p = plan(cfg, run_)
     res = execute(p, run_)
-    metrics = metrics_of(p, run_, res)
+    with run_.stage("score"):
+        metrics = metrics_of(p, run_, res)
     with run_.stage("write"):
         report.write(p, run_, res, metrics)
     metrics.update(run_.timings())

@@ -119,7 +119,12 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
 
     t = time.perf_counter()
     T = len(flux)
-    facetwise = Measurement(atm.operator(T, lc.facets.shape[1], seed=seed, dtype=torch.float64), noise, seed=seed + 2).frames(lc.facets)
+    if getattr(atm, "spatial", False):  # weights over the sky's pixels: no facet-wise form (Eq. 11)
+        log.info("lightcurve: the %s atmosphere weights pixels by direction: no facet-wise curve", atm.name)
+        facetwise = torch.full_like(flux, float("nan"))
+    else:
+        facetwise = Measurement(atm.operator(T, lc.facets.shape[1], seed=seed, dtype=torch.float64), noise,
+                                seed=seed + 2).frames(lc.facets)
     pixelwise = Measurement(atm.operator(T, size * size, seed=seed + 1, dtype=torch.float64), noise, seed=seed + 3).frames(images)
     timings["seconds_atmosphere"] = time.perf_counter() - t
 

@@ -38,6 +38,9 @@ class Atmosphere:
 
     name = "atmosphere"
     emitters = "pixels"
+    #: whether the weights depend on the emitters' directions on the sky (a square image of pixels):
+    #: such a model has no facet-wise form
+    spatial = False
 
     def __init__(self, *, object_size_m: float | None = None, range_km: float | None = None):
         self._geometry(object_size_m, range_km)
@@ -198,6 +201,7 @@ class CorrelatedAtmosphere(_PositiveAtmosphere):
     """
 
     name = "correlated"
+    spatial = True
 
     def __init__(self, correlation_arcsec: float | None = None, object_size_m: float = 10.0, range_km: float = 35786.0,
                  scintillation_index: float | None = None, diameter_m: float = 1.0, airmass: float = 1.0,
@@ -272,6 +276,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
     """
 
     name = "phase_screen"
+    spatial = True
 
     def __init__(self, object_size_m: float = 10.0, range_km: float = 35786.0, diameter_m: float = 1.0,
                  airmass: float = 1.0, exposure_s: float = 1.0, site_altitude_m: float = 0.0,

@@ -18,6 +18,12 @@ class NoiseModel:
     ``generator`` (a CPU ``torch.Generator``), so the same seed gives the same noise."""
 
     name = "noise"
+    #: the scene's V magnitude where the model takes one (the realism maps set it on every model);
+    #: a model whose noise does not depend on the brightness only records it
+    magnitude: float | None = None
+
+    def _record_magnitude(self, magnitude: float | None) -> None:
+        self.magnitude = opt(magnitude, float_param, "magnitude", -30.0, 40.0)
 
     def __call__(self, y: Tensor, generator: torch.Generator, *, flux: Tensor | None = None) -> Tensor:  # pragma: no cover
         """``flux``: the atmosphere-free total flux of the scene (``Σ x`` per light curve), for
@@ -33,6 +39,9 @@ class NoNoise(NoiseModel):
     """Noiseless light curves: ``y`` is returned as it is."""
 
     name = "none"
+
+    def __init__(self, *, magnitude: float | None = None):
+        self._record_magnitude(magnitude)  # noiseless at any brightness
 
     def __call__(self, y: Tensor, generator: torch.Generator | None = None, *, flux: Tensor | None = None) -> Tensor:
         return y
@@ -54,7 +63,8 @@ class GaussianNoise(NoiseModel):
 
     name = "gaussian"
 
-    def __init__(self, relative: float | None = None, sigma: float | None = None):
+    def __init__(self, relative: float | None = None, sigma: float | None = None, *, magnitude: float | None = None):
+        self._record_magnitude(magnitude)  # σ is set by relative or sigma, not by the brightness
         relative, sigma = opt(relative, float_param, "relative", 0.0), opt(sigma, float_param, "sigma", 0.0)
         if relative and sigma:
             raise FieldError("sigma", f"give either relative ({relative}) or sigma ({sigma}), not both")

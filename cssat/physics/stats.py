@@ -11,9 +11,15 @@ __all__ = ["sensing_stats", "effective_rank"]
 
 
 def effective_rank(phi: Tensor, energy: float = 0.99) -> int:
-    """The number of singular values of ``phi`` that hold ``energy`` of ``Σ σᵢ²`` (its Frobenius norm²)."""
-    s = torch.linalg.svdvals(phi.double())
-    e = torch.cumsum(s * s, 0)
+    """The number of singular values of ``phi`` that hold ``energy`` of ``Σ σᵢ²`` (its Frobenius norm²).
+
+    ``σᵢ²`` are the eigenvalues of the smaller Gram matrix (``ΦΦᵀ`` or ``ΦᵀΦ``, float64): the
+    cumulative energies equal those of an SVD to ~1e-15 and cost a quarter of its time
+    (3306 × 4096: 3.2 s against 13 s on one thread)."""
+    p = phi.double()
+    g = p @ p.T if p.shape[0] <= p.shape[1] else p.T @ p
+    s2 = torch.linalg.eigvalsh(g).flip(0).clamp_min(0)
+    e = torch.cumsum(s2, 0)
     return int(torch.searchsorted(e, energy * e[-1]).item()) + 1
 
 
@@ -26,8 +32,8 @@ def sensing_stats(phi: Tensor, shape: Sequence[int] | None = None, *, max_rows: 
     (of ``Φ`` less its mean row: the independent patterns the atmosphere adds to the common
     transmission, which is what a reconstruction can use) and ``phi_coherence`` (the largest ``|⟨aᵢ, aⱼ⟩| / ‖aᵢ‖‖aⱼ‖`` over columns of
     ``ΦΨ`` for a DCT Ψ on ``shape``; of ``Φ`` when ``shape`` is None). Computed on at most
-    ``max_rows`` rows of ``phi (m, N)``; ``full=False`` skips the rank and the coherence (an SVD
-    and a Gram of ``N`` columns: seconds at 64², minutes at 128²)."""
+    ``max_rows`` rows of ``phi (m, N)``; ``full=False`` skips the rank and the coherence (two
+    Gram eigenvalue problems and a Gram of ``N`` columns: ~9 s at 64² on one thread, minutes at 128²)."""
     from cssat.sparse import sensing_dictionary
 
     p = phi[:max_rows].double()

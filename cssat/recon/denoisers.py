@@ -51,7 +51,10 @@ class Denoiser:
         x = image.detach().double().cpu().numpy() if is_tensor else np.asarray(image, dtype=np.float64)
         _check_image(x)
         s = self._sigma(x, sigma)
-        out, info = self._denoise(x, s)
+        if s == 0:  # no noise (e.g. a constant image): nothing to remove, and the weights would divide by 0
+            out, info = x.copy(), {"denoise_skipped": True}
+        else:
+            out, info = self._denoise(x, s)
         if is_tensor:
             out = torch.as_tensor(out, dtype=image.dtype, device=image.device)
         return out, {"denoise_sigma": s, **info}

@@ -33,7 +33,7 @@ def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out
     spread = 1 < threads and A0.shape[0] < threads
     n_blocks = 1 if spread else max(1, min(A0.shape[0], 8 * threads))
     steps = np.zeros(n_blocks, np.int64)
-    fn = kernel(_build, threads, parallel=not spread)
+    fn = kernel(_build, threads, parallel=not spread, pool=True)  # the serial variant calls _update_spread
     run = lambda: fn(G, A0, ynorm2, K, dt(tol if use_tol else 0.0), use_tol, out, n_iter, res,  # noqa: E731
                      n_blocks, min(K, cap0), steps, spread)
     if bar is None or bar.disable:

@@ -1,0 +1,124 @@
+"""The one pipeline: every experiment runs with every option of every group (not only composes),
+stage times add up, grids are cells of their own, solvers take the problem object."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from hydra import compose, initialize_config_module
+
+import cssat.conf
+from cssat.experiments import run_experiment
+
+CONF = Path(cssat.conf.__file__).parent
+EXPERIMENTS = sorted(p.stem for p in (CONF / "experiment").glob("*.yaml"))
+GROUPS = ("atmosphere", "noise", "solver", "denoiser")
+
+#: each experiment at a tiny size (seconds a run)
+TINY = {
+    "sim1": ["target.size=12", "cs.m=100"],
+    "sim2": ["target.size=12", "cs.m=80", "dtype=float64"],
+    "sim3": ["target.size=12", "cs.m=80", "reference.pool=150", "reference.n=80", "reference.repeats=2",
+             "reference.n_nonzero_coefs=10", "denoiser3d.n_iter=1"],
+    "solvers": ["target.size=12", "grid.axes.0.values=[0.5]", "grid_options.pnp.max_iter=2",
+                "grid_options.pnp.denoiser.n_iter=1", "grid_options.tv.max_iter=50", "grid_options.l1.max_iter=50"],
+    "realism": ["target.size=12", "grid.axes.0.values=[0.058,60]", "grid.axes.1.values=[8]", "grid_options.tv.max_iter=50"],
+    "lightcurve": ["scenario.n_steps=3", "render.size=8"],
+}
+#: options made quick (their numbers are not what these tests check)
+QUICK = {
+    ("solver", "pnp"): ["solver.max_iter=2", "solver.denoiser.n_iter=1"],
+    ("solver", "tv"): ["solver.max_iter=50"], ("solver", "l1"): ["solver.max_iter=50"],
+    ("solver", "landweber"): ["solver.max_iter=50"],
+    ("denoiser", "sparse_ksvd"): ["denoiser.n_iter=1"], ("denoiser", "sparse_ksvd_pnp"): ["denoiser.n_iter=1"],
+    ("atmosphere", "phase_screen"): ["atmosphere.n_radial=16", "atmosphere.n_angular=4", "atmosphere.n_layers=2"],
+}
+
+
+def options(group):
+    return sorted(p.stem for p in (CONF / group).glob("*.yaml"))
+
+
+def cfg_of(*overrides):
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))
+
+
+CASES = [(e, g, o) for e in EXPERIMENTS for g in GROUPS for o in options(g)]
+
+
+@pytest.mark.parametrize("experiment, group, option", CASES, ids=[f"{e}-{g}={o}" for e, g, o in CASES])
+def test_every_experiment_runs_with_every_option_of_every_group(tmp_path, experiment, group, option):
+    over = [f"experiment={experiment}", f"{group}={option}", "threads=1", f"cache_dir={tmp_path / 'cache'}",
+            *TINY[experiment], *QUICK.get((group, option), [])]
+    if experiment == "realism" and group != "atmosphere":  # realism's own atmosphere, made quick
+        over += QUICK[("atmosphere", "phase_screen")]
+    met = run_experiment(cfg_of(*over), tmp_path / "run")
+    assert met["status"] == "ok"
+    saved = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert saved["status"] == "ok" and saved["files"]
+    if experiment != "lightcurve":
+        assert math.isfinite(met["psnr"])
+    # every stage's time is a seconds_<stage> key: together they are the run's time
+    stages = sum(v for k, v in saved.items() if k.startswith("seconds_") and k != "seconds_startup")
+    assert 0.9 * saved["seconds"] - 0.05 <= stages <= saved["seconds"] + 1e-6, (stages, saved["seconds"])
+
+
+def test_grid_cells_are_copies_with_their_own_settings():
+    """A cell's settings change that cell only; the base config and the other cells keep theirs."""
+    from cssat.experiments.grid import cells
+
+    cfg = cfg_of("experiment=realism", "grid.axes.0.values=[0.058]", "grid.axes.1.values=[2,14]")
+    out = cells(cfg)
+    assert len(out) == 2 * 2 * 3
+    assert cfg.noise.magnitude == 12.0 and cfg.atmosphere._target_.endswith("PhaseScreenAtmosphere")
+    mags = {(lab["arcsec"], lab["magnitude"]): c.noise.magnitude for lab, c in out}
+    assert mags[("paper", 2)] == 2 and mags[("paper", 14)] == 14
+    paper = [c for lab, c in out if lab["arcsec"] == "paper"]
+    assert all(c.atmosphere._target_.endswith("GaussianAtmosphere") for c in paper)
+    strong = [c for lab, c in out if lab["solver"] == "tv_strong"]
+    assert all(c.solver.lam == 0.02 for c in strong)
+    assert all(c.solver.lam is None for lab, c in out if lab["solver"] == "tv")
+
+
+def test_the_solver_comparison_shares_each_measurement(tmp_path, monkeypatch):
+    """One Φ per m, whatever the number of solvers (the draw is the expensive part at 128²)."""
+    from cssat.experiments import forward
+
+    draws = []
+    orig = forward.PixelSensing.operator
+
+    def counted(self, *args, **kwargs):
+        draws.append(args[2])
+        return orig(self, *args, **kwargs)
+
+    monkeypatch.setattr(forward.PixelSensing, "operator", counted)
+    met = run_experiment(cfg_of("experiment=solvers", *TINY["solvers"], "grid.axes.0.values=[0.3,0.6]", "threads=1"),
+                         tmp_path)
+    assert draws == [round(0.3 * 144), round(0.6 * 144)]
+    assert sum(k.startswith("psnr_") and k.endswith(f"_m{round(0.6 * 144)}") for k in met) == 5
+
+
+def test_solvers_take_a_measurement_as_their_problem():
+    """``solver(measurement, y)`` (deepinv style) and ``solver(phi, y, shape)`` agree."""
+    from cssat.data import load_target
+    from cssat.physics import Measurement
+    from cssat.recon import OMP, TV, Landweber, Problem
+    from cssat.sparse import GaussianSensing
+
+    x = torch.as_tensor(load_target("tess", 16), dtype=torch.float64)
+    phi = GaussianSensing(200, 256, seed=0, dtype=torch.float64)
+    meas = Measurement(phi, x_shape=(16, 16))
+    y = meas(x)
+    for solver in (OMP(), TV(max_iter=50), Landweber(max_iter=50)):
+        a, _ = solver(meas, y)
+        b, _ = solver(phi, y, (16, 16))
+        c, _ = solver(Problem(phi, (16, 16)), y)
+        assert a.shape == (16, 16) and torch.equal(a, b) and torch.equal(a, c)
+    with pytest.raises(ValueError, match=r"^shape: the operator has 256 columns but no shape"):
+        OMP()(Measurement(phi), y)
+    with pytest.raises(ValueError, match=r"^shape: \(8, 8\) has 64 values but the operator has 256 columns"):
+        OMP()(phi, y, (8, 8))
