@@ -122,3 +122,39 @@ def test_solvers_take_a_measurement_as_their_problem():
         OMP()(Measurement(phi), y)
     with pytest.raises(ValueError, match=r"^shape: \(8, 8\) has 64 values but the operator has 256 columns"):
         OMP()(phi, y, (8, 8))
+
+
+def test_projected_landweber_reaches_scipy_nnls_and_the_runner_owns_the_loop():
+    """Converged, projected Landweber is the non-negative least-squares solution (scipy's NNLS);
+    the shared runner records the objective ½‖Ax − y‖², stops on the relative change and on a
+    callback."""
+    from scipy.optimize import nnls
+
+    from cssat.sparse.solvers import landweber
+
+    g = torch.Generator().manual_seed(0)
+    A = torch.randn(40, 16, generator=g, dtype=torch.float64)
+    y = A @ (torch.rand(16, generator=g, dtype=torch.float64) - 0.3)  # some entries < 0: the bound binds
+    x, info = landweber(A, y, max_iter=20000, rtol=1e-13, return_info=True)
+    ref, _ = nnls(A.numpy(), y.numpy())
+    np.testing.assert_allclose(x.numpy(), ref, atol=1e-8)
+    assert info.converged and (x >= 0).all() and (torch.as_tensor(ref) == 0).any()
+    r = A @ x - y
+    assert info.objective[-1] == pytest.approx(float(0.5 * (r * r).sum()), rel=1e-6, abs=1e-12)
+    _, short = landweber(A, y, max_iter=500, return_info=True, callback=lambda k, alg: k == 7)
+    assert short.n_iter == 7 and not short.converged and len(short.objective) == 1  # k = 1 only
+
+
+def test_numba_keeps_one_thread_at_threads_1():
+    """At threads=1 a numba OMP call leaves torch and numba on one thread (numba's OpenMP layer
+    used to reset the process's count to the cores)."""
+    import subprocess
+    import sys
+
+    code = ("import torch; torch.set_num_threads(1)\n"
+            "from cssat.sparse import batch_omp\nimport numba\n"
+            "for _ in range(2): batch_omp(torch.randn(64, 100), torch.randn(5, 64), n_nonzero_coefs=5, backend='numba')\n"
+            "print(torch.get_num_threads(), numba.get_num_threads())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["1", "1"]

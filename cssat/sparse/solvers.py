@@ -250,7 +250,15 @@ def tv_pdhg(
     return out
 
 
-class _PnP(Iteration):
+class _DataFit(Iteration):
+    """An iteration whose objective is the data misfit ``½‖Ax − y‖²`` of its iterate ``x (B, N)``."""
+
+    def objective(self) -> float:
+        r = self.op(self.x) - self.y
+        return float(0.5 * (r * r).sum())
+
+
+class _PnP(_DataFit):
     """The iterate ``x (B, N)``; step ``k`` denoises at ``σ = sigmas[k − 1]``."""
 
     label = "PnP"
@@ -266,10 +274,6 @@ class _PnP(Iteration):
         self.x = torch.stack([torch.as_tensor(self.denoiser(v[b], s), dtype=self.y.dtype, device=self.y.device).reshape(-1)
                               for b in range(self.shape[0])])  # the denoiser, image by image
         return None
-
-    def objective(self) -> float:
-        r = self.op(self.x) - self.y
-        return float(0.5 * (r * r).sum())
 
 
 @numpy_io
@@ -310,7 +314,7 @@ def pnp_pgd(
     return out
 
 
-class _Landweber(Iteration):
+class _Landweber(_DataFit):
     """The iterate ``x (B, N)`` of projected Landweber."""
 
     label = "Landweber"
@@ -326,10 +330,6 @@ class _Landweber(Iteration):
         change = relative_change(x_new, self.x)
         self.x = x_new
         return change
-
-    def objective(self) -> float:
-        r = self.op(self.x) - self.y
-        return float(0.5 * (r * r).sum())
 
 
 @numpy_io
