@@ -103,41 +103,17 @@ def _register_launcher() -> None:
 
 def main() -> None:
     """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
-    after every job has run and the summary is written.
-
-    Once everything is written and flushed the process ends at once (``os._exit``): the
-    interpreter's teardown of torch and numba's OpenMP pool would add ~0.6–0.8 s to every run
-    that no ``seconds_*`` key could show (measured on a 5 s run: 16 % of its wall time).
-    """
+    after every job has run and the summary is written."""
     from cssat import __version__, summary
 
     if "--version" in sys.argv[1:] or "-V" in sys.argv[1:]:  # cssat's version, not Hydra's
         print(f"cssat {__version__}")
         return
     _register_launcher()
-    code = 0
-    try:
-        _hydra_main()
-    except SystemExit as err:  # Hydra's own exits (--help, a bad override) and ours (exit 2)
-        code = err.code if isinstance(err.code, int) else (0 if err.code is None else 1)
-    if code == 0 and summary.SWEEP_FAILED:
+    _hydra_main()
+    if summary.SWEEP_FAILED:
         log.error("sweep: not every job ended ok (see summary.csv)")
-        code = 1
-    _exit_now(code)
-
-
-def _exit_now(code: int) -> None:
-    """Flush the logs and the standard streams, then end the process without the interpreter's
-    teardown (only in the console script; no result file is open at this point)."""
-    import os
-
-    logging.shutdown()
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os._exit(code)
+        sys.exit(1)
 
 
 if __name__ == "__main__":
