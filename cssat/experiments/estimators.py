@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any, Callable
 
-from cssat._checks import FieldError, choice_param, dtype_param, float_param, int_param, opt
+from cssat._checks import FieldError, bool_param, choice_param, dtype_param, float_param, int_param, opt
 from cssat.experiments.context import Run, as_field
 
 if TYPE_CHECKING:
@@ -71,9 +71,7 @@ class _References(Known):
         self.model = model
         self.noise = float_param(noise, "noise", 0.0)
         self.seed = opt(seed, int_param, "seed", 0)
-        if not isinstance(shadows, bool):
-            raise FieldError("shadows", f"expected true or false, got {shadows!r}")
-        self.shadows = shadows
+        self.shadows = bool_param(shadows, "shadows")
         self.cache_dir = None if not cache_dir else str(cache_dir)
 
     def ref_seed(self, run: Run) -> int:
@@ -194,9 +192,7 @@ class Sparse(_References):
         self.epsilon = opt(epsilon, float_param, "epsilon", 0.0)
         if self.t0 is None and self.epsilon is None:
             raise FieldError("n_nonzero_coefs", "give T0 (Eq. 28), auto, or reference.epsilon (Eq. 29)")
-        if not isinstance(normalize, bool):
-            raise FieldError("normalize", f"expected true or false, got {normalize!r}")
-        self.normalize = normalize
+        self.normalize = bool_param(normalize, "normalize")
         self.baseline_mode = choice_param(baseline, "baseline", (True, False, "first", "auto"))
 
     def sizes(self, N: int) -> tuple[int, int]:

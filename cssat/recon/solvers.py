@@ -195,9 +195,7 @@ class TV(_Convex):
     def __init__(self, lam: float | None = None, nonneg: bool = True, max_iter: int = 2000, rtol: float = 1e-5,
                  *, progress: bool | None = None):
         super().__init__(lam, max_iter, rtol, progress)
-        if not isinstance(nonneg, bool):
-            raise FieldError("nonneg", f"expected true or false, got {nonneg!r}")
-        self.nonneg = nonneg
+        self.nonneg = bool_param(nonneg, "nonneg")
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
