@@ -19,7 +19,8 @@ from cssat._checks import FieldError
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["image_panels", "error_panels", "FIGURE_FORMATS", "sim1_figure", "sim2_figure", "sim3_figures", "solvers_figure", "realism_figures", "lightcurve_figure",
+__all__ = ["image_panels", "error_panels", "FIGURE_FORMATS", "sim1_figure", "sim2_figure", "sim3_figures", "grid_images_figure", "grid_maps_figure",
+           "grid_curves_figure", "lightcurve_figure",
            "atmosphere_figure", "sweep_figure", "light_curve_image", "save_figure"]
 
 

@@ -44,7 +44,7 @@ def _check(X_ref: Tensor, Y_ref: Tensor) -> tuple[int, int, int]:
         if not t.is_floating_point():
             raise FieldTypeError(name, f"expected a float32 or float64 tensor, got {t.dtype}")
         if not bool(torch.isfinite(t).all()):
-            raise FieldError(name, f"contains NaN or Inf")
+            raise FieldError(name, "contains NaN or Inf")
     return int(X_ref.shape[0]), int(X_ref.shape[1]), int(Y_ref.shape[0])
 
 

@@ -96,7 +96,7 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
     if arr.ndim != 2:
         raise FieldError(field, f"expected a 2-D gray or colour image, got shape {arr.shape}")
     if not np.isfinite(arr).all():
-        raise FieldError(field, f"the image contains NaN or Inf pixels")
+        raise FieldError(field, "the image contains NaN or Inf pixels")
     h, w = arr.shape
     if h != w:
         raise FieldError(field, f"image is {h}×{w} pixels; a square image is required (crop it first)")

@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 from torch import Tensor
 
-from cssat._checks import FieldError
 from cssat._checks import FieldError, choice_param
 
 if TYPE_CHECKING:

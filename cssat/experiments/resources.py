@@ -3,8 +3,6 @@ reached (``peak_rss_gb`` in ``metrics.json``)."""
 
 from __future__ import annotations
 
-from typing import Any
-
 from cssat._checks import FieldError
 
 __all__ = ["available_memory_bytes", "peak_rss_bytes", "check_memory"]

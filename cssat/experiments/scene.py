@@ -29,13 +29,12 @@ from __future__ import annotations
 import logging
 import math
 import time
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cssat._checks import int_param
-from cssat.experiments.context import Run, as_field
+from cssat.experiments.context import Run
 
 if TYPE_CHECKING:
     from cssat.scene import Scenario

@@ -47,7 +47,7 @@ def check_unit(v: Vectors, name: str, tol: float = 1e-6) -> Tensor:
     if t.ndim != 2 or t.shape[1] != 3:
         raise FieldError(name, f"expected unit vectors of shape (T, 3), got {tuple(t.shape)}")
     if not bool(torch.isfinite(t).all()):
-        raise FieldError(name, f"contains NaN or Inf")
+        raise FieldError(name, "contains NaN or Inf")
     err = (torch.linalg.vector_norm(t, dim=1) - 1).abs()
     if t.shape[0] and float(err.max()) > tol:
         i = int(err.argmax())
@@ -109,7 +109,7 @@ def facet_brightness(
         if t.shape[0] not in (1, T):
             raise FieldError(name, f"expected a scalar or {T} values, got {t.shape[0]}")
         if not bool(torch.isfinite(t).all()) or bool((t < 0).any()):
-            raise FieldError(name, f"must be finite and >= 0")
+            raise FieldError(name, "must be finite and >= 0")
         return t
 
     r_topo_m = col(range_km, "range_km") * 1e3

@@ -19,7 +19,6 @@ bar of its iterations — ``None`` (default) on a terminal only, ``True`` always
 
 from __future__ import annotations
 
-import math
 import time
 from typing import TYPE_CHECKING, Any, Sequence
 

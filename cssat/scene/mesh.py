@@ -56,7 +56,7 @@ class Mesh:
             raise FieldError("mesh.vertices", "contain NaN or Inf")
         for name, arr in (("mesh.cd", self.cd), ("mesh.cs", self.cs)):
             if np.any(arr < 0) or not np.isfinite(arr).all():
-                raise FieldError(name, f"reflection coefficients must be finite and >= 0")
+                raise FieldError(name, "reflection coefficients must be finite and >= 0")
 
     def __len__(self) -> int:
         return len(self.faces)

@@ -246,7 +246,7 @@ def _start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
         start = start_utc
     elif isinstance(start_utc, np.datetime64):
         if np.isnat(start_utc):
-            raise FieldError(field, f"NaT is not a time")
+            raise FieldError(field, "NaT is not a time")
         us = start_utc.astype("datetime64[us]").astype(np.int64)
         start = datetime(1970, 1, 1) + timedelta(microseconds=int(us))
     elif type(start_utc).__module__.startswith("skyfield") and hasattr(start_utc, "utc_datetime"):

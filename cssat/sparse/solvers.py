@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, NamedTuple, Sequence
 import torch
 from torch import Tensor
 
-from cssat._checks import FieldError, FieldTypeError
+from cssat._checks import FieldError
 from cssat.sparse._io import numpy_io
 from cssat.sparse.iterate import Iteration, relative_change, run_iterations
 from cssat.sparse.operators import LinearOperator, as_operator
