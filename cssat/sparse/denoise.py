@@ -147,9 +147,45 @@ def ksvd_denoise(
         if is_numpy:
             out = out.cpu().numpy() if isinstance(out, Tensor) else out
         return (out, info) if return_info else out
+    st = _settings(x, sigma, block_size, step, n_atoms, base_atoms, atom_sparsity, gain, n_train, n_iter, max_atoms, lam)
+
+    dictionary, history = _train(x, st, mu_thresh, seed, progress)
+    out, oinfo = _denoise_blocks(x, dictionary, st, lam, progress)
+
+    if is_numpy:
+        out = out.cpu().numpy()
+    if not return_info:
+        return out
+    info = DenoiseInfo(
+        sigma=st.sigma, sigma_estimated=st.estimated, dictionary=dictionary, training=history,
+        block_size=st.block, step=st.step, n_train=int(min(st.n_train, st.n_blocks)),
+        mean_atoms=float(oinfo.n_iter.double().mean()),
+    )
+    return out, info
+
+
+@dataclass
+class _Settings:
+    """:func:`ksvd_denoise`'s settings with the demo defaults filled in and checked."""
+
+    block: tuple[int, ...]
+    step: tuple[int, ...]
+    sigma: float
+    estimated: bool
+    base: Any  # the KroneckerOperator B
+    n_blocks: int  # blocks at step 1
+    L: int
+    T: int
+    n_train: int
+    n_iter: int
+    cap: int
+    tol: float  # ε² with ε = √p · gain · σ
+
+
+def _settings(x, sigma, block_size, step, n_atoms, base_atoms, atom_sparsity, gain, n_train, n_iter, max_atoms,
+              lam) -> _Settings:
     nd = x.ndim
     demo = DEMO_DEFAULTS[nd]
-
     if block_size is None:
         block = tuple(min(demo["block"], s) for s in x.shape)
         if any(b < demo["block"] for b in block[-2:]):
@@ -188,46 +224,39 @@ def ksvd_denoise(
         raise FieldError("n_train", f"must be at least n_atoms={L}, got {n_train}")
     if L < 1:
         raise FieldError("n_atoms", f"must be >= 1, got {L}")
+    return _Settings(block, stp, sigma, est, base, n_blocks, L, T, n_train, n_iter, cap, p * (gain * sigma) ** 2)
 
-    # ---- training blocks (step 1, evenly thinned to n_train), means removed ----
-    train = extract_patches(x, block, 1)
-    if train.shape[0] > n_train:
-        pick = torch.linspace(0, train.shape[0] - 1, n_train, dtype=torch.float64).round().long()
+
+def _train(x: Tensor, st: _Settings, mu_thresh: float, seed: int, progress) -> tuple[SparseDictionary, KSVDInfo]:
+    """Train ``D = B A`` on the blocks at step 1 (evenly thinned to ``n_train``), means removed."""
+    train = extract_patches(x, st.block, 1)
+    if train.shape[0] > st.n_train:
+        pick = torch.linspace(0, train.shape[0] - 1, st.n_train, dtype=torch.float64).round().long()
         train = train[pick.to(x.device)]
-    if train.shape[0] < L:
+    if train.shape[0] < st.L:
         raise FieldError(
-            "n_atoms", f"{L} atoms need at least as many training blocks; the image gives {train.shape[0]} "
-            f"blocks of {block} (use a smaller block_size or n_atoms)"
+            "n_atoms", f"{st.L} atoms need at least as many training blocks; the image gives {train.shape[0]} "
+            f"blocks of {st.block} (use a smaller block_size or n_atoms)"
         )
     train = train - train.mean(1, keepdim=True)
-    tol = p * (gain * sigma) ** 2  # ε² with ε = √p · gain · σ
-    dictionary, history = sparse_ksvd(
-        train, base, n_atoms=L, atom_sparsity=T, tol=tol, n_nonzero_coefs=cap, n_iter=n_iter,
-        init="identity" if L <= base.n_in else "data", mu_thresh=mu_thresh, seed=seed,
+    return sparse_ksvd(
+        train, st.base, n_atoms=st.L, atom_sparsity=st.T, tol=st.tol, n_nonzero_coefs=st.cap, n_iter=st.n_iter,
+        init="identity" if st.L <= st.base.n_in else "data", mu_thresh=mu_thresh, seed=seed,
         return_info=True, progress=progress,
     )
-    del train
 
-    # ---- code every block at `step` and average back ----
-    blocks = extract_patches(x, block, stp)
+
+def _denoise_blocks(x: Tensor, dictionary: SparseDictionary, st: _Settings, lam: float, progress):
+    """Code every block at ``step`` over ``D`` to the error ``tol`` and average back (Eq. 18):
+    ``x̂ = (λ x + Σ blocks) / (λ + count)``. Returns ``(x̂, OMPInfo)``."""
+    blocks = extract_patches(x, st.block, st.step)
     dc = blocks.mean(1, keepdim=True)
     blocks = blocks - dc
     D = dictionary.matrix(dtype=x.dtype, device=x.device)
     codes, oinfo = batch_omp(
-        D, blocks, n_nonzero_coefs=cap, tol=tol, gram=dictionary.gram(), Dty=dictionary.adjoint(blocks),
+        D, blocks, n_nonzero_coefs=st.cap, tol=st.tol, gram=dictionary.gram(), Dty=dictionary.adjoint(blocks),
         return_info=True, progress=progress,
     )
     clean = codes @ D.T + dc
-    total, count = accumulate_patches(clean, tuple(x.shape), block, stp)
-    out = (float(lam) * x + total) / (float(lam) + count)
-
-    if is_numpy:
-        out = out.cpu().numpy()
-    if not return_info:
-        return out
-    info = DenoiseInfo(
-        sigma=float(sigma), sigma_estimated=est, dictionary=dictionary, training=history,
-        block_size=block, step=stp, n_train=int(min(n_train, n_blocks)),
-        mean_atoms=float(oinfo.n_iter.double().mean()),
-    )
-    return out, info
+    total, count = accumulate_patches(clean, tuple(x.shape), st.block, st.step)
+    return (float(lam) * x + total) / (float(lam) + count), oinfo

@@ -164,6 +164,44 @@ def sparse_ksvd(
     """
     if not isinstance(base, KroneckerOperator):
         raise FieldTypeError("base", "expected a KroneckerOperator (a separable base dictionary)")
+    L, T, cap = _check_training(X, base, n_atoms, atom_sparsity, tol, n_nonzero_coefs, n_iter)
+    n, p = X.shape
+    coder = _AtomCoder(base.to(device=X.device), T, X.dtype, X.device)
+    gen = torch.Generator().manual_seed(int(seed))
+    A = _initial_atoms(init, X, L, coder, gen)
+
+    from cssat._progress import progress_bar
+
+    info = KSVDInfo([], [], [])
+    BtX = coder.base.adjoint(X)  # (n, K0): Bᵀx once; Dᵀx = Aᵀ(Bᵀx) every iteration
+    bar = progress_bar(None, f"K-SVD ({L} atoms, {n} blocks)", progress, unit="iter", iterable=range(int(n_iter)))
+    for _ in bar:
+        # ---- sparse coding (all blocks at once) ----
+        D = coder.Bm @ A  # (p, L)
+        G = A.T @ _base_gram(coder.base, A)  # DᵀD through the separable BᵀB
+        Gamma, oinfo = batch_omp(
+            D, X, n_nonzero_coefs=cap, tol=tol, gram=G, Dty=BtX @ A, return_info=True, progress=False
+        )
+        info.mean_atoms.append(float(oinfo.n_iter.double().mean()))
+        # per-block coding error: picks replacement blocks (the worst-coded not yet used)
+        pool = _Replacements(X, oinfo.residual_sq.clone(), coder)
+        replaced = _update_atoms(X, A, D, Gamma, pool, coder, gen)
+        R = X - Gamma @ D.T
+        err = (R * R).sum(1)
+        info.rmse.append(float(torch.sqrt(err.sum() / (n * p))))
+        bar.set_postfix(rmse=f"{info.rmse[-1]:.4g}", refresh=False)
+        pool.residual = err
+        n_clear = _clean_atoms(A, D, Gamma, replaced, pool, coder, mu_thresh)
+        info.replaced.append(int(replaced.sum()) + n_clear)
+    bar.close()
+
+    out = SparseDictionary(coder.base, A)
+    return (out, info) if return_info else out
+
+
+def _check_training(X, base, n_atoms, atom_sparsity, tol, n_nonzero_coefs, n_iter) -> tuple[int, int, int]:
+    """Validate :func:`sparse_ksvd`'s sizes; returns ``(L, T_dict, cap)`` (atoms, atom sparsity,
+    the coding's atom cap)."""
     p, K0 = base.n_out, base.n_in
     _check_signals(X, p)
     n = X.shape[0]
@@ -185,27 +223,44 @@ def sparse_ksvd(
     cap = int(min(cap, L))
     if cap < 1:
         raise FieldError("n_nonzero_coefs", f"must be >= 1, got {n_nonzero_coefs}")
+    return L, T, cap
 
-    dt, dev = X.dtype, X.device
-    base = base.to(device=dev)
-    Bm = base.matrix(dtype=dt, device=dev)  # (p, K0): small, used for single-vector steps only
-    norms = torch.linalg.vector_norm(Bm, dim=0)
-    if bool(((norms - 1).abs() > 1e-2).any()):
-        raise FieldError("base", "the base dictionary's atoms must have unit norm")
-    baseG = _base_gram(base, torch.eye(K0, dtype=dt, device=dev))  # (K0, K0) = BᵀB
-    dense_atoms = T >= K0 and K0 == p and bool(torch.allclose(Bm, torch.eye(p, dtype=dt, device=dev)))
-    gen = torch.Generator().manual_seed(int(seed))
 
-    def code_atom(v: Tensor) -> Tensor:
+class _AtomCoder:
+    """``T_dict``-sparse coding over the base ``B``: ``Bm (p, K₀)`` its matrix (small, for single
+    vectors), ``baseG = BᵀB``; ``dense`` when ``B = I`` with dense atoms (plain K-SVD)."""
+
+    def __init__(self, base: KroneckerOperator, T: int, dt: torch.dtype, dev: torch.device):
+        p, K0 = base.n_out, base.n_in
+        self.base, self.T = base, T
+        self.Bm = base.matrix(dtype=dt, device=dev)
+        norms = torch.linalg.vector_norm(self.Bm, dim=0)
+        if bool(((norms - 1).abs() > 1e-2).any()):
+            raise FieldError("base", "the base dictionary's atoms must have unit norm")
+        self.baseG = _base_gram(base, torch.eye(K0, dtype=dt, device=dev))  # (K0, K0) = BᵀB
+        self.dense = T >= K0 and K0 == p and bool(torch.allclose(self.Bm, torch.eye(p, dtype=dt, device=dev)))
+
+    def atom(self, v: Tensor) -> Tensor:
         """``T``-sparse code over ``B`` of the vector ``v (p,)``, scaled so ``‖B a‖ = 1``."""
-        if dense_atoms:
+        if self.dense:
             a = v.clone()
         else:
-            a = batch_omp(Bm, v, n_nonzero_coefs=T, gram=baseG, Dty=Bm.T @ v, progress=False)
-        nd = torch.linalg.vector_norm(Bm @ a)
+            a = batch_omp(self.Bm, v, n_nonzero_coefs=self.T, gram=self.baseG, Dty=self.Bm.T @ v, progress=False)
+        nd = torch.linalg.vector_norm(self.Bm @ a)
         return a / nd if float(nd) > 0 else a
 
-    # ---- initial A ----
+    def codes(self, Xi: Tensor) -> Tensor:
+        """``T``-sparse codes ``(K₀, L)`` of the rows of ``Xi (L, p)`` (not normalised)."""
+        if self.dense:
+            return Xi.T.clone()
+        return batch_omp(self.Bm, Xi, n_nonzero_coefs=self.T, gram=self.baseG, Dty=self.base.adjoint(Xi),
+                         progress=False).T.contiguous()
+
+
+def _initial_atoms(init, X: Tensor, L: int, coder: _AtomCoder, gen: torch.Generator) -> Tensor:
+    """The initial ``A (K₀, L)`` (see :func:`sparse_ksvd`'s ``init``), columns scaled to ``‖B a‖ = 1``."""
+    K0 = coder.base.n_in
+    dt, dev = X.dtype, X.device
     if isinstance(init, Tensor):
         if init.ndim != 2 or init.shape[0] != K0 or init.shape[1] < L:
             raise FieldError("init", f"expected a ({K0}, >= {L}) matrix, got {tuple(init.shape)}")
@@ -219,92 +274,84 @@ def sparse_ksvd(
         if ok.numel() < L:
             raise FieldError("init", f"'data' needs {L} non-zero training signals, found {ok.numel()}")
         pick = ok[torch.randperm(ok.numel(), generator=gen)[:L]].to(dev)
-        Xi = X[pick]
-        if dense_atoms:
-            A = Xi.T.clone()
-        else:
-            A = batch_omp(Bm, Xi, n_nonzero_coefs=T, gram=baseG, Dty=base.adjoint(Xi), progress=False).T.contiguous()
+        A = coder.codes(X[pick])
     else:
         raise FieldError("init", f"expected 'identity', 'data' or a matrix, got {init!r}")
-    dn = torch.linalg.vector_norm(Bm @ A, dim=0)
-    A = A / torch.where(dn > 0, dn, torch.ones_like(dn))
+    dn = torch.linalg.vector_norm(coder.Bm @ A, dim=0)
+    return A / torch.where(dn > 0, dn, torch.ones_like(dn))
 
-    from cssat._progress import progress_bar
 
-    info = KSVDInfo([], [], [])
-    BtX = base.adjoint(X)  # (n, K0): Bᵀx once; Dᵀx = Aᵀ(Bᵀx) every iteration
-    bar = progress_bar(None, f"K-SVD ({L} atoms, {n} blocks)", progress, unit="iter", iterable=range(int(n_iter)))
-    for _ in bar:
-        # ---- sparse coding (all blocks at once) ----
-        D = Bm @ A  # (p, L)
-        G = A.T @ _base_gram(base, A)  # DᵀD through the separable BᵀB
-        Gamma, oinfo = batch_omp(
-            D, X, n_nonzero_coefs=cap, tol=tol, gram=G, Dty=BtX @ A, return_info=True, progress=False
-        )
-        info.mean_atoms.append(float(oinfo.n_iter.double().mean()))
-        residual = oinfo.residual_sq.clone()  # per-block coding error: picks replacement blocks
-        available = torch.ones(n, dtype=torch.bool, device=dev)
-        replaced = torch.zeros(L, dtype=torch.bool, device=dev)
+class _Replacements:
+    """The blocks that may replace an atom, worst-coded (largest ``residual``) first, each once
+    per iteration."""
 
-        def take_worst() -> Tensor:
-            """The worst-coded block not yet used for a replacement, coded as a new atom."""
-            r = torch.where(available, residual, torch.full_like(residual, -1.0))
-            i = int(torch.argmax(r))
-            available[i] = False
-            return code_atom(X[i])
+    def __init__(self, X: Tensor, residual: Tensor, coder: _AtomCoder):
+        self.X, self.residual, self.coder = X, residual, coder
+        self.available = torch.ones(X.shape[0], dtype=torch.bool, device=X.device)
 
-        # ---- atom update, sequential in random order ----
-        for j in torch.randperm(L, generator=gen).tolist():
-            users = torch.nonzero(Gamma[:, j]).flatten()
-            if users.numel() == 0:
-                a = take_worst()
-                A[:, j] = a
-                D[:, j] = Bm @ a
-                replaced[j] = True
-                continue
-            g = Gamma[users, j]
-            GI = Gamma[users]  # (|I|, L)
-            dj = D[:, j]
-            Eg = X[users].T @ g - D @ (GI.T @ g) + dj * (g @ g)
-            a = code_atom(Eg)
-            d = Bm @ a
-            if float(torch.linalg.vector_norm(d)) == 0:
-                continue  # nothing to learn from: keep the atom
-            Gamma[users, j] = X[users] @ d - GI @ (D.T @ d) + g * (dj @ d)
+    def any(self) -> bool:
+        return bool(self.available.any())
+
+    def take(self) -> Tensor:
+        """The worst-coded block not yet used for a replacement, coded as a new atom."""
+        r = torch.where(self.available, self.residual, torch.full_like(self.residual, -1.0))
+        i = int(torch.argmax(r))
+        self.available[i] = False
+        return self.coder.atom(self.X[i])
+
+
+def _update_atoms(X, A, D, Gamma, pool: _Replacements, coder: _AtomCoder, gen) -> Tensor:
+    """The atom update, sequential in random order (in place on ``A``, ``D``, ``Gamma``); returns
+    the mask ``(L,)`` of atoms that no block used, replaced by the worst-coded blocks."""
+    L = A.shape[1]
+    replaced = torch.zeros(L, dtype=torch.bool, device=X.device)
+    for j in torch.randperm(L, generator=gen).tolist():
+        users = torch.nonzero(Gamma[:, j]).flatten()
+        if users.numel() == 0:
+            a = pool.take()
             A[:, j] = a
-            D[:, j] = d
+            D[:, j] = coder.Bm @ a
+            replaced[j] = True
+            continue
+        g = Gamma[users, j]
+        GI = Gamma[users]  # (|I|, L)
+        dj = D[:, j]
+        Eg = X[users].T @ g - D @ (GI.T @ g) + dj * (g @ g)
+        a = coder.atom(Eg)
+        d = coder.Bm @ a
+        if float(torch.linalg.vector_norm(d)) == 0:
+            continue  # nothing to learn from: keep the atom
+        Gamma[users, j] = X[users] @ d - GI @ (D.T @ d) + g * (dj @ d)
+        A[:, j] = a
+        D[:, j] = d
+    return replaced
 
-        R = X - Gamma @ D.T
-        err = (R * R).sum(1)
-        info.rmse.append(float(torch.sqrt(err.sum() / (n * p))))
-        bar.set_postfix(rmse=f"{info.rmse[-1]:.4g}", refresh=False)
 
-        # ---- clean the dictionary: rarely used or near-duplicate atoms ----
-        residual = err
-        usecount = (Gamma.abs() > 1e-7).sum(0)
-        n_clear = 0
-        if L > 1:
-            Gd = D.T @ D
-            Gd.fill_diagonal_(0)
-            for j in range(L):
-                if replaced[j]:
-                    continue
-                if bool(usecount[j] < _USE_THRESH) or float(Gd[:, j].abs().max()) > mu_thresh:
-                    if not bool(available.any()):
-                        break
-                    a = take_worst()
-                    A[:, j] = a
-                    D[:, j] = Bm @ a
-                    col = D.T @ D[:, j]
-                    col[j] = 0
-                    Gd[:, j] = col
-                    Gd[j, :] = col
-                    n_clear += 1
-        info.replaced.append(int(replaced.sum()) + n_clear)
-    bar.close()
-
-    out = SparseDictionary(base, A)
-    return (out, info) if return_info else out
+def _clean_atoms(A, D, Gamma, replaced, pool: _Replacements, coder: _AtomCoder, mu_thresh: float) -> int:
+    """Replace rarely used or near-duplicate atoms (``|dᵢᵀdⱼ| > mu_thresh``) by the worst-coded
+    blocks, in place; returns how many were replaced."""
+    L = A.shape[1]
+    usecount = (Gamma.abs() > 1e-7).sum(0)
+    n_clear = 0
+    if L <= 1:
+        return 0
+    Gd = D.T @ D
+    Gd.fill_diagonal_(0)
+    for j in range(L):
+        if replaced[j]:
+            continue
+        if bool(usecount[j] < _USE_THRESH) or float(Gd[:, j].abs().max()) > mu_thresh:
+            if not pool.any():
+                break
+            a = pool.take()
+            A[:, j] = a
+            D[:, j] = coder.Bm @ a
+            col = D.T @ D[:, j]
+            col[j] = 0
+            Gd[:, j] = col
+            Gd[j, :] = col
+            n_clear += 1
+    return n_clear
 
 
 def ksvd(

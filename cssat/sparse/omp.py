@@ -168,6 +168,30 @@ def batch_omp(
       already chosen (exact fit; a zero signal gets a zero code);
     * the chosen atom is linearly dependent on the chosen ones (``L_kk² ≤ 16 ε ‖dⱼ‖²``).
     """
+    D, Y2, squeeze, K, tol = _check_inputs(D, Y, n_nonzero_coefs, tol)
+    B, n_atoms = Y2.shape[0], D.shape[1]
+    use_gram = _choose_path(D, B, K, tol, gram, precompute, backend)
+    out = torch.zeros(B, n_atoms, dtype=D.dtype, device=D.device)
+    n_iter = torch.zeros(B, dtype=torch.long, device=D.device)
+    res_sq = torch.zeros(B, dtype=D.dtype, device=D.device)
+    path = "gram" if use_gram else "nogram"
+    if B == 0:
+        return _finish(out, n_iter, res_sq, squeeze, return_info, path)
+    use_numba, chunk_size = _kernel_settings(D, K, use_gram, backend, chunk_size)
+    from cssat._progress import progress_bar
+
+    with progress_bar(B * K, f"OMP ({path}, {B} signal{'s' if B != 1 else ''}, K={K})", progress, unit="atom") as bar:
+        state = (out, n_iter, res_sq, bar)
+        if use_gram:
+            _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state)
+        else:
+            _run_nogram(D, Y2, K, tol, chunk_size, state)
+    return _finish(out, n_iter, res_sq, squeeze, return_info, path)
+
+
+def _check_inputs(D, Y, n_nonzero_coefs, tol):
+    """Validate ``D``, ``Y``, ``K`` and ``tol`` of :func:`batch_omp`; returns ``(D, Y2, squeeze, K, tol)``
+    with ``Y2 (B, m)`` in ``D``'s dtype and device and ``K`` the per-signal step cap."""
     if D.ndim != 2:
         raise FieldError("D", f"expected a 2-D dictionary (m, n_atoms), got shape {tuple(D.shape)}")
     if not D.is_floating_point():  # integers: the default float dtype, not integer arithmetic
@@ -199,84 +223,94 @@ def batch_omp(
     elif tol is None:
         n_nonzero_coefs = max(1, n_atoms // 10)
     K = min(n_nonzero_coefs if n_nonzero_coefs is not None else n_atoms, m, n_atoms)
-    B = Y2.shape[0]
+    return D, Y2, squeeze, K, tol
 
+
+def _choose_path(D, B, K, tol, gram, precompute, backend) -> bool:
+    """True for the Gram path: forced by ``gram``/``precompute``/``backend="numba"``, else the
+    cheaper one by :func:`omp_path_costs` (and never a Gram over :data:`_GRAM_MAX_BYTES`)."""
+    m, n_atoms = D.shape
     if backend not in ("auto", "torch", "numba"):
         raise FieldError("backend", f"expected 'auto', 'torch' or 'numba', got {backend!r}")
     if precompute not in ("auto", True, False):
         raise FieldError("precompute", f"expected 'auto', True or False, got {precompute!r}")
     if gram is not None or (backend == "numba" and precompute == "auto"):
-        use_gram = True
-    elif precompute == "auto":
+        return True
+    if precompute == "auto":
         # In error-constrained mode the final K is unknown; assume a quarter of the cap.
         k_est = K if tol is None else max(1, K // 4)
         costs = omp_path_costs(m, n_atoms, B, k_est, itemsize=D.element_size())
-        use_gram = costs["gram"] < costs["nogram"] and n_atoms * n_atoms * D.element_size() <= _GRAM_MAX_BYTES
-    else:
-        use_gram = bool(precompute)
+        return costs["gram"] < costs["nogram"] and n_atoms * n_atoms * D.element_size() <= _GRAM_MAX_BYTES
+    return bool(precompute)
 
-    out = torch.zeros(B, n_atoms, dtype=D.dtype, device=D.device)
-    n_iter = torch.zeros(B, dtype=torch.long, device=D.device)
-    res_sq = torch.zeros(B, dtype=D.dtype, device=D.device)
-    if B == 0:
-        return _finish(out, n_iter, res_sq, squeeze, return_info, "gram" if use_gram else "nogram")
+
+def _kernel_settings(D, K, use_gram, backend, chunk_size) -> tuple[bool, int]:
+    """Whether the numba kernel runs the Gram path, and the torch path's chunk of signals: its
+    ``(chunk, K, width)`` work buffer near 8 MB on a CPU (cache), 1 GB on a GPU."""
+    from cssat.sparse import _omp_numba
 
     if backend == "numba" and not use_gram:
         raise FieldError("backend", "'numba' runs the Gram path only; drop precompute=False or use backend='torch'")
-    from cssat.sparse import _omp_numba
-    from cssat.sparse._omp_torch import correlate, omp_chunk
-
     use_numba = use_gram and D.device.type == "cpu" and (
         backend == "numba" or (backend == "auto" and _omp_numba.available())
     )
     if backend == "numba" and not _omp_numba.available():
         raise ImportError("backend: 'numba' needs the numba package (pip install numba)")
-    width = n_atoms if use_gram else m
     if chunk_size is None:
-        per_signal = min(K, _CAP0) * width * D.element_size()
+        m, n_atoms = D.shape
+        per_signal = min(K, _CAP0) * (n_atoms if use_gram else m) * D.element_size()
         budget = (8 << 20) if D.device.type == "cpu" else (1 << 30)
         chunk_size = int(max(1, min(256 if D.device.type == "cpu" else 65536, budget // max(per_signal, 1))))
-    chunk_size = max(1, int(chunk_size))
+    return use_numba, max(1, int(chunk_size))
 
-    from cssat._progress import progress_bar
 
-    path = "gram" if use_gram else "nogram"
-    with progress_bar(B * K, f"OMP ({path}, {B} signal{'s' if B != 1 else ''}, K={K})", progress, unit="atom") as bar:
-        if use_gram:
-            G = as_float_tensor(gram).to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
-            if tuple(G.shape) != (n_atoms, n_atoms):
-                raise FieldError("gram", f"expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
-            if Dty is not None:
-                if Dty.numel() != B * n_atoms:
-                    raise FieldError("Dty", f"expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
-                A0 = as_float_tensor(Dty).reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
-            else:
-                A0 = Y2 @ D
-            diag = torch.diagonal(G).clone()
-            ynorm2 = (Y2 * Y2).sum(1)
-            if use_numba:
-                _omp_numba.omp_gram(
-                    G.contiguous().numpy(), A0.contiguous().numpy(), ynorm2.numpy(), K, tol,
-                    out.numpy(), n_iter.numpy(), res_sq.numpy(), torch.get_num_threads(), _CAP0, bar,
-                )
-            else:
-                for s in range(0, B, chunk_size):
-                    e = min(s + chunk_size, B)
-                    omp_chunk(
-                        A0[s:e], ynorm2[s:e], None, G, None, diag, K, tol,
-                        out[s:e], n_iter[s:e], res_sq[s:e], bar,
-                    )
-        else:
-            Dt = D.T  # (n_atoms, m): atom j is row j (contiguous when D is a transposed view)
-            diag = torch.linalg.vector_norm(D, dim=0) ** 2
-            for s in range(0, B, chunk_size):
-                e = min(s + chunk_size, B)
-                Yc = Y2[s:e]
-                omp_chunk(
-                    correlate(Dt, Yc), (Yc * Yc).sum(1), Yc, None, Dt, diag, K, tol,
-                    out[s:e], n_iter[s:e], res_sq[s:e], bar,
-                )
-    return _finish(out, n_iter, res_sq, squeeze, return_info, path)
+def _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state) -> None:
+    """The Gram path (Batch-OMP) into ``state = (out, n_iter, res_sq, bar)``, by the numba kernel
+    (one signal per thread) or the torch kernel (chunks of ``chunk_size`` signals)."""
+    from cssat.sparse import _omp_numba
+    from cssat.sparse._omp_torch import omp_chunk
+
+    out, n_iter, res_sq, bar = state
+    B, n_atoms = out.shape
+    G = as_float_tensor(gram).to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
+    if tuple(G.shape) != (n_atoms, n_atoms):
+        raise FieldError("gram", f"expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
+    if Dty is not None:
+        if Dty.numel() != B * n_atoms:
+            raise FieldError("Dty", f"expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
+        A0 = as_float_tensor(Dty).reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
+    else:
+        A0 = Y2 @ D
+    diag = torch.diagonal(G).clone()
+    ynorm2 = (Y2 * Y2).sum(1)
+    if use_numba:
+        _omp_numba.omp_gram(
+            G.contiguous().numpy(), A0.contiguous().numpy(), ynorm2.numpy(), K, tol,
+            out.numpy(), n_iter.numpy(), res_sq.numpy(), torch.get_num_threads(), _CAP0, bar,
+        )
+        return
+    for s in range(0, B, chunk_size):
+        e = min(s + chunk_size, B)
+        omp_chunk(
+            A0[s:e], ynorm2[s:e], None, G, None, diag, K, tol,
+            out[s:e], n_iter[s:e], res_sq[s:e], bar,
+        )
+
+
+def _run_nogram(D, Y2, K, tol, chunk_size, state) -> None:
+    """The no-Gram path (Gram–Schmidt on the residual, torch) into ``state``, chunk by chunk."""
+    from cssat.sparse._omp_torch import correlate, omp_chunk
+
+    out, n_iter, res_sq, bar = state
+    Dt = D.T  # (n_atoms, m): atom j is row j (contiguous when D is a transposed view)
+    diag = torch.linalg.vector_norm(D, dim=0) ** 2
+    for s in range(0, Y2.shape[0], chunk_size):
+        e = min(s + chunk_size, Y2.shape[0])
+        Yc = Y2[s:e]
+        omp_chunk(
+            correlate(Dt, Yc), (Yc * Yc).sum(1), Yc, None, Dt, diag, K, tol,
+            out[s:e], n_iter[s:e], res_sq[s:e], bar,
+        )
 
 
 #: the sparse Gram kernel's rate (scattered multiply-adds per second, 2 threads) and the dense
