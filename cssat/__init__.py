@@ -1,8 +1,11 @@
 """cssat — compressed sensing for satellite characterisation.
 
-Layers (``../shared/DESIGN.md``): ``cssat.sparse`` (operators, batched OMP), ``cssat.metrics``,
-``cssat.data`` (targets), ``cssat.experiments`` and the Hydra app ``cssat.app``.
-Submodules are imported on first use so ``import cssat`` stays fast.
+Layers (``../shared/DESIGN.md``): ``cssat.scene`` (orbits, attitudes, meshes), ``cssat.optics``
+(BRDFs, light curves, rendering), ``cssat.data`` (targets, datasets), ``cssat.sparse``
+(operators, batched OMP, K-SVD), ``cssat.reference`` (sensing-matrix estimation),
+``cssat.physics`` (atmospheres, noise, measurements), ``cssat.recon`` (solvers, denoisers),
+``cssat.metrics``, ``cssat.plots``, ``cssat.experiments`` and the Hydra app ``cssat.app``.
+Every one is an attribute of ``cssat``, imported on first use, so ``import cssat`` stays fast.
 """
 
 from __future__ import annotations
@@ -10,10 +13,20 @@ from __future__ import annotations
 import importlib
 
 __version__ = "0.1.0"
-__all__ = ["sparse", "metrics", "data", "experiments", "__version__"]
+
+#: the subpackages and modules reachable as ``cssat.<name>`` (imported lazily)
+SUBMODULES = ("scene", "optics", "data", "sparse", "reference", "physics", "recon", "metrics", "plots",
+              "experiments", "summary")
+__all__ = [*SUBMODULES, "__version__"]
 
 
 def __getattr__(name: str):
-    if name in ("sparse", "metrics", "data", "experiments"):
-        return importlib.import_module(f"cssat.{name}")
+    if name in SUBMODULES:
+        module = importlib.import_module(f"cssat.{name}")
+        globals()[name] = module
+        return module
     raise AttributeError(f"module 'cssat' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *SUBMODULES})

@@ -90,16 +90,22 @@ def release(tmp: Path) -> None:
     _send(b"-", tmp)
 
 
-def atomic_write(path: str | os.PathLike, write) -> None:
+def atomic_write(path: str | os.PathLike, write, result: bool = True) -> None:
     """Write ``path`` through ``write(tmp)`` on a temporary file beside it, then rename it into
     place: a reader sees the old file or the new one, never a part. The temporary file gets the
-    mode the user's umask gives a new file, and is removed even when this process is killed."""
+    mode the user's umask gives a new file, and is removed even when this process is killed.
+    ``result``: the file is a result of the run being recorded (:mod:`cssat._record`; a cache
+    entry or a sweep's bookkeeping passes ``False``)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = temporary_path(path)
     try:
         write(str(tmp))
         os.replace(tmp, path)
+        if result:
+            from cssat._record import note_output
+
+            note_output(path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

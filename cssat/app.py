@@ -17,8 +17,13 @@ from omegaconf import DictConfig
 
 log = logging.getLogger("cssat")
 
+#: the metrics a sweeper may optimise (``optimized_metric``): every experiment that reconstructs
+#: an image writes them
+OPTIMIZED_METRICS = ("psnr", "ssim", "psnr_denoised", "ssim_denoised")
 
-def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Callable[[], None] | None = None) -> float | None:
+
+def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Callable[[], None] | None = None,
+         tags: dict[str, Any] | None = None) -> float | None:
     """Run one job of the app into ``output_dir`` and return the metric named by
     ``cfg.optimized_metric`` (default ``psnr``; ``None`` when it is null or not a number), the
     value a sweeper such as Optuna's optimises.
@@ -33,8 +38,11 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
     from cssat.experiments import run_experiment
 
     try:
+        key = cfg.get("optimized_metric", "psnr")
+        if key is not None and key not in OPTIMIZED_METRICS:  # checked before any work
+            raise FieldError("optimized_metric", f"expected one of {list(OPTIMIZED_METRICS)} or null, got {key!r}")
         with logging_redirect_tqdm():  # log lines printed above the progress bars, not through them
-            metrics = run_experiment(cfg, output_dir, finalize=finalize)
+            metrics = run_experiment(cfg, output_dir, finalize=finalize, tags=tags)
     except Exception as err:
         if multirun:
             log.error("job failed: %s", err)
@@ -42,10 +50,41 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
         if isinstance(err, FieldError):  # bad input: its field is in the error, not parsed from a message
             log.error("bad input: %s", err)
             sys.exit(2)
+        if isinstance(err, OSError):  # the machine, not the input: a full disk, a read-only directory
+            import errno
+
+            writing = err.errno in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT,
+                                    errno.EEXIST, errno.ENOTDIR, errno.EISDIR)
+            log.error("%s: %s", "cannot write the results" if writing else "system error", _os_error(err, output_dir))
+            sys.exit(1)
         raise
     key = cfg.get("optimized_metric", "psnr")
     value = metrics.get(key) if key else None
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+def _os_error(err: OSError, where: str | Path) -> str:
+    """``<path>: <cause>`` of an OS error, in one line."""
+    path = err.filename if err.filename is not None else where
+    return f"{path}: {err.strerror or err}"
+
+
+def _check_output_dir(overrides: list[str], multirun: bool) -> str | None:
+    """Why the run's output directory cannot be written (a file in its place, a read-only or
+    unwritable parent), or ``None``; checked before Hydra creates it."""
+    import os
+
+    key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
+    given = [o.split("=", 1)[1] for o in overrides if o.split("=", 1)[0].lstrip("+") == key]
+    path = Path(given[-1]) if given and "${" not in given[-1] else Path("outputs" if not given else ".")
+    p = path if str(path) else Path(".")
+    if p.exists() and not p.is_dir():
+        return f"{key}: {p} exists and is not a directory"
+    while not p.exists():
+        p = p.parent
+    if not os.access(p, os.W_OK | os.X_OK):
+        return f"{key}: {p} is not writable (read-only file system or no permission)"
+    return None
 
 
 @hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
@@ -61,6 +100,7 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     if choice and cfg.get("experiment_name") != choice:  # an experiment is its YAML: the file names it
         with open_dict(cfg):
             cfg.experiment_name = choice
+    tags = None
     if multirun:  # mark the job directory with its sweep's id (the summary keeps this sweep's jobs)
         from cssat.summary import SWEEP_MARK, sweep_id
 
@@ -69,6 +109,7 @@ def _hydra_main(cfg: DictConfig) -> float | None:
             out = Path(hc.runtime.output_dir)
             out.mkdir(parents=True, exist_ok=True)
             (out / SWEEP_MARK).write_text(sid + "\n")
+            tags = {"sweep_id": sid}
 
     def save_hydra_files() -> None:
         """Hydra wrote ``.hydra/`` before this run took the directory's lock; a second run refused
@@ -83,9 +124,9 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         d = Path(hc.runtime.output_dir) / sub
         task_cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]) if "hydra" in cfg else cfg
         for name, node in (("config.yaml", task_cfg), ("overrides.yaml", OmegaConf.create(list(hc.overrides.task)))):
-            atomic_write(d / name, lambda tmp, node=node: OmegaConf.save(node, tmp))
+            atomic_write(d / name, lambda tmp, node=node: OmegaConf.save(node, tmp), result=False)
 
-    return task(cfg, hc.runtime.output_dir, multirun=multirun, finalize=save_hydra_files)
+    return task(cfg, hc.runtime.output_dir, multirun=multirun, finalize=save_hydra_files, tags=tags)
 
 
 def _register_launcher() -> None:
@@ -104,12 +145,23 @@ def _register_launcher() -> None:
 def main() -> None:
     """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
     after every job has run and the summary is written."""
-    from cssat import __version__, summary
+    from cssat import __version__, _cli_check, summary
 
+    logging.raiseExceptions = False  # a log file on a full disk: drop its lines, never print tracebacks
     if "--version" in sys.argv[1:] or "-V" in sys.argv[1:]:  # cssat's version, not Hydra's
         print(f"cssat {__version__}")
         return
     _register_launcher()
+    overrides = _cli_check.overrides_of(sys.argv[1:])
+    if overrides:  # a mistake on the command line: one line naming the key, exit 2 (not Hydra's text)
+        why = _cli_check.check(overrides)
+        if why is not None:
+            print(f"bad input: {why}", file=sys.stderr)
+            sys.exit(2)
+    why = _check_output_dir(overrides or [], any(a in ("-m", "--multirun") for a in sys.argv[1:]))
+    if why is not None and overrides is not None:
+        print(f"cannot write the results: {why}", file=sys.stderr)
+        sys.exit(1)
     _hydra_main()
     if summary.SWEEP_FAILED:
         log.error("sweep: not every job ended ok (see summary.csv)")

@@ -212,4 +212,6 @@ def relative_error(phi_hat: Tensor, phi: Tensor) -> float:
         a, b = phi_hat[s : s + 1024].double(), phi[s : s + 1024].double()
         num += float(((a - b) ** 2).sum())
         den += float((b**2).sum())
-    return math.sqrt(num / den) if den > 0 else math.sqrt(num)
+    if den == 0:
+        raise FieldError("phi", "the reference Φ is zero: its relative error is undefined")
+    return math.sqrt(num / den)

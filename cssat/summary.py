@@ -4,7 +4,9 @@ Written by a Hydra callback at the end of every multirun (:class:`SummaryCallbac
 ``conf/config.yaml``), and by the standalone ``cssat-summarize <sweep dir>`` for sweeps that were
 interrupted or had failures. A job is a sub-directory with Hydra's ``.hydra/overrides.yaml``; its
 row holds the swept values, every scalar metric of its ``metrics.json``, ``seconds`` and
-``status`` (``ok``, ``failed`` or ``missing`` when the job left no metrics).
+``status`` (``ok``, ``failed``, ``missing`` when the job left no metrics or its metrics are
+another sweep's, ``corrupt`` when they cannot be read or a result file no longer has its hash).
+``cssat-summarize`` exits 1 when a row is not ``ok``.
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ def _number(text: Any) -> Any:
 
 
 SWEEP_MARK = ".cssat-sweep"
+#: held by the sweep's main process from its start to its summary: one sweep per directory
+SWEEP_LOCK = ".cssat-sweep.lock"
 
 
 def sweep_id(directory: str | Path) -> str | None:
@@ -85,6 +89,7 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
             for k, v in metrics.items():
                 if v is None or isinstance(v, (int, float, str, bool)):
                     row[k] = v
+            row.update(_verify(job, metrics, current))
         else:
             row["status"] = "missing"
         rows.append(row)
@@ -98,6 +103,29 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
         for k in swept:
             row[k] = _number(ov.get(k))
     return rows, swept
+
+
+def _verify(job: Path, metrics: dict, current: str | None) -> dict[str, Any]:
+    """``{}`` when the job's ``metrics.json`` is this sweep's and its result files still hash as
+    listed; else the ``status`` (``missing``: another sweep's results; ``corrupt``) and ``error``."""
+    from cssat.experiments.results import file_hash
+
+    sid = metrics.get("sweep_id")
+    if current is not None and sid is not None and sid != current:
+        return {"status": "missing", "error": f"the job did not run in this sweep (its results are of sweep {sid})"}
+    if metrics.get("status") != "ok":
+        return {}
+    files = metrics.get("files")
+    if not isinstance(files, dict):
+        return {"status": "corrupt", "error": "metrics.json lists no result files"}
+    for rel, h in files.items():
+        p = job / str(rel)
+        try:
+            if file_hash(p) != h:
+                return {"status": "corrupt", "error": f"{rel} changed since the run (its content hash differs)"}
+        except OSError as err:
+            return {"status": "corrupt", "error": f"{rel}: {err.strerror or err}"}
+    return {}
 
 
 #: swept config keys in words, and those plotted as a ratio of the pixel count
@@ -155,6 +183,8 @@ except ImportError:  # pragma: no cover
 
 #: set when the last multirun of this process had a job that did not end ``ok`` (the app then exits 1)
 SWEEP_FAILED = False
+#: the sweep directories this process holds (their ``FileLock``), from a multirun's start to its end
+_SWEEP_LOCKS: dict[str, Any] = {}
 
 
 class SummaryCallback(Callback):
@@ -165,13 +195,30 @@ class SummaryCallback(Callback):
         self.metric = metric
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        import os
+        import sys
         import uuid
+
+        from filelock import FileLock, Timeout
 
         from cssat._tmpfiles import atomic_write
 
         d = Path(config.hydra.sweep.dir)
         d.mkdir(parents=True, exist_ok=True)
-        atomic_write(d / SWEEP_MARK, lambda tmp: Path(tmp).write_text(uuid.uuid4().hex + "\n"))
+        lock = FileLock(str(d / SWEEP_LOCK), timeout=0)
+        try:
+            lock.acquire()
+        except Timeout:
+            try:
+                other = (d / (SWEEP_LOCK + ".pid")).read_text().strip()
+            except OSError:
+                other = "?"
+            log.error("hydra.sweep.dir: %s is in use by another cssat sweep (pid %s); wait for it or choose "
+                      "another hydra.sweep.dir", d, other)
+            sys.exit(2)
+        _SWEEP_LOCKS[str(d)] = lock  # module state, not the callback's: Hydra pickles callbacks to the workers
+        (d / (SWEEP_LOCK + ".pid")).write_text(str(os.getpid()))
+        atomic_write(d / SWEEP_MARK, lambda tmp: Path(tmp).write_text(uuid.uuid4().hex + "\n"), result=False)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         global SWEEP_FAILED
@@ -181,6 +228,9 @@ class SummaryCallback(Callback):
             summarize(config.hydra.sweep.dir, self.metric, collected, str(config.get("figure_format") or "png"))
         except Exception as err:  # a summary must never turn a finished sweep into a failure
             log.error("sweep summary failed: %s (run cssat-summarize %s)", err, config.hydra.sweep.dir)
+        lock = _SWEEP_LOCKS.pop(str(config.hydra.sweep.dir), None)
+        if lock is not None:
+            lock.release()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -205,6 +255,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(csv_path)
     if png:
         print(png)
+    bad = [f"{r['job']}: {r.get('status')}" for r in rows if r.get("status") != "ok"]
+    if bad or not rows:
+        log.error("not every job ended ok: %s", "; ".join(bad) or "no jobs")
+        return 1
     return 0
 
 

@@ -102,7 +102,7 @@ def test_sim1_is_deterministic_and_recovers_a_compressible_image(tmp_path):
         ("target.image=/nonexistent.png", "target.image"),
         ("denoiser.n_iter=0", "denoiser.n_iter"),
         ("denoiser.sigma=-1", "denoiser.sigma"),
-        ("denoiser.block_size=17", "denoiser"),
+        ("denoiser.block_size=17", "denoiser.block_size"),
         ("atmosphere.std=-1", "atmosphere.std"),
         ("atmosphere.emitters=facets", "atmosphere.emitters"),
         ("noise=gaussian,noise.relative=-0.1", "noise.relative"),

@@ -48,3 +48,15 @@ def test_patch_errors_name_the_argument():
         extract_patches(torch.zeros(9, 9), 3, step=4)
     with pytest.raises(ValueError, match="patches: expected shape"):
         fold_patches(torch.zeros(3, 4), (5, 5), 2)
+
+
+@pytest.mark.parametrize("shape,size,step", [((13, 17), (4, 5), 1), ((20, 23), 6, 3), ((16, 16), 8, (2, 8)),
+                                             ((9, 12), (3, 4), (2, 3))])
+def test_2d_patches_equal_a_brute_force_loop_at_any_step(shape, size, step):
+    """The unfold path (2-D) against patches cut by hand at the positions of patch_positions."""
+    x = torch.randn(*shape, dtype=torch.float32)
+    py, px = patch_positions(shape, size, step)
+    ph, pw = (size, size) if isinstance(size, int) else size
+    ref = torch.stack([x[i:i + ph, j:j + pw].reshape(-1) for i in py.tolist() for j in px.tolist()])
+    got = extract_patches(x, size, step)
+    assert torch.equal(got, ref)

@@ -112,7 +112,7 @@ def test_standalone_summary_reports_missing_jobs(tmp_path, capsys):
     assert res.returncode == 0, res.stderr
     (sweep / "1" / "metrics.json").unlink()  # an interrupted job
     (sweep / "summary.csv").unlink()
-    assert summarize_main([str(sweep)]) == 0
+    assert summarize_main([str(sweep)]) == 1  # a row is not ok
     rows = rows_of(sweep / "summary.csv")
     assert [r["status"] for r in rows] == ["ok", "missing"] and [r["cs.m"] for r in rows] == ["60", "120"]
     _, swept = collect(sweep)
@@ -159,7 +159,7 @@ def test_summarize_marks_a_corrupt_metrics_file_and_checks_the_metric(tmp_path, 
     assert res.returncode == 0, res.stderr
     text = (sweep / "1" / "metrics.json").read_text()
     (sweep / "1" / "metrics.json").write_text(text[: len(text) // 2])  # truncated
-    assert summarize_main([str(sweep)]) == 0
+    assert summarize_main([str(sweep)]) == 1
     rows = rows_of(sweep / "summary.csv")
     assert [r["status"] for r in rows] == ["ok", "corrupt"] and "metrics.json" in rows[1]["error"]
     with pytest.raises(SystemExit):
@@ -170,15 +170,18 @@ def test_summarize_marks_a_corrupt_metrics_file_and_checks_the_metric(tmp_path, 
 
 def test_a_worker_killed_by_the_os_fails_its_job_only(tmp_path):
     """Under launcher=local, a job whose worker process is killed (as by the OOM killer) is a
-    failed row; the other jobs finish, the summary is written, and the sweep exits 1."""
+    failed row; the other jobs finish — also the one that shared the batch with it when its
+    worker died, which is never blamed —, the summary is written, and the sweep exits 1."""
     pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
     import os
 
     (tmp_path / "killer.py").write_text(
-        "import os, signal\n"
+        "import os, signal, time\n"
         "def run(cfg, out_dir):\n"
         "    if cfg.cs.m == 2:\n"
+        "        time.sleep(0.5)\n"
         "        os.kill(os.getpid(), signal.SIGKILL)  # what the OOM killer does\n"
+        "    time.sleep(2)  # job 1 is still running in the other worker when job 2's worker dies\n"
         "    return {'psnr': float(cfg.cs.m), 'ssim': None}\n")
     (tmp_path / "conf" / "experiment").mkdir(parents=True)
     (tmp_path / "conf" / "experiment" / "killer.yaml").write_text(
@@ -193,3 +196,22 @@ def test_a_worker_killed_by_the_os_fails_its_job_only(tmp_path):
     assert set(rows) == {"1", "2", "3", "4"}
     assert rows["2"]["status"] == "failed" and "killed" in rows["2"]["error"]
     assert all(rows[m]["status"] == "ok" and float(rows[m]["psnr"]) == float(m) for m in ("1", "3", "4"))
+
+
+def test_an_optuna_search_runs_at_a_tiny_size(tmp_path):
+    """conf/hparams_search/omp_optuna.yaml (the optuna extra): trials are jobs of one sweep, the
+    best value Optuna reports is the best PSNR of the summary."""
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    import yaml
+
+    sweep = tmp_path / "search"
+    res = subprocess.run([sys.executable, "-m", "cssat.app", "hparams_search=omp_optuna", "target.size=16",
+                          "hydra.sweeper.n_trials=3", "denoiser=none", "threads=1", f"hydra.sweep.dir={sweep}"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stdout + res.stderr
+    rows = rows_of(sweep / "summary.csv")
+    assert len(rows) == 3 and all(r["status"] == "ok" for r in rows)
+    ks = [float(r["solver.k_ratio"]) for r in rows]
+    assert all(0.02 <= k <= 0.4 for k in ks) and len(set(ks)) == 3
+    best = yaml.safe_load((sweep / "optimization_results.yaml").read_text())
+    assert best["best_value"] == pytest.approx(max(float(r["psnr"]) for r in rows))

@@ -3,9 +3,11 @@
 hydra-joblib-launcher runs the jobs in loky worker processes; when the OS kills one (the OOM
 killer, a SIGKILL), loky raises ``TerminatedWorkerError`` for the whole batch and the sweep ends
 with no summary. :class:`RobustJoblibLauncher` (``launcher=local``) runs the batch again without
-the jobs that finished, up to ``retries`` times; a job that was running when a worker died in two
-rounds is taken to be the one killing it, and is recorded as failed (its ``metrics.json`` says
-``status: failed``) so that the rest of the sweep finishes and the summary is written.
+the jobs that finished. The jobs that were running when a worker died are then run one at a time:
+a job whose worker dies twice while it runs alone is the one killing it, and is recorded as
+failed (its ``metrics.json`` says ``status: failed``) so that the rest of the sweep finishes and
+the summary is written; a job that only shared a batch with it is never blamed. ``retries``
+bounds the deaths with no job started (nothing to blame).
 """
 
 from __future__ import annotations
@@ -73,40 +75,58 @@ class RobustJoblibLauncher(JoblibLauncher):
         )
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int):
+        """Run every job; after a worker dies, the jobs that were running then are run again one
+        at a time, so a job is blamed (recorded ``failed``) only when its worker dies twice while
+        it runs alone — never a job that only shared the batch with the culprit."""
         from hydra.core.utils import JobReturn, JobStatus
         from joblib.externals.loky.process_executor import TerminatedWorkerError
 
-        from cssat.experiments.files import write_json
+        def done(i: int) -> JobReturn:
+            return JobReturn(overrides=list(job_overrides[i]), status=JobStatus.COMPLETED, _return_value=None)
 
         pending = list(range(len(job_overrides)))
         results: dict[int, Any] = {}
-        suspects: dict[int, int] = {}
-        for round_ in range(self.retries + 1):
-            batch = [i for i in pending if i not in results]
-            if not batch:
+        suspects: list[int] = []  # started when a worker died: from then on run alone
+        deaths: dict[int, int] = {}  # worker deaths while the job ran alone
+        blind = 0  # deaths with no job started (nothing to blame)
+        while True:
+            todo = [i for i in pending if i not in results]
+            if not todo:
                 break
+            solo = [i for i in suspects if i not in results]
+            batch = solo[:1] or todo
             try:
                 results.update(zip(batch, self._run(job_overrides, batch, initial_job_idx)))
-                break
+                continue
             except TerminatedWorkerError as err:
                 log.error("sweep: a worker was killed (%s); running the unfinished jobs again", str(err).splitlines()[0])
-                for i in batch:
-                    state = _state(_job_dir(self.config, initial_job_idx + i))
-                    if state == "done":
-                        results[i] = JobReturn(overrides=list(job_overrides[i]), status=JobStatus.COMPLETED,
-                                               _return_value=None)
-                    elif state == "started":
-                        suspects[i] = suspects.get(i, 0) + 1
-                for i, n in suspects.items():
-                    if n >= 2 and i not in results:  # running both times a worker died: the culprit
-                        d = _job_dir(self.config, initial_job_idx + i)
-                        write_json(d / "metrics.json", {"status": "failed", "error": "the job's worker process was "
-                                   "killed by the OS twice (out of memory?)", "experiment": None})
-                        results[i] = JobReturn(overrides=list(job_overrides[i]), status=JobStatus.COMPLETED,
-                                               _return_value=None)
-        for i in pending:  # still lost after the last round
-            if i not in results:
-                d = _job_dir(self.config, initial_job_idx + i)
-                write_json(d / "metrics.json", {"status": "failed", "error": "the job's worker was killed by the OS"})
-                results[i] = JobReturn(overrides=list(job_overrides[i]), status=JobStatus.COMPLETED, _return_value=None)
+            started = []
+            for i in batch:
+                state = _state(_job_dir(self.config, initial_job_idx + i))
+                if state == "done":
+                    results[i] = done(i)
+                elif state == "started":
+                    started.append(i)
+            if len(batch) == 1 and started == batch:
+                i = batch[0]
+                deaths[i] = deaths.get(i, 0) + 1
+                if deaths[i] >= 2:  # its worker died twice while it ran alone: the culprit
+                    self._fail(i, initial_job_idx, "the job's worker process was killed by the OS twice while it "
+                               "ran alone (out of memory?)")
+                    results[i] = done(i)
+            elif started:
+                suspects.extend(i for i in started if i not in suspects)
+            else:
+                blind += 1
+                if blind > self.retries:
+                    for i in todo:
+                        if i not in results:
+                            self._fail(i, initial_job_idx, "the job's worker was killed by the OS")
+                            results[i] = done(i)
         return [results[i] for i in pending]
+
+    def _fail(self, i: int, initial_job_idx: int, error: str) -> None:
+        from cssat.experiments.files import write_json
+
+        write_json(_job_dir(self.config, initial_job_idx + i) / "metrics.json",
+                   {"status": "failed", "error": error, "experiment": None})

@@ -7,7 +7,7 @@ DataLoader workers.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -24,6 +24,22 @@ if TYPE_CHECKING:
 
 
 __all__ = ["ReferenceImages", "LightCurves", "item_rng"]
+
+
+def check_index(index: Any, length: int) -> int:
+    """``index`` as an item number in ``[0, length)`` (negative counts from the end); an index
+    that is not an integer (``1.7``, ``True``, a string) is a TypeError, not truncated."""
+    import numbers
+
+    if isinstance(index, bool) or not isinstance(index, numbers.Integral):
+        if not (hasattr(index, "ndim") and index.ndim == 0 and not getattr(index, "is_floating_point", lambda: True)()):
+            raise TypeError(f"index: expected an integer, got {index!r}")
+    index = int(index)
+    if index < 0:
+        index += length
+    if not 0 <= index < length:
+        raise IndexError(f"index {index} outside [0, {length})")
+    return index
 
 
 def item_rng(seed: int, index: int, stream: int = 0) -> np.random.Generator:
@@ -45,6 +61,12 @@ class ReferenceImages(Dataset):
     item by item (``y`` to the rounding of a batched ``Φx``). All images share the field of view ``fov_m`` (default: the mesh's bounding
     sphere), hence the same scale. ``normalize`` divides each image by its maximum (before
     noise), so images lie in [0, 1].
+
+    ``resample=True`` draws fresh noise (the images' white noise and the light curves') in every
+    epoch: call :meth:`set_epoch` at the start of each (as with torch's ``DistributedSampler``);
+    item ``i`` of epoch ``e`` is a pure function of ``(seed, i, e)``, so training stays
+    reproducible. The Sun and view directions of an item never change. Default: the same noise
+    in every epoch.
     """
 
     def __init__(
@@ -61,6 +83,7 @@ class ReferenceImages(Dataset):
         *,
         channel_axis: bool = False,
         measurement: Measurement | None = None,
+        resample: bool = False,
     ):
         if isinstance(size, bool) or not isinstance(size, int) or size < 1:
             raise FieldError("reference.size", f"must be a positive integer, got {size!r}")
@@ -79,6 +102,21 @@ class ReferenceImages(Dataset):
         self.mesh, self.size, self.length, self.seed = mesh, size, length, int(seed)
         self.noise, self.fov_m, self.shadows, self.normalize, self.dtype = float(noise), fov_m, shadows, normalize, dtype
         self.channel_axis, self.measurement = bool(channel_axis), measurement
+        if not isinstance(resample, bool):
+            raise FieldError("resample", f"expected true or false, got {resample!r}")
+        self.resample, self.epoch = resample, 0
+
+    def set_epoch(self, epoch: int) -> None:
+        """The epoch whose noise the items draw (``resample=True``; ignored otherwise)."""
+        if isinstance(epoch, bool) or not isinstance(epoch, (int, np.integer)) or epoch < 0:
+            raise FieldError("epoch", f"expected an integer >= 0, got {epoch!r}")
+        self.epoch = int(epoch)
+
+    def _noise_rng(self, index: int, stream: int) -> np.random.Generator:
+        """The generator of item ``index``'s noise ``stream`` (this epoch's, with ``resample``)."""
+        if self.resample:
+            return np.random.default_rng([self.seed, int(index), stream, self.epoch + 1])
+        return item_rng(self.seed, index, stream)
 
     def __len__(self) -> int:
         return self.length
@@ -91,12 +129,7 @@ class ReferenceImages(Dataset):
         return d[0], d[1]
 
     def _index(self, index: int) -> int:
-        index = int(index)
-        if index < 0:
-            index += self.length
-        if not 0 <= index < self.length:
-            raise IndexError(f"index {index} outside [0, {self.length})")
-        return index
+        return check_index(index, self.length)
 
     def images(self, indices: Sequence[int]) -> torch.Tensor:
         """The images of ``indices`` (any order, repeats allowed) rendered in one vectorised
@@ -117,7 +150,7 @@ class ReferenceImages(Dataset):
         if self.noise > 0:
             scale = img.amax((1, 2)) if not self.normalize else torch.ones(len(idx), dtype=img.dtype)
             for k, i in enumerate(idx):
-                g = item_rng(self.seed, i, 1)
+                g = self._noise_rng(i, 1)
                 img[k] += self.noise * float(scale[k]) * torch.from_numpy(g.standard_normal((self.size, self.size)))
         return img.to(self.dtype)
 
@@ -130,7 +163,7 @@ class ReferenceImages(Dataset):
         y = meas.A(flat)
         flux = flat.sum(-1)
         for k, i in enumerate(indices):
-            gen = torch.Generator().manual_seed(int(item_rng(self.seed, self._index(i), 3).integers(0, 2**62)))
+            gen = torch.Generator().manual_seed(int(self._noise_rng(self._index(i), 3).integers(0, 2**62)))
             y[k] = meas.add_noise(y[k], gen, flux=flux[k])
         return y
 
@@ -208,8 +241,7 @@ class LightCurves(Dataset):
     def __getitem__(self, index: int) -> dict:
         from cssat.physics import Measurement
 
-        if not 0 <= index < self.length:
-            raise IndexError(f"index {index} outside [0, {self.length})")
+        index = check_index(index, self.length)
         seed = int(item_rng(self.seed, index, 2).integers(0, 2**62))
         item = {"times": self.times, "clean": self.clean}
         if self.atmosphere is None:

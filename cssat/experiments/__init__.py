@@ -17,7 +17,6 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable
 
-from cssat._checks import FieldError
 from cssat._checks import FieldError, int_param
 
 __all__ = ["experiment_names", "run_experiment", "config_sha", "provenance", "ConfigError", "FieldError"]
@@ -42,7 +41,8 @@ def _process_seconds() -> float:
     return max(0.0, time.time() - psutil.Process().create_time())
 
 
-def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] | None = None) -> dict[str, Any]:
+def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] | None = None,
+                   tags: dict[str, Any] | None = None) -> dict[str, Any]:
     """Run the experiment ``cfg.experiment_name`` into ``out_dir`` and return its metrics.
 
     The experiment is the pipeline (:func:`cssat.experiments.pipeline.run`) configured by ``cfg``,
@@ -53,11 +53,12 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
     The run holds a lock on ``out_dir`` (a second run into it is refused, naming it). It removes
     the old ``metrics.json`` first, so a run killed at any moment leaves no complete-looking set,
     and writes ``metrics.json`` last: the experiment's flat metrics plus ``status``, ``seconds``,
-    ``experiment``, ``config_sha`` (a hash of the config without ``threads``, ``resume`` …),
+    ``experiment``, ``config_sha`` (a hash of the config without ``resume``, ``progress`` …),
     provenance, ``files`` (every result file with its content hash) and ``inputs`` (the hashes of
     the input files read). On failure ``status: failed`` and ``error``, and the exception is
     re-raised. ``finalize`` runs under the lock after that (the app re-writes Hydra's ``.hydra/``
-    files there, which a refused second run may have overwritten).
+    files there, which a refused second run may have overwritten). ``tags`` (e.g. the sweep's
+    ``sweep_id``) are added to ``metrics.json``, also of a skipped run.
 
     Resuming: when ``cfg.resume`` is true (the default) and ``out_dir`` holds a complete, current
     result set — ``status: ok``, the same ``config_sha``, every listed file with its hash, the same
@@ -66,10 +67,9 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
     """
     import torch
 
+    from cssat._record import recording
     from cssat.experiments.files import write_json
-    from cssat.experiments.results import (
-        check_complete, clear_results, input_files, load_saved, result_files, run_lock,
-    )
+    from cssat.experiments.results import check_complete, clear_results, load_saved, move_aside, result_files, run_lock
 
     startup = _process_seconds()
     out_dir = Path(out_dir)
@@ -82,39 +82,57 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
             why = check_complete(out_dir, saved, sha, cfg)
             if why is None:
                 log.info("%s: complete results already in %s, skipped (resume=false to redo)", name, out_dir)
+                if tags and any(saved.get(k) != v for k, v in tags.items()):
+                    saved.update(tags)
+                    write_json(out_dir / "metrics.json", saved)
                 if finalize is not None:
                     finalize()
                 return saved
             log.info("%s: running again in %s: %s", name, out_dir, why)
+        move_aside(out_dir, saved, name, sha)
         clear_results(out_dir)
         t0 = time.perf_counter()
-        metrics: dict[str, Any] = {"experiment": name, "config_sha": sha, **provenance()}
-        try:
-            torch.set_num_threads(int_param(cfg.get("threads", 1), "threads", 1, 1024))
-            module_name = cfg.get("experiment_module") or "cssat.experiments.pipeline"
+        metrics: dict[str, Any] = {"experiment": name, "config_sha": sha, **(tags or {}), **provenance()}
+        with recording(out_dir) as rec:
             try:
-                module = importlib.import_module(str(module_name))
-            except ImportError as err:
-                raise FieldError("experiment_module", f"cannot import {module_name!r}: {err}") from err
-            metrics.update(module.run(cfg, out_dir))
-            metrics.update(status="ok", inputs=input_files(cfg), seconds_startup=startup)
-        except BaseException as err:
-            metrics.update(status="failed", error=f"{type(err).__name__}: {err}")
-            metrics["seconds"] = time.perf_counter() - t0
-            write_json(out_dir / "metrics.json", metrics)
-            if not isinstance(err, FieldError):
-                log.debug("%s", traceback.format_exc())
-            raise
+                torch.set_num_threads(int_param(cfg.get("threads", 1), "threads", 1, 1024))
+                module_name = cfg.get("experiment_module") or "cssat.experiments.pipeline"
+                try:
+                    module = importlib.import_module(str(module_name))
+                except ImportError as err:
+                    raise FieldError("experiment_module", f"cannot import {module_name!r}: {err}") from err
+                metrics.update(module.run(cfg, out_dir))
+                metrics.update(status="ok", inputs=dict(rec.inputs), seconds_startup=startup)
+            except BaseException as err:
+                metrics.update(status="failed", error=f"{type(err).__name__}: {err}")
+                metrics["seconds"] = time.perf_counter() - t0
+                _write_status(out_dir, metrics)
+                if not isinstance(err, FieldError):
+                    log.debug("%s", traceback.format_exc())
+                raise
         metrics["seconds"] = time.perf_counter() - t0
-        metrics["files"] = result_files(out_dir)
+        metrics["files"] = result_files(out_dir, rec.outputs)
         write_json(out_dir / "metrics.json", metrics)
         if finalize is not None:
             finalize()
     return metrics
 
 
-#: config keys that do not change a run's results (left out of its config hash)
-_NOT_RESULTS = ("threads", "resume", "hydra", "optimized_metric")  # and "progress" at any depth: config_sha
+def _write_status(out_dir: Path, metrics: dict[str, Any]) -> None:
+    """Write a failed run's ``metrics.json``; a disk that refuses it (full, read-only) is logged,
+    not raised over the run's own error."""
+    from cssat.experiments.files import write_json
+
+    try:
+        write_json(out_dir / "metrics.json", metrics)
+    except OSError as err:
+        log.error("could not write %s: %s", out_dir / "metrics.json", err)
+
+
+#: config keys that do not change a run's results (left out of its config hash). ``threads`` is
+#: *in* the hash: BLAS sums in another order on another thread count (sim3's minimum-norm PSNR moves
+#: by ~1e-5 dB between 1 and 2 threads), so results of another thread count are not "the same".
+_NOT_RESULTS = ("resume", "hydra", "optimized_metric")  # and "progress" at any depth: config_sha
 
 
 def provenance() -> dict[str, Any]:
@@ -159,8 +177,8 @@ def _git_commit(root: Path) -> str | None:
 
 def config_sha(cfg: Any) -> str:
     """A short hash of the resolved config, without the keys that do not change the results
-    (``threads``, ``resume``, ``progress`` — also the ``progress`` of the solver and denoiser
-    nodes, …)."""
+    (``resume``, ``progress`` — also the ``progress`` of the solver and denoiser nodes, …);
+    ``threads`` is part of it (the last digits of some results depend on it)."""
     from omegaconf import DictConfig, OmegaConf
 
     if isinstance(cfg, DictConfig):

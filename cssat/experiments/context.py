@@ -62,7 +62,7 @@ class Run:
             seed=int_param(cfg.get("seed", 0), "seed", 0, 2**63 - 1),
             progress=progress_param(cfg.get("progress")),
             figure_format=choice_param(cfg.get("figure_format", "png"), "figure_format", FIGURE_FORMATS),
-            memory_limit_gb=None if limit is None else float_param(limit, "memory_limit_gb", 0.0),
+            memory_limit_gb=None if limit is None else float_param(limit, "memory_limit_gb", 0.0, 1e6, open_lo=True),
         )
 
     @property

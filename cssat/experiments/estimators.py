@@ -185,8 +185,8 @@ class Sparse(_References):
                  noise: float = 0.01, seed: int | None = None, shadows: bool = True, cache_dir: str | None = None):
         super().__init__(model, noise, seed, shadows, cache_dir)
         self.n, self.pool = opt(n, int_param, "n", 1), opt(pool, int_param, "pool", 1)
-        self.ratio = opt(ratio, float_param, "ratio", 0.0, 1.0)
-        self.pool_ratio = opt(pool_ratio, float_param, "pool_ratio", 0.0)
+        self.ratio = opt(ratio, float_param, "ratio", 0.0, 1.0, open_lo=True)
+        self.pool_ratio = opt(pool_ratio, float_param, "pool_ratio", 0.0, open_lo=True)
         self.repeats = int_param(repeats, "repeats", 1, 1000)
         self.t0 = n_nonzero_coefs if n_nonzero_coefs in ("auto", None) else int_param(n_nonzero_coefs, "n_nonzero_coefs", 1)
         self.epsilon = opt(epsilon, float_param, "epsilon", 0.0)

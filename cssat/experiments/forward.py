@@ -61,6 +61,8 @@ def measurements(cs: Mapping[str, Any] | None, N: int) -> int:
     """``m`` from the ``cs`` group: ``cs.m`` when set (``1 ≤ m ≤ N``), else ``round(cs.ratio · N)``
     (``0 < ratio ≤ 1``), so that ``target.size`` can change alone."""
     cs = cs or {}
+    if cs.get("ratio") is not None:  # checked also when cs.m wins, so a bad ratio is never ignored
+        float_param(cs["ratio"], "cs.ratio", 0.0, 1.0, open_lo=True)
     if cs.get("m") is not None:
         return int_param(cs["m"], "cs.m", 1, N)
     if cs.get("ratio") is None:

@@ -84,6 +84,13 @@ def plan(cfg: Any, run: Run) -> Plan:
     denoiser3d = None
     if reference.repeated and reference.repeats >= 2 and _node(cfg, "denoiser3d") is not None:
         denoiser3d = build_denoiser(cfg.denoiser3d, "denoiser3d")
+    checks = [(denoiser, shape, "denoiser"), (getattr(solver, "denoiser", None), shape, "solver.denoiser")]
+    if denoiser3d is not None:
+        checks.append((denoiser3d, (reference.repeats, *shape), "denoiser3d"))
+    for obj, shp, name in checks:  # denoisers' settings against the image they will get, before any work
+        if obj is not None and hasattr(obj, "check"):
+            with as_field(name):
+                obj.check(shp)
     figures = list(cfg.get("figures") or [])
     for name in figures:
         choice_param(name, "figures", sorted(FIGURES))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import os
 import time
 from contextlib import contextmanager
@@ -41,47 +42,116 @@ def _array_hash(a: np.ndarray) -> str:
     return hashlib.blake2b(np.ascontiguousarray(a).data, digest_size=16).hexdigest()
 
 
+def _remove(p: Path) -> None:
+    """Remove whatever is at ``p`` (a file, a FIFO, a directory); errors are ignored."""
+    import shutil
+
+    try:
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
+    except OSError:
+        pass
+
+
+def _regular(p: Path) -> bool | None:
+    """``True`` for a regular file, ``None`` when nothing is there, ``False`` for anything else
+    (a directory, a FIFO, a device, a socket): never opened, so never a hang."""
+    import stat
+
+    try:
+        return stat.S_ISREG(os.stat(p).st_mode)
+    except FileNotFoundError:
+        return None
+
+
+def _check_npy(path: Path, shape: tuple[int, ...]) -> str | None:
+    """Why the ``.npy`` at ``path`` is not a C-ordered float32 array of ``shape`` whose data fill
+    the file exactly, read from its header only (nothing allocated), or ``None``."""
+    from numpy.lib import format as npf
+
+    with open(path, "rb") as f:
+        version = npf.read_magic(f)
+        if version == (1, 0):
+            hdr = npf.read_array_header_1_0(f, max_header_size=10000)
+        elif version == (2, 0):
+            hdr = npf.read_array_header_2_0(f, max_header_size=10000)
+        else:
+            return f"unknown .npy version {version}"
+        offset = f.tell()
+    got_shape, fortran, dtype = hdr
+    if tuple(got_shape) != tuple(shape) or dtype != np.dtype("<f4") or fortran:
+        return f"its header declares {dtype} {tuple(got_shape)}, expected float32 {tuple(shape)}"
+    if os.path.getsize(path) != offset + 4 * math.prod(shape):
+        return "its size does not match its header (truncated or extended)"
+    return None
+
+
 def _read_entry(path: Path, key: str, shape: tuple[int, ...]) -> np.ndarray | None:
     """The cached array at ``path`` when its sidecar ``.json`` names ``key`` and the array has
     ``shape``, float32 and the recorded content hash; ``None`` when there is no complete entry.
-    A damaged entry (unreadable, truncated, wrong shape or hash) is logged with its path and
+    A damaged entry — unreadable, truncated, of the wrong shape, dtype or hash, metadata that is
+    not a JSON object, a header declaring another shape (checked before anything is allocated), a
+    directory, FIFO or device in place of a file (never opened) — is logged with its path and
     removed, so that it is rendered again."""
     meta_path = path.with_suffix(".json")
-    if not meta_path.exists():
+    kinds = (_regular(meta_path), _regular(path))
+    if kinds[0] is None:
         return None  # absent, or being written by another run (its .json comes last)
-    try:
-        meta = json.loads(meta_path.read_text())
-        arr = np.load(path, allow_pickle=False)
-        why = None
-        if meta.get("key") != key:
-            why = f"its key {meta.get('key')!r} is not {key!r}"
-        elif arr.shape != shape or arr.dtype != np.float32:
-            why = f"it holds {arr.dtype} {arr.shape}, expected float32 {shape}"
-        elif meta.get("hash") != _array_hash(arr):
-            why = "its content hash differs from the one recorded (the file was changed or damaged)"
-    except (OSError, ValueError, EOFError) as err:
-        why, arr = f"it cannot be read ({type(err).__name__}: {err})", None
+    arr, why = None, None
+    if False in kinds or kinds[1] is None:
+        why = "an entry is missing or is not a regular file (a directory, FIFO or device)"
+    else:
+        try:
+            meta = json.loads(meta_path.read_text())
+            if not isinstance(meta, dict):
+                why = f"its metadata is a JSON {type(meta).__name__}, not an object"
+            elif meta.get("key") != key:
+                why = f"its key {meta.get('key')!r} is not {key!r}"
+            else:
+                why = _check_npy(path, shape)
+            if why is None:
+                arr = np.load(path, allow_pickle=False)
+                if meta.get("hash") != _array_hash(arr):
+                    why = "its content hash differs from the one recorded (the file was changed or damaged)"
+        except (OSError, ValueError, EOFError, UnicodeDecodeError) as err:
+            why = f"it cannot be read ({type(err).__name__}: {err})"
     if why is None:
         return arr
     log.warning("reference cache: %s is damaged (%s): removed, rendering it again", path, why)
     for p in (path, meta_path):
-        p.unlink(missing_ok=True)
+        _remove(p)
     return None
 
 
 @contextmanager
 def _key_lock(path: Path):
-    """An exclusive lock per cache entry: concurrent sweeps render each set once (the second
-    waits for the first, then reads its entry)."""
-    import fcntl
+    """An exclusive lock per cache entry (``filelock``): concurrent sweeps render each set once
+    (the second waits for the first, then reads its entry). Yields ``True`` when held; ``False``
+    when the cache cannot be written (a read-only cache: it is only read). Anything but a regular
+    file in the lock's place is removed first."""
+    from filelock import FileLock
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(path.with_suffix(".lock"), os.O_RDWR | os.O_CREAT, 0o666)
+    lock_path = path.with_suffix(".lock")
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        yield False
+        return
+    if _regular(lock_path) is False:
+        log.warning("reference cache: %s is not a regular file: removed", lock_path)
+        _remove(lock_path)
+    lock = FileLock(str(lock_path))
+    try:
+        lock.acquire()
+    except OSError:  # read-only cache directory
+        yield False
+        return
+    try:
+        yield True
     finally:
-        os.close(fd)
+        lock.release()
 
 
 def reference_set(cache_dir: str | None, size: int, n: int, seed: int, mesh: Mesh, noise: float, shadows: bool,
@@ -102,7 +172,7 @@ def reference_set(cache_dir: str | None, size: int, n: int, seed: int, mesh: Mes
     if not cache_dir:
         return _render(mesh, size, n, seed, noise, shadows, progress), False
     path = Path(str(cache_dir)) / f"refs-{key}.npy"
-    with _key_lock(path):
+    with _key_lock(path) as writable:
         t = time.perf_counter()
         arr = _read_entry(path, key, (n, size, size))
         if arr is not None:
@@ -110,19 +180,33 @@ def reference_set(cache_dir: str | None, size: int, n: int, seed: int, mesh: Mes
 
             log.info("reference set: %d images %d² from the cache %s (%.1f s)", n, size, path, time.perf_counter() - t)
             return torch.from_numpy(arr), True
+        out = _render(mesh, size, n, seed, noise, shadows, progress)
+        if writable:
+            _write_entry(path, out.numpy(), key, spec)
+        else:
+            log.warning("reference cache: %s cannot be written (read-only?): the set is not cached", path.parent)
+    return out, False
+
+
+def _write_entry(path: Path, arr: np.ndarray, key: str, spec: dict) -> None:
+    """Write a cache entry (the array, then its ``.json``); a disk that refuses it (full,
+    read-only) costs the entry, not the run: logged, and what was written removed."""
+    try:
         for entry in (path, path.with_suffix(".json")):  # under the entry's lock, any is stale
             for stale in entry.parent.glob(f".{entry.name}.*.tmp"):
                 stale.unlink(missing_ok=True)
-        out = _render(mesh, size, n, seed, noise, shadows, progress)
 
         def w(tmp):
             with open(tmp, "wb") as f:
-                np.save(f, out.numpy())
+                np.save(f, arr)
 
-        atomic_write(path, w)
-        meta = {"key": key, "hash": _array_hash(out.numpy()), "shape": [n, size, size], "dtype": "float32", "spec": spec}
-        atomic_write(path.with_suffix(".json"), lambda tmp: Path(tmp).write_text(json.dumps(meta, indent=1)))
-    return out, False
+        atomic_write(path, w, result=False)
+        meta = {"key": key, "hash": _array_hash(arr), "shape": list(arr.shape), "dtype": "float32", "spec": spec}
+        atomic_write(path.with_suffix(".json"), lambda tmp: Path(tmp).write_text(json.dumps(meta, indent=1)), result=False)
+    except OSError as err:
+        log.warning("reference cache: could not write %s (%s): the run goes on without caching it", path,
+                    err.strerror or err)
+        path.unlink(missing_ok=True)
 
 
 def _render(mesh, size: int, n: int, seed: int, noise: float, shadows: bool, progress: bool | None):

@@ -1,8 +1,10 @@
 """A run's results as one set: a directory lock, a manifest of content hashes, and the resume check.
 
-``metrics.json`` is written last and lists every result file of the run with its BLAKE2 hash
-(``files``) and the hashes of the input files the run read (``inputs``: ``target.image``,
-``model.path``, ``reference.model.path`` when they are files). Before a run starts, the old
+``metrics.json`` is written last and lists the result files *this run wrote* with their BLAKE2
+hashes (``files``; recorded as they are written, :mod:`cssat._record`) and the hashes of the
+input files it read, taken from the bytes it read (``inputs``: ``{path: hash}``, a target image,
+a mesh). A directory holding another experiment's or config's set has that set moved aside
+first (:func:`move_aside`). Before a run starts, the old
 ``metrics.json`` is removed first, so a run killed at any moment leaves a directory without a
 complete set — never new arrays beside old metrics that say ``ok``. A reader (``resume``, the sweep
 summary) trusts a directory only when every listed file is there with its hash.
@@ -16,19 +18,17 @@ import logging
 import os
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Iterable, Iterator
 
 from cssat._checks import FieldError
 
-__all__ = ["run_lock", "file_hash", "result_files", "input_files", "check_complete", "clear_results"]
+__all__ = ["run_lock", "file_hash", "result_files", "check_complete", "clear_results", "move_aside", "load_saved"]
 
 log = logging.getLogger("cssat")
 
 LOCK = ".cssat.lock"
 #: files of a run directory that are not results: Hydra's own, the log, the lock, metrics.json
-_NOT_RESULTS = {"metrics.json", "app.log", LOCK, ".cssat-sweep"}
-#: config keys naming input files whose content defines the results
-INPUT_KEYS = ("target.image", "model.path", "reference.model.path")
+_NOT_RESULTS = {"metrics.json", "app.log", LOCK, LOCK + ".pid", ".cssat-sweep"}
 
 
 def file_hash(path: str | os.PathLike, chunk: int = 1 << 22) -> str:
@@ -40,42 +40,28 @@ def file_hash(path: str | os.PathLike, chunk: int = 1 << 22) -> str:
     return h.hexdigest()
 
 
-def result_files(out_dir: Path) -> dict[str, str]:
-    """``{relative path: hash}`` of every result file in ``out_dir`` (not ``.hydra/``, the log,
-    the lock, ``metrics.json`` or temporary files)."""
+def result_files(out_dir: Path, names: Iterable[str]) -> dict[str, str]:
+    """``{relative path: hash}`` of the result files ``names`` (relative to ``out_dir``) that this
+    run wrote — its own files and nothing else (``metrics.json`` and temporary files excluded)."""
     out: dict[str, str] = {}
-    for p in sorted(Path(out_dir).rglob("*")):
-        rel = p.relative_to(out_dir)
-        if not p.is_file() or rel.parts[0] == ".hydra" or str(rel) in _NOT_RESULTS or p.name.endswith(".tmp"):
+    for rel in sorted(set(names)):
+        p = Path(out_dir) / rel
+        if rel in _NOT_RESULTS or p.name.endswith(".tmp") or not p.is_file():
             continue
-        out[rel.as_posix()] = file_hash(p)
+        out[rel] = file_hash(p)
     return out
 
 
-def input_files(cfg: Any) -> dict[str, str]:
-    """``{config key: hash}`` of the input files named by :data:`INPUT_KEYS` that exist."""
-    from omegaconf import OmegaConf
-
-    out = {}
-    for key in INPUT_KEYS:
-        try:
-            value = OmegaConf.select(cfg, key) if OmegaConf.is_config(cfg) else None
-        except Exception:  # a key of another experiment
-            value = None
-        if isinstance(value, str) and value and os.path.isfile(value):
-            out[key] = file_hash(value)
-    return out
-
-
-def check_complete(out_dir: Path, saved: dict, sha: str, cfg: Any) -> str | None:
+def check_complete(out_dir: Path, saved: dict, sha: str, cfg: Any = None) -> str | None:
     """``None`` when ``saved`` (the old ``metrics.json``) describes a complete, current result
-    set of config hash ``sha``; else the reason to run again."""
+    set of config hash ``sha``; else the reason to run again. The input files the run read
+    (``saved["inputs"]``: ``{path: hash of the bytes read}``) must still hash the same."""
     if saved.get("status") != "ok":
         return f"the last run ended {saved.get('status', 'without a status')}"
     if saved.get("config_sha") != sha:
         return "the config changed"
     files = saved.get("files")
-    if not isinstance(files, dict) or not files:
+    if not isinstance(files, dict):
         return "the results have no manifest (an older cssat wrote them)"
     for rel, h in files.items():
         p = Path(out_dir) / rel
@@ -83,9 +69,39 @@ def check_complete(out_dir: Path, saved: dict, sha: str, cfg: Any) -> str | None
             return f"{rel} is missing"
         if file_hash(p) != h:
             return f"{rel} changed since the run (its content hash differs)"
-    if input_files(cfg) != saved.get("inputs", {}):
-        return "an input file changed (target.image / model.path)"
+    inputs = saved.get("inputs", {})
+    if not isinstance(inputs, dict):
+        return "the manifest's inputs are not a mapping"
+    for path, h in inputs.items():
+        if not os.path.isfile(path):
+            return f"the input file {path} is gone"
+        if file_hash(path) != h:
+            return f"the input file {path} changed since it was read"
     return None
+
+
+def move_aside(out_dir: Path, saved: dict | None, experiment: str | None, sha: str) -> Path | None:
+    """When ``out_dir`` holds the result set of another experiment or config (``saved``, its
+    ``metrics.json``), move that set's files and its ``metrics.json`` into
+    ``out_dir/previous/<experiment>-<config_sha>/`` and return that folder; else ``None``. So a
+    directory never shows another run's files beside this run's (a PNG of a ``figure_format=png``
+    run beside an SVG run, a light curve beside Simulation 1)."""
+    if not isinstance(saved, dict) or (saved.get("experiment") == experiment and saved.get("config_sha") == sha):
+        return None
+    files = saved.get("files") if isinstance(saved.get("files"), dict) else {}
+    old = [rel for rel in files if isinstance(rel, str) and (Path(out_dir) / rel).is_file()]
+    if not old:
+        return None
+    name = f"{saved.get('experiment') or 'run'}-{saved.get('config_sha') or 'unknown'}"
+    dest = Path(out_dir) / "previous" / "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name))
+    for rel in [*old, "metrics.json"]:
+        src = Path(out_dir) / rel
+        if src.is_file() and ".." not in Path(rel).parts and not Path(rel).is_absolute():
+            target = dest / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(src, target)
+    log.warning("%s held the results of %s (another experiment or config): moved to %s", out_dir, name, dest)
+    return dest
 
 
 def clear_results(out_dir: Path) -> None:
@@ -99,25 +115,29 @@ def clear_results(out_dir: Path) -> None:
 
 @contextmanager
 def run_lock(out_dir: Path) -> Iterator[None]:
-    """Hold an exclusive lock on ``out_dir`` (``flock`` on ``out_dir/.cssat.lock``) for a run; a
-    second run into the same directory is refused at once with a FieldError naming it."""
-    import fcntl
+    """Hold an exclusive lock on ``out_dir`` (``filelock`` on ``out_dir/.cssat.lock``: ``flock`` on
+    POSIX, ``msvcrt`` on Windows) for a run; a second run into the same directory is refused at
+    once with a FieldError naming it. The holder's pid is in ``.cssat.lock.pid``."""
+    from filelock import FileLock, Timeout
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    fd = os.open(out_dir / LOCK, os.O_RDWR | os.O_CREAT, 0o666)
+    lock = FileLock(str(out_dir / LOCK), timeout=0)
+    pid_file = out_dir / (LOCK + ".pid")
     try:
+        lock.acquire()
+    except Timeout:
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            other = os.pread(fd, 64, 0).decode(errors="replace").strip() or "another process"
-            raise FieldError("hydra.run.dir", f"{out_dir} is in use by another cssat run (pid {other}); "
-                              "wait for it or choose another directory") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
+            other = pid_file.read_text().strip() or "another process"
+        except OSError:
+            other = "another process"
+        raise FieldError("hydra.run.dir", f"{out_dir} is in use by another cssat run (pid {other}); "
+                          "wait for it or choose another directory") from None
+    try:
+        pid_file.write_text(str(os.getpid()))
         yield
     finally:
-        os.close(fd)
+        lock.release()
 
 
 def load_saved(out_dir: Path) -> dict | None:

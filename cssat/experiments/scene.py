@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cssat._checks import int_param
+from cssat._checks import float_param, int_param
 from cssat.experiments.context import Run
 
 if TYPE_CHECKING:
@@ -72,11 +72,14 @@ def build_scenario(cfg: Any) -> Scenario:
     )
 
 
-def memory_parts(n_steps: int, size: int) -> dict[str, int]:
+def memory_parts(n_steps: int, size: int, n_facets: int = 0) -> dict[str, int]:
     """The large arrays (bytes): the float64 renders ``(T, size, size)``, the pixel-wise
-    weights of Eq. 12 of the same size, and their product."""
+    weights of Eq. 12 of the same size, and their product; the facet brightnesses ``(T, F)``
+    with the facet-wise weights of Eq. 11 and their product, and the visibility masks."""
     b = n_steps * size * size * 8
-    return {"renders": b, "Φ (pixel-wise)": b, "Φ ⊙ renders": b}
+    f = n_steps * n_facets * 8
+    return {"renders": b, "Φ (pixel-wise)": b, "Φ ⊙ renders": b, "facet brightness (T, F)": f,
+            "Φ (facet-wise)": f, "Φ ⊙ facets": f, "facet visibility": 2 * f}
 
 
 def run(cfg: Any, run: Run) -> dict[str, Any]:
@@ -98,12 +101,16 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
         n_marks = int_param(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
         geometry = build(cfg.geometry, "geometry") if cfg.get("geometry") is not None else Geometry()
         atm, noise = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs()), build(cfg.get("noise"), "noise")
-        check_memory(memory_parts(int_param(cfg.scenario.n_steps, "scenario.n_steps", 1), size), run.memory_limit_gb,
-                     "lower render.size or scenario.n_steps")
+        fov = cfg.render.get("fov_m")
+        if fov is not None:
+            float_param(fov, "render.fov_m", 0.0, open_lo=True)
+        mesh = build_model(cfg.model)
+        check_memory(memory_parts(int_param(cfg.scenario.n_steps, "scenario.n_steps", 1), size, len(mesh.faces)),
+                     run.memory_limit_gb, "lower render.size or scenario.n_steps")
     timings: dict[str, float] = {}
 
     t = time.perf_counter()
-    scenario, mesh = build_scenario(cfg), build_model(cfg.model)
+    scenario = build_scenario(cfg)
     timings["seconds_scene"] = time.perf_counter() - t
     t = time.perf_counter()
     lc = simulate_light_curve(mesh, scenario, shadows=bool(cfg.get("shadows", True)))
@@ -111,7 +118,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
     timings["seconds_light_curve"] = time.perf_counter() - t
     t = time.perf_counter()
     # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
-    fov_m = cfg.render.get("fov_m") or default_fov(mesh)
+    fov_m = default_fov(mesh) if fov is None else float(fov)
     images = render(mesh, lc.sun, lc.observer, size, fov_m=fov_m, brightness=lc.facets.to(device),
                     dtype=torch.float64, progress=run.progress).cpu()
     timings["seconds_render"] = time.perf_counter() - t

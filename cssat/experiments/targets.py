@@ -13,7 +13,10 @@ import numpy as np
 
 from cssat._checks import FieldError, int_param
 
-__all__ = ["ImageTarget"]
+__all__ = ["ImageTarget", "MIN_SIZE"]
+
+#: the smallest target an experiment scores: SSIM's 7 × 7 window (and the denoisers' 8 × 8 blocks)
+MIN_SIZE = 8
 
 
 class ImageTarget:
@@ -26,7 +29,7 @@ class ImageTarget:
         if not isinstance(image, str) or not image:
             raise FieldError("image", f"expected a file path or a built-in image name, got {image!r}")
         self.image = image
-        self.size = int_param(size, "size", 2, 4096)
+        self.size = int_param(size, "size", MIN_SIZE, 4096)
         self._array: np.ndarray | None = None
 
     def load(self) -> np.ndarray:

@@ -85,7 +85,7 @@ class GaussianAtmosphere(Atmosphere):
 
     def __init__(self, mean: float = 0.0, std: float | None = None, emitters: str = "pixels", *,
                  object_size_m: float | None = None, range_km: float | None = None):
-        self.mean, self.std = float_param(mean, "mean"), opt(std, float_param, "std", 0.0)
+        self.mean, self.std = float_param(mean, "mean"), opt(std, float_param, "std", 0.0, open_lo=True)
         self.emitters = choice_param(emitters, "emitters", EMITTERS)
         self._geometry(object_size_m, range_km)  # independent weights: no effect
 
@@ -132,8 +132,9 @@ class _PositiveAtmosphere(Atmosphere):
     def __init__(self, scintillation_index: float | None, diameter_m: float, airmass: float, exposure_s: float,
                  site_altitude_m: float, osborn: float):
         float_param(diameter_m, "diameter_m", 0.0, open_lo=True)
-        float_param(airmass, "airmass", 1.0)
+        float_param(airmass, "airmass", 1.0, 40.0)  # 40: the horizon (an airmass of ~38)
         float_param(exposure_s, "exposure_s", 0.0)
+        float_param(site_altitude_m, "site_altitude_m", -500.0, 8000.0)  # observatories: the Dead Sea to 5.6 km
         float_param(osborn, "osborn", 0.0, open_lo=True)
         if scintillation_index is not None:
             float_param(scintillation_index, "scintillation_index", 0.0)

@@ -27,7 +27,11 @@ class Measurement(nn.Module):
 
     The noise is seeded: ``forward(x)`` draws it from a generator seeded with ``seed``
     (the same ``x`` and seed give the same ``y`` on every call); pass ``generator`` to draw
-    from a stream of your own instead.
+    from a stream of your own instead. With ``resample=True`` every call draws fresh noise
+    (what training on noisy measurements needs, as deepinv's physics do): call ``k`` of the
+    measurement uses a generator seeded with ``(seed, k)``, so a run is still reproducible —
+    the same sequence of calls gives the same sequence of ``y`` — and :meth:`reset` starts the
+    sequence again.
 
     Parameters
     ----------
@@ -40,10 +44,12 @@ class Measurement(nn.Module):
     x_shape : sequence of int, optional
         The unknown's shape (an image ``(H, W)``), so that a solver takes the measurement as its
         problem: ``solver(measurement, y)``. Default: the operator's ``in_shape``.
+    resample : bool
+        Fresh noise on every call (default ``False``: the same noise every call).
     """
 
     def __init__(self, operator: LinearOperator | Tensor, noise: NoiseModel | None = None, seed: int = 0, *,
-                 x_shape: Sequence[int] | None = None):
+                 x_shape: Sequence[int] | None = None, resample: bool = False):
         super().__init__()
         if isinstance(operator, Tensor):
             operator = MatrixOperator(operator)
@@ -53,6 +59,13 @@ class Measurement(nn.Module):
         self.noise = noise if noise is not None else NoNoise()
         self.seed = int(seed)
         self.x_shape = tuple(int(v) for v in x_shape) if x_shape is not None else operator.in_shape
+        if not isinstance(resample, bool):
+            raise FieldError("resample", f"expected true or false, got {resample!r}")
+        self.resample, self.calls = resample, 0
+
+    def reset(self) -> None:
+        """Start the sequence of fresh noise draws (``resample=True``) again from call 0."""
+        self.calls = 0
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -92,8 +105,17 @@ class Measurement(nn.Module):
         if isinstance(self.noise, NoNoise):
             return y
         if generator is None:
-            generator = torch.Generator(device="cpu").manual_seed(self.seed)
+            generator = torch.Generator(device="cpu").manual_seed(self._call_seed())
         return self.noise(y, generator, flux=flux)
+
+    def _call_seed(self) -> int:
+        """``seed``, or with ``resample`` a seed of ``(seed, call number)`` (numpy's SeedSequence)."""
+        if not self.resample:
+            return self.seed
+        import numpy as np
+
+        k, self.calls = self.calls, self.calls + 1
+        return int(np.random.SeedSequence([self.seed & (2**63 - 1), k]).generate_state(1, dtype=np.uint64)[0] >> 1)
 
     @numpy_io
     def frames(self, x_t: Tensor, generator: torch.Generator | None = None) -> Tensor:
@@ -121,7 +143,7 @@ class Measurement(nn.Module):
 
     def extra_repr(self) -> str:
         m, n = self.shape
-        return f"m={m}, N={n}, noise={self.noise!r}, seed={self.seed}"
+        return f"m={m}, N={n}, noise={self.noise!r}, seed={self.seed}" + (", resample=True" if self.resample else "")
 
 
 def centered(phi: Tensor, y: Tensor, *, flux_weight: float | None = None) -> tuple[Tensor, Tensor]:

@@ -182,7 +182,7 @@ class PhotometricNoise(NoiseModel):
         scale = self._scale(y, flux)
         signal = y.double() * scale  # expected source electrons per sample
         bg = self.n_pix * (self.sky_e_per_pixel + self.dark_e_per_pixel)
-        counts = torch.poisson((signal.clamp_min(0) + bg).cpu(), generator=generator)  # source + sky + dark
+        counts = _poisson((signal.clamp_min(0) + bg).cpu(), generator)  # source + sky + dark
         neg = (signal < 0).cpu()
         if bool(neg.any()):  # no Poisson law for a negative mean: a Gaussian source of variance |S|
             s = signal.cpu()
@@ -200,3 +200,21 @@ class PhotometricNoise(NoiseModel):
 
     def __repr__(self) -> str:
         return f"PhotometricNoise(magnitude={self.magnitude}, diameter_m={self.diameter_m:g}, exposure_s={self.exposure_s:g})"
+
+
+#: above this mean, photon counts are drawn from the normal law N(λ, λ) (its relative error is
+#: ~λ^(-1/2) < 1e-7 there): torch.poisson draws into int64 and returns -2⁶³ above λ ≈ 9.2e18
+POISSON_NORMAL_ABOVE = 1e15
+
+
+def _poisson(rate: Tensor, generator: torch.Generator) -> Tensor:
+    """Poisson counts of ``rate`` (float64, CPU): torch's Poisson draws up to
+    :data:`POISSON_NORMAL_ABOVE`, the normal approximation beyond (any finite rate)."""
+    if not bool(torch.isfinite(rate).all()):
+        raise FieldError("noise", "the expected electron counts are not finite (the magnitude or flux is out of range)")
+    big = rate > POISSON_NORMAL_ABOVE
+    if not bool(big.any()):
+        return torch.poisson(rate, generator=generator)
+    counts = torch.poisson(torch.where(big, torch.zeros_like(rate), rate), generator=generator)
+    normal = rate + rate.sqrt() * torch.randn(rate.shape, generator=generator, dtype=rate.dtype)
+    return torch.where(big, normal, counts)

@@ -27,13 +27,23 @@ FIGURE_FORMATS = ("png", "pdf", "svg")
 
 def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 120) -> None:
     """Save ``fig`` atomically (a reader sees the old file or the new one, never a part) in the
-    format of ``path``'s suffix: ``.png`` (``dpi``), ``.pdf`` or ``.svg`` (vector)."""
+    format of ``path``'s suffix: ``.png`` (``dpi``), ``.pdf`` or ``.svg`` (vector). The same
+    figure gives the same bytes every time, in every format: no creation date, and the SVG's
+    element ids drawn from a fixed salt."""
+    import matplotlib
+
     from cssat._tmpfiles import atomic_write
 
     fmt = Path(path).suffix.lstrip(".").lower()
     if fmt not in FIGURE_FORMATS:
         raise FieldError("figure_format", f"expected one of {list(FIGURE_FORMATS)}, got {fmt!r} (from {path})")
-    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=fmt))
+    metadata = {"pdf": {"CreationDate": None, "ModDate": None}, "svg": {"Date": None}}.get(fmt)
+
+    def write(tmp):
+        with matplotlib.rc_context({"svg.hashsalt": "cssat"}):
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=fmt, metadata=metadata)
+
+    atomic_write(path, write)
 
 
 def light_curve_image(y: np.ndarray) -> np.ndarray:

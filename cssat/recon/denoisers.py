@@ -62,6 +62,11 @@ class Denoiser:
     def _denoise(self, x: np.ndarray, sigma: float) -> tuple[np.ndarray, dict]:  # pragma: no cover
         raise NotImplementedError
 
+    def check(self, shape: Sequence[int]) -> None:
+        """Check the settings against an input of ``shape`` before any work (a FieldError)."""
+        if len(shape) not in (2, 3):
+            raise FieldError("image", f"expected an image (H, W) or a stack (k, H, W), got shape {tuple(shape)}")
+
 
 def _check_image(x) -> None:
     if x.ndim not in (2, 3):
@@ -173,6 +178,12 @@ class SparseKSVD(Denoiser):
                 raise FieldError("dtype", f"expected one of ['float32', 'float64'], got {dtype!r}")
             dtype = getattr(torch, dtype)
         self.dtype, self.device = dtype, torch.device(device)
+
+    def check(self, shape: Sequence[int]) -> None:
+        """Block and step sizes, atoms and training blocks against an input of ``shape``."""
+        from cssat.sparse.denoise import check_settings
+
+        check_settings(shape, **self.kw)
 
     def __call__(self, image: Array, sigma: float | None = None) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse import ksvd_denoise

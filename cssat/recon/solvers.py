@@ -86,7 +86,7 @@ class OMP(Solver):
                  *, progress: bool | None = None):
         self.progress = progress_param(progress)
         self.n_nonzero_coefs = opt(n_nonzero_coefs, int_param, "n_nonzero_coefs", 1)
-        self.k_ratio = opt(k_ratio, float_param, "k_ratio", 0.0, 1.0)
+        self.k_ratio = opt(k_ratio, float_param, "k_ratio", 0.0, 1.0, open_lo=True)
         self.epsilon = opt(epsilon, float_param, "epsilon", 0.0)
 
     def settings(self, m: int, n_pixels: int) -> tuple[int, float | None]:

@@ -143,11 +143,23 @@ def load_mesh(
         raise FieldError(field, f"no such file: {path!r}")
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
         raise FieldError("scale", f"must be a positive number, got {scale!r}")
+    import io
+
+    from cssat._record import read_input
+
+    data = read_input(path, 4 << 30, field)  # hashed as read: the manifest's input is what was loaded
+    ext = os.path.splitext(path)[1].lstrip(".").lower()
+    from cssat.scene._obj import check_obj
+
+    expected = check_obj(data, field, path) if ext == "obj" else 0
     try:
-        loaded = trimesh.load(path, force="mesh", process=False)
+        loaded = trimesh.load(io.BytesIO(data), file_type=ext, force="mesh", process=False,
+                              resolver=trimesh.resolvers.FilePathResolver(path))
     except Exception as err:  # trimesh raises many types for unreadable files
         raise FieldError(field, f"cannot read {path!r} as a mesh: {err}") from None
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
+    if expected and len(faces) != expected:
+        raise FieldError(field, f"{path!r} describes {expected} triangles but {len(faces)} could be read")
     verts = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64)
     if len(faces) == 0:
         raise FieldError(field, f"{path!r} holds no triangles")
@@ -344,14 +356,29 @@ MODELS = {"astra_like": astra_like, "tess_like": tess_like}
 
 def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float = 0.8, cs: float = 0.2) -> Mesh:
     """A satellite model from config: a procedural one by ``name`` (``astra_like``, ``tess_like``)
-    or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``)."""
+    or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``). ``scale``
+    multiplies a procedural model too (its native size is metres); the result must be a satellite:
+    at most :data:`MAX_RADIUS_M` from its centre to its farthest vertex."""
     for fname, val in (("cd", cd), ("cs", cs)):
-        if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
+        if not (isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val) and val >= 0):
             raise FieldError(fname, f"must be a number >= 0, got {val!r}")
+    if not (isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0):
+        raise FieldError("scale", f"must be a number > 0 (the model's units in metres), got {scale!r}")
     if name == "file":
         if not path:
-            raise FieldError("path", "required when name is 'file'")
-        return load_mesh(path, scale=scale, cd=cd, cs=cs)
-    if name not in MODELS:
+            raise FieldError("path", "required when name is 'file' (model.path=<a mesh file>)")
+        mesh = load_mesh(path, scale=scale, cd=cd, cs=cs)
+    elif name not in MODELS:
         raise FieldError("name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
-    return MODELS[name](cd=cd, cs=cs)
+    else:
+        mesh = MODELS[name](cd=cd, cs=cs)
+        if scale != 1.0:
+            mesh = Mesh(mesh.vertices * float(scale), mesh.faces, mesh.cd, mesh.cs, name=mesh.name)
+    if not mesh.radius <= MAX_RADIUS_M:
+        raise FieldError("scale", f"the model reaches {mesh.radius:.3g} m from its centre; a satellite is at most "
+                                  f"{MAX_RADIUS_M:g} m (is model.scale in metres per file unit?)")
+    return mesh
+
+
+#: the largest satellite cssat models: the ISS spans ~110 m; 1 km leaves room, 1e30 m is an error
+MAX_RADIUS_M = 1000.0

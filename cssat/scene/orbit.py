@@ -38,9 +38,6 @@ R_EARTH_KM = 6378.137  # WGS84 equatorial radius
 R_SUN_KM = 695_700.0  # IAU 2015 nominal solar radius
 
 
-def _checksum(line: str) -> int:
-    return sum(int(c) if c.isdigit() else (1 if c == "-" else 0) for c in line[:68]) % 10
-
 
 #: the dates DE421 (skyfield-data's ephemeris) covers
 EPHEMERIS_RANGE = (datetime(1899, 7, 29), datetime(2053, 10, 9))
@@ -49,9 +46,12 @@ EPHEMERIS_RANGE = (datetime(1899, 7, 29), datetime(2053, 10, 9))
 def check_tle(line1: str, line2: str, field: str = "tle") -> None:
     """Validate a two-line element set; raise ``ValueError`` naming ``field.line1``/``field.line2``.
 
-    Checks the line numbers, the 69-column length, the modulo-10 checksums (digits count their
-    value, ``-`` counts 1) and that both lines carry the same catalogue number.
+    Checks the line numbers, the 69-column length, the modulo-10 checksums (sgp4's
+    ``compute_checksum``: digits count their value, ``-`` counts 1) and that both lines carry the
+    same catalogue number.
     """
+    from sgp4.io import compute_checksum
+
     for k, line in ((1, line1), (2, line2)):
         name = f"{field}.line{k}"
         if not isinstance(line, str):
@@ -61,8 +61,8 @@ def check_tle(line1: str, line2: str, field: str = "tle") -> None:
             raise FieldError(name, f"a TLE line has 69 columns, got {len(line)}")
         if line[0] != str(k) or line[1] != " ":
             raise FieldError(name, f"must start with '{k} ', got {line[:2]!r}")
-        if not line[68].isdigit() or int(line[68]) != _checksum(line):
-            raise FieldError(name, f"checksum {line[68]!r} does not match the computed {_checksum(line)}")
+        if not line[68].isdigit() or int(line[68]) != compute_checksum(line):
+            raise FieldError(name, f"checksum {line[68]!r} does not match the computed {compute_checksum(line)}")
     if line1[2:7] != line2[2:7]:
         raise FieldError(field, f"catalogue numbers differ between the lines ({line1[2:7]!r} vs {line2[2:7]!r})")
     epoch = line1[18:32]
@@ -212,6 +212,32 @@ def _satellite(tle, ts, field: str = "scenario.tle"):
     return EarthSatellite(line1, line2, name=name or None, ts=ts), name
 
 
+#: lowest perigee altitude (km) whose orbit SGP4 propagates as a satellite: below, it has re-entered
+MIN_PERIGEE_KM = 80.0
+#: propagating this many days or more from the element set's epoch is logged as a warning
+STALE_DAYS = 30.0
+_MU_KM3_S2 = 398600.4418
+
+
+def check_elements(model: Any, field: str = "scenario.tle") -> None:
+    """Refuse mean elements that are not an orbit around the Earth: inclination outside
+    [0°, 180°], eccentricity outside [0, 1), a mean motion ≤ 0 or one whose perigee lies below
+    :data:`MIN_PERIGEE_KM` (17 rev/day: ≈ 13 km). ``model`` is an sgp4 ``Satrec``."""
+    inc = math.degrees(model.inclo)
+    if not 0.0 <= inc <= 180.0:
+        raise FieldError(field, f"inclination {inc:g}° is outside [0, 180]")
+    if not 0.0 <= model.ecco < 1.0:
+        raise FieldError(field, f"eccentricity {model.ecco:g} is outside [0, 1)")
+    n = model.no_kozai / 60.0  # rad/s
+    if not n > 0:
+        raise FieldError(field, f"mean motion {model.no_kozai * 1440 / (2 * math.pi):g} rev/day must be > 0")
+    a = (_MU_KM3_S2 / n**2) ** (1 / 3)
+    perigee = a * (1 - model.ecco) - R_EARTH_KM
+    if perigee < MIN_PERIGEE_KM:
+        raise FieldError(field, f"mean motion {model.no_kozai * 1440 / (2 * math.pi):.6g} rev/day and eccentricity "
+                                f"{model.ecco:g} put the perigee {perigee:.0f} km above the ground, below {MIN_PERIGEE_KM:g} km")
+
+
 def _from_omm(rec, ts, field: str):
     from sgp4 import omm
     from sgp4.api import Satrec
@@ -302,8 +328,21 @@ def make_scenario(
     if not (isinstance(alt_m, (int, float)) and math.isfinite(alt_m) and -1000 <= alt_m <= 100_000):
         raise FieldError("scenario.observer.alt_m", f"a ground observer's altitude must be in [-1000, 100000] m, got {alt_m!r}")
     start = _start_datetime(start_utc)
+    check_elements(sat.model)
+    epoch_days = sat.model.jdsatepoch + sat.model.jdsatepochF - 2440587.5  # days since 1970
+    span = (start - datetime(1970, 1, 1)).total_seconds() / 86400 - epoch_days
+    if abs(span) >= STALE_DAYS:
+        import logging
+
+        logging.getLogger("cssat").warning(
+            "scenario.tle: the run starts %.0f days %s the element set's epoch; SGP4's error grows by ~1-3 km a day "
+            "(tens of degrees along a GEO orbit after months): use elements near the dates", abs(span),
+            "after" if span > 0 else "before")
 
     offsets = np.arange(n_steps) * float(step_s)
+    if offsets[-1] > (EPHEMERIS_RANGE[1] - EPHEMERIS_RANGE[0]).total_seconds():
+        raise FieldError("scenario.step_s", f"{n_steps} steps of {step_s:g} s span {offsets[-1] / 3.15576e7:.3g} years, "
+                                            f"more than the ephemeris covers ({EPHEMERIS_RANGE[0]:%Y}–{EPHEMERIS_RANGE[1]:%Y})")
     end = start + timedelta(seconds=float(offsets[-1]))
     if not (EPHEMERIS_RANGE[0] <= start and end <= EPHEMERIS_RANGE[1]):
         raise FieldError("scenario.start_utc", f"{start} – {end} UTC is outside the ephemeris (DE421 covers "

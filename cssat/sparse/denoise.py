@@ -16,12 +16,12 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat._checks import FieldError
+from cssat._checks import FieldError, FieldTypeError
 from cssat.sparse.ksvd import KSVDInfo, SparseDictionary, odct_base, sparse_ksvd
 from cssat.sparse.omp import batch_omp
 from cssat.sparse.patches import _norm, accumulate_patches, extract_patches, patch_positions
 
-__all__ = ["ksvd_denoise", "estimate_sigma", "DenoiseInfo", "DEMO_DEFAULTS"]
+__all__ = ["ksvd_denoise", "estimate_sigma", "check_settings", "DenoiseInfo", "DEMO_DEFAULTS"]
 
 #: KSVDSBox ``ksvdsdenoisedemo`` parameters (Rubinstein 2009), per dimensionality: block edge,
 #: ``T_dict``, noise gain, training blocks, iterations and the step between the denoised blocks.
@@ -134,6 +134,9 @@ def ksvd_denoise(
         raise FieldError(
             "image_or_volume", f"expected a 2-D image (H, W) or a 3-D stack (k, H, W), got shape {tuple(x.shape)}"
         )
+    if x.is_complex():
+        raise FieldTypeError("image_or_volume", f"expected a real image, got {x.dtype}; denoise the real and "
+                                                "imaginary parts (or the magnitude) separately")
     if not x.is_floating_point():
         x = x.to(torch.float32)
     if not bool(torch.isfinite(x).all()):
@@ -164,6 +167,24 @@ def ksvd_denoise(
     return out, info
 
 
+def check_settings(shape: Sequence[int], **settings: Any) -> None:
+    """Check :func:`ksvd_denoise`'s ``settings`` for an input of ``shape`` — block and step sizes,
+    atoms, sparsity, training blocks — before any work (a FieldError naming the setting)."""
+    shape = tuple(int(s) for s in shape)
+    if len(shape) == 3 and shape[0] == 1:
+        shape = shape[1:]
+    if len(shape) not in (2, 3):
+        raise FieldError("image_or_volume", f"expected a 2-D image (H, W) or a 3-D stack (k, H, W), got shape {shape}")
+    kw = {k: settings.get(k) for k in ("block_size", "step", "n_atoms", "base_atoms", "atom_sparsity", "gain",
+                                        "n_train", "n_iter", "max_atoms")}
+    st = _settings(torch.zeros(shape, dtype=torch.float32, device="meta"), 1.0, lam=settings.get("lam") or 0.0, **kw)
+    if min(st.n_train, st.n_blocks) < st.L:
+        raise FieldError("n_atoms", f"{st.L} atoms need at least as many training blocks; the image gives "
+                                    f"{min(st.n_train, st.n_blocks)} blocks of {st.block} (use a smaller block_size or n_atoms)")
+    if not 1 <= st.T <= st.base.n_in:
+        raise FieldError("atom_sparsity", f"must be in [1, {st.base.n_in}] (the base dictionary's atoms), got {st.T}")
+
+
 @dataclass
 class _Settings:
     """:func:`ksvd_denoise`'s settings with the demo defaults filled in and checked."""
@@ -182,8 +203,8 @@ class _Settings:
     tol: float  # ε² with ε = √p · gain · σ
 
 
-def _settings(x, sigma, block_size, step, n_atoms, base_atoms, atom_sparsity, gain, n_train, n_iter, max_atoms,
-              lam) -> _Settings:
+def _settings(x, sigma, block_size=None, step=None, n_atoms=None, base_atoms=None, atom_sparsity=None, gain=None,
+              n_train=None, n_iter=None, max_atoms=None, lam=0.0) -> _Settings:
     nd = x.ndim
     demo = DEMO_DEFAULTS[nd]
     if block_size is None:
@@ -255,7 +276,7 @@ def _denoise_blocks(x: Tensor, dictionary: SparseDictionary, st: _Settings, lam:
     D = dictionary.matrix(dtype=x.dtype, device=x.device)
     codes, oinfo = batch_omp(
         D, blocks, n_nonzero_coefs=st.cap, tol=st.tol, gram=dictionary.gram(), Dty=dictionary.adjoint(blocks),
-        return_info=True, progress=progress,
+        return_info=True, progress=progress, check=False,
     )
     clean = codes @ D.T + dc
     total, count = accumulate_patches(clean, tuple(x.shape), st.block, st.step)

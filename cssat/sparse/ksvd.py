@@ -180,7 +180,7 @@ def sparse_ksvd(
         D = coder.Bm @ A  # (p, L)
         G = A.T @ _base_gram(coder.base, A)  # DᵀD through the separable BᵀB
         Gamma, oinfo = batch_omp(
-            D, X, n_nonzero_coefs=cap, tol=tol, gram=G, Dty=BtX @ A, return_info=True, progress=False
+            D, X, n_nonzero_coefs=cap, tol=tol, gram=G, Dty=BtX @ A, return_info=True, progress=False, check=False
         )
         info.mean_atoms.append(float(oinfo.n_iter.double().mean()))
         # per-block coding error: picks replacement blocks (the worst-coded not yet used)
@@ -245,7 +245,8 @@ class _AtomCoder:
         if self.dense:
             a = v.clone()
         else:
-            a = batch_omp(self.Bm, v, n_nonzero_coefs=self.T, gram=self.baseG, Dty=self.Bm.T @ v, progress=False)
+            a = batch_omp(self.Bm, v, n_nonzero_coefs=self.T, gram=self.baseG, Dty=self.Bm.T @ v, progress=False,
+                          check=False)
         nd = torch.linalg.vector_norm(self.Bm @ a)
         return a / nd if float(nd) > 0 else a
 
@@ -254,7 +255,7 @@ class _AtomCoder:
         if self.dense:
             return Xi.T.clone()
         return batch_omp(self.Bm, Xi, n_nonzero_coefs=self.T, gram=self.baseG, Dty=self.base.adjoint(Xi),
-                         progress=False).T.contiguous()
+                         progress=False, check=False).T.contiguous()
 
 
 def _initial_atoms(init, X: Tensor, L: int, coder: _AtomCoder, gen: torch.Generator) -> Tensor:

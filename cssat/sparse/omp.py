@@ -24,8 +24,9 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from cssat._checks import FieldError, FieldTypeError
-from cssat.sparse._io import as_float_tensor, numpy_io
+from cssat._checks import FieldError
+from cssat.sparse._io import numpy_io
+from cssat.sparse._omp_checks import check_consistent, check_inputs, given, rescale
 
 __all__ = ["batch_omp", "gram_matrix", "omp_path_costs", "OMPInfo"]
 
@@ -100,6 +101,7 @@ def batch_omp(
     backend: str = "auto",
     return_info: bool = False,
     progress: bool | None = None,
+    check: bool = True,
 ) -> Tensor | tuple[Tensor, OMPInfo]:
     """Orthogonal matching pursuit for a batch of signals (Batch-OMP; no Python loop over signals).
 
@@ -142,11 +144,20 @@ def batch_omp(
     progress : bool, optional
         A tqdm bar of the atoms selected (up to ``B K``), on either path: ``None`` shows it on a
         terminal once the call has run a second, ``True`` always, ``False`` never.
+    check : bool
+        Verify a given ``gram`` against ``D`` (its diagonal and largest column) and ``Dty``
+        against ``Y`` (its first row), ``O(m n)``; callers that formed them from ``D`` and ``Y``
+        themselves (K-SVD, thousands of small calls) pass ``False``. NaN, Inf and shapes are
+        checked always.
 
     Returns
     -------
     (B, n_atoms) or (n_atoms,) tensor
         The sparse codes ``γ`` (same leading shape as ``Y``).
+
+    Inputs whose largest entry is far from 1 (beyond 2^±20) are scaled by powers of two (exact)
+    before the Gram and the correlations are formed, and the codes scaled back: the Gram cannot
+    overflow or underflow (float32 dictionaries of entries 1e19 or 1e-30 work as those near 1).
 
     Notes
     -----
@@ -168,62 +179,32 @@ def batch_omp(
       already chosen (exact fit; a zero signal gets a zero code);
     * the chosen atom is linearly dependent on the chosen ones (``L_kk² ≤ 16 ε ‖dⱼ‖²``).
     """
-    D, Y2, squeeze, K, tol = _check_inputs(D, Y, n_nonzero_coefs, tol)
+    D, Y2, squeeze, K, tol = check_inputs(D, Y, n_nonzero_coefs, tol)
+    D, Y2, gram, Dty, tol, scale = rescale(D, Y2, gram, Dty, tol)
+    use_gram = _choose_path(D, Y2.shape[0], K, tol, gram, precompute, backend)
+    out, n_iter, res_sq = _solve(D, Y2, K, tol, gram, Dty, use_gram, backend, chunk_size, progress, check)
+    return _finish(out, n_iter, res_sq, squeeze, return_info, "gram" if use_gram else "nogram", scale)
+
+
+def _solve(D, Y2, K, tol, gram, Dty, use_gram, backend, chunk_size, progress, check):
+    """``(codes (B, n_atoms), atoms per signal (B,), squared residuals (B,))`` by the chosen path."""
     B, n_atoms = Y2.shape[0], D.shape[1]
-    use_gram = _choose_path(D, B, K, tol, gram, precompute, backend)
     out = torch.zeros(B, n_atoms, dtype=D.dtype, device=D.device)
     n_iter = torch.zeros(B, dtype=torch.long, device=D.device)
     res_sq = torch.zeros(B, dtype=D.dtype, device=D.device)
-    path = "gram" if use_gram else "nogram"
     if B == 0:
-        return _finish(out, n_iter, res_sq, squeeze, return_info, path)
+        return out, n_iter, res_sq
     use_numba, chunk_size = _kernel_settings(D, K, use_gram, backend, chunk_size)
     from cssat._progress import progress_bar
 
+    path = "gram" if use_gram else "nogram"
     with progress_bar(B * K, f"OMP ({path}, {B} signal{'s' if B != 1 else ''}, K={K})", progress, unit="atom") as bar:
         state = (out, n_iter, res_sq, bar)
         if use_gram:
-            _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state)
+            _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state, check)
         else:
             _run_nogram(D, Y2, K, tol, chunk_size, state)
-    return _finish(out, n_iter, res_sq, squeeze, return_info, path)
-
-
-def _check_inputs(D, Y, n_nonzero_coefs, tol):
-    """Validate ``D``, ``Y``, ``K`` and ``tol`` of :func:`batch_omp`; returns ``(D, Y2, squeeze, K, tol)``
-    with ``Y2 (B, m)`` in ``D``'s dtype and device and ``K`` the per-signal step cap."""
-    if D.ndim != 2:
-        raise FieldError("D", f"expected a 2-D dictionary (m, n_atoms), got shape {tuple(D.shape)}")
-    if not D.is_floating_point():  # integers: the default float dtype, not integer arithmetic
-        D = D.to(torch.get_default_dtype())
-    if D.dtype not in (torch.float32, torch.float64):
-        raise FieldTypeError("D", f"batch_omp computes in float32 or float64, got {D.dtype}; cast it, e.g. D.float()")
-    if not bool(torch.isfinite(D).all()):
-        raise FieldError("D", "the dictionary contains NaN or Inf")
-    m, n_atoms = D.shape
-    squeeze = Y.ndim == 1
-    Y2 = Y.reshape(1, -1) if squeeze else Y
-    if Y2.ndim != 2 or Y2.shape[1] != m:
-        raise FieldError("Y", f"expected shape (B, {m}) or ({m},) to match D (m={m}), got {tuple(Y.shape)}")
-    Y2 = Y2.to(dtype=D.dtype, device=D.device)
-    if not bool(torch.isfinite(Y2).all()):
-        raise FieldError("Y", "signals contain NaN or Inf")
-    if tol is not None:
-        tol = float(tol)
-        if not math.isfinite(tol) or tol < 0:
-            raise FieldError("tol", f"squared residual bound must be finite and >= 0, got {tol}")
-    if n_nonzero_coefs is not None:
-        if isinstance(n_nonzero_coefs, bool) or int(n_nonzero_coefs) != n_nonzero_coefs:
-            raise FieldError("n_nonzero_coefs", f"expected an integer, got {n_nonzero_coefs!r}")
-        n_nonzero_coefs = int(n_nonzero_coefs)
-        if not 1 <= n_nonzero_coefs <= n_atoms:
-            raise FieldError(
-                "n_nonzero_coefs", f"must be in [1, n_atoms={n_atoms}], got {n_nonzero_coefs}"
-            )
-    elif tol is None:
-        n_nonzero_coefs = max(1, n_atoms // 10)
-    K = min(n_nonzero_coefs if n_nonzero_coefs is not None else n_atoms, m, n_atoms)
-    return D, Y2, squeeze, K, tol
+    return out, n_iter, res_sq
 
 
 def _choose_path(D, B, K, tol, gram, precompute, backend) -> bool:
@@ -264,7 +245,7 @@ def _kernel_settings(D, K, use_gram, backend, chunk_size) -> tuple[bool, int]:
     return use_numba, max(1, int(chunk_size))
 
 
-def _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state) -> None:
+def _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state, check=True) -> None:
     """The Gram path (Batch-OMP) into ``state = (out, n_iter, res_sq, bar)``, by the numba kernel
     (one signal per thread) or the torch kernel (chunks of ``chunk_size`` signals)."""
     from cssat.sparse import _omp_numba
@@ -272,15 +253,15 @@ def _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state) -> None:
 
     out, n_iter, res_sq, bar = state
     B, n_atoms = out.shape
-    G = as_float_tensor(gram).to(dtype=D.dtype, device=D.device) if gram is not None else gram_matrix(D)
-    if tuple(G.shape) != (n_atoms, n_atoms):
-        raise FieldError("gram", f"expected shape ({n_atoms}, {n_atoms}), got {tuple(G.shape)}")
+    G = given(gram, "gram", (n_atoms, n_atoms), D) if gram is not None else gram_matrix(D)
+    if gram is None and not bool(torch.isfinite(torch.diagonal(G)).all()):
+        raise FieldError("D", "its Gram matrix DᵀD overflows this dtype; use float64")
     if Dty is not None:
-        if Dty.numel() != B * n_atoms:
-            raise FieldError("Dty", f"expected shape ({B}, {n_atoms}) = (signals, atoms), got {tuple(Dty.shape)}")
-        A0 = as_float_tensor(Dty).reshape(B, n_atoms).to(dtype=D.dtype, device=D.device)
+        A0 = given(Dty, "Dty", (B, n_atoms), D)
     else:
         A0 = Y2 @ D
+    if check and (gram is not None or Dty is not None):
+        check_consistent(D, Y2, G if gram is not None else None, A0 if Dty is not None else None)
     diag = torch.diagonal(G).clone()
     ynorm2 = (Y2 * Y2).sum(1)
     if use_numba:
@@ -367,7 +348,11 @@ def _sparse_gram(D: Tensor, mask: Tensor, nnz: Tensor) -> Tensor:
     return torch.from_numpy(G)
 
 
-def _finish(out, n_iter, res_sq, squeeze, return_info, path):
+def _finish(out, n_iter, res_sq, squeeze, return_info, path, scale=(1.0, 1.0)):
+    s, t = scale
+    if s != 1.0 or t != 1.0:  # back to the caller's scale: γ = γ' t / s, ‖r‖² = ‖r'‖² t²
+        out.mul_(t / s)
+        res_sq.mul_(t * t)
     if squeeze:
         out, n_iter, res_sq = out[0], n_iter[0], res_sq[0]
     if return_info:
