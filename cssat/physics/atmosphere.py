@@ -130,26 +130,31 @@ class _PositiveAtmosphere(Atmosphere):
     """Shared checks and reporting of the mean-1 models."""
 
     def __init__(self, scintillation_index: float | None, diameter_m: float, airmass: float, exposure_s: float,
-                 site_altitude_m: float, osborn: float):
+                 site_altitude_m: float, wavelength_m: float = 550e-9):
         float_param(diameter_m, "diameter_m", 0.0, open_lo=True)
         float_param(airmass, "airmass", 1.0, 40.0)  # 40: the horizon (an airmass of ~38)
         float_param(exposure_s, "exposure_s", 0.0)
         float_param(site_altitude_m, "site_altitude_m", -500.0, 8000.0)  # observatories: the Dead Sea to 5.6 km
-        float_param(osborn, "osborn", 0.0, open_lo=True)
+        float_param(wavelength_m, "wavelength_m", 0.0, open_lo=True)
         if scintillation_index is not None:
             float_param(scintillation_index, "scintillation_index", 0.0)
         self.diameter_m, self.airmass, self.exposure_s = float(diameter_m), float(airmass), float(exposure_s)
-        self.site_altitude_m, self.osborn = float(site_altitude_m), float(osborn)
+        self.site_altitude_m, self.wavelength_m = float(site_altitude_m), float(wavelength_m)
         self.given_index = scintillation_index
+        self._profile_index: float | None = None
 
     @property
     def scintillation_index(self) -> float:
-        """σ_I², given or from Young's formula with Osborn et al.'s correction."""
+        """σ_I², given or (null) the continuous HV 5/7 profile's for this telescope
+        (:func:`cssat.physics.turbulence.scintillation_index`, the same for every model)."""
         if self.given_index is not None:
             return float(self.given_index)
-        from cssat.physics.turbulence import young_index
+        if self._profile_index is None:
+            from cssat.physics.turbulence import scintillation_index
 
-        return young_index(self.diameter_m, self.airmass, max(self.exposure_s, 1e-3), self.site_altitude_m, self.osborn)
+            self._profile_index = scintillation_index(self.diameter_m, self.airmass, self.exposure_s,
+                                                      self.site_altitude_m, self.wavelength_m)
+        return self._profile_index
 
     def describe(self) -> dict[str, Any]:
         return {**super().describe(), "atmosphere_scintillation_index_model": self.scintillation_index,
@@ -161,9 +166,11 @@ class LognormalAtmosphere(_PositiveAtmosphere):
     """Positive, mean-1 transmission, independent for every pixel and sample: ``Φ = exp(s Z − s²/2)``,
     ``Z ~ N(0, 1)``, ``s² = ln(1 + σ_I²)`` so that ``E Φ = 1`` and ``Var Φ = σ_I²``.
 
-    ``scintillation_index`` σ_I² is given, or (null) from Young's (1967) formula for a telescope of
-    ``diameter_m`` at ``airmass`` with ``exposure_s``, at ``site_altitude_m``, times Osborn et al.'s
-    (2015) correction ``osborn`` (1.5): about 1e-5 for a 1 m telescope and a 1 s exposure.
+    ``scintillation_index`` σ_I² is given, or (null) the weak-turbulence σ_I² of the continuous
+    Hufnagel–Valley 5/7 profile with Bufton's wind for a telescope of ``diameter_m`` at
+    ``airmass`` with ``exposure_s``, at ``site_altitude_m``
+    (:func:`cssat.physics.turbulence.scintillation_index`, the phase-screen model's too): 1.24e-5
+    for a 1 m telescope and a 1 s exposure at the zenith (1.4× Young's 1967 formula).
 
     Physics: the scintillation's log-normal statistics and mean are right; the independence between
     pixels is not — it holds only when the object's pixels are farther apart than the scintillation
@@ -173,9 +180,9 @@ class LognormalAtmosphere(_PositiveAtmosphere):
     name = "lognormal"
 
     def __init__(self, scintillation_index: float | None = None, diameter_m: float = 1.0, airmass: float = 1.0,
-                 exposure_s: float = 1.0, site_altitude_m: float = 0.0, osborn: float = 1.5, *,
+                 exposure_s: float = 1.0, site_altitude_m: float = 0.0, wavelength_m: float = 550e-9, *,
                  object_size_m: float | None = None, range_km: float | None = None):
-        super().__init__(scintillation_index, diameter_m, airmass, exposure_s, site_altitude_m, osborn)
+        super().__init__(scintillation_index, diameter_m, airmass, exposure_s, site_altitude_m, wavelength_m)
         self._geometry(object_size_m, range_km)  # independent per pixel: no effect
 
     def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
@@ -206,9 +213,8 @@ class CorrelatedAtmosphere(_PositiveAtmosphere):
 
     def __init__(self, correlation_arcsec: float | None = None, object_size_m: float = 10.0, range_km: float = 35786.0,
                  scintillation_index: float | None = None, diameter_m: float = 1.0, airmass: float = 1.0,
-                 exposure_s: float = 1.0, site_altitude_m: float = 0.0, osborn: float = 1.5,
-                 wavelength_m: float = 550e-9):
-        super().__init__(scintillation_index, diameter_m, airmass, exposure_s, site_altitude_m, osborn)
+                 exposure_s: float = 1.0, site_altitude_m: float = 0.0, wavelength_m: float = 550e-9):
+        super().__init__(scintillation_index, diameter_m, airmass, exposure_s, site_altitude_m, wavelength_m)
         self.fov_rad = _geometry(object_size_m, range_km)
         if correlation_arcsec is not None:
             float_param(correlation_arcsec, "correlation_arcsec", 0.0)
@@ -283,11 +289,10 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
                  airmass: float = 1.0, exposure_s: float = 1.0, site_altitude_m: float = 0.0,
                  wavelength_m: float = 550e-9, n_layers: int = 8, ground_cn2: float = 1.7e-14,
                  rms_wind_m_s: float = 21.0, ground_wind_m_s: float = 5.0, jet_m_s: float = 30.0,
-                 outer_scale_m: float = 25.0, n_radial: int = 96, n_angular: int = 32):
-        super().__init__(None, diameter_m, airmass, exposure_s, site_altitude_m, 1.0)
+                 outer_scale_m: float = 25.0, n_radial: int = 96, n_angular: int = 64):
+        super().__init__(None, diameter_m, airmass, exposure_s, site_altitude_m, wavelength_m)
         self.fov_rad = _geometry(object_size_m, range_km)
         self.object_size_m, self.range_km = float(object_size_m), float(range_km)
-        self.wavelength_m = float_param(wavelength_m, "wavelength_m", 0.0, open_lo=True)
         self.outer_scale_m = float_param(outer_scale_m, "outer_scale_m", 0.0, open_lo=True)
         self.n_layers, self.n_radial, self.n_angular = (int_param(v, f, 1) for f, v in
                                                         (("n_layers", n_layers), ("n_radial", n_radial), ("n_angular", n_angular)))
@@ -295,14 +300,39 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
                             ground_wind_m_s=float_param(ground_wind_m_s, "ground_wind_m_s", 0.0), jet_m_s=float_param(jet_m_s, "jet_m_s", 0.0))
 
     def layers(self, seed: int = 0) -> Layers:
-        """The :class:`~cssat.physics.turbulence.Layers` above the site (wind directions from ``seed``)."""
+        """The :class:`~cssat.physics.turbulence.Layers` above the site (wind directions from
+        ``seed``), computed once per seed."""
+        cache = self.__dict__.setdefault("_layers", {})
+        if seed not in cache:
+            if not cache:
+                cache[seed] = self._make_layers(seed)
+            else:  # the heights do not depend on the seed: only the wind directions are drawn again
+                base = next(iter(cache.values()))
+                dirs = np.random.default_rng(seed).uniform(0, 2 * math.pi, len(base.height_m))
+                cache[seed] = base._replace(wind_dir_rad=dirs)
+        return cache[seed]
+
+    def _make_layers(self, seed: int) -> Layers:
         from cssat.physics.turbulence import layers_from_profile
 
-        return layers_from_profile(self.n_layers, site_altitude_m=self.site_altitude_m, seed=seed, **self.profile)
+        match = dict(diameter_m=self.diameter_m, exposure_s=self.exposure_s, airmass=self.airmass,
+                     wavelength_m=self.wavelength_m, outer_scale_m=self.outer_scale_m)
+        return layers_from_profile(self.n_layers, site_altitude_m=self.site_altitude_m, seed=seed, match=match,
+                                   **self.profile)
 
     def spectrum(self, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The quadrature of every layer's intensity PSD: ``(frequency vectors (L K, 2) cycles/m,
-        weights (L K,) — variances, summing to σ² —, layer index (L K,))``."""
+        weights (L K,) — variances, summing to σ² —, layer index (L K,))``; computed once per seed
+        (read-only arrays)."""
+        cache = self.__dict__.setdefault("_spectra", {})
+        if seed not in cache:
+            out = self._make_spectrum(seed)
+            for a in out:
+                a.flags.writeable = False
+            cache[seed] = out
+        return cache[seed]
+
+    def _make_spectrum(self, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         from cssat.physics.turbulence import intensity_psd
 
         lay = self.layers(seed)
