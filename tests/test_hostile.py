@@ -25,7 +25,7 @@ def run_app(args, cwd, timeout=300):
 
 # ------------------------------------------------------------------ 2. command-line mistakes
 
-@pytest.mark.parametrize("args, key, allowed", [
+CLI_MISTAKES = [
     (["foo=1"], "foo", "cs, "),
     (["cs.foo=1"], "cs.foo", "m, ratio"),
     (["solver.foo=1"], "solver.foo", "n_nonzero_coefs"),
@@ -40,13 +40,36 @@ def run_app(args, cwd, timeout=300):
     (["cs.m=[1"], "cs.m", "cannot parse"),
     (["-m", "solver=omp,l1,bogus"], "solver", "'bogus'"),
     (["optimized_metric=psnrr"], "optimized_metric", "'psnr'"),
-])
-def test_a_command_line_mistake_exits_2_in_one_line(tmp_path, args, key, allowed):
-    code, lines = run_app([*args, f"hydra.run.dir={tmp_path / 'r'}", f"hydra.sweep.dir={tmp_path / 's'}"], tmp_path)
-    assert code == 2, lines
-    assert len(lines) == 1, lines
-    assert key in lines[0] and allowed in lines[0], lines[0]
-    assert "Traceback" not in lines[0] and "HYDRA_FULL_ERROR" not in lines[0]
+]
+
+
+def _in_parallel(fn, cases):
+    """``fn(i, case)`` for every case on two threads (each a subprocess): the failures, listed."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def one(item):
+        i, case = item
+        try:
+            fn(i, case)
+            return None
+        except AssertionError as err:
+            return f"{case}: {err}"
+
+    with ThreadPoolExecutor(2) as pool:
+        return [f for f in pool.map(one, enumerate(cases)) if f]
+
+
+def test_a_command_line_mistake_exits_2_in_one_line(tmp_path):
+    def check(i, case):
+        args, key, allowed = case
+        code, lines = run_app([*args, f"hydra.run.dir={tmp_path / f'r{i}'}", f"hydra.sweep.dir={tmp_path / f's{i}'}"],
+                              tmp_path)
+        assert code == 2, lines
+        assert len(lines) == 1, lines
+        assert key in lines[0] and allowed in lines[0], lines[0]
+        assert "Traceback" not in lines[0] and "HYDRA_FULL_ERROR" not in lines[0]
+
+    assert not _in_parallel(check, CLI_MISTAKES)
 
 
 def test_help_and_cfg_keep_working(tmp_path):
@@ -58,7 +81,7 @@ def test_help_and_cfg_keep_working(tmp_path):
 
 # ------------------------------------------------------------------ 3. value crashes: checks before work
 
-@pytest.mark.parametrize("args, field", [
+VALUE_CRASHES = [
     (["target.size=2"], "target.size"),
     (["target.size=6", "denoiser=sparse_ksvd"], "target.size"),
     (["target.size=12", "denoiser=sparse_ksvd", "denoiser.block_size=16"], "denoiser.block_size"),
@@ -80,18 +103,25 @@ def test_help_and_cfg_keep_working(tmp_path):
     (["experiment=sim3", "target.size=16", "denoiser3d.block_size=20"], "denoiser3d.block_size"),
     (["denoiser=sparse_ksvd", "denoiser.atom_sparsity=1000"], "denoiser.atom_sparsity"),
     (["denoiser=sparse_ksvd", "denoiser.n_atoms=5000"], "denoiser.n_atoms"),
-])
-def test_a_bad_value_is_refused_before_any_work_naming_its_field(tmp_path, args, field):
-    small = ["threads=1", "denoiser=none"] if "experiment=lightcurve" in args else SMALL
-    base = [a for a in small if not any(a.split("=")[0] == b.split("=")[0] for b in args)]
-    t = time.time()
-    code, lines = run_app([*base, *args, f"hydra.run.dir={tmp_path / 'r'}"], tmp_path)
-    assert code == 2, lines
-    bad = [ln for ln in lines if "bad input" in ln]
-    assert len(bad) == 1 and field in bad[0], lines
-    assert not any("Traceback" in ln for ln in lines), lines
-    assert not (tmp_path / "r" / "arrays.npz").exists()
-    assert time.time() - t < 60
+]
+
+
+def test_a_bad_value_is_refused_before_any_work_naming_its_field(tmp_path):
+    def check(i, case):
+        args, field = case
+        small = ["threads=1", "denoiser=none"] if "experiment=lightcurve" in args else SMALL
+        base = [a for a in small if not any(a.split("=")[0] == b.split("=")[0] for b in args)]
+        t = time.time()
+        d = tmp_path / f"r{i}"
+        code, lines = run_app([*base, *args, f"hydra.run.dir={d}"], tmp_path)
+        assert code == 2, lines
+        bad = [ln for ln in lines if "bad input" in ln]
+        assert len(bad) == 1 and field in bad[0], lines
+        assert not any("Traceback" in ln for ln in lines), lines
+        assert not (d / "arrays.npz").exists()
+        assert time.time() - t < 120
+
+    assert not _in_parallel(check, VALUE_CRASHES)
 
 
 def test_a_tiny_image_file_is_refused(tmp_path):
