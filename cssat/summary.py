@@ -108,7 +108,7 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
 def _verify(job: Path, metrics: dict, current: str | None) -> dict[str, Any]:
     """``{}`` when the job's ``metrics.json`` is this sweep's and its result files still hash as
     listed; else the ``status`` (``missing``: another sweep's results; ``corrupt``) and ``error``."""
-    from cssat.experiments.results import file_hash
+    from cssat.experiments.results import files_problem
 
     sid = metrics.get("sweep_id")
     if current is not None and sid is not None and sid != current:
@@ -118,14 +118,8 @@ def _verify(job: Path, metrics: dict, current: str | None) -> dict[str, Any]:
     files = metrics.get("files")
     if not isinstance(files, dict):
         return {"status": "corrupt", "error": "metrics.json lists no result files"}
-    for rel, h in files.items():
-        p = job / str(rel)
-        try:
-            if file_hash(p) != h:
-                return {"status": "corrupt", "error": f"{rel} changed since the run (its content hash differs)"}
-        except OSError as err:
-            return {"status": "corrupt", "error": f"{rel}: {err.strerror or err}"}
-    return {}
+    why = files_problem(job, files)
+    return {} if why is None else {"status": "corrupt", "error": why}
 
 
 #: swept config keys in words, and those plotted as a ratio of the pixel count

@@ -63,12 +63,9 @@ def check_complete(out_dir: Path, saved: dict, sha: str, cfg: Any = None) -> str
     files = saved.get("files")
     if not isinstance(files, dict):
         return "the results have no manifest (an older cssat wrote them)"
-    for rel, h in files.items():
-        p = Path(out_dir) / rel
-        if not p.is_file():
-            return f"{rel} is missing"
-        if file_hash(p) != h:
-            return f"{rel} changed since the run (its content hash differs)"
+    why = files_problem(out_dir, files)
+    if why is not None:
+        return why
     inputs = saved.get("inputs", {})
     if not isinstance(inputs, dict):
         return "the manifest's inputs are not a mapping"
@@ -77,6 +74,18 @@ def check_complete(out_dir: Path, saved: dict, sha: str, cfg: Any = None) -> str
             return f"the input file {path} is gone"
         if file_hash(path) != h:
             return f"the input file {path} changed since it was read"
+    return None
+
+
+def files_problem(out_dir: Path, files: dict) -> str | None:
+    """The first listed result file (``{relative path: hash}``) that is missing or no longer has
+    its hash, as a reason; ``None`` when every one is there as written."""
+    for rel, h in files.items():
+        p = Path(out_dir) / str(rel)
+        if not p.is_file():
+            return f"{rel} is missing"
+        if file_hash(p) != h:
+            return f"{rel} changed since the run (its content hash differs)"
     return None
 
 
