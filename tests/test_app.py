@@ -349,36 +349,46 @@ def test_every_experiment_refuses_a_run_that_does_not_fit_before_any_work(tmp_pa
 
 def test_realism_experiment_maps(tmp_path):
     cfg = cfg_of("experiment=realism", "target.size=12", "cs.m=115", "threads=1", "grid.axes.0.values=[0.058,60]",
-                 "grid.axes.1.values=[2,14]", "atmosphere.n_radial=32", "atmosphere.n_angular=6", "atmosphere.n_layers=4",
-                 "grid_options.tv.max_iter=300")
+                 "grid.axes.1.values=[-2,14]", "atmosphere.n_radial=32", "atmosphere.n_angular=6", "atmosphere.n_layers=4",
+                 "grid_options.tv.max_iter=300", "noise.systematic=0", "~grid.axes.0.cells.geo_moving",
+                 "~grid.axes.0.cells.leo_pass", "~grid.axes.2.cells.tv_phi_unknown")
     met = run_experiment(cfg, tmp_path)
     with open(tmp_path / "realism.csv", newline="") as f:
         import csv
 
         rows = list(csv.DictReader(f))
-    assert len(rows) == 3 * 2 * 3  # (paper + 2 sizes) × 2 magnitudes × 3 solvers (omp, tv, tv_strong)
-    for fig in ("realism_omp.png", "realism_tv.png", "realism_tv_strong.png", "realism_curves.png"):
+    assert len(rows) == 3 * 2 * 3  # (paper + 2 sizes) × 2 magnitudes × 3 solvers (flux, omp, tv)
+    for fig in ("realism_flux.png", "realism_omp.png", "realism_tv.png", "realism_curves.png", "realism_information.png"):
         assert (tmp_path / "figures" / fig).stat().st_size > 5000
     # the physics: at GEO one transmission for all pixels; at 60″ the pixels decorrelate
     assert met["phi_effective_rank_centered_0.058"] <= 2 < met["phi_effective_rank_centered_60"]
     assert met["phi_effective_rank_0.058"] == 1  # Φ itself: its common row holds > 99 % of the energy
     assert met["phi_effective_rank_centered_paper"] >= 0.75 * 115  # Gaussian: (nearly) full rank
-    # brighter is better, and for the paper's Φ the image is recovered at V = 2
-    tv = {(r["arcsec"], float(r["magnitude"])): float(r["psnr"]) for r in rows if r["solver"] == "tv"}
-    assert tv[("paper", 2.0)] > tv[("paper", 14.0)] and tv[("paper", 2.0)] > 25
-    assert met["psnr"] == max(float(r["psnr"]) for r in rows if r["arcsec"] == "60" and float(r["magnitude"]) == 2.0)
+    by = {(r["solver"], r["arcsec"], float(r["magnitude"])): r for r in rows}
+    # brighter is better, and for the paper's Φ the image is recovered at V = -2
+    assert float(by[("tv", "paper", -2.0)]["psnr"]) > float(by[("tv", "paper", 14.0)]["psnr"]) > met["psnr_flux_only"]
+    assert met["psnr"] == max(float(r["psnr"]) for r in rows if r["arcsec"] == "60" and float(r["magnitude"]) == -2.0)
     # the flux-only reference: the PSNR of the flat image at the truth's mean
     from cssat.data import load_target
 
     t = load_target("tess", 12)
     assert met["psnr_flux_only"] == pytest.approx(10 * np.log10(1 / np.mean((t - t.mean()) ** 2)), rel=1e-9)
+    for r in rows:  # every cell under the flux is labelled; TV at the noise never is (the flat image is its λ = ∞)
+        assert (r["below_flux_only"] == "True") == (float(r["psnr"]) < met["psnr_flux_only"] - 0.1)
+        if r["solver"] == "tv" and r["arcsec"] != "paper":
+            assert r["below_flux_only"] == "False", r
+        # V = -2 puts ~2e9 e⁻ in the brightest pixel of a 1 m telescope in 1 s: over a 1e5 e⁻ full well
+        assert (r["unreachable"] == "True") == (float(r["magnitude"]) == -2.0)
+    # the information bound: at GEO no mode but the flux is measurable, whatever the brightness
+    assert all(int(r["info_modes"]) == 0 for r in rows if r["arcsec"] == "0.058")
+    assert int(by[("tv", "paper", -2.0)]["info_modes"]) > 0
 
 
 def test_cs_ratio_lets_the_image_size_change_alone(tmp_path):
     from cssat.experiments.forward import measurements
 
     # the defaults are the paper's m, exactly
-    for exp, m, n in (("sim1", 13225, 128), ("sim2", 8192, 128), ("sim3", 3277, 64), ("realism", 3277, 64)):
+    for exp, m, n in (("sim1", 13225, 128), ("sim2", 8192, 128), ("sim3", 3277, 64), ("realism", 819, 32)):
         assert measurements(cfg_of(f"experiment={exp}").cs, n * n) == m
     met = run_experiment(cfg_of("target.size=16", "threads=1", "denoiser=none"), tmp_path / "a")  # no cs.m given
     assert met["m"] == round(0.80718994140625 * 256) == 207

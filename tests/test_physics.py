@@ -133,7 +133,7 @@ def test_photometric_noise_on_a_light_curve_in_watts():
     from cssat.optics import SOLAR_IRRADIANCE_W_M2, apparent_magnitude
     from cssat.physics import PhotometricNoise
 
-    pn = PhotometricNoise(magnitude=None, read_noise_e=0.0, dark_e_per_s=0.0, sky_mag_arcsec2=40.0)
+    pn = PhotometricNoise(magnitude=None, read_noise_e=0.0, dark_e_per_s=0.0, sky_mag_arcsec2=40.0, systematic=0.0)
     flux = SOLAR_IRRADIANCE_W_M2 * 10 ** (-0.4 * (10.0 + 26.74))  # a V ≈ 10 satellite, W/m²
     y = torch.full((100000,), flux, dtype=torch.float64)
     out = pn(y, torch.Generator().manual_seed(1))

@@ -25,7 +25,8 @@ TINY = {
              "reference.n_nonzero_coefs=10", "denoiser3d.n_iter=1"],
     "solvers": ["target.size=12", "grid.axes.0.values=[0.5]", "grid_options.pnp.max_iter=2",
                 "grid_options.pnp.denoiser.n_iter=1", "grid_options.tv.max_iter=50", "grid_options.l1.max_iter=50"],
-    "realism": ["target.size=12", "grid.axes.0.values=[0.058,60]", "grid.axes.1.values=[8]", "grid_options.tv.max_iter=50"],
+    "realism": ["target.size=12", "grid.axes.0.values=[0.058,60]", "grid.axes.1.values=[8]", "grid_options.tv.max_iter=50",
+                "~grid.axes.0.cells.leo_pass"],  # its 160 samples need N >= 160
     "lightcurve": ["scenario.n_steps=3", "render.size=8"],
 }
 #: options made quick (their numbers are not what these tests check)
@@ -35,6 +36,7 @@ QUICK = {
     ("solver", "landweber"): ["solver.max_iter=50"],
     ("denoiser", "sparse_ksvd"): ["denoiser.n_iter=1"], ("denoiser", "sparse_ksvd_pnp"): ["denoiser.n_iter=1"],
     ("atmosphere", "phase_screen"): ["atmosphere.n_radial=16", "atmosphere.n_angular=4", "atmosphere.n_layers=2"],
+    ("atmosphere", "phase_screen_converged"): ["atmosphere.n_radial=16", "atmosphere.n_angular=4", "atmosphere.n_layers=2"],
 }
 
 
@@ -73,15 +75,23 @@ def test_grid_cells_are_copies_with_their_own_settings():
 
     cfg = cfg_of("experiment=realism", "grid.axes.0.values=[0.058]", "grid.axes.1.values=[2,14]")
     out = cells(cfg)
-    assert len(out) == 2 * 2 * 3
+    assert len(out) == 4 * 2 * 4  # (paper, geo_moving, leo_pass, 0.058) × 2 magnitudes × 4 solvers
     assert cfg.noise.magnitude == 12.0 and cfg.atmosphere._target_.endswith("PhaseScreenAtmosphere")
     mags = {(lab["arcsec"], lab["magnitude"]): c.noise.magnitude for lab, c in out}
     assert mags[("paper", 2)] == 2 and mags[("paper", 14)] == 14
     paper = [c for lab, c in out if lab["arcsec"] == "paper"]
     assert all(c.atmosphere._target_.endswith("GaussianAtmosphere") for c in paper)
-    strong = [c for lab, c in out if lab["solver"] == "tv_strong"]
-    assert all(c.solver.lam == 0.02 for c in strong)
-    assert all(c.solver.lam is None for lab, c in out if lab["solver"] == "tv")
+    assert all(c.solver.lam == "discrepancy" for lab, c in out if lab["solver"] == "tv")
+    assert all(c.solver.epsilon == "discrepancy" for lab, c in out if lab["solver"] == "omp")
+    assert all(c.solver._target_ == "cssat.recon.FluxOnly" for lab, c in out if lab["solver"] == "flux")
+    assert cfg.solver._target_ != "cssat.recon.FluxOnly"  # the base config keeps its own solver
+    unknown = [c for lab, c in out if lab["solver"] == "tv_phi_unknown"]
+    assert all(c.reference._target_.endswith("Statistics") for c in unknown)
+    assert all(c.reference._target_.endswith("Known") for lab, c in out if lab["solver"] != "tv_phi_unknown")
+    moving = {lab["arcsec"]: c for lab, c in out if lab["solver"] == "tv"}
+    assert moving["geo_moving"].forward._target_.endswith("MovingScene") and moving["geo_moving"].forward.dtype == "float64"
+    assert moving[0.058].forward._target_.endswith("PixelSensing") and moving[0.058].geometry.slew_rad_s == 0
+    assert moving["leo_pass"].geometry.slew_rad_s == 0.0132 and moving["leo_pass"].cs.m == 160
 
 
 def test_the_solver_comparison_shares_each_measurement(tmp_path, monkeypatch):

@@ -2,6 +2,7 @@
 reference satellites (paper §4: Eq. 22–30).
 
 * :class:`Known` — Φ itself (Simulation 1; an oracle where Φ is an atmosphere's);
+* :class:`Statistics` — only Φ's statistics: ``E[Φ]`` and the light curve's scatter (issue 22);
 * :class:`FullRank` — ``Φ̂ = Y_ref X_ref⁻¹`` from ``N_ref = N`` references (Eq. 24, Simulation 2);
 * :class:`Sparse` — ``Φᵀ = ΨA``, ``A`` sparse, from ``N_ref < N`` references drawn from a pool
   in each of ``repeats`` draws (Eq. 26–30, Simulation 3), with the minimum-norm baseline beside it;
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
 
     from cssat.experiments.forward import Measured
 
-__all__ = ["Known", "FullRank", "Sparse", "MinNorm", "T0_AUTO", "BASELINE_ALL_MAX"]
+__all__ = ["Known", "Statistics", "FullRank", "Sparse", "MinNorm", "T0_AUTO", "BASELINE_ALL_MAX"]
 
 
 class Known:
@@ -56,6 +57,36 @@ class Known:
     def finish(self) -> None:
         """Release what :meth:`prepare` holds."""
         self._op = None
+
+    def describe(self) -> dict[str, Any]:
+        return {"reference": self.name}
+
+
+class Statistics(Known):
+    """Φ unknown, its statistics known (issue 22): the solver gets ``E[Φ] = 𝟙φ̄ᵀ`` — the mean
+    transmission of each pixel (the mean of Φ's rows; a long record gives it to ``O(m^−½)``) —
+    and, as the noise it must fit to, the photon noise plus the atmosphere's own scatter of the
+    light curve about ``φ̄ᵀx``, ``xᵀCx``, estimated from the data as ``var(y) − mean σ²``
+    (clamped at 0). No centring: ``E[Φ]`` has rank 1. With independent samples the light curve
+    holds only the flux and one more number (:func:`cssat.physics.information.statistics_fisher`),
+    so any estimate is at best the flux's flat image: this is that bound, measured."""
+
+    name = "statistics"
+    center = False  #: E[Φ] has rank 1: nothing to centre
+
+    def prepare(self, run: Run, measured: Measured) -> None:
+        import torch
+
+        from cssat.sparse import MatrixOperator
+
+        phi = measured.measurement.operator.matrix()
+        self._op = MatrixOperator(phi.mean(0, keepdim=True).expand(phi.shape[0], -1).contiguous())
+        y = measured.y.double()
+        var = measured.noise_var
+        if var is not None:
+            var = torch.as_tensor(var, dtype=torch.float64)
+            scatter = max(float(y.var()) - float(var.mean()), 0.0)  # the atmosphere's xᵀCx, from the data
+            self.noise_var = var + scatter
 
     def describe(self) -> dict[str, Any]:
         return {"reference": self.name}

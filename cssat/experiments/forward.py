@@ -31,12 +31,16 @@ ARCSEC = math.pi / (180 * 3600)
 
 class Geometry:
     """Where the object is (the ``geometry`` group): its size ``object_size_m`` across the image,
-    at ``range_km`` — or at the range that gives ``angular_size_arcsec`` when that is set. Every
-    atmosphere model takes ``object_size_m`` and ``range_km``; those whose weights do not depend
-    on the pixels' directions (``gaussian``, ``lognormal``) record them only."""
+    at ``range_km`` — or at the range that gives ``angular_size_arcsec`` when that is set — and
+    ``slew_rad_s``, the line of sight's angular rate while the telescope tracks it (a LEO pass;
+    the models with layers, ``phase_screen``, take it). Every atmosphere model takes
+    ``object_size_m`` and ``range_km``; those whose weights do not depend on the pixels'
+    directions (``gaussian``, ``lognormal``) record them only."""
 
-    def __init__(self, object_size_m: float = 10.0, range_km: float = 35786.0, angular_size_arcsec: float | None = None):
+    def __init__(self, object_size_m: float = 10.0, range_km: float = 35786.0, angular_size_arcsec: float | None = None,
+                 slew_rad_s: float = 0.0):
         self.object_size_m = float_param(object_size_m, "object_size_m", 0.0, open_lo=True)
+        self.slew_rad_s = float_param(slew_rad_s, "slew_rad_s", 0.0, 1.0)
         self.angular_size_arcsec = opt(angular_size_arcsec, float_param, "angular_size_arcsec", 0.0, open_lo=True)
         if self.angular_size_arcsec is None:
             self.range_km = float_param(range_km, "range_km", 0.0, open_lo=True)
@@ -49,12 +53,15 @@ class Geometry:
         return self.object_size_m / (self.range_km * 1e3) / ARCSEC
 
     def kwargs(self) -> dict[str, float]:
-        """What an atmosphere model is built with."""
-        return {"object_size_m": self.object_size_m, "range_km": self.range_km}
+        """What an atmosphere model is built with (each takes those it has parameters for)."""
+        out = {"object_size_m": self.object_size_m, "range_km": self.range_km}
+        if self.slew_rad_s:
+            out["slew_rad_s"] = self.slew_rad_s
+        return out
 
     def describe(self) -> dict[str, float]:
         return {"geometry_object_size_m": self.object_size_m, "geometry_range_km": self.range_km,
-                "geometry_angular_size_arcsec": self.arcsec}
+                "geometry_angular_size_arcsec": self.arcsec, "geometry_slew_rad_s": self.slew_rad_s}
 
 
 def measurements(cs: Mapping[str, Any] | None, N: int) -> int:
@@ -82,6 +89,7 @@ class Measured:
     truth: np.ndarray
     shape: tuple[int, ...]
     metrics: dict[str, Any]
+    noise_var: Any = None  #: the noise variance of each sample of ``y`` (m,), as the noise model states it
 
 
 class PixelSensing:
@@ -133,9 +141,14 @@ class PixelSensing:
 
         shape = tuple(truth.shape)
         meas = Measurement(operator, noise, seed=run.seed + 1, x_shape=shape)
+        x = torch.as_tensor(truth, dtype=dtype, device=run.device).reshape(-1)
         with as_field("noise"):
-            y = meas(torch.as_tensor(truth, dtype=dtype, device=run.device).reshape(-1))
-        return Measured(meas, y, truth, shape, meas.describe())
+            y = meas(x)
+            try:
+                var = meas.noise.variance(y, flux=x.sum())
+            except FieldError:  # a noise model that does not state its variance
+                var = None
+        return Measured(meas, y, truth, shape, meas.describe(), var)
 
 
 #: ``phi_stats: auto`` computes the effective rank and the coherence only while Φ has at most this

@@ -48,6 +48,7 @@ class Plan:
     figures: list[str] = field(default_factory=list)
     memory_estimate: int = 0
     forward_key: str = ""  #: the settings Φ depends on (a grid reuses it)
+    information: int = 0  #: modes of the Fisher-information bound (0: none)
 
 
 def _node(cfg: Any, key: str) -> Any:
@@ -99,9 +100,12 @@ def plan(cfg: Any, run: Run) -> Plan:
     est = check_memory(parts, run.memory_limit_gb, "lower target.size or cs.m (or the reference sizes)", peak=peak)
     key = json.dumps([_plain(cfg.get(k)) for k in ("target", "forward", "geometry", "atmosphere", "phi_stats")]
                      + [m, str(reference.precision(run))], sort_keys=True, default=str)
+    from cssat._checks import int_param
+
+    information = int_param(cfg.get("information") or 0, "information", 0, N)
     return Plan(str(cfg.get("experiment_name") or "experiment"), target, forward, geometry, atmosphere, noise, m,
                 reference, solver, denoiser, denoiser3d, choice_param(cfg.get("center", "auto"), "center", (True, False, "auto")),
-                choice_param(cfg.get("phi_stats", "auto"), "phi_stats", (True, False, "auto")), figures, est, key)
+                choice_param(cfg.get("phi_stats", "auto"), "phi_stats", (True, False, "auto")), figures, est, key, information)
 
 
 def _plain(node: Any) -> Any:
@@ -133,6 +137,14 @@ def measure(p: Plan, run: Run, cache: dict | None = None) -> Any:
     with run.stage("measure"):
         measured = p.forward.measure(run, truth, op, p.noise, dtype)
         measured.metrics.update({**p.atmosphere.describe(), **stats})
+    if p.information and measured.noise_var is not None:
+        from cssat.physics.information import mode_information
+
+        with run.stage("information"):
+            mat = op.matrix() if hasattr(op, "matrix") else op
+            info = mode_information(mat, measured.noise_var, truth, p.information)
+            info.pop("info_snr")
+            measured.metrics.update(info)
     return measured
 
 
@@ -152,7 +164,8 @@ def execute(p: Plan, run: Run, cache: dict | None = None) -> dict[str, Any]:
     bar = progress_bar(est.repeats, f"{p.name}: repeats", run.progress if est.repeats > 1 else False, unit="repeat")
     for r in range(est.repeats):
         op, row = est.operator(run, r)
-        rec = reconstruct(p.solver, op, y, shape, denoiser=p.denoiser, center=p.center, dtype=run.dtype)
+        rec = reconstruct(p.solver, op, y, shape, denoiser=p.denoiser, center=getattr(est, "center", p.center),
+                          dtype=run.dtype, noise_var=getattr(est, "noise_var", measured.noise_var))
         del op
         for k in ("solver", "dictionary", "denoise"):
             run.add_seconds(k, rec.metrics.pop(f"seconds_{k}", 0.0))

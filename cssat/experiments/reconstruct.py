@@ -71,7 +71,8 @@ def is_positive(phi: Any) -> bool:
 
 
 def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoiser: Any = None,
-                field: str = "solver", center: bool | str = False, dtype: torch.dtype | None = None) -> Reconstruction:
+                field: str = "solver", center: bool | str = False, dtype: torch.dtype | None = None,
+                noise_var: Tensor | None = None) -> Reconstruction:
     """Reconstruct the image of ``shape`` from the light curve ``y (m,)`` measured through ``phi``
     (an operator or a dense matrix) with ``solver``, clip it to [0, 1], and denoise it with
     ``denoiser`` (``None``: no denoising).
@@ -85,6 +86,10 @@ def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoi
     Metrics: ``solver`` (its name), the scalars of the solver's info, ``seconds_solver``
     (``seconds_dictionary`` apart when the solver reports it), ``centered``, and those of
     :func:`denoise`.
+
+    ``noise_var`` (``(m,)``, ``y``'s units squared): the noise variance of each sample, handed to
+    the solver in its :class:`~cssat.recon.Problem` (mapped onto the centred rows when centred) —
+    what the discrepancy principle fits to.
     """
     from cssat.experiments.context import as_field
     from cssat.recon import Problem
@@ -97,11 +102,17 @@ def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoi
     if center:
         from cssat.physics import Centered
 
-        op = Centered(phi, dtype=dtype)
+        cache = phi.__dict__.setdefault("_centered", {}) if hasattr(phi, "__dict__") else {}
+        if dtype not in cache:  # one per operator and dtype: the grid's cells share Φ (and ADMM's factor)
+            cache.clear()
+            cache[dtype] = Centered(phi, dtype=dtype)
+        op = cache[dtype]
+        if noise_var is not None:
+            noise_var = op.data_variance(noise_var)
         phi, y = op, op.data(y, dtype)
     elif dtype != y.dtype:
         phi, y = MatrixOperator(as_operator(phi, "phi").matrix().to(dtype)), y.to(dtype)
-    problem = Problem(as_operator(phi, "phi"), tuple(shape))
+    problem = Problem(as_operator(phi, "phi"), tuple(shape), noise_var=noise_var)
     t = time.perf_counter()
     with as_field(field):
         x_raw, info = solver(problem, y)

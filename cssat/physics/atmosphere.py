@@ -280,6 +280,8 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
     intensity; samples independent (the screens move farther than the pupil between samples:
     at 10 m/s and a 1 s cadence, 10 m); no phase (image motion, seeing) effects on the total flux;
     a monochromatic wavelength ``wavelength_m`` (broad bands scintillate a little less).
+    ``slew_rad_s``: a tracked LEO pass sweeps the line of sight across layer ``l`` at ``ω z_l``
+    (:func:`~cssat.physics.turbulence.layers_from_profile`): more averaging in each exposure.
     """
 
     name = "phase_screen"
@@ -289,13 +291,14 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
                  airmass: float = 1.0, exposure_s: float = 1.0, site_altitude_m: float = 0.0,
                  wavelength_m: float = 550e-9, n_layers: int = 8, ground_cn2: float = 1.7e-14,
                  rms_wind_m_s: float = 21.0, ground_wind_m_s: float = 5.0, jet_m_s: float = 30.0,
-                 outer_scale_m: float = 25.0, n_radial: int = 96, n_angular: int = 64):
+                 outer_scale_m: float = 25.0, n_radial: int = 96, n_angular: int = 64, slew_rad_s: float = 0.0):
         super().__init__(None, diameter_m, airmass, exposure_s, site_altitude_m, wavelength_m)
         self.fov_rad = _geometry(object_size_m, range_km)
         self.object_size_m, self.range_km = float(object_size_m), float(range_km)
         self.outer_scale_m = float_param(outer_scale_m, "outer_scale_m", 0.0, open_lo=True)
         self.n_layers, self.n_radial, self.n_angular = (int_param(v, f, 1) for f, v in
                                                         (("n_layers", n_layers), ("n_radial", n_radial), ("n_angular", n_angular)))
+        self.slew_rad_s = float_param(slew_rad_s, "slew_rad_s", 0.0, 1.0)
         self.profile = dict(ground_cn2=float_param(ground_cn2, "ground_cn2", 0.0), rms_wind_m_s=float_param(rms_wind_m_s, "rms_wind_m_s", 0.0),
                             ground_wind_m_s=float_param(ground_wind_m_s, "ground_wind_m_s", 0.0), jet_m_s=float_param(jet_m_s, "jet_m_s", 0.0))
 
@@ -305,6 +308,8 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         cache = self.__dict__.setdefault("_layers", {})
         if seed not in cache:
             if not cache:
+                cache[seed] = self._make_layers(seed)
+            elif self.slew_rad_s:  # the slew adds to each wind vector: the layers again
                 cache[seed] = self._make_layers(seed)
             else:  # the heights do not depend on the seed: only the wind directions are drawn again
                 base = next(iter(cache.values()))
@@ -318,7 +323,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         match = dict(diameter_m=self.diameter_m, exposure_s=self.exposure_s, airmass=self.airmass,
                      wavelength_m=self.wavelength_m, outer_scale_m=self.outer_scale_m)
         return layers_from_profile(self.n_layers, site_altitude_m=self.site_altitude_m, seed=seed, match=match,
-                                   **self.profile)
+                                   slew_rad_s=self.slew_rad_s, **self.profile)
 
     def spectrum(self, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The quadrature of every layer's intensity PSD: ``(frequency vectors (L K, 2) cycles/m,
@@ -400,5 +405,6 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         lay = self.layers()
         return {**super().describe(), "atmosphere_fov_arcsec": self.fov_rad / ARCSEC,
                 "atmosphere_range_km": self.range_km, "atmosphere_object_size_m": self.object_size_m,
+                "atmosphere_slew_rad_s": self.slew_rad_s,
                 "atmosphere_r0_m": fried_parameter(lay, self.wavelength_m, self.airmass),
                 "atmosphere_isoplanatic_arcsec": isoplanatic_angle(lay, self.wavelength_m, self.airmass) / ARCSEC}

@@ -184,6 +184,7 @@ def _centering(phi: Tensor, flux_weight: float | None):
         ybar = yy.mean(-1, keepdim=True)
         return torch.cat([(yy - ybar) / s, c * ybar], -1)
 
+    rhs.s, rhs.c = s, c
     return A, rhs
 
 
@@ -197,7 +198,19 @@ class Centered(MatrixOperator):
         mat = phi.matrix() if isinstance(phi, LinearOperator) else phi
         A, self._ybar = _centering(mat, flux_weight)
         super().__init__(A.to(dtype or mat.dtype))
+        self._s, self._c = self._ybar.s, self._ybar.c
+        #: the fluctuation rows: relative weights (λ = lam ‖Aᵀb‖∞) are measured on them, not on the flux row
+        self.scale_rows = slice(0, mat.shape[0])
 
     def data(self, y: Tensor, dtype: torch.dtype | None = None) -> Tensor:
         """``b = [(y − ȳ𝟙)/s ; c ȳ]`` for ``y (m,)`` or ``(B, m)``, in ``dtype`` (default ``y``'s)."""
         return self._ybar(y).to(dtype or y.dtype)
+
+    def data_variance(self, var: Tensor) -> Tensor:
+        """The noise variance of each row of :meth:`data`'s ``b`` from that of each sample of ``y``
+        ``(m,)`` (independent samples): ``σᵢ²/s²`` on the fluctuation rows (the mean's share,
+        ``O(1/m)``, neglected), ``c² Σσᵢ²/m²`` on the flux row; ``(m + 1,)`` float64."""
+        v = torch.as_tensor(var, dtype=torch.float64).reshape(-1)
+        m = self.scale_rows.stop
+        v = v.expand(m) if v.numel() == 1 else v
+        return torch.cat([v / self._s ** 2, (self._c ** 2 * v.sum() / m ** 2).reshape(1)])

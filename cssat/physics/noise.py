@@ -8,7 +8,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from cssat._checks import FieldError, float_param, opt
+from cssat._checks import FieldError, choice_param, float_param, opt
 
 __all__ = ["NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise"]
 
@@ -30,6 +30,12 @@ class NoiseModel:
         models that need the light curve's physical scale."""
         raise NotImplementedError
 
+    def variance(self, y: Tensor, *, flux: Tensor | None = None) -> Tensor:
+        """The noise variance of each sample of a measured light curve ``y (..., m)`` in ``y``'s
+        units squared, as an observer computes it from the data and the detector's settings (the
+        measured values stand in for the expected ones); used by the discrepancy principle."""
+        raise FieldError("noise", f"the {self.name} noise model does not state its variance")
+
     def describe(self) -> dict[str, Any]:
         """Flat settings for ``metrics.json`` (``noise``, ``noise_*``)."""
         return {"noise": self.name}
@@ -45,6 +51,9 @@ class NoNoise(NoiseModel):
 
     def __call__(self, y: Tensor, generator: torch.Generator | None = None, *, flux: Tensor | None = None) -> Tensor:
         return y
+
+    def variance(self, y: Tensor, *, flux: Tensor | None = None) -> Tensor:
+        return torch.zeros_like(y, dtype=torch.float64)
 
     def __repr__(self) -> str:
         return "NoNoise()"
@@ -81,6 +90,12 @@ class GaussianNoise(NoiseModel):
             scale = self.sigma
         return y + scale * eps
 
+    def variance(self, y: Tensor, *, flux: Tensor | None = None) -> Tensor:
+        yy = y.double()
+        if self.relative > 0:  # rms(y_noisy)² = rms(y)² (1 + relative²)
+            return (yy.pow(2).mean(-1, keepdim=True) * self.relative ** 2 / (1 + self.relative ** 2)).expand_as(yy)
+        return torch.full_like(yy, self.sigma ** 2)
+
     def describe(self) -> dict[str, Any]:
         return {"noise": self.name, "noise_relative": self.relative, "noise_sigma": self.sigma}
 
@@ -104,6 +119,20 @@ class PhotometricNoise(NoiseModel):
 
     A sample whose expected source count is negative (the paper's zero-mean Gaussian weights) has
     no Poisson law: its shot noise is drawn as Gaussian of variance ``|S|``.
+
+    Detector limits (issue 22): the source falls on the CCD as a circular Gaussian of
+    ``seeing_fwhm_arcsec``; its brightest pixel holds ``P = S f_peak + sky + dark`` electrons with
+    ``f_peak = erf(p / (2√2 σ))²`` (``p`` the pixel scale, ``σ = FWHM/2.3548``). Above
+    ``full_well_e`` the pixel saturates: ``saturation: flag`` keeps the counts and records the
+    fraction of saturated samples (``noise_saturated``; an experiment marks such settings
+    unreachable), ``clip`` removes from each sample the electrons above the full well,
+    ``(2πσ²/p²)(P − W − W ln(P/W))`` for a Gaussian profile clipped at ``W`` (a biased,
+    non-linear photometry), ``error`` refuses the setting. ``readout_s``: the dead time between
+    exposures (the cadence is ``exposure_s + readout_s``; ``noise_duty_cycle``). ``systematic``:
+    a multiplicative per-sample error of that relative rms — transparency, flat-field and
+    aperture-centring errors, the floor of ground photometry (≈ 1e-3 at good sites) — drawn as
+    ``y (1 + systematic ε)``, ``ε ~ N(0, 1)``. Assumes a static, well-sampled PSF and independent
+    samples.
     """
 
     name = "photometric"
@@ -111,7 +140,8 @@ class PhotometricNoise(NoiseModel):
     def __init__(self, magnitude: float | None = 12.0, diameter_m: float = 1.0, obstruction: float = 0.0,
                  throughput: float = 0.5, exposure_s: float = 1.0, sky_mag_arcsec2: float = 21.0,
                  aperture_radius_arcsec: float = 3.0, pixel_scale_arcsec: float = 0.5, dark_e_per_s: float = 0.01,
-                 read_noise_e: float = 5.0):
+                 read_noise_e: float = 5.0, full_well_e: float | None = 1.0e5, seeing_fwhm_arcsec: float = 1.5,
+                 saturation: str = "flag", readout_s: float = 0.0, systematic: float = 1.0e-3):
         self.magnitude = opt(magnitude, float_param, "magnitude")  # null: the light curve in W/m²
         self.diameter_m = float_param(diameter_m, "diameter_m", 0.0, open_lo=True)
         self.obstruction = float_param(obstruction, "obstruction", 0.0)
@@ -124,6 +154,12 @@ class PhotometricNoise(NoiseModel):
         self.pixel_scale_arcsec = float_param(pixel_scale_arcsec, "pixel_scale_arcsec", 0.0, open_lo=True)
         self.dark_e_per_s = float_param(dark_e_per_s, "dark_e_per_s", 0.0)
         self.read_noise_e = float_param(read_noise_e, "read_noise_e", 0.0)
+        self.full_well_e = opt(full_well_e, float_param, "full_well_e", 0.0, open_lo=True)  # null: no limit
+        self.seeing_fwhm_arcsec = float_param(seeing_fwhm_arcsec, "seeing_fwhm_arcsec", 0.0, open_lo=True)
+        self.saturation = choice_param(saturation, "saturation", ("flag", "clip", "error"))
+        self.readout_s = float_param(readout_s, "readout_s", 0.0)
+        self.systematic = float_param(systematic, "systematic", 0.0, 1.0)
+        self.saturated = float("nan")  #: the fraction of saturated samples of the last call
 
     # --- the photometric budget ---
     @property
@@ -154,6 +190,37 @@ class PhotometricNoise(NoiseModel):
     @property
     def dark_e_per_pixel(self) -> float:
         return self.dark_e_per_s * self.exposure_s
+
+    @property
+    def peak_fraction(self) -> float:
+        """The share of the source's electrons in its brightest pixel (a Gaussian PSF centred on it)."""
+        sigma = self.seeing_fwhm_arcsec / (2 * math.sqrt(2 * math.log(2)))
+        return math.erf(self.pixel_scale_arcsec / (2 * math.sqrt(2) * sigma)) ** 2
+
+    def peak_electrons(self, source_e: Tensor | float) -> Tensor | float:
+        """Electrons in the brightest pixel for ``source_e`` source electrons per exposure."""
+        return source_e * self.peak_fraction + self.sky_e_per_pixel + self.dark_e_per_pixel
+
+    def clipped_electrons(self, peak_e: Tensor) -> Tensor:
+        """The electrons above the full well, summed over the Gaussian image whose brightest pixel
+        expects ``peak_e``: ``(2πσ²/p²)(P − W − W ln(P/W))`` where ``P > W``, else 0."""
+        W = self.full_well_e
+        sigma = self.seeing_fwhm_arcsec / (2 * math.sqrt(2 * math.log(2)))
+        P = peak_e.clamp_min(W)
+        return 2 * math.pi * sigma ** 2 / self.pixel_scale_arcsec ** 2 * (P - W - W * torch.log(P / W))
+
+    @property
+    def cadence_s(self) -> float:
+        """Seconds from one sample to the next: the exposure and the readout's dead time."""
+        return self.exposure_s + self.readout_s
+
+    def reachable(self, magnitude: float | None = None, *, excursion: float = 1.0) -> bool:
+        """Whether a source of ``magnitude`` (default the model's), brightened by ``excursion``,
+        stays below the full well in its brightest pixel."""
+        if self.full_well_e is None:
+            return True
+        mag = self.magnitude if magnitude is None else magnitude
+        return bool(self.peak_electrons(self.electrons(mag) * excursion) <= self.full_well_e)
 
     def snr(self, magnitude: float | None = None) -> float:
         """SNR of one atmosphere-free sample of a source of ``magnitude`` (default: the model's)."""
@@ -188,14 +255,47 @@ class PhotometricNoise(NoiseModel):
             s = signal.cpu()
             counts = torch.where(neg, counts + s + s.abs().sqrt() * torch.randn(s.shape, generator=generator, dtype=torch.float64), counts)
         read = torch.randn(counts.shape, generator=generator, dtype=torch.float64) * (self.read_noise_e * math.sqrt(self.n_pix))
-        measured = (counts + read - bg).to(y.device)  # background-subtracted electrons
-        return (measured / scale).to(y.dtype)
+        measured = counts + read - bg  # background-subtracted electrons
+        measured = self._detector(measured, signal.cpu(), generator)
+        return (measured.to(y.device) / scale).to(y.dtype)
+
+    def _detector(self, measured: Tensor, signal: Tensor, generator: torch.Generator) -> Tensor:
+        """Saturation and the systematic floor on background-subtracted electrons (CPU, float64)."""
+        if self.full_well_e is not None:
+            peak = self.peak_electrons(signal.clamp_min(0))
+            over = peak > self.full_well_e
+            self.saturated = float(over.double().mean())
+            if bool(over.any()):
+                if self.saturation == "error":
+                    raise FieldError("noise.magnitude", f"the brightest pixel holds up to {float(peak.max()):.3g} e⁻, over "
+                                                        f"the full well of {self.full_well_e:.3g} e⁻ (saturation: error): "
+                                                        f"use a fainter source, a shorter exposure_s or saturation: flag or clip")
+                if self.saturation == "clip":
+                    measured = measured - self.clipped_electrons(peak)
+        else:
+            self.saturated = 0.0
+        if self.systematic > 0:
+            measured = measured * (1 + self.systematic * torch.randn(measured.shape, generator=generator, dtype=torch.float64))
+        return measured
+
+    def variance(self, y: Tensor, *, flux: Tensor | None = None) -> Tensor:
+        """``(|S| + n_pix (sky + dark + read²) + (systematic S)²) / scale²`` per sample, ``S`` the
+        measured source electrons."""
+        scale = self._scale(y, flux)
+        S = y.double() * scale
+        e = S.abs() + self.n_pix * (self.sky_e_per_pixel + self.dark_e_per_pixel + self.read_noise_e ** 2)
+        return (e + (self.systematic * S) ** 2) / scale ** 2
 
     def describe(self) -> dict:
         out = {"noise": self.name, "noise_magnitude": self.magnitude, "noise_diameter_m": self.diameter_m,
                "noise_exposure_s": self.exposure_s, "noise_n_pix": self.n_pix, "noise_sky_e_per_pixel": self.sky_e_per_pixel}
+        out.update(noise_full_well_e=self.full_well_e, noise_saturation=self.saturation, noise_systematic=self.systematic,
+                   noise_readout_s=self.readout_s, noise_duty_cycle=self.exposure_s / self.cadence_s)
         if self.magnitude is not None:
-            out.update(noise_signal_e=self.electrons(self.magnitude), noise_snr=self.snr())
+            out.update(noise_signal_e=self.electrons(self.magnitude), noise_snr=self.snr(),
+                       noise_peak_e=self.peak_electrons(self.electrons(self.magnitude)), noise_reachable=self.reachable())
+        if self.saturated == self.saturated:  # after a call
+            out["noise_saturated"] = self.saturated
         return out
 
     def __repr__(self) -> str:

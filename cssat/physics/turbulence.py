@@ -57,7 +57,7 @@ def bufton_wind(h_m: ArrayLike, ground_m_s: float = 5.0, jet_m_s: float = 30.0) 
 
 def layers_from_profile(n_layers: int = 8, h_max_m: float = 25e3, site_altitude_m: float = 0.0,
                         ground_cn2: float = 1.7e-14, rms_wind_m_s: float = 21.0, ground_wind_m_s: float = 5.0,
-                        jet_m_s: float = 30.0, seed: int = 0, match: dict | None = None) -> Layers:
+                        jet_m_s: float = 30.0, seed: int = 0, match: dict | None = None, slew_rad_s: float = 0.0) -> Layers:
     """``n_layers`` layers of the HV profile above an observatory at ``site_altitude_m``: the
     profile above the site is cut into bins of equal log-height from 10 m to ``h_max_m``
     (the first bin starts at the telescope), each a layer carrying the bin's integral of Cn²;
@@ -69,7 +69,12 @@ def layers_from_profile(n_layers: int = 8, h_max_m: float = 25e3, site_altitude_
     there) is the bin's Cn²-weighted mean of it. Then every bin keeps its part of the
     continuous-profile σ_I² (:func:`scintillation_index`) exactly, whatever ``n_layers``: the
     weighted mean height under-weights the ∫Cn² h²/v moment of long exposures (8 layers gave 0.55
-    of the integral at 1 m / 1 s)."""
+    of the integral at 1 m / 1 s).
+
+    ``slew_rad_s``: the line of sight's angular rate (a LEO pass tracked by the telescope): the
+    layer at slant distance ``z = X h`` then moves across the beam at ``ω z`` on top of its wind,
+    along the image's x axis — each layer's velocity is the vector sum, and the height matching
+    uses the rms speed ``√(v² + (ω z)²)`` (the wind directions are random)."""
     if n_layers < 1:
         raise FieldError("n_layers", f"must be >= 1, got {n_layers}")
     edges = np.concatenate([[0.0], np.geomspace(10.0, h_max_m, n_layers)])
@@ -78,8 +83,9 @@ def layers_from_profile(n_layers: int = 8, h_max_m: float = 25e3, site_altitude_
     height, cn2dh = np.empty(n_layers), np.empty(n_layers)
     F = None
     if match is not None:
-        hf = np.concatenate([[0.0], np.geomspace(0.01, h_max_m, 4000)])  # 4000 × 3000: the realism maps' grid
-        F = layer_scintillation(hf, bufton_wind(hf + site_altitude_m, ground_wind_m_s, jet_m_s), n_freq=3000, **match)
+        hf = np.concatenate([[0.0], np.geomspace(0.01, h_max_m, 600)])  # 600 × 1500: heights within 3e-4 of 4000 × 3000
+        speed = np.hypot(bufton_wind(hf + site_altitude_m, ground_wind_m_s, jet_m_s), slew_rad_s * match.get("airmass", 1.0) * hf)
+        F = layer_scintillation(hf, speed, n_freq=1500, **match)
     for i in range(n_layers):
         sel = (h >= edges[i]) & (h <= edges[i + 1])
         w = _trapezoid(c[sel], h[sel])
@@ -88,8 +94,12 @@ def layers_from_profile(n_layers: int = 8, h_max_m: float = 25e3, site_altitude_
         if F is not None and w > 0:
             height[i] = _matched_height(h[sel], c[sel], np.interp(h[sel], hf, F), height[i])
     rng = np.random.default_rng(seed)
-    return Layers(height, cn2dh, bufton_wind(height + site_altitude_m, ground_wind_m_s, jet_m_s),
-                  rng.uniform(0, 2 * math.pi, n_layers))
+    wind, wdir = bufton_wind(height + site_altitude_m, ground_wind_m_s, jet_m_s), rng.uniform(0, 2 * math.pi, n_layers)
+    if slew_rad_s:
+        X = (match or {}).get("airmass", 1.0)
+        vx, vy = wind * np.cos(wdir) + slew_rad_s * X * height, wind * np.sin(wdir)
+        wind, wdir = np.hypot(vx, vy), np.arctan2(vy, vx)
+    return Layers(height, cn2dh, wind, wdir)
 
 
 def _matched_height(h: np.ndarray, c: np.ndarray, F: np.ndarray, fallback: float) -> float:

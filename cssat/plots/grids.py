@@ -16,7 +16,8 @@ if TYPE_CHECKING:
 #: metric keys in words (the axis labels of the figures)
 WORDS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "psnr_denoised": "PSNR after denoising (dB)",
          "ssim_denoised": "SSIM after denoising", "phi_effective_rank_centered": "effective rank of Φ's fluctuations",
-         "phi_effective_rank": "effective rank of Φ", "phi_scintillation_index": "scintillation index σ_I²"}
+         "phi_effective_rank": "effective rank of Φ", "phi_scintillation_index": "scintillation index σ_I²",
+         "info_modes": "measurable modes (Cramér–Rao SNR ≥ 1)"}
 
 
 def _words(key: str) -> str:
@@ -112,9 +113,13 @@ def grid_images_figure(truth: np.ndarray, axes: Sequence[dict], rows: Sequence[d
 
 
 def grid_maps_figure(axes: Sequence[dict], rows: Sequence[dict], flux_only: float | None = None,
-                     metric: str = "psnr") -> dict[str, Figure]:
+                     metric: str = "psnr", *, title: str | None = None, below: bool = True,
+                     fmt: str = ".1f") -> dict[str, Figure]:
     """``metric`` over the first two axes of a grid (columns × rows), one map per label of the
-    third axis (or one map): ``{label: Figure}``; ``flux_only`` (the flat image's PSNR) in the title."""
+    third axis (or one map): ``{label: Figure}``; ``flux_only`` (the flat image's PSNR) in the
+    title. Cells are marked ``<`` where the row says ``below_flux_only`` (when ``below``) and
+    hatched ``sat`` where it says ``unreachable``; ``title`` replaces the label's, ``fmt`` formats
+    the values."""
     labels, by = _grid_lookup(axes, rows)
     cols, lines = labels[0], labels[1] if len(labels) > 1 else [None]
     figs = {}
@@ -130,17 +135,36 @@ def grid_maps_figure(axes: Sequence[dict], rows: Sequence[dict], flux_only: floa
         im = ax.imshow(grid, origin="upper", aspect="auto", cmap="viridis")
         ax.set_xticks(range(len(cols)), [str(c) for c in cols], fontsize=8)
         ax.set_yticks(range(len(lines)), [f"{axes[1]['name']} = {v}" if len(axes) > 1 else "" for v in lines], fontsize=8)
-        for i in range(grid.shape[0]):
-            for j in range(grid.shape[1]):
-                if not np.isnan(grid[i, j]):
-                    ax.text(j, i, f"{grid[i, j]:.1f}", ha="center", va="center", color="w", fontsize=8)
+        marks = set()
+        for i, ln in enumerate(lines):
+            for j, c in enumerate(cols):
+                if np.isnan(grid[i, j]):
+                    continue
+                key = tuple(v for v in (c, ln, third) if v is not None) if len(axes) > 1 else (c,)
+                row = by.get(key, {})
+                tag = ("<" if below and row.get("below_flux_only") else "") + (" sat" if row.get("unreachable") else "")
+                marks.update(t for t in ("<", "sat") if t in tag)
+                ax.text(j, i, f"{grid[i, j]:{fmt}}{tag}", ha="center", va="center", color="w", fontsize=8)
+                if row.get("unreachable"):
+                    ax.add_patch(_hatch(j, i))
         ax.set_xlabel(_words(axes[0]["name"]))
         fig.colorbar(im, ax=ax, label=_words(metric))
-        ax.set_title(f"{third if third is not None else ''}: {_words(metric).split(' (')[0]}"
-                     + (f"\n(the total flux alone gives {flux_only:.1f} dB)" if flux_only is not None else ""), fontsize=10)
+        legend = "; ".join(t for t, on in (("< below the flux alone: the solver lost", "<" in marks),
+                                            ("sat: the detector saturates (unreachable)", "sat" in marks)) if on)
+        head = title if title is not None else f"{third if third is not None else ''}: {_words(metric).split(' (')[0]}"
+        ax.set_title(head
+                     + (f"\n(the total flux alone gives {flux_only:.1f} dB)" if flux_only is not None else "")
+                     + (f"\n{legend}" if legend else ""), fontsize=9)
         fig.tight_layout()
         figs[str(third) if third is not None else "map"] = fig
     return figs
+
+
+def _hatch(j: int, i: int):
+    """A hatched cell at column ``j``, row ``i`` of an ``imshow`` map."""
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="//", edgecolor="0.85", linewidth=0)
 
 
 def grid_curves_figure(axes: Sequence[dict], rows: Sequence[dict], metrics: Sequence[str]) -> Figure:

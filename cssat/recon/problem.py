@@ -27,11 +27,28 @@ __all__ = ["Problem"]
 class Problem:
     """``y = A x + noise`` with ``A (m, N)`` a :class:`~cssat.sparse.LinearOperator`, the unknown
     ``x`` of ``x_shape`` (``prod(x_shape) = N``; an image ``(H, W)``) and the noise's standard
-    deviation ``noise_sigma`` in ``y``'s units (``None``: unknown)."""
+    deviation ``noise_sigma`` in ``y``'s units (``None``: unknown), or the variance of each sample
+    ``noise_var (m,)`` (a heteroscedastic noise: photon counts) — what the discrepancy principle
+    (TV's ``lam: discrepancy``, OMP's ``epsilon: discrepancy``) fits the data to."""
 
     operator: LinearOperator
     x_shape: tuple[int, ...]
     noise_sigma: float | None = None
+    noise_var: Any = None
+
+    def variance(self) -> Tensor:
+        """The noise variance of each sample ``(m,)`` float64: ``noise_var``, else ``noise_sigma²``."""
+        import torch
+
+        if self.noise_var is not None:
+            v = torch.as_tensor(self.noise_var, dtype=torch.float64).reshape(-1)
+            if v.numel() not in (1, self.m):
+                raise FieldError("noise_var", f"expected {self.m} variances (one per sample), got {v.numel()}")
+            return v.expand(self.m)
+        if self.noise_sigma is not None:
+            return torch.full((self.m,), float(self.noise_sigma) ** 2, dtype=torch.float64)
+        raise FieldError("noise", "the discrepancy principle needs the noise level: give the problem noise_sigma or "
+                                  "noise_var (the pipeline takes it from the noise model)")
 
     def __post_init__(self) -> None:
         self.x_shape = tuple(int(s) for s in self.x_shape)
@@ -64,7 +81,7 @@ class Problem:
         from cssat.sparse import LinearOperator, MatrixOperator
 
         if isinstance(problem, Problem):
-            return problem if shape is None else cls(problem.operator, shape, problem.noise_sigma)
+            return problem if shape is None else cls(problem.operator, shape, problem.noise_sigma, problem.noise_var)
         op, sigma, own = problem, None, None
         if hasattr(problem, "operator") and isinstance(problem.operator, LinearOperator):  # a Measurement
             op, own = problem.operator, getattr(problem, "x_shape", None)

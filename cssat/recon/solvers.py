@@ -23,6 +23,7 @@ import time
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
+import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param, opt, progress_param
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
     from cssat._types import Array, ProblemLike
     from cssat.sparse import LinearOperator
 
-__all__ = ["Solver", "OMP", "L1", "TV", "PnP", "Landweber", "default_sparsity", "tv_default_lam"]
+__all__ = ["Solver", "OMP", "L1", "TV", "FluxOnly", "PnP", "Landweber", "default_sparsity", "tv_default_lam"]
 
 
 class Solver:
@@ -87,7 +88,10 @@ class OMP(Solver):
         self.progress = progress_param(progress)
         self.n_nonzero_coefs = opt(n_nonzero_coefs, int_param, "n_nonzero_coefs", 1)
         self.k_ratio = opt(k_ratio, float_param, "k_ratio", 0.0, 1.0, open_lo=True)
-        self.epsilon = opt(epsilon, float_param, "epsilon", 0.0)
+        self.discrepancy = epsilon == "discrepancy"  # ε² = Σ σᵢ², the problem's noise (Eq. 6 at the noise level)
+        if isinstance(epsilon, str) and not self.discrepancy:
+            raise FieldError("epsilon", f"expected a number >= 0, null or 'discrepancy', got {epsilon!r}")
+        self.epsilon = None if self.discrepancy else opt(epsilon, float_param, "epsilon", 0.0)
 
     def settings(self, m: int, n_pixels: int) -> tuple[int, float | None]:
         """``(K, tol)`` for :func:`cssat.sparse.batch_omp` (``tol = ε²``, a squared norm)."""
@@ -105,8 +109,13 @@ class OMP(Solver):
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
         from cssat.sparse import DCT, batch_omp, sensing_dictionary
 
-        phi, m, N, shape = _problem(problem, y, shape)
+        prob = Problem.of(problem, shape)
+        prob.check(y)
+        phi, m, N, shape = prob.operator, prob.m, prob.n, prob.x_shape
         K, tol = self.settings(m, N)
+        if self.discrepancy:
+            K, tol = (m if self.n_nonzero_coefs is None else int_param(self.n_nonzero_coefs, "n_nonzero_coefs", 1, m),
+                      float(prob.variance().sum()))
         t = time.perf_counter()
         D = sensing_dictionary(phi, shape)
         t_dict = time.perf_counter() - t
@@ -117,7 +126,7 @@ class OMP(Solver):
         return x, {
             "solver_n_nonzero_coefs": K,
             "solver_tol": tol,
-            "solver_epsilon": self.epsilon,
+            "solver_epsilon": "discrepancy" if self.discrepancy else self.epsilon,
             "omp_atoms": int(info.n_iter.max()),
             "omp_path": info.path,
             "relative_residual": float(res.max()),
@@ -183,28 +192,91 @@ def tv_default_lam(ratio: float) -> float:
 
 
 class TV(_Convex):
-    """Isotropic total variation on the image by Chambolle–Pock (2011):
-    ``min ½‖Φx − y‖² + λ TV(x)``, ``x ≥ 0`` when ``nonneg``.
+    """Isotropic total variation on the image: ``min ½‖Φx − y‖² + λ TV(x)``, ``x ≥ 0`` when
+    ``nonneg``.
 
-    ``lam`` relative to ``‖Φᵀy‖∞``; ``None``: :func:`tv_default_lam` at ``m/N``.
+    ``lam`` relative to ``‖Φᵀy‖∞`` (on a centred system's fluctuation rows); ``None``:
+    :func:`tv_default_lam` at ``m/N``; ``"discrepancy"``: the largest weight whose solution fits
+    the data to the problem's noise, the flat image of the total flux when that already does
+    (:func:`cssat.sparse.tv_admm.tv_discrepancy`: a TV estimate that never does worse than the
+    flux for lack of regularisation). ``method``: ``pdhg`` (Chambolle–Pock, any operator),
+    ``admm`` (an exact ``N × N`` solve: converges where the operator's spectrum is spread over
+    decades, as on a centred positive Φ; ``N ≤ 8192``), ``auto`` (``admm`` for a centred system
+    or the discrepancy rule where ``N`` allows, else ``pdhg``).
     """
 
     name = "tv"
 
-    def __init__(self, lam: float | None = None, nonneg: bool = True, max_iter: int = 2000, rtol: float = 1e-5,
-                 *, progress: bool | None = None):
-        super().__init__(lam, max_iter, rtol, progress)
+    def __init__(self, lam: float | str | None = None, nonneg: bool = True, max_iter: int = 2000, rtol: float = 1e-5,
+                 method: str = "auto", *, progress: bool | None = None):
+        self.discrepancy = lam == "discrepancy"
+        if isinstance(lam, str) and not self.discrepancy:
+            raise FieldError("lam", f"expected a number >= 0, null or 'discrepancy', got {lam!r}")
+        super().__init__(None if self.discrepancy else lam, max_iter, rtol, progress)
         self.nonneg = bool_param(nonneg, "nonneg")
+        self.method = choice_param(method, "method", ("auto", "pdhg", "admm"))
+
+    def _method(self, phi: LinearOperator, N: int) -> str:
+        from cssat.sparse.tv_admm import ADMM_MAX_PIXELS
+
+        if self.method != "auto":
+            return self.method
+        wants = self.discrepancy or getattr(phi, "scale_rows", None) is not None
+        return "admm" if wants and N <= ADMM_MAX_PIXELS else "pdhg"
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse.solvers import tv_pdhg
+        from cssat.sparse.solvers import SolverInfo, tv_pdhg
+        from cssat.sparse.tv_admm import tv_admm, tv_discrepancy
 
-        phi, m, N, shape = _problem(problem, y, shape)
+        prob = Problem.of(problem, shape)
+        prob.check(y)
+        phi, m, N, shape = prob.operator, prob.m, prob.n, prob.x_shape
+        method = self._method(phi, N)
+        if self.discrepancy:
+            if method != "admm":
+                raise FieldError("method", f"lam: discrepancy solves TV at many weights: it needs method admm (N ≤ 8192), got {method}")
+            var = prob.variance().to(y)
+            rows = [tv_discrepancy(phi, yb, shape, var, nonneg=self.nonneg, max_iter=self.max_iter, rtol=self.rtol,
+                                   progress=self.progress) for yb in y.reshape(-1, m)]
+            x = torch.stack([r[0] for r in rows]).reshape(*y.shape[:-1], *shape)
+            info = {k: v for k, v in rows[-1][1].items()}
+            info.update(solver_lam_rule="discrepancy", solver_method=method, solver_max_iter=self.max_iter, solver_rtol=self.rtol)
+            return x, info
         lam = self.lam if self.lam is not None else tv_default_lam(m / N)
-        x, sinfo = tv_pdhg(phi, y, shape, lam=lam, nonneg=self.nonneg, max_iter=self.max_iter, rtol=self.rtol,
-                           return_info=True, progress=self.progress)
-        return x, self._info(lam, sinfo)
+        if method == "admm":
+            x, run, alg = tv_admm(phi, y.reshape(-1, m), shape, lam=lam, nonneg=self.nonneg, max_iter=self.max_iter,
+                                  rtol=self.rtol, progress=self.progress)
+            sinfo = SolverInfo(run.n_iter, run.objective, run.converged, alg.lam_abs, alg.rho)
+            x = x.reshape(*y.shape[:-1], *shape)
+        else:
+            x, sinfo = tv_pdhg(phi, y, shape, lam=lam, nonneg=self.nonneg, max_iter=self.max_iter, rtol=self.rtol,
+                               return_info=True, progress=self.progress)
+        return x, {**self._info(lam, sinfo), "solver_method": method}
+
+
+class FluxOnly(Solver):
+    """The estimate that knows only the total flux: the constant image ``α𝟙`` that fits ``y`` best
+    in least squares, weighted by the problem's noise variances when it has them
+    (:func:`cssat.sparse.tv_admm.flat_fit`), ``α ≥ 0``. The baseline every image estimate must
+    beat: what the light curve gives when it carries the flux and nothing else."""
+
+    name = "flux"
+
+    @numpy_io
+    def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
+        from cssat.sparse.tv_admm import flat_fit, inverse_variance
+
+        prob = Problem.of(problem, shape)
+        prob.check(y)
+        w = None
+        if prob.noise_var is not None or prob.noise_sigma is not None:
+            w = inverse_variance(prob.variance().to(y))
+        x = flat_fit(prob.operator, y.reshape(-1, prob.m), w)
+        return x.reshape(*y.shape[:-1], *prob.x_shape), {"solver_flux": float(x[-1].sum())}
+
+    def __repr__(self) -> str:
+        return "FluxOnly()"
 
 
 class PnP(Solver):

@@ -231,17 +231,19 @@ def tv_pdhg(
     ``min_x ½‖Φx − y‖² + λ TV(x)`` (``+ x ≥ 0`` when ``nonneg``), ``TV(x) = Σ ‖(∇x)ᵢ‖₂``.
 
     ``phi (m, N)`` as an operator or matrix; ``y (B, m)`` or ``(m,)``; images of ``shape (H, W)``.
-    ``λ = lam · ‖Φᵀy‖_∞`` per signal. Step sizes ``σ = τ = 0.99 / ‖K‖`` with
+    ``λ = lam · ‖Φᵀy‖_∞`` per signal (on a centred system's fluctuation rows). Step sizes ``σ = τ = 0.99 / ‖K‖`` with
     ``‖K‖² ≤ ‖Φ‖² + 8`` for ``K = [Φ; ∇]``. Stops when ``‖xₖ − xₖ₋₁‖ ≤ rtol ‖xₖ‖`` for every signal.
     Returns images ``(B, H, W)`` or ``(H, W)`` (and a :class:`SolverInfo`). ``progress`` and
     ``callback`` as in :func:`fista_l1`.
     """
+    from cssat.sparse.tv_admm import relative_weight
+
     op = as_operator(phi, "phi")
     H, W = _image_shape(op, shape)
     y2, squeeze = _check(y, op.n_out, lam, max_iter, rtol)
     B = y2.shape[0]
     step = 0.99 / math.sqrt(operator_norm_sq(op, dtype=y2.dtype, device=y2.device) + 8.0)
-    lam_abs = (lam * op.adjoint(y2).abs().amax(1)).reshape(B, 1, 1, 1)
+    lam_abs = relative_weight(op, y2, lam).reshape(B, 1, 1, 1)  # a centred system: on its fluctuation rows
     alg = _ChambollePock(op, y2, (H, W), lam_abs, step, nonneg)
     info = run_iterations(alg, max_iter, rtol=rtol, progress=progress, callback=callback)
     out = alg.x[0] if squeeze else alg.x
