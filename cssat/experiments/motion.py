@@ -13,8 +13,8 @@ mean) and ``motion_phase_change_deg`` (the phase angle's range).
 
 Assumptions: the attitude is the paper's nadir pointing; the frames are rendered at
 ``render_size = target.size`` with the mesh's default field of view and scaled together so that
-``max x̄ = 1``; the time step is the detector's cadence (``step_s``, the exposure plus the
-readout).
+``max x̄ = 1``; the time step is the detector's cadence (the noise model's exposure plus its
+readout, or ``step_s``).
 """
 
 from __future__ import annotations
@@ -59,26 +59,29 @@ def scene_frames(m: int, size: int, *, start_utc: str, step_s: float, tle: Any =
 
 
 class MovingScene(PixelSensing):
-    """Pixel sensing of a scene rendered at every sample's time (module docstring).
-    ``start_utc``, ``step_s`` (the cadence), ``tle`` (null: Astra 1KR, synthetic), the observer's
-    ``lat_deg``/``lon_deg``/``alt_m`` and ``shadows``; ``dtype``/``draw_dtype`` as
-    :class:`PixelSensing`. The target group sets only the image size."""
+    """Pixel sensing of a scene rendered at every sample's time (module docstring):
+    ``start_utc``; ``step_s`` (null: the noise model's cadence, exposure + readout, else 1 s);
+    ``tle`` (null: Astra 1KR, synthetic); the observer's ``lat_deg``/``lon_deg``/``alt_m``;
+    ``shadows``; ``dtype``/``draw_dtype`` as :class:`PixelSensing`. The target group sets only the
+    image size."""
 
     name = "moving"
 
-    def __init__(self, start_utc: str = "2020-04-01T21:00:00", step_s: float = 1.0, tle: Any = None,
+    def __init__(self, start_utc: str = "2020-04-01T21:00:00", step_s: float | None = None, tle: Any = None,
                  lat_deg: float = 51.17, lon_deg: float = 10.45, alt_m: float = 0.0, shadows: bool = True,
                  dtype: str | None = None, draw_dtype: str | None = None):
         super().__init__(dtype, draw_dtype)
         self.start_utc = str(start_utc)
-        self.step_s = float_param(step_s, "step_s", 0.0, open_lo=True)
+        self.step_s = None if step_s is None else float_param(step_s, "step_s", 0.0, open_lo=True)
         self.tle, self.lat_deg, self.lon_deg, self.alt_m = tle, float(lat_deg), float(lon_deg), float(alt_m)
         self.shadows = bool_param(shadows, "shadows")
 
-    def frames(self, m: int, size: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
-        """``(x_t (m, size²), x̄ (size, size), geometry)`` scaled so that ``max x̄ = 1``."""
+    def frames(self, m: int, size: int, step_s: float | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+        """``(x_t (m, size²), x̄ (size, size), geometry)`` scaled so that ``max x̄ = 1``, samples
+        ``step_s`` apart (default this model's, else 1 s)."""
+        step = step_s or self.step_s or 1.0
         with as_field("forward"):
-            frames, geo = scene_frames(int_param(m, "m", 1), size, start_utc=self.start_utc, step_s=self.step_s,
+            frames, geo = scene_frames(int_param(m, "m", 1), size, start_utc=self.start_utc, step_s=step,
                                        tle=self.tle, lat_deg=self.lat_deg, lon_deg=self.lon_deg, alt_m=self.alt_m,
                                        shadows=self.shadows)
         mean = frames.mean(0)
@@ -97,7 +100,8 @@ class MovingScene(PixelSensing):
 
         n = truth.shape[0]
         m = operator.n_out
-        X, mean, geo = self.frames(m, n)
+        step = self.step_s or getattr(noise, "cadence_s", None) or 1.0  # the detector's cadence when not given
+        X, mean, geo = self.frames(m, n, step)
         Xt = torch.as_tensor(X, dtype=dtype, device=run.device)
         meas = Measurement(operator, noise, seed=run.seed + 1, x_shape=(n, n))
         with as_field("noise"):
@@ -110,5 +114,5 @@ class MovingScene(PixelSensing):
         metrics = {**meas.describe(), "motion_to_noise": float(motion.norm() / var.sum().sqrt()),
                    "motion_flux_change": float(np.ptp(flux) / flux.mean()),
                    "motion_phase_change_deg": float(np.ptp(geo["phase_angle_deg"])),
-                   "motion_duration_s": m * self.step_s}
+                   "motion_duration_s": m * step}
         return Measured(meas, y, mean, (n, n), metrics, var)

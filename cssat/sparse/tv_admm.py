@@ -25,7 +25,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
-from cssat.sparse.iterate import Iteration, run_iterations
+from cssat.sparse.iterate import Iteration, RunInfo, run_iterations
 from cssat.sparse.operators import LinearOperator, as_operator
 
 if TYPE_CHECKING:
@@ -171,7 +171,8 @@ class _ADMM(Iteration):
 
 def tv_admm(phi: OperatorLike, y: Tensor, shape: Sequence[int], *, lam: float = 1e-4, nonneg: bool = True,
             max_iter: int = 1000, rtol: float = 1e-5, rho: float | None = None, lam_abs: Tensor | None = None,
-            start: tuple | None = None, progress: bool | None = None, callback: Callable | None = None):
+            start: tuple | None = None, progress: bool | None = None,
+            callback: Callable | None = None) -> tuple[Tensor, RunInfo, Iteration]:
     """Isotropic TV by ADMM with an exact solve: ``min ½‖Φx − y‖² + λ TV(x)`` (``x ≥ 0`` when
     ``nonneg``), ``TV(x) = Σ ‖(∇x)ᵢ‖₂``; the same problem as :func:`~cssat.sparse.solvers.tv_pdhg`.
 
