@@ -29,6 +29,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -53,9 +54,25 @@ class SceneTarget:
     kind = "scene"
 
 
-def build_scenario(cfg: Any) -> Scenario:
+def read_observations(cfg: Any) -> Any:
+    """The measured light curve of ``cfg.observations`` (a path; ``None`` when unset), read with
+    the ``observed`` settings (column names, kind, time format)."""
+    path = cfg.get("observations")
+    if not path:
+        return None
+    from omegaconf import OmegaConf
+
+    from cssat.data import read_light_curve
+
+    opts = cfg.get("observed")
+    opts = OmegaConf.to_container(opts, resolve=True) if OmegaConf.is_config(opts) else dict(opts or {})
+    return read_light_curve(str(path), **opts)
+
+
+def build_scenario(cfg: Any, times: Any = None) -> Scenario:
     """The :class:`cssat.scene.Scenario` of the ``scenario`` config (the synthetic Astra 1KR TLE
-    when ``scenario.tle`` is null)."""
+    when ``scenario.tle`` is null), on ``times`` (UTC) or ``scenario.times`` when given, else on
+    its regular grid."""
     from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario
 
     from omegaconf import OmegaConf
@@ -65,10 +82,13 @@ def build_scenario(cfg: Any) -> Scenario:
     # two or three lines, a TLE text, or an OMM/GP record as a mapping of CCSDS keys
     tle = ASTRA_1KR_SYNTHETIC_TLE if tle is None else OmegaConf.to_container(tle) if OmegaConf.is_config(tle) else tle
     obs = sc.observer
+    if times is None and sc.get("times") is not None:
+        times = list(sc.times)
     return make_scenario(
         tle=tle, start_utc=str(sc.start_utc),
         n_steps=int_param(sc.n_steps, "scenario.n_steps", 1), step_s=float(sc.step_s),
         lat_deg=float(obs.lat_deg), lon_deg=float(obs.lon_deg), alt_m=float(obs.alt_m), name=sc.get("name"),
+        times=times,
     )
 
 
@@ -105,12 +125,15 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
         if fov is not None:
             float_param(fov, "render.fov_m", 0.0, open_lo=True)
         mesh = build_model(cfg.model)
-        check_memory(memory_parts(int_param(cfg.scenario.n_steps, "scenario.n_steps", 1), size, len(mesh.faces)),
+        observed = read_observations(cfg)
+        times = observed.times_utc if observed is not None else None
+        n_steps = len(times) if times is not None else int_param(cfg.scenario.n_steps, "scenario.n_steps", 1)
+        check_memory(memory_parts(n_steps, size, len(mesh.faces)),
                      run.memory_limit_gb, "lower render.size or scenario.n_steps")
     timings: dict[str, float] = {}
 
     t = time.perf_counter()
-    scenario = build_scenario(cfg)
+    scenario = build_scenario(cfg, times)
     timings["seconds_scene"] = time.perf_counter() - t
     t = time.perf_counter()
     lc = simulate_light_curve(mesh, scenario, shadows=bool(cfg.get("shadows", True)))
@@ -158,12 +181,32 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
                 run.figure("fig4_lightcurve"))
     save_figure(atmosphere_figure(minutes, mag, mag_f, mag_p, getattr(atm, "name", ""), epoch=epoch),
                 run.figure("fig5_atmosphere"))
+    if observed is not None:
+        metrics.update(_compare(observed, mag, epoch, run))
     metrics["seconds_write"] = time.perf_counter() - t
     metrics.update({f"seconds_{k}": v for k, v in run.seconds.items()})
     log.info("lightcurve: %d steps, %s (%d facets), magnitude %.2f..%.2f, eclipse %s-%s, %.1f s",
              len(scenario), mesh.name, len(mesh), metrics["magnitude_min"] or math.nan, metrics["magnitude_max"] or math.nan,
              metrics["eclipse_start_utc"], metrics["eclipse_end_utc"], sum(v for k, v in metrics.items() if k.startswith("seconds_")))
     return metrics
+
+
+def _compare(observed: Any, mag: np.ndarray, epoch: Any, run: Run) -> dict[str, Any]:
+    """The measured curve against the simulated one on its stamps: the figure
+    ``observations`` and the residuals' metrics (``observations_*``; magnitudes)."""
+    from cssat.plots import observations_figure, save_figure
+
+    measured = observed.magnitudes()
+    res = measured - mag
+    ok = np.isfinite(res)  # a dark simulated step has an infinite magnitude
+    hours = (observed.times_utc - observed.times_utc[0]) / np.timedelta64(1, "h")
+    save_figure(observations_figure(hours, measured, observed.magnitude_errors(), mag, epoch=epoch,
+                                    label=Path(observed.source).name), run.figure("observations"))
+    out = {"observations_file": observed.source, "observations_n": len(observed), "observations_compared": int(ok.sum()),
+           "observations_span_hours": float(hours[-1])}
+    if ok.any():
+        out.update(observations_offset_mag=float(np.median(res[ok])), observations_rms_mag=float(np.sqrt(np.mean(res[ok] ** 2))))
+    return out
 
 
 def _metrics(scenario, mesh, flux, images, mag, mag_f, mag_p) -> dict[str, Any]:

@@ -11,8 +11,8 @@ Fig. 9–14), :mod:`~cssat.plots.scene` (Fig. 4–5), :mod:`~cssat.plots.grids` 
 from cssat.plots.base import FIGURE_FORMATS, error_panels, image_panels, light_curve_image, save_figure
 from cssat.plots.grids import WORDS, grid_curves_figure, grid_images_figure, grid_maps_figure, sweep_figure
 from cssat.plots.paper import sim1_figure, sim2_figure, sim3_figures
-from cssat.plots.scene import atmosphere_figure, lightcurve_figure
+from cssat.plots.scene import atmosphere_figure, lightcurve_figure, observations_figure
 
 __all__ = ["image_panels", "error_panels", "FIGURE_FORMATS", "sim1_figure", "sim2_figure", "sim3_figures",
            "grid_images_figure", "grid_maps_figure", "grid_curves_figure", "lightcurve_figure",
-           "atmosphere_figure", "sweep_figure", "light_curve_image", "save_figure", "WORDS"]
+           "atmosphere_figure", "observations_figure", "sweep_figure", "light_curve_image", "save_figure", "WORDS"]

@@ -72,3 +72,29 @@ def atmosphere_figure(minutes: np.ndarray, mag: np.ndarray, mag_facetwise: np.nd
     fig.tight_layout()
     return fig
 
+
+
+def observations_figure(hours: np.ndarray, measured: np.ndarray, errors: np.ndarray | None, simulated: np.ndarray,
+                        epoch: np.datetime64 | str | None = None, label: str = "") -> Figure:
+    """A measured light curve (magnitudes, 1σ error bars) beside the simulated one on its time
+    stamps, over their residuals (measured − simulated); ``hours`` since ``epoch``. Gaps in the
+    time stamps are drawn as gaps (points, no lines across them)."""
+    fig = _figure((9, 5.2))
+    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+    top.errorbar(hours, measured, yerr=errors, fmt=".", ms=3, lw=0.6, color="k", label=f"measured {label}".strip())
+    top.plot(hours, simulated, ".", ms=2, color="tab:orange", label="simulated (atmosphere-free, Eq. 10)")
+    top.invert_yaxis()
+    top.set_ylabel("V magnitude (brighter up)")
+    top.legend(fontsize=8, loc="best")
+    res = measured - simulated
+    bottom.errorbar(hours, res, yerr=errors, fmt=".", ms=2, lw=0.5, color="tab:blue")
+    bottom.axhline(0, color="0.5", lw=0.8)
+    bottom.invert_yaxis()
+    bottom.set_ylabel("measured − simulated\n(mag)")
+    bottom.set_xlabel(("hours since " + str(epoch)[:19].replace("T", " ") + " UTC") if epoch is not None else "hours")
+    finite = np.isfinite(res)
+    rms = float(np.sqrt(np.mean(res[finite] ** 2))) if finite.any() else float("nan")
+    top.set_title(f"Measured and simulated light curves: {int(finite.sum())} time stamps, residual rms {rms:.3f} mag",
+                  fontsize=10)
+    fig.tight_layout()
+    return fig

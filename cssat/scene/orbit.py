@@ -24,6 +24,8 @@ __all__ = [
     "check_tle",
     "earth_shadow_fraction",
     "make_scenario",
+    "utc_times",
+    "TIMES_FORMS",
 ]
 
 #: Astra 1KR (NORAD 29055, 19.2°E), re-epoched to 2020-04-01 00:00 UTC from the real 2020-09-30
@@ -286,6 +288,39 @@ def _start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
     return start
 
 
+#: what ``make_scenario(times=...)`` takes
+TIMES_FORMS = ("a skyfield Time array", "an astropy Time array", "numpy datetime64 values",
+               "datetime objects", "ISO 8601 strings (UTC unless they carry an offset)")
+
+
+def utc_times(times: Any, field: str = "scenario.times") -> np.ndarray:
+    """UTC instants of any of :data:`TIMES_FORMS` as a 1-D ``datetime64[us]`` array, checked:
+    at least one, no NaT, strictly increasing (the error names the first offending index)."""
+    mod = type(times).__module__
+    if mod.startswith("skyfield") and hasattr(times, "utc_datetime"):
+        times = [times.utc_datetime()] if np.ndim(times.tt) == 0 else list(times.utc_datetime())
+    elif mod.startswith("astropy") and hasattr(times, "utc"):
+        times = np.atleast_1d(times.utc.to_value("datetime64"))
+    if isinstance(times, (str, bytes, datetime, np.datetime64)):
+        times = [times]
+    arr = np.asarray(times) if not isinstance(times, np.ndarray) else times
+    if arr.ndim != 1 or arr.size == 0:
+        raise FieldError(field, f"expected a 1-D sequence of at least one time ({', '.join(TIMES_FORMS)}), got shape {arr.shape}")
+    if np.issubdtype(arr.dtype, np.datetime64):
+        out = arr.astype("datetime64[us]")
+        nat = np.flatnonzero(np.isnat(out))
+        if nat.size:
+            raise FieldError(f"{field}[{nat[0]}]", "NaT is not a time")
+    else:
+        out = np.array([np.datetime64(_start_datetime(t, f"{field}[{i}]"), "us") for i, t in enumerate(arr.tolist())])
+    step = np.diff(out).astype(np.int64)
+    bad = np.flatnonzero(step <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise FieldError(f"{field}[{i}]", f"times must increase: {out[i]} does not come after {out[i - 1]}")
+    return out
+
+
 def make_scenario(
     tle: Any = ASTRA_1KR_SYNTHETIC_TLE,
     start_utc: Any = "2020-04-01T00:00:00",
@@ -295,6 +330,7 @@ def make_scenario(
     lon_deg: float = 10.45,
     alt_m: float = 0.0,
     name: str | None = None,
+    times: Any = None,
 ) -> Scenario:
     """Propagate the satellite ``tle`` with SGP4 over ``n_steps`` times ``step_s`` seconds apart
     from ``start_utc`` and compute the Sun, the observer at geodetic ``lat_deg``/``lon_deg``/``alt_m``
@@ -305,6 +341,10 @@ def make_scenario(
     rows, ``sgp4.omm.parse_xml`` output; keys :data:`OMM_REQUIRED`, others default to
     :data:`OMM_DEFAULTS`). ``start_utc`` is any of :data:`START_FORMS`; an aware datetime is
     converted to UTC. ``name`` defaults to the one the satellite carries.
+
+    ``times``: any UTC instants (:data:`TIMES_FORMS`, :func:`utc_times`) — the time stamps of a
+    measured light curve, with gaps and any cadence — replace ``start_utc``, ``n_steps`` and
+    ``step_s``.
 
     The defaults are the paper's scenario: Astra 1KR, 1437 one-minute steps from 2020-04-01
     00:00 UTC, an observer at 51.17°N 10.45°E.
@@ -317,6 +357,9 @@ def make_scenario(
     if name is None:
         default = tle is ASTRA_1KR_SYNTHETIC_TLE
         name = "Astra 1KR (synthetic TLE)" if default else own_name or f"NORAD {sat.model.satnum}"
+    stamps = None if times is None else utc_times(times)
+    if stamps is not None:
+        n_steps, step_s, start_utc = len(stamps), 1.0, stamps[0]
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
         raise FieldError("scenario.n_steps", f"must be a positive integer, got {n_steps!r}")
     if not (isinstance(step_s, (int, float)) and math.isfinite(step_s) and step_s > 0):
@@ -339,7 +382,10 @@ def make_scenario(
             "(tens of degrees along a GEO orbit after months): use elements near the dates", abs(span),
             "after" if span > 0 else "before")
 
-    offsets = np.arange(n_steps) * float(step_s)
+    if stamps is None:
+        offsets = np.arange(n_steps) * float(step_s)
+    else:  # seconds after the first stamp (exact to the microsecond for spans of centuries)
+        offsets = (stamps - stamps[0]).astype(np.int64) * 1e-6
     if offsets[-1] > (EPHEMERIS_RANGE[1] - EPHEMERIS_RANGE[0]).total_seconds():
         raise FieldError("scenario.step_s", f"{n_steps} steps of {step_s:g} s span {offsets[-1] / 3.15576e7:.3g} years, "
                                             f"more than the ephemeris covers ({EPHEMERIS_RANGE[0]:%Y}–{EPHEMERIS_RANGE[1]:%Y})")
@@ -369,7 +415,7 @@ def make_scenario(
     topos = wgs84.latlon(lat_deg, lon_deg, elevation_m=alt_m)
     r_obs = topos.at(t).position.km.T.copy()
     alt, az, dist = (sat - topos).at(t).altaz()
-    times = np.datetime64(start, "us") + (offsets * 1e6).astype("timedelta64[us]")
+    times = np.datetime64(start, "us") + (offsets * 1e6).astype("timedelta64[us]") if stamps is None else stamps
     return Scenario(
         times=times,
         r_sat=r_sat,
