@@ -313,7 +313,6 @@ def test_with_phi_unknown_the_best_estimate_is_the_flux(tmp_path):
     import csv
 
     from cssat.experiments import run_experiment
-    from tests.test_pipeline import cfg_of
 
     cfg = cfg_of("experiment=realism", "target.size=12", "cs.m=115", "threads=1", "grid.axes.0.values=[60]",
                  "grid.axes.1.values=[10]", "atmosphere.n_radial=32", "atmosphere.n_angular=6", "atmosphere.n_layers=4",
@@ -350,3 +349,11 @@ def test_the_geo_verdict_holds_at_every_layer_count():
         atm = PhaseScreenAtmosphere(n_layers=layers, n_radial=nr, n_angular=na)  # 10 m at GEO
         phi = atm.operator(150, 256, seed=0, dtype=torch.float64).matrix()
         assert sensing_stats(phi, (16, 16), full=True)["phi_effective_rank_centered"] == 1, layers
+
+
+def cfg_of(*overrides):
+    """The composed config of the command-line ``overrides`` (as the tests of the app do)."""
+    from hydra import compose, initialize_config_module
+
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))

@@ -181,7 +181,6 @@ def test_the_light_curve_experiment_runs_on_a_measured_files_stamps(tmp_path):
 
     from cssat.data import ObservedLightCurve, write_light_curve
     from cssat.experiments import run_experiment
-    from tests.test_pipeline import cfg_of
 
     rng = np.random.default_rng(2)
     t0 = np.datetime64("2020-04-01T20:00:00", "us")
@@ -226,3 +225,11 @@ def test_the_light_curve_dataset_takes_irregular_times():
     item = ds[1]
     assert np.allclose(item["times"].numpy(), [0.0, 1.5, 420.0, 82800.0])
     assert np.array_equal(item["clean"].numpy(), simulate_light_curve(astra_like(), sc).flux.numpy())
+
+
+def cfg_of(*overrides):
+    """The composed config of the command-line ``overrides`` (as the tests of the app do)."""
+    from hydra import compose, initialize_config_module
+
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))
