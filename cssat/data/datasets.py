@@ -202,11 +202,12 @@ class LightCurves(Dataset):
     default the paper's Gaussian weights over the facets, Eq. 11; one over ``"pixels"`` weights
     the ``(T, size, size)`` renders, Eq. 12; ``None``: the clean curve) with ``noise``
     (a :class:`cssat.physics.NoiseModel`, default none). With ``images=True`` also the renders.
+    ``attitude``: a :mod:`cssat.scene.attitudes` object (default: nadir pointing).
     """
 
     def __init__(self, mesh: Mesh, scenario: Scenario, length: int, seed: int = 0,
                  atmosphere: Atmosphere | str | None = "default", noise: NoiseModel | None = None,
-                 images: bool = False, size: int = 64, shadows: bool = True):
+                 images: bool = False, size: int = 64, shadows: bool = True, attitude: Any = None):
         from cssat.optics import simulate_light_curve
         from cssat.physics import Atmosphere, GaussianAtmosphere, NoiseModel
 
@@ -218,7 +219,7 @@ class LightCurves(Dataset):
             raise FieldTypeError("noise", f"expected a cssat.physics.NoiseModel or None, got {noise!r}")
         self.mesh, self.scenario, self.length, self.seed = mesh, scenario, int(length), int(seed)
         self.atmosphere, self.noise, self.images, self.size = atmosphere, noise, images, size
-        lc = simulate_light_curve(mesh, scenario, shadows=shadows)
+        lc = simulate_light_curve(mesh, scenario, shadows=shadows, attitude=attitude)
         self.sun_body, self.obs_body = lc.sun, lc.observer
         self.facets = lc.facets  # (T, F)
         self.clean = lc.flux

@@ -125,6 +125,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
         if fov is not None:
             float_param(fov, "render.fov_m", 0.0, open_lo=True)
         mesh = build_model(cfg.model)
+        attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         observed = read_observations(cfg)
         times = observed.times_utc if observed is not None else None
         n_steps = len(times) if times is not None else int_param(cfg.scenario.n_steps, "scenario.n_steps", 1)
@@ -136,7 +137,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
     scenario = build_scenario(cfg, times)
     timings["seconds_scene"] = time.perf_counter() - t
     t = time.perf_counter()
-    lc = simulate_light_curve(mesh, scenario, shadows=bool(cfg.get("shadows", True)))
+    lc = simulate_light_curve(mesh, scenario, shadows=bool(cfg.get("shadows", True)), attitude=attitude)
     flux = lc.flux
     timings["seconds_light_curve"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -161,6 +162,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
     mag, mag_f, mag_p = (apparent_magnitude(v).numpy() for v in (flux, facetwise.abs(), pixelwise.abs()))
     marks = _mark_steps(flux.numpy(), n_marks)
     metrics = {**_metrics(scenario, mesh, flux, images, mag, mag_f, mag_p), "image_size": size, **atm.describe(),
+               **(attitude.describe() if attitude is not None else {"attitude": "nadir"}),
                **noise.describe(), "seed": seed, **timings}
     t = time.perf_counter()
     epoch = scenario.times[0]

@@ -34,12 +34,24 @@ class LightCurve:
         return self.facets.sum(1)
 
 
-def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, **kwargs: Any) -> LightCurve:
-    """The atmosphere-free light curve of ``mesh`` in ``scenario`` with the paper's three-axis
-    stabilised attitude: Eq. 8–9 per facet with self- and observer-shadowing (``shadows``), the
-    Earth's shadow (``scenario.sunlit``) and the observer's horizon (zero below it)."""
+def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, attitude: Any = None,
+                         **kwargs: Any) -> LightCurve:
+    """The atmosphere-free light curve of ``mesh`` in ``scenario``: Eq. 8–9 per facet with self-
+    and observer-shadowing (``shadows``), the Earth's shadow (``scenario.sunlit``) and the
+    observer's horizon (zero below it). ``attitude``: a :mod:`cssat.scene.attitudes` object
+    (``frames(scenario)``) or body frames ``(T, 3, 3)``; default the paper's three-axis
+    stabilised (nadir-pointing) attitude."""
     mesh = as_mesh(mesh)
-    frame = nadir_pointing_frame(scenario.r_sat, scenario.v_sat)
+    if attitude is None:
+        frame = nadir_pointing_frame(scenario.r_sat, scenario.v_sat)
+    elif hasattr(attitude, "frames"):
+        frame = attitude.frames(scenario)
+    else:
+        frame = np.asarray(attitude, dtype=np.float64)
+    if frame.shape != (len(scenario), 3, 3):
+        from cssat._checks import FieldError
+
+        raise FieldError("attitude", f"expected body frames of shape ({len(scenario)}, 3, 3), got {frame.shape}")
     sun = to_body(frame, scenario.sun_dir)
     obs = to_body(frame, scenario.obs_dir)
     b = facet_brightness(mesh, sun, obs, range_km=scenario.range_km, sun_range_km=scenario.sun_range_km,
