@@ -29,7 +29,6 @@ def main() -> None:
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     from scipy.integrate import solve_ivp
-    from scipy.spatial.transform import Rotation
 
     from cssat.optics import simulate_light_curve
     from cssat.scene import astra_like, make_scenario
