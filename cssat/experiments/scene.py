@@ -126,6 +126,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
             float_param(fov, "render.fov_m", 0.0, open_lo=True)
         mesh = build_model(cfg.model)
         attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
+        brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         observed = read_observations(cfg)
         times = observed.times_utc if observed is not None else None
         n_steps = len(times) if times is not None else int_param(cfg.scenario.n_steps, "scenario.n_steps", 1)
@@ -137,7 +138,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
     scenario = build_scenario(cfg, times)
     timings["seconds_scene"] = time.perf_counter() - t
     t = time.perf_counter()
-    lc = simulate_light_curve(mesh, scenario, shadows=bool(cfg.get("shadows", True)), attitude=attitude)
+    lc = simulate_light_curve(mesh, scenario, shadows=bool(cfg.get("shadows", True)), attitude=attitude, brdf=brdf)
     flux = lc.flux
     timings["seconds_light_curve"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -163,6 +164,7 @@ def run(cfg: Any, run: Run) -> dict[str, Any]:
     marks = _mark_steps(flux.numpy(), n_marks)
     metrics = {**_metrics(scenario, mesh, flux, images, mag, mag_f, mag_p), "image_size": size, **atm.describe(),
                **(attitude.describe() if attitude is not None else {"attitude": "nadir"}),
+               **(brdf.describe() if brdf is not None else {"brdf": "mesh"}),
                **noise.describe(), "seed": seed, **timings}
     t = time.perf_counter()
     epoch = scenario.times[0]

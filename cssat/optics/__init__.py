@@ -1,6 +1,7 @@
-"""Optics: BRDF and visibility (Eq. 8–9), light curves (Eq. 10) and the z-buffer renderer.
+"""Optics: BRDFs (the paper's Eq. 8–9 and the analytic families of :mod:`cssat.optics.brdf`), visibility, light curves (Eq. 10) and the z-buffer renderer.
 Knows nothing of compressed sensing; the atmosphere (Eq. 11–12) lives in :mod:`cssat.physics`."""
 
+from cssat.optics.brdf import BRDF, AshikhminShirley, BlinnPhong, CookTorrance, Lambert, PaperBRDF, Phong
 from cssat.optics.lightcurve import LightCurve, simulate_light_curve
 from cssat.optics.photometry import (
     SOLAR_IRRADIANCE_W_M2,
@@ -12,6 +13,13 @@ from cssat.optics.photometry import (
 from cssat.optics.render import default_fov, image_basis, render
 
 __all__ = [
+    "BRDF",
+    "Lambert",
+    "Phong",
+    "BlinnPhong",
+    "CookTorrance",
+    "AshikhminShirley",
+    "PaperBRDF",
     "LightCurve",
     "SOLAR_IRRADIANCE_W_M2",
     "apparent_magnitude",

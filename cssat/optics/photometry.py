@@ -9,7 +9,7 @@ Geometry inputs are body-frame unit vectors *from the object*: ``sun (T, 3)`` (t
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -67,6 +67,8 @@ def facet_brightness(
     irradiance: float = SOLAR_IRRADIANCE_W_M2,
     specular_window_deg: float = 0.5,
     shadows: bool = False,
+    brdf: Any = None,
+    materials: Any = None,
 ) -> Tensor:
     """Brightness of every facet at every step, ``(T, F)``, paper Eq. 8–9.
 
@@ -88,6 +90,11 @@ def facet_brightness(
     The term is Eq. 8 as printed; a perfect mirror reflecting the Sun's disk would give
     ``r²/a²`` without the factor π, so this glint is π times that mirror's (a 1 m² facet with
     ``C_s = 0.2`` glints ≈ 2.9·10⁴ times as bright as a Lambertian ``C_d = 1`` facet at normal view).
+
+    **Other BRDFs** (:mod:`cssat.optics.brdf`): with ``brdf`` a BRDF object, every facet sends
+    ``I_0 A_i f(N_i, S, V) (S·N_i)(V·N_i) / r_topo²`` (the mesh's ``cd``/``cs`` unused); with a
+    sequence of BRDFs, ``materials (F,)`` gives each facet's index into it (materials as face
+    attributes). ``brdf=None`` is Eq. 8–9 above, unchanged.
     """
     mesh = as_mesh(mesh)
     sl = torch.as_tensor(sunlit, dtype=torch.float64)
@@ -131,6 +138,9 @@ def facet_brightness(
     out = torch.empty(T, F, dtype=dtype, device=dev)
     cos_win = math.cos(math.radians(specular_window_deg))
     step = max(1, (1 << 24) // max(F, 1))  # bound the (views, facets) temporaries
+    if brdf is not None:
+        brdf, materials = _brdf_table(brdf, materials, F)
+        step = max(1, (1 << 20) // max(F, 1))  # the BRDFs broadcast (views, facets, 3)
     for s in range(0, T, step):
         e = min(s + step, T)
         S, V = sun_t[s:e], obs_t[s:e]
@@ -140,8 +150,15 @@ def facet_brightness(
         # mirror direction R = 2 (S·N) N − S; τ = 1 when angle(R, V) <= window
         tau = (2 * sn * vn - (S * V).sum(1, keepdim=True)) >= cos_win
         rs, rt, li = (x if x.shape[0] == 1 else x[s:e] for x in (r_sun, r_topo_m, lit))
-        spec = math.pi * cs * (rs / SUN_RADIUS_KM) ** 2 * tau
-        val = irradiance * A / (math.pi * rt**2) * sn * (cd * vn + spec)
+        if brdf is None:
+            spec = math.pi * cs * (rs / SUN_RADIUS_KM) ** 2 * tau
+            val = irradiance * A / (math.pi * rt**2) * sn * (cd * vn + spec)
+        else:
+            f = torch.zeros_like(sn)
+            for k, model in enumerate(brdf):
+                cols = slice(None) if materials is None else torch.as_tensor(materials == k, device=dev)
+                f[:, cols] = model.evaluate(N[cols][None], S[:, None], V[:, None])
+            val = irradiance * A / rt**2 * sn * vn * f
         val = torch.where(front, val, torch.zeros_like(val)) * li
         if shadows:
             vis = shadow_mask(mesh, S, V, candidates=front & (li > 0))
@@ -150,6 +167,20 @@ def facet_brightness(
             val = val * visible[s:e].to(dtype)
         out[s:e] = val
     return out
+
+
+def _brdf_table(brdf: Any, materials: Any, F: int) -> tuple[list, np.ndarray | None]:
+    """``([BRDF, ...], materials (F,) or None)`` checked."""
+    models = list(brdf) if isinstance(brdf, (list, tuple)) else [brdf]
+    for i, m in enumerate(models):
+        if not hasattr(m, "evaluate"):
+            raise FieldError("brdf", f"expected BRDF objects (cssat.optics.brdf), got {type(m).__name__} at {i}")
+    if len(models) == 1 and materials is None:
+        return models, None
+    mat = np.asarray(materials if materials is not None else np.zeros(F), dtype=np.int64)
+    if mat.shape != (F,) or mat.min() < 0 or mat.max() >= len(models):
+        raise FieldError("materials", f"expected {F} indices into the {len(models)} BRDFs, got shape {mat.shape}")
+    return models, mat
 
 
 def shadow_mask(
