@@ -205,3 +205,47 @@ def test_every_brdf_option_runs_the_light_curve_experiment(tmp_path, option):
                                                        "threads=1"])
     met = run_experiment(cfg, tmp_path)
     assert met["status"] == "ok" and met["brdf"] == option and met["magnitude_min"] is not None
+
+
+def _two_body_scene():
+    import trimesh
+
+    a = trimesh.creation.box((2.0, 1.0, 1.0))
+    a.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(name="bus"))
+    b = trimesh.creation.box((4.0, 0.05, 1.0))
+    b.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(name="array"))
+    scene = trimesh.Scene()
+    scene.add_geometry(a, node_name="bus_node")
+    scene.add_geometry(b, node_name="array_node", transform=trimesh.transformations.translation_matrix([0, 3.0, 0]))
+    return scene, a, b
+
+
+def test_a_trimesh_scene_and_a_glb_load_with_their_bodies(tmp_path):
+    from cssat.scene import as_mesh, load_mesh
+
+    scene, a, b = _two_body_scene()
+    mesh = as_mesh(scene)
+    assert len(mesh) == len(a.faces) + len(b.faces) and set(mesh.part_names) == {"bus", "array"}
+    arr = mesh.part == mesh.part_names.index("array")
+    assert np.allclose(mesh.centroids[arr].mean(0), [0, 3.0, 0])  # the node's transform applied
+    assert mesh.areas.sum() == pytest.approx(a.area + b.area)
+    (tmp_path / "sat.glb").write_bytes(scene.export(file_type="glb"))
+    glb = load_mesh(tmp_path / "sat.glb", center=False)
+    assert len(glb) == len(mesh) and set(glb.part_names) == {"bus", "array"}
+    assert glb.areas.sum() == pytest.approx(mesh.areas.sum())
+
+
+def test_a_brdf_per_part_name():
+    from cssat.optics import facet_brightness
+    from cssat.optics.brdf import CookTorrance, Lambert
+    from cssat.scene import as_mesh
+
+    mesh = as_mesh(_two_body_scene()[0])
+    rng = np.random.default_rng(9)
+    sun, obs = _unit(rng, 40), _unit(rng, 40)
+    by_name = facet_brightness(mesh, sun, obs, brdf={"bus": Lambert(0.5), "array": CookTorrance()}).numpy()
+    arr = mesh.part == mesh.part_names.index("array")
+    assert np.allclose(by_name[:, ~arr], facet_brightness(mesh, sun, obs, brdf=Lambert(0.5)).numpy()[:, ~arr])
+    assert np.allclose(by_name[:, arr], facet_brightness(mesh, sun, obs, brdf=CookTorrance()).numpy()[:, arr])
+    with pytest.raises(FieldError, match="missing"):
+        facet_brightness(mesh, sun, obs, brdf={"bus": Lambert(0.5)})

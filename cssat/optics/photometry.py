@@ -94,7 +94,8 @@ def facet_brightness(
     **Other BRDFs** (:mod:`cssat.optics.brdf`): with ``brdf`` a BRDF object, every facet sends
     ``I_0 A_i f(N_i, S, V) (S·N_i)(V·N_i) / r_topo²`` (the mesh's ``cd``/``cs`` unused); with a
     sequence of BRDFs, ``materials (F,)`` gives each facet's index into it (materials as face
-    attributes). ``brdf=None`` is Eq. 8–9 above, unchanged.
+    attributes); with a ``{part name: BRDF}`` mapping (``"default"`` for the rest), each body of a
+    multi-body mesh (``mesh.part_names``) gets its own. ``brdf=None`` is Eq. 8–9 above, unchanged.
     """
     mesh = as_mesh(mesh)
     sl = torch.as_tensor(sunlit, dtype=torch.float64)
@@ -139,7 +140,7 @@ def facet_brightness(
     cos_win = math.cos(math.radians(specular_window_deg))
     step = max(1, (1 << 24) // max(F, 1))  # bound the (views, facets) temporaries
     if brdf is not None:
-        brdf, materials = _brdf_table(brdf, materials, F)
+        brdf, materials = _brdf_table(brdf, materials, F, mesh)
         step = max(1, (1 << 20) // max(F, 1))  # the BRDFs broadcast (views, facets, 3)
     for s in range(0, T, step):
         e = min(s + step, T)
@@ -169,8 +170,16 @@ def facet_brightness(
     return out
 
 
-def _brdf_table(brdf: Any, materials: Any, F: int) -> tuple[list, np.ndarray | None]:
-    """``([BRDF, ...], materials (F,) or None)`` checked."""
+def _brdf_table(brdf: Any, materials: Any, F: int, mesh: Mesh) -> tuple[list, np.ndarray | None]:
+    """``([BRDF, ...], materials (F,) or None)`` checked; a ``{part name: BRDF}`` mapping (and
+    ``"default"`` for the parts it does not name) becomes the mesh's parts as materials."""
+    if isinstance(brdf, dict):
+        names = list(mesh.part_names) if mesh.part is not None else []
+        missing = [n for n in names if n not in brdf] if "default" not in brdf else []
+        if mesh.part is None or missing:
+            raise FieldError("brdf", f"a BRDF per part needs the mesh's parts {names or '(it has none)'}; "
+                                     f"missing {missing or 'parts'} (or give 'default')")
+        brdf, materials = [brdf.get(n, brdf.get("default")) for n in names], mesh.part
     models = list(brdf) if isinstance(brdf, (list, tuple)) else [brdf]
     for i, m in enumerate(models):
         if not hasattr(m, "evaluate"):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -31,6 +31,8 @@ class Mesh:
     vertices : (V, 3) float64, metres (body frame)
     faces : (F, 3) int64, counter-clockwise seen from the front (normal side)
     cd, cs : (F,) diffuse and specular reflection coefficients (Eq. 8)
+    part : (F,) int64 or None: each facet's body (an index into ``part_names``), kept from a
+        multi-body file or ``trimesh.Scene`` — the materials a BRDF may be given by name
     """
 
     vertices: np.ndarray
@@ -39,8 +41,14 @@ class Mesh:
     cs: np.ndarray
     name: str = ""
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
+    part: np.ndarray | None = None
+    part_names: tuple = ()
 
     def __post_init__(self):
+        if self.part is not None:
+            self.part = np.asarray(self.part, dtype=np.int64)
+            if self.part.shape != (len(self.faces),) or (len(self.part) and (self.part.min() < 0 or self.part.max() >= len(self.part_names))):
+                raise FieldError("mesh.part", f"expected {len(self.faces)} indices into {len(self.part_names)} part names")
         self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float64)
         self.faces = np.ascontiguousarray(self.faces, dtype=np.int64)
         F = len(self.faces)
@@ -112,13 +120,48 @@ class Mesh:
                    name=name if name is not None else str(getattr(tm, "metadata", {}).get("name", "") or ""))
 
 
+    @classmethod
+    def from_scene(cls, scene: Any, cd: float = 0.8, cs: float = 0.2, name: str | None = None) -> "Mesh":
+        """One :class:`Mesh` of a ``trimesh.Scene`` (what GLB/GLTF files load as): every body's
+        triangles placed by its node's transform and concatenated; each body is a ``part`` named
+        by its material (else its node), with its own ``cd``/``cs`` face attributes when it has
+        them."""
+        import trimesh
+
+        verts, faces, cds, css, part, names, off = [], [], [], [], [], [], 0
+        for node in scene.graph.nodes_geometry:
+            transform, geom = scene.graph[node]
+            g = scene.geometry[geom]
+            if not isinstance(g, trimesh.Trimesh) or len(g.faces) == 0:
+                continue
+            attrs = getattr(g, "face_attributes", None) or {}
+            F = len(g.faces)
+            verts.append(trimesh.transform_points(np.asarray(g.vertices, dtype=np.float64), transform))
+            faces.append(np.asarray(g.faces, dtype=np.int64) + off)
+            cds.append(np.broadcast_to(np.asarray(attrs.get("cd", cd), dtype=np.float64), (F,)))
+            css.append(np.broadcast_to(np.asarray(attrs.get("cs", cs), dtype=np.float64), (F,)))
+            label = str(getattr(getattr(getattr(g, "visual", None), "material", None), "name", None) or node)
+            if label not in names:
+                names.append(label)
+            part.append(np.full(F, names.index(label)))
+            off += len(g.vertices)
+        if not faces:
+            raise FieldError("mesh", "the scene holds no triangles")
+        return cls(np.concatenate(verts), np.concatenate(faces), np.concatenate(cds), np.concatenate(css),
+                   name=name if name is not None else str(getattr(scene, "metadata", {}).get("name", "") or ""),
+                   part=np.concatenate(part), part_names=tuple(names))
+
+
 def as_mesh(mesh: Mesh | trimesh.Trimesh) -> Mesh:
-    """``mesh`` as a :class:`Mesh`: a ``trimesh.Trimesh`` is converted (:meth:`Mesh.from_trimesh`)."""
+    """``mesh`` as a :class:`Mesh`: a ``trimesh.Trimesh`` is converted (:meth:`Mesh.from_trimesh`),
+    a ``trimesh.Scene`` concatenated with its bodies kept as parts (:meth:`Mesh.from_scene`)."""
     if isinstance(mesh, Mesh):
         return mesh
+    if type(mesh).__module__.startswith("trimesh") and hasattr(mesh, "graph") and hasattr(mesh, "geometry"):
+        return Mesh.from_scene(mesh)
     if hasattr(mesh, "vertices") and hasattr(mesh, "faces") and type(mesh).__module__.startswith("trimesh"):
         return Mesh.from_trimesh(mesh)
-    raise FieldTypeError("mesh", f"expected a cssat.scene.Mesh or a trimesh.Trimesh, got {type(mesh).__name__}")
+    raise FieldTypeError("mesh", f"expected a cssat.scene.Mesh, a trimesh.Trimesh or a trimesh.Scene, got {type(mesh).__name__}")
 
 
 def load_mesh(
@@ -153,10 +196,14 @@ def load_mesh(
 
     expected = check_obj(data, field, path) if ext == "obj" else 0
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=ext, force="mesh", process=False,
-                              resolver=trimesh.resolvers.FilePathResolver(path))
+        loaded = trimesh.load(io.BytesIO(data), file_type=ext, force="scene" if ext in ("glb", "gltf") else "mesh",
+                              process=False, resolver=trimesh.resolvers.FilePathResolver(path))
     except Exception as err:  # trimesh raises many types for unreadable files
         raise FieldError(field, f"cannot read {path!r} as a mesh: {err}") from None
+    part, part_names = None, ()
+    if hasattr(loaded, "graph"):  # GLB/GLTF: several bodies, each kept as a part
+        whole = Mesh.from_scene(loaded, cd, cs)
+        loaded, part, part_names = whole, whole.part, whole.part_names
     faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64)
     if expected and len(faces) != expected:
         raise FieldError(field, f"{path!r} describes {expected} triangles but {len(faces)} could be read")
@@ -167,7 +214,8 @@ def load_mesh(
     if center and len(verts):
         verts = verts - 0.5 * (verts.min(0) + verts.max(0))
     try:
-        mesh = Mesh(verts, faces, cd, cs, name=os.path.basename(path))
+        mesh = Mesh(verts, faces, getattr(loaded, "cd", cd), getattr(loaded, "cs", cs), name=os.path.basename(path),
+                    part=part, part_names=part_names)
     except ValueError as err:  # e.g. a file truncated mid-way: faces pointing past the vertices
         raise FieldError(field, f"{path!r} is not a valid mesh ({err})") from None
     good = mesh.areas > 1e-12 * max(mesh.radius, 1e-300) ** 2
@@ -179,7 +227,8 @@ def load_mesh(
         logging.getLogger("cssat").warning(
             "%s: dropped %d zero-area (degenerate) facets of %d in %r", field, int((~good).sum()), len(faces), path
         )
-        mesh = Mesh(verts, faces[good], cd, cs, name=mesh.name)
+        mesh = Mesh(verts, faces[good], mesh.cd[good], mesh.cs[good], name=mesh.name,
+                    part=None if part is None else part[good], part_names=part_names)
     outward = float((np.sign(np.einsum("ij,ij->i", mesh.normals, mesh.centroids - mesh.centroids.mean(0))) * mesh.areas).sum()
                     / mesh.areas.sum())
     if outward < -0.5:
