@@ -15,7 +15,7 @@ import importlib
 __version__ = "0.1.0"
 
 #: the subpackages and modules reachable as ``cssat.<name>`` (imported lazily)
-SUBMODULES = ("scene", "optics", "data", "sparse", "reference", "physics", "recon", "metrics", "plots",
+SUBMODULES = ("scene", "optics", "data", "sparse", "reference", "physics", "recon", "inversion", "metrics", "plots",
               "experiments", "summary")
 __all__ = [*SUBMODULES, "__version__"]
 
