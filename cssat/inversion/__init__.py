@@ -3,10 +3,14 @@ Gaussian image (area × albedo per surface normal), whose sensing matrix is know
 
 :mod:`cssat.inversion.egi`: the geometric sensing operator ``G (T, K)``, ``fibonacci_sphere``
 and a mesh's own EGI; :mod:`cssat.inversion.recover`: non-negative sparse recovery of the EGI
-(NNLS, non-negative OMP, non-negative ℓ1) with photometric weights and the closure constraint.
+(NNLS, non-negative OMP, non-negative ℓ1) with photometric weights and the closure constraint;
+:mod:`cssat.inversion.shape`: the convex shape of an EGI (Minkowski, Little's program) and
+``invert_convex`` from a light curve.
 """
 
 from cssat.inversion.egi import EGIOperator, egi, egi_operator, fibonacci_sphere
 from cssat.inversion.recover import recover_egi
+from cssat.inversion.shape import ConvexInversion, invert_convex, minkowski
 
-__all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi"]
+__all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi", "minkowski", "invert_convex",
+           "ConvexInversion"]

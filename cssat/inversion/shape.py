@@ -1,0 +1,161 @@
+"""The convex shape of an EGI (the Minkowski problem, issue 24 point 3).
+
+A convex polyhedron is determined, up to translation, by its facets' normals ``n_k`` and areas
+``a_k`` (Minkowski 1897) when ``Σ a_k n_k = 0``. Little's (1983) convex program finds it: over
+the support heights ``h`` of ``P(h) = {x : n_k·x ≤ h_k}``, maximise ``log V(h)`` on the plane
+``Σ a_k h_k = 1``; ``∂V/∂h_k`` is the area of facet ``k``, so at the optimum the facet areas are
+proportional to ``a`` (the Lagrange condition). Solved here by projected gradient ascent with
+backtracking (``V`` and the facet areas by qhull's halfspace intersection), the polytope kept
+centred on its centroid; the result is scaled so that its surface is ``Σ a_k``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import FieldError
+
+__all__ = ["minkowski", "polytope", "invert_convex", "ConvexInversion"]
+
+
+def polytope(normals: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """``P(h) = {x : n_k·x ≤ h_k}`` (the origin inside): ``(vertices (V, 3), triangles (F, 3),
+    volume, facet areas (K,))`` — facet ``k``'s area is 0 when its plane does not touch ``P``."""
+    from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+    hs = np.hstack([normals, -heights[:, None]])
+    pts = HalfspaceIntersection(hs, np.zeros(3)).intersections
+    hull = ConvexHull(pts)
+    tri = pts[hull.simplices]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    cross *= np.sign(np.einsum("ij,ij->i", cross, tri.mean(1)))[:, None]  # qhull's triangles are unoriented: outward
+    tri_area = 0.5 * np.linalg.norm(cross, axis=1)
+    # each hull triangle lies on the plane of the constraint its normal matches best
+    owner = np.argmax((cross / np.maximum(2 * tri_area[:, None], 1e-300)) @ normals.T, axis=1)
+    areas = np.bincount(owner, weights=tri_area, minlength=len(normals))
+    return pts, hull.simplices, float(hull.volume), areas
+
+
+def _centroid(pts: np.ndarray, simplices: np.ndarray) -> np.ndarray:
+    tri = pts[simplices]
+    vol = np.abs(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))) / 6.0  # the origin is inside: cones from it
+    return (vol[:, None] * tri.sum(1) / 4.0).sum(0) / vol.sum()
+
+
+def _encloses(N: np.ndarray) -> bool:
+    """Whether the origin is strictly inside the normals' convex hull (they are in no closed
+    hemisphere, so their halfspaces bound a body)."""
+    from scipy.spatial import ConvexHull
+
+    try:
+        hull = ConvexHull(N)
+    except Exception:  # coplanar normals: a hemisphere's edge
+        return False
+    return bool((hull.equations[:, 3] < -1e-9).all())
+
+
+def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e-7) -> tuple[Any, dict[str, Any]]:
+    """The convex polyhedron whose facets have ``normals (K, 3)`` and ``areas (K,) ≥ 0`` (zero
+    areas are dropped), as a ``trimesh.Trimesh`` centred on its centroid, and ``info``
+    (``iterations``, ``area_error``: the largest |facet area − a_k| over Σa, ``closure``: |Σ a n|
+    over Σa). Stops when every facet's share of the surface is within ``tol`` of ``a_k/Σa``. The
+    normals with area must not all lie in a closed hemisphere."""
+    import trimesh
+
+    N = np.asarray(normals, dtype=np.float64)
+    a = np.asarray(areas, dtype=np.float64)
+    if N.ndim != 2 or N.shape[1] != 3 or a.shape != (len(N),) or not np.isfinite(N).all() or not np.isfinite(a).all():
+        raise FieldError("areas", f"expected normals (K, 3) and areas (K,), got {N.shape} and {a.shape}")
+    if (a < 0).any():
+        raise FieldError("areas", "areas must be >= 0")
+    keep = a > 1e-12 * a.max() if a.size and a.max() > 0 else np.zeros(len(a), bool)
+    if keep.sum() < 4:
+        raise FieldError("areas", f"a closed convex body needs at least 4 facets with area, got {int(keep.sum())}")
+    N = N[keep] / np.linalg.norm(N[keep], axis=1, keepdims=True)
+    a = a[keep]
+    if not _encloses(N):
+        raise FieldError("normals", "the normals with area lie in a closed hemisphere: they enclose no body")
+    total = a.sum()
+    closure = float(np.linalg.norm(a @ N) / total)
+    w = a / total
+    h = np.full(len(N), 1.0)
+    h /= w @ h
+    try:
+        pts, simp, V, A = polytope(N, h)
+    except Exception as err:  # qhull: an unbounded intersection
+        raise FieldError("normals", f"these normals do not enclose a body (they lie in a hemisphere?): {err}") from None
+    it = 0
+    step = 0.1
+    for it in range(1, max_iter + 1):
+        if np.abs(A / A.sum() - w).max() < tol:  # the facets' areas ∝ a: the Lagrange condition
+            break
+        g = A / V
+        g -= (g @ w) / (w @ w) * w  # the tangent of the plane Σ w h = 1
+        gn = np.linalg.norm(g)
+        while True:
+            h_new = h + step * g / gn * np.mean(h)
+            if (h_new > 0).all():
+                try:
+                    p2, s2, V2, A2 = polytope(N, h_new)
+                except Exception:  # qhull on a degenerate step: a smaller one
+                    V2 = -np.inf
+                if V2 > V:
+                    break
+            if step < 1e-14:
+                p2, s2, V2, A2, h_new = pts, simp, V, A, h
+                break
+            step *= 0.5
+        c = _centroid(p2, s2)
+        h, pts, simp, V, A = h_new - N @ c, p2 - c, s2, V2, A2  # re-centred: the origin stays inside
+        h /= w @ h
+        pts, simp, V, A = polytope(N, h)
+        step = min(step * 2, 1.0)
+    scale = np.sqrt(total / A.sum())
+    mesh = trimesh.convex.convex_hull(pts * scale)  # outward, watertight
+    err = float(np.abs(A * scale ** 2 - a).max() / total)
+    return mesh, {"iterations": it, "area_error": err, "closure": closure}
+
+
+class ConvexInversion:
+    """What :func:`invert_convex` returns: the recovered EGI (``normals (K, 3)``, ``areas
+    (K,)``, only the non-zero ones), the convex ``mesh`` (``trimesh.Trimesh``, or ``None`` when
+    fewer than 4 normals carry area), the light curve's ``residual (T,)`` (flux − fit) and the
+    solver's and the Minkowski step's ``info``."""
+
+    def __init__(self, normals: np.ndarray, areas: np.ndarray, mesh: Any, residual: np.ndarray, info: dict):
+        self.normals, self.areas, self.mesh, self.residual, self.info = normals, areas, mesh, residual, info
+
+    def __repr__(self) -> str:
+        return f"ConvexInversion({len(self.areas)} normals, area {self.areas.sum():.4g}, rms residual " \
+               f"{float(np.sqrt(np.mean(self.residual ** 2))):.3g})"
+
+
+def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambert", n_normals: int = 1000,
+                  sigma: Any = None, method: str = "nnls", closure: float = 1.0) -> ConvexInversion:
+    """The convex shape of a light curve: ``flux (T,)`` per unit irradiance and range (for
+    ``brdf="lambert"``: ``Σ_f A_f (albedo/π) max(0, s·n_f) max(0, o·n_f)``, so the areas come
+    back in the flux's units × albedo), ``sun_body``/``obs_body (T, 3)`` body-frame unit vectors;
+    the EGI on a ``n_normals`` Fibonacci grid by :func:`~cssat.inversion.recover_egi` (``method``,
+    weights ``1/sigma``, ``closure``), then :func:`minkowski`. ``brdf``: a
+    :mod:`cssat.optics.brdf` object or its name (default parameters, albedo 1 for Lambert)."""
+    from cssat.inversion.egi import egi_operator, fibonacci_sphere
+    from cssat.inversion.recover import recover_egi
+    from cssat.optics.brdf import BRDFS, Lambert
+
+    if isinstance(brdf, str):
+        if brdf not in BRDFS:
+            raise FieldError("brdf", f"expected one of {sorted(BRDFS)} or a BRDF object, got {brdf!r}")
+        brdf = Lambert(1.0) if brdf == "lambert" else BRDFS[brdf]()
+    N = fibonacci_sphere(n_normals)
+    G = egi_operator(sun_body, obs_body, N, brdf)
+    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    a, info = recover_egi(G, y, sigma=sigma, method=method, closure=closure)
+    keep = a > 1e-9 * max(float(a.max()), 1e-300)
+    normals, areas = N.numpy()[keep], a[keep]
+    mesh = None
+    if keep.sum() >= 4:
+        mesh, minfo = minkowski(normals, areas)
+        info.update({f"minkowski_{k}": v for k, v in minfo.items()})
+    return ConvexInversion(normals, areas, mesh, y - G.matrix().numpy() @ a, info)
