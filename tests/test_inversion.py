@@ -165,8 +165,6 @@ def test_invert_convex_recovers_a_box_from_its_light_curve():
     """A box's Lambert light curve over 1,000 random geometries (no noise, no shadows): the
     recovered convex shape's volume IoU with the truth ≥ 0.9 (grid snapping of 1,000 normals
     costs a few per cent)."""
-    import trimesh
-
     from cssat.inversion import egi, egi_operator, invert_convex
     from cssat.scene import box
 
