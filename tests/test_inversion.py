@@ -185,3 +185,39 @@ def test_invert_convex_recovers_a_box_from_its_light_curve():
     i1, i2 = inside(truth), inside(got)
     assert (i1 & i2).sum() / (i1 | i2).sum() >= 0.9
     assert abs(inv.areas.sum() - a.sum()) < 0.05 * a.sum()
+
+
+def test_observability_of_simple_geometries():
+    """One geometry repeated: one combination of the EGI (rank 1). An observer fixed in the body
+    frame with the Sun anywhere: exactly the hemisphere facing the observer is ever seen."""
+    from cssat.inversion import fibonacci_sphere, observability
+
+    N = fibonacci_sphere(2000)
+    s = np.tile([[0.6, 0.0, 0.8]], (50, 1))
+    o = np.tile([[0.0, 0.6, 0.8]], (50, 1))
+    assert observability(s, o, N)["effective_rank"] == 1
+    rng = np.random.default_rng(2)
+    s = rng.normal(size=(500, 3))
+    s /= np.linalg.norm(s, axis=1, keepdims=True)
+    ob = observability(s, np.tile([[0.0, 0.0, 1.0]], (500, 1)), N)
+    assert np.array_equal(ob["seen"], (N[:, 2] > 0).numpy())
+    assert ob["leverage"][~ob["seen"]].max() < 1e-20  # what is never seen cannot be told
+
+
+def test_a_stabilised_geo_satellite_sees_half_the_sphere_and_a_tumbler_all_of_it():
+    """The README's verdict: nadir pointing at GEO keeps the observer on the Earth side of the
+    body frame — half the sphere is never seen, and one night gives a few tens of independent
+    combinations; a tumbling body shows the whole sphere and several times the rank."""
+    from cssat.inversion import fibonacci_sphere, observability
+    from cssat.optics import simulate_light_curve
+    from cssat.scene import box, make_scenario
+    from cssat.scene.attitudes import Nadir, Tumbling
+
+    N = fibonacci_sphere(1000)
+    sc = make_scenario(start_utc="2020-04-01T18:00:00", n_steps=720, step_s=60.0)
+    out = {}
+    for name, att in (("geo", Nadir()), ("tumbling", Tumbling())):
+        lc = simulate_light_curve(box((1.0, 1.0, 1.0)), sc, attitude=att, shadows=False)
+        out[name] = observability(lc.sun, lc.observer, N)
+    assert abs(out["geo"]["seen"].mean() - 0.5) < 0.02 and out["tumbling"]["seen"].all()
+    assert out["tumbling"]["effective_rank"] > 5 * out["geo"]["effective_rank"]

@@ -9,8 +9,9 @@ and a mesh's own EGI; :mod:`cssat.inversion.recover`: non-negative sparse recove
 """
 
 from cssat.inversion.egi import EGIOperator, egi, egi_operator, fibonacci_sphere
+from cssat.inversion.observability import observability
 from cssat.inversion.recover import recover_egi
 from cssat.inversion.shape import ConvexInversion, invert_convex, minkowski
 
 __all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi", "minkowski", "invert_convex",
-           "ConvexInversion"]
+           "ConvexInversion", "observability"]
