@@ -341,11 +341,11 @@ def test_noiseless_information_counts_the_identifiable_modes():
 
 
 def test_the_geo_verdict_holds_at_every_layer_count():
-    """The GEO column's rank 1 is converged: 8 to 128 layers, two frequency grids, the centred
+    """The GEO column's rank 1 is converged: 8 and 128 layers, three frequency grids, the centred
     fluctuations of a 10 m object at GEO keep effective rank 1 (the 58″ counts are not: README)."""
     from cssat.physics import PhaseScreenAtmosphere, sensing_stats
 
-    for layers, nr, na in ((8, 96, 64), (128, 48, 32), (32, 192, 128)):
+    for layers, nr, na in ((8, 96, 64), (128, 48, 32), (8, 192, 128)):
         atm = PhaseScreenAtmosphere(n_layers=layers, n_radial=nr, n_angular=na)  # 10 m at GEO
         phi = atm.operator(150, 256, seed=0, dtype=torch.float64).matrix()
         assert sensing_stats(phi, (16, 16), full=True)["phi_effective_rank_centered"] == 1, layers
