@@ -12,6 +12,7 @@ from cssat.inversion.egi import EGIOperator, egi, egi_operator, fibonacci_sphere
 from cssat.inversion.observability import observability
 from cssat.inversion.recover import recover_egi
 from cssat.inversion.shape import ConvexInversion, invert_convex, minkowski
+from cssat.inversion.spin import estimate_period
 
 __all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi", "minkowski", "invert_convex",
-           "ConvexInversion", "observability"]
+           "ConvexInversion", "observability", "estimate_period"]
