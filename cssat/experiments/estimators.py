@@ -88,9 +88,6 @@ class Statistics(Known):
             scatter = max(float(y.var()) - float(var.mean()), 0.0)  # the atmosphere's xᵀCx, from the data
             self.noise_var = var + scatter
 
-    def describe(self) -> dict[str, Any]:
-        return {"reference": self.name}
-
 
 class _References(Known):
     """Shared settings of the estimates from reference images: the reference ``model`` (a mesh),

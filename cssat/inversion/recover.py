@@ -52,17 +52,18 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
     ``n_nonzero`` and the method's own counts."""
     from scipy.optimize import nnls
 
+    from cssat.metrics import _np  # tensors or arrays as float64 arrays
+
     method = choice_param(method, "method", METHODS)
     closure = float_param(closure, "closure", 0.0)
     if hasattr(G, "matrix"):
         normals = getattr(G, "normals", None) if normals is None else normals
         G = G.matrix()
-    G = np.asarray(G.detach().cpu().numpy() if hasattr(G, "detach") else G, dtype=np.float64)
-    y = np.asarray(y.detach().cpu().numpy() if hasattr(y, "detach") else y, dtype=np.float64).reshape(-1)
+    G, y = _np(G), _np(y).reshape(-1)
     if G.ndim != 2 or G.shape[0] != len(y):
         raise FieldError("y", f"{len(y)} samples for an operator of shape {G.shape}")
     if normals is not None:
-        normals = np.asarray(normals.detach().cpu().numpy() if hasattr(normals, "detach") else normals, dtype=np.float64)
+        normals = _np(normals)
     A, b = _system(G, y, sigma, normals, closure)
     T = len(y)
     if method == "nnls":

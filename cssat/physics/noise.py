@@ -192,10 +192,14 @@ class PhotometricNoise(NoiseModel):
         return self.dark_e_per_s * self.exposure_s
 
     @property
+    def psf_sigma_arcsec(self) -> float:
+        """The Gaussian star image's σ: ``FWHM / (2 √(2 ln 2))``."""
+        return self.seeing_fwhm_arcsec / (2 * math.sqrt(2 * math.log(2)))
+
+    @property
     def peak_fraction(self) -> float:
         """The share of the source's electrons in its brightest pixel (a Gaussian PSF centred on it)."""
-        sigma = self.seeing_fwhm_arcsec / (2 * math.sqrt(2 * math.log(2)))
-        return math.erf(self.pixel_scale_arcsec / (2 * math.sqrt(2) * sigma)) ** 2
+        return math.erf(self.pixel_scale_arcsec / (2 * math.sqrt(2) * self.psf_sigma_arcsec)) ** 2
 
     def peak_electrons(self, source_e: Tensor | float) -> Tensor | float:
         """Electrons in the brightest pixel for ``source_e`` source electrons per exposure."""
@@ -205,9 +209,8 @@ class PhotometricNoise(NoiseModel):
         """The electrons above the full well, summed over the Gaussian image whose brightest pixel
         expects ``peak_e``: ``(2πσ²/p²)(P − W − W ln(P/W))`` where ``P > W``, else 0."""
         W = self.full_well_e
-        sigma = self.seeing_fwhm_arcsec / (2 * math.sqrt(2 * math.log(2)))
         P = peak_e.clamp_min(W)
-        return 2 * math.pi * sigma ** 2 / self.pixel_scale_arcsec ** 2 * (P - W - W * torch.log(P / W))
+        return 2 * math.pi * self.psf_sigma_arcsec ** 2 / self.pixel_scale_arcsec ** 2 * (P - W - W * torch.log(P / W))
 
     @property
     def cadence_s(self) -> float:

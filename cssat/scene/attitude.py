@@ -93,11 +93,6 @@ def _ry(a: float) -> np.ndarray:
     return np.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])
 
 
-def _rx(a: float) -> np.ndarray:
-    c, s_ = np.cos(a), np.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, s_], [0.0, -s_, c]])
-
-
 def spin_frame(times_s: np.ndarray, pole_lon_deg: float, pole_lat_deg: float, period_s: float,
                phase_deg: float = 0.0, frame: str = "ecliptic") -> np.ndarray:
     """A body spinning about its +z axis (the asteroid convention, Kaasalainen & Torppa 2001):
@@ -120,7 +115,7 @@ def spin_frame(times_s: np.ndarray, pole_lon_deg: float, pole_lat_deg: float, pe
     phi = np.radians(float(phase_deg)) + 2 * np.pi * t / period
     fixed = _ry(np.pi / 2 - beta) @ _rz(np.array([lam]))[0]
     if frame == "ecliptic":
-        fixed = fixed @ _rx(np.radians(OBLIQUITY_DEG))
+        fixed = fixed @ _rx3(np.radians(OBLIQUITY_DEG))[0]
     return _rz(phi) @ fixed
 
 
@@ -184,11 +179,12 @@ def torque_free(inertia_kg_m2: np.ndarray, q0: np.ndarray, omega0_rad_s: np.ndar
     if L < 1e-300:  # at rest
         out = np.repeat(F0[None], len(t), axis=0)
         return (out, np.zeros((len(t), 3))) if return_omega else out
-    omega = _euler_solution(Ip, wp, t)
-    if omega is None:  # a steady spin about a principal axis: a rotation at a constant rate
+    mo = _euler_solution(Ip, wp)
+    if mo is None:  # a steady spin about a principal axis: a rotation at a constant rate
         R = Rotation.from_matrix(F0.T) * Rotation.from_rotvec(np.outer(t, w0))
         out = np.swapaxes(R.as_matrix(), -1, -2)
         return (out, np.repeat(w0[None], len(t), axis=0)) if return_omega else out
+    omega = _omega_of(mo, t, mo["sign"])
     theta, psi = _nutation(Ip, omega, L)
     th0, ps0 = _nutation(Ip, wp[None], L)
     # the inertial frame with z along L, and the precession angle's start from the initial attitude
@@ -199,7 +195,7 @@ def torque_free(inertia_kg_m2: np.ndarray, q0: np.ndarray, omega0_rad_s: np.ndar
     M = np.stack([ex, np.cross(ez, ex), ez])
     P0 = V.T @ F0
     X = _rx3(th0)[0].T @ _rz(ps0)[0].T @ P0 @ M.T  # = R_z(φ₀)
-    phi = np.arctan2(X[0, 1], X[0, 0]) + _precession(Ip, wp, L, t)
+    phi = np.arctan2(X[0, 1], X[0, 0]) + _precession(mo, Ip, L, t)
     P = _rz(psi) @ _rx3(theta) @ _rz(phi) @ M
     out = V @ P
     return (out, omega @ V.T) if return_omega else out
@@ -255,9 +251,10 @@ def _omega_of(mo: dict, t: np.ndarray, sign: float) -> np.ndarray:
     return out
 
 
-def _euler_solution(Ip: np.ndarray, wp: np.ndarray, t: np.ndarray) -> np.ndarray | None:
-    """``ω (T, 3)`` in the principal frame at ``t``; the direction of the elliptic phase is the
-    one whose derivative at 0 satisfies Euler's equations. ``None`` for a steady spin."""
+def _euler_solution(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
+    """The elliptic solution of Euler's equations from the principal ``ω₀`` (:func:`_motion`),
+    with ``sign``: the direction of the elliptic phase whose derivative at 0 satisfies Euler's
+    equations. ``None`` for a steady spin."""
     mo = _motion(Ip, wp)
     if mo is None:
         return None
@@ -270,18 +267,16 @@ def _euler_solution(Ip: np.ndarray, wp: np.ndarray, t: np.ndarray) -> np.ndarray
         d = (_omega_of(mo, np.array([h]), sign)[0] - _omega_of(mo, np.array([-h]), sign)[0]) / (2 * h)
         errs.append(np.abs(d - rhs).sum())
     mo["sign"] = 1.0 if errs[0] <= errs[1] else -1.0
-    _euler_solution.last = mo
-    return _omega_of(mo, t, mo["sign"])
+    return mo
 
 
-def _precession(Ip: np.ndarray, wp: np.ndarray, L: float, t: np.ndarray, nodes: int = 64,
+def _precession(mo: dict, Ip: np.ndarray, L: float, t: np.ndarray, nodes: int = 64,
                 pieces: int = 256) -> np.ndarray:
     """``∫₀ᵗ L (I₁ω₁² + I₂ω₂²)/(I₁²ω₁² + I₂²ω₂²) dt'`` for every ``t``: Gauss–Legendre over
     ``pieces`` equal parts of the motion's period (its integrand's, ``2K(m)/λ``), then whole
     periods and the rest."""
     from scipy.special import ellipk
 
-    mo = _euler_solution.last
     A, B, _ = Ip
     period = 2 * float(ellipk(mo["m"])) / mo["lam"] if mo["m"] < 1 else np.inf
 

@@ -27,6 +27,7 @@ from torch import Tensor
 from cssat._checks import FieldError
 from cssat.sparse.iterate import Iteration, RunInfo, run_iterations
 from cssat.sparse.operators import LinearOperator, as_operator
+from cssat.sparse.solvers import tv_divergence, tv_gradient  # solvers imports this module only inside tv_pdhg
 
 if TYPE_CHECKING:
     from cssat._types import OperatorLike
@@ -66,24 +67,12 @@ def relative_weight(op: LinearOperator, y: Tensor, lam: float) -> Tensor:
     return lam * g.abs().amax(-1)
 
 
-def _gradient(x: Tensor) -> Tensor:
-    from cssat.sparse.solvers import tv_gradient
-
-    return tv_gradient(x)
-
-
-def _divergence(p: Tensor) -> Tensor:
-    from cssat.sparse.solvers import tv_divergence
-
-    return tv_divergence(p)
-
-
 def _inverse(gram: Tensor, shape: tuple[int, int], rho: float) -> Tensor:
     """``(AᵀA + ρ(∇ᵀ∇ + I))⁻¹ (N, N)`` by Cholesky from the Gram ``AᵀA``, in its dtype and device."""
     H, W = shape
     N = H * W
     eye = torch.eye(N, dtype=gram.dtype, device=gram.device)
-    Q = -_divergence(_gradient(eye.reshape(N, H, W))).reshape(N, N)
+    Q = -tv_divergence(tv_gradient(eye.reshape(N, H, W))).reshape(N, N)
     Q += eye
     del eye
     Q *= rho
@@ -136,9 +125,9 @@ class _ADMM(Iteration):
 
     def step(self, k: int) -> Tensor:
         rho, shp = self.rho, self.shape
-        rhs = self.Aty - rho * _divergence(self.z1 - self.u1).reshape(shp[0], -1) + rho * (self.z2 - self.u2)
+        rhs = self.Aty - rho * tv_divergence(self.z1 - self.u1).reshape(shp[0], -1) + rho * (self.z2 - self.u2)
         x = rhs @ self.Qinv  # Q is symmetric
-        g = _gradient(x.reshape(shp))
+        g = tv_gradient(x.reshape(shp))
         a = RELAXATION  # over-relaxation (Boyd et al. §3.4.3): ∇x and x replaced by a·(them) + (1 − a)·z
         gr, xr = a * g + (1 - a) * self.z1, a * x + (1 - a) * self.z2
         v = gr + self.u1
@@ -164,7 +153,7 @@ class _ADMM(Iteration):
 
     def objective(self) -> float:
         x = self.image()
-        g = _gradient(x)
+        g = tv_gradient(x)
         tv = torch.sqrt((g * g).sum(1)).flatten(1).sum(1)
         return float((0.5 * self.residual() + self.lam_abs * tv).sum())
 
