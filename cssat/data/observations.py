@@ -60,6 +60,20 @@ class ObservedLightCurve:
         with np.errstate(divide="ignore"):
             return SUN_MAGNITUDE_V - 2.5 * np.log10(self.values / SOLAR_IRRADIANCE_W_M2)
 
+    def fluxes(self) -> np.ndarray:
+        """The values as flux in W/m² (a V magnitude through the Sun's: ``I₀ 10^(−0.4 (V − V_☉))``)."""
+        if self.kind == "flux":
+            return self.values
+        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V
+
+        return SOLAR_IRRADIANCE_W_M2 * 10.0 ** (-0.4 * (self.values - SUN_MAGNITUDE_V))
+
+    def flux_errors(self) -> np.ndarray | None:
+        """1σ errors in W/m² (a magnitude's ``σ_m F / 1.0857``)."""
+        if self.errors is None or self.kind == "flux":
+            return self.errors
+        return self.errors * math.log(10) / 2.5 * self.fluxes()
+
     def magnitude_errors(self) -> np.ndarray | None:
         """1σ errors in magnitudes (a flux's ``1.0857 σ_F / F``)."""
         if self.errors is None or self.kind == "magnitude":

@@ -11,8 +11,8 @@ and a mesh's own EGI; :mod:`cssat.inversion.recover`: non-negative sparse recove
 from cssat.inversion.egi import EGIOperator, egi, egi_operator, fibonacci_sphere
 from cssat.inversion.observability import observability
 from cssat.inversion.recover import recover_egi
-from cssat.inversion.shape import ConvexInversion, invert_convex, minkowski
-from cssat.inversion.spin import estimate_period
+from cssat.inversion.shape import ConvexInversion, convex_iou, invert_convex, minkowski
+from cssat.inversion.spin import SpinSolution, estimate_period, estimate_spin
 
 __all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi", "minkowski", "invert_convex",
-           "ConvexInversion", "observability", "estimate_period"]
+           "ConvexInversion", "observability", "estimate_period", "estimate_spin", "SpinSolution", "convex_iou"]

@@ -23,7 +23,7 @@ import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
 
-__all__ = ["estimate_period"]
+__all__ = ["estimate_period", "estimate_spin", "SpinSolution"]
 
 
 def _design(t: np.ndarray, period: float, n: int) -> np.ndarray:
@@ -86,3 +86,280 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     sig_f = np.sqrt(2 * scale / curv) if curv > 0 else np.inf
     return {"period_s": period, "period_err_s": float(sig_f * period ** 2), "f0_period_s": 1 / f0, "doubled": bool(doubled),
             "chi2": chi2}
+
+
+# --- the pole and the sidereal period (issue 24, point 4, second part) ---------------------------
+
+class SpinSolution:
+    """What :func:`estimate_spin` returns. The spin of :func:`cssat.scene.attitude.spin_frame`
+    (body +z along the pole, phase 0 at ``times_s = 0``): ``pole_lon_deg``, ``pole_lat_deg``
+    (ecliptic λ, β or equatorial α, δ — ``frame``), the sidereal ``period_s`` (> 0: the pole is
+    the one the body turns counter-clockwise about), their 1σ (``lon_err_deg``, ``lat_err_deg``,
+    ``pole_err_deg`` — the pole's angular 1σ —, ``period_err_s``), the EGI in that body frame
+    (``normals (K, 3)``, ``areas (K,)``, only those with area), ``chi2`` (weighted; unweighted
+    without ``sigma``), ``residual (T,)`` (flux − fit), the light curve's synodic period
+    (``synodic``, :func:`estimate_period`'s output) and ``alternatives``: the other local minima
+    refined at full resolution (``pole_lon_deg``, ``pole_lat_deg``, ``period_s``, ``chi2``,
+    ``delta_chi2`` over the best in units of the reduced χ², ``separation_deg`` from the best
+    pole); ``ambiguous`` is true when one of them, more than 10° away, is within Δχ² < 9 (3σ)."""
+
+    def __init__(self, **kw: Any):
+        self.__dict__.update(kw)
+
+    def frames(self, times_s: Any) -> np.ndarray:
+        """The body frames ``(T, 3, 3)`` of this spin at ``times_s`` (same origin as the fit's)."""
+        from cssat.scene.attitude import spin_frame
+
+        return spin_frame(np.asarray(times_s, dtype=np.float64), self.pole_lon_deg, self.pole_lat_deg, self.period_s,
+                          0.0, self.frame)
+
+    def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
+        """The fitted model's light curve ``(T,)`` (flux units of the fit) at ``times_s`` for
+        inertial ``sun``/``obs (T, 3)`` directions: e.g. a night held out of the fit."""
+        from cssat.inversion.egi import egi_operator
+        from cssat.scene.attitude import to_body
+
+        R = self.frames(times_s)
+        G = egi_operator(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
+                         self.normals, self.brdf).matrix().numpy()
+        return G @ self.areas
+
+    def describe(self) -> dict[str, Any]:
+        keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "lon_err_deg", "lat_err_deg", "pole_err_deg", "period_err_s",
+                "formal_pole_err_deg", "grid_pole_shift_deg", "chi2", "reduced_chi2", "ambiguous", "frame")
+        return {f"spin_{k}": getattr(self, k) for k in keys}
+
+    def __repr__(self) -> str:
+        return (f"SpinSolution(pole ({self.pole_lon_deg:.2f}°, {self.pole_lat_deg:.2f}°) ± {self.pole_err_deg:.2g}°, "
+                f"period {self.period_s:.6f} ± {self.period_err_s:.2g} s, reduced χ² {self.reduced_chi2:.3g}"
+                f"{', ambiguous' if self.ambiguous else ''})")
+
+
+def _pole_vector(lon_deg: float, lat_deg: float) -> np.ndarray:
+    lo, la = np.radians(lon_deg), np.radians(lat_deg)
+    return np.array([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)])
+
+
+def _separation_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
+    return float(np.degrees(np.arccos(np.clip(_pole_vector(*a) @ _pole_vector(*b), -1.0, 1.0))))
+
+
+class _Fit:
+    """The EGI fit's χ² as a function of the spin ``(λ, β, f)`` on a subset of samples and a
+    grid of normals: NNLS in the EGI for each spin. The pole's fixed rotation is cached, so a
+    scan of frequencies at one pole only turns the vectors about the pole."""
+
+    def __init__(self, t, y, w, S, O, normals, brdf, frame):
+        from cssat.optics.brdf import Lambert
+
+        self.t, self.y, self.w, self.S, self.O, self.N, self.brdf, self.frame = t, y, w, S, O, normals, brdf, frame
+        self.yw = y * w
+        # a Lambertian G in numpy (the search's inner loop); any other BRDF through egi_operator
+        self.lambert = 1.0 / np.pi if brdf is None else brdf.albedo / np.pi if type(brdf) is Lambert else None
+        self._pole: tuple | None = None
+
+    def _at_pole(self, lon, lat):
+        from cssat.scene.attitude import spin_frame
+
+        if self._pole != (lon, lat):
+            M = spin_frame(np.zeros(1), lon, lat, 1.0, 0.0, self.frame)[0]  # the pole's fixed rotation
+            self._sp, self._op, self._pole = self.S @ M.T, self.O @ M.T, (lon, lat)
+        return self._sp, self._op
+
+    def matrix(self, lon, lat, f):
+        sp, op = self._at_pole(lon, lat)
+        ph = 2 * np.pi * f * self.t
+        c, s_ = np.cos(ph), np.sin(ph)
+
+        def turn(v):  # R_z(φ) v, spin_frame's passive rotation
+            return np.stack([c * v[:, 0] + s_ * v[:, 1], c * v[:, 1] - s_ * v[:, 0], v[:, 2]], 1)
+
+        sb, ob = turn(sp), turn(op)
+        if self.lambert is not None:
+            return self.lambert * np.clip(sb @ self.N.T, 0, None) * np.clip(ob @ self.N.T, 0, None)
+        from cssat.inversion.egi import egi_operator
+
+        return egi_operator(sb, ob, self.N, self.brdf).matrix().numpy()
+
+    def solve(self, lon, lat, f):
+        from scipy.optimize import nnls
+
+        A = self.matrix(lon, lat, f) * self.w[:, None]
+        a, rnorm = nnls(A, self.yw, maxiter=max(30 * A.shape[1], 1000))
+        return a, float(rnorm) ** 2
+
+    def chi2(self, lon, lat, f):
+        if not -90.0 <= lat <= 90.0 or not f > 0:
+            return np.inf
+        return self.solve(lon, lat, f)[1]
+
+
+def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = None, brdf: Any = None,
+                  frame: str = "ecliptic", period_s: float | None = None, min_period_s: float = 60.0,
+                  max_period_s: float = 86400.0, n_poles: int = 60, n_starts: int = 6, n_refine: int = 2,
+                  coarse_normals: int = 200, coarse_samples: int = 400, n_normals: int = 1000,
+                  max_samples: int = 2000) -> SpinSolution:
+    """The spin state of an object rotating about a fixed axis — its pole and sidereal period —
+    and its EGI, from its light curve ``flux (T,)`` at ``times_s (T,)`` with the Sun and
+    observer directions ``sun``, ``obs (T, 3)`` from the object in the inertial frame (GCRS
+    unit vectors), ``sigma`` the flux's 1σ (scalar or ``(T,)``), ``brdf`` the surface's BRDF
+    (default Lambert): the convex-inversion search of Kaasalainen, Torppa & Muinonen (2001)
+    with the EGI model of :func:`~cssat.inversion.egi_operator` (no shadowing).
+
+    1. The synodic period ``P₀`` (``period_s``, or :func:`estimate_period` between
+       ``min_period_s`` and ``max_period_s``); both ``P₀`` and ``2 P₀`` are candidates.
+    2. Coarse search: for each of ``n_poles`` poles on a Fibonacci grid of the whole sphere
+       (the sense of rotation is the pole's: the period stays positive), a scan of the sidereal
+       frequency over ``1/P ± (1.5 ω/2π + 0.5/span)`` — ``ω`` the median angular rate of the
+       Sun–observer bisector, which bounds the synodic–sidereal difference — in steps of
+       ``1/(20 span)``, each spin scored by the NNLS EGI fit's χ² on ``coarse_samples`` samples
+       and ``coarse_normals`` normals.
+    3. The ``n_starts`` best distinct poles refined by Nelder–Mead in ``(λ, β, f)`` at that
+       resolution; the ``n_refine`` best refined again on up to ``max_samples`` samples and
+       ``n_normals`` normals. The best is the solution, the others its ``alternatives``.
+    4. 1σ: the formal Gauss–Newton covariance of ``(λ, β, f)`` and the support's areas, scaled
+       by the reduced χ² when it exceeds 1 (the model's misfit counts as noise), added in
+       quadrature to the shift of the solution when the search is refined again on a grid of
+       normals turned at random (the EGI grid's bias, which dominates at high SNR):
+       ``formal_pole_err_deg``, ``grid_pole_shift_deg`` and their sum ``pole_err_deg``; the
+       same for the period.
+
+    Assumptions: a principal-axis rotation (no tumbling: :func:`~cssat.scene.attitude.torque_free`
+    motion has two periods), a convex body (or negligible self-shadowing), one BRDF shape.
+    """
+    from scipy.optimize import minimize
+
+    from cssat._checks import choice_param
+    from cssat.inversion.egi import fibonacci_sphere
+
+    frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    S, O = (np.asarray(v, dtype=np.float64) for v in (sun, obs))
+    T = len(t)
+    if y.shape != t.shape or S.shape != (T, 3) or O.shape != (T, 3):
+        raise FieldError("flux", f"expected times (T,), flux (T,) and sun/obs (T, 3), got {t.shape}, {y.shape}, {S.shape}, {O.shape}")
+    if not (np.isfinite(t).all() and np.isfinite(y).all() and np.isfinite(S).all() and np.isfinite(O).all()):
+        raise FieldError("flux", "the times, fluxes and directions must be finite")
+    if np.any(np.diff(t) <= 0):
+        raise FieldError("times_s", "the times must increase")
+    w = np.ones(T) if sigma is None else 1.0 / np.broadcast_to(np.asarray(sigma, dtype=np.float64), (T,))
+    if not (np.isfinite(w).all() and (w > 0).all()):
+        raise FieldError("sigma", "the uncertainties must be finite and > 0")
+    n_poles, n_starts, n_refine = (int_param(v, k, 1) for v, k in ((n_poles, "n_poles"), (n_starts, "n_starts"), (n_refine, "n_refine")))
+    n_refine = min(n_refine, n_starts)
+    span = float(t[-1] - t[0])
+    if period_s is None:
+        synodic = estimate_period(t, y, sigma=None if sigma is None else 1.0 / w, min_period_s=min_period_s,
+                                  max_period_s=max_period_s)
+        P0 = synodic["period_s"]
+    else:
+        P0 = float_param(period_s, "period_s", 0.0, open_lo=True)
+        synodic = {"period_s": P0, "given": True}
+    # the bisector's angular rate bounds how far the sidereal frequency is from the synodic one
+    b = S + O
+    b /= np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-300)
+    dt = np.diff(t)
+    close = dt < 10 * np.median(dt)
+    rate = np.arccos(np.clip(np.einsum("ij,ij->i", b[1:], b[:-1]), -1, 1))[close] / dt[close]
+    omega = float(np.median(rate)) if rate.size else 0.0
+    half = 1.5 * omega / (2 * np.pi) + 0.5 / span
+    step = 1.0 / (20 * span)
+    offsets = np.arange(-half, half + step / 2, step)
+
+    def subset(n):
+        idx = np.unique(np.linspace(0, T - 1, min(n, T)).round().astype(int))
+        return t[idx], y[idx], w[idx], S[idx], O[idx]
+
+    coarse = _Fit(*subset(int_param(coarse_samples, "coarse_samples", 16)),
+                  fibonacci_sphere(int_param(coarse_normals, "coarse_normals", 16)).numpy(), brdf, frame)
+    fine = _Fit(*subset(int_param(max_samples, "max_samples", 16)), fibonacci_sphere(int_param(n_normals, "n_normals", 16)).numpy(),
+                brdf, frame)
+    grid = fibonacci_sphere(n_poles).numpy()
+    lons, lats = np.degrees(np.arctan2(grid[:, 1], grid[:, 0])), np.degrees(np.arcsin(np.clip(grid[:, 2], -1, 1)))
+    cands = [1.0 / P0] + ([0.5 / P0] if 2 * P0 <= max_period_s or period_s is not None else [])
+    table = []  # (chi2, lon, lat, f)
+    for lo, la in zip(lons, lats):
+        best = (np.inf, lo, la, cands[0])
+        for fc in cands:
+            for f in fc + offsets:
+                if f > 0:
+                    c = coarse.chi2(lo, la, f)
+                    if c < best[0]:
+                        best = (c, lo, la, f)
+        table.append(best)
+    table.sort(key=lambda r: r[0])
+    spacing = np.degrees(np.sqrt(4 * np.pi / n_poles))
+    starts: list[tuple] = []
+    for r in table:
+        if all(_separation_deg((r[1], r[2]), (s[1], s[2])) > 1.5 * spacing for s in starts):
+            starts.append(r)
+        if len(starts) == n_starts:
+            break
+
+    def refine(fit, x0, dpole, dphase):
+        scale = np.array([1.0, 1.0, 1.0 / (360.0 * span)])  # the frequency in degrees of phase over the span
+        fun = lambda z: fit.chi2(*(np.asarray(x0) + z * scale))  # noqa: E731
+        simplex = np.array([[0, 0, 0], [dpole, 0, 0], [0, dpole, 0], [0, 0, dphase]], dtype=np.float64)
+        res = minimize(fun, np.zeros(3), method="Nelder-Mead",
+                       options={"initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-9 * max(fun(np.zeros(3)), 1e-300),
+                                "maxfev": 400})
+        x = np.asarray(x0) + res.x * scale
+        return (float(res.fun), *x)
+
+    refined = sorted((refine(coarse, s[1:], spacing / 3, 90.0) for s in starts), key=lambda r: r[0])
+    distinct: list[tuple] = []  # starts that converged to one minimum are refined once
+    for r in refined:
+        if all(_separation_deg((r[1], r[2]), (d[1], d[2])) > 10.0 or abs(r[3] - d[3]) * span > 0.5 for d in distinct):
+            distinct.append(r)
+    finals = sorted((refine(fine, r[1:], 2.0, 20.0) for r in distinct[:n_refine]), key=lambda r: r[0])
+    chi2, lon, lat, f = finals[0]
+    lon = float((lon + 180.0) % 360.0 - 180.0)
+    # the EGI grid's bias: the same refinement on a grid of normals turned at random
+    from scipy.spatial.transform import Rotation
+
+    turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=0).as_matrix().T, brdf, frame)
+    _, lon_g, lat_g, f_g = refine(turned, (lon, lat, f), 1.0, 5.0)
+    grid_pole = _separation_deg((lon, lat), (lon_g, lat_g))
+    grid_period = abs(1 / f_g - 1 / f)
+    # the EGI at the solution and its 1σ (Gauss–Newton on the spin and the support's areas)
+    a, _ = fine.solve(lon, lat, f)
+    A = fine.matrix(lon, lat, f) * fine.w[:, None]
+    sup = a > 1e-9 * max(float(a.max()), 1e-300)
+    h = np.array([1e-3, 1e-3, 1e-3 / (360.0 * span)])
+    cols = []
+    for i in range(3):
+        x_hi, x_lo = np.array([lon, lat, f]), np.array([lon, lat, f])
+        x_hi[i] += h[i]
+        x_lo[i] -= h[i]
+        x_hi[1], x_lo[1] = min(x_hi[1], 90.0), max(x_lo[1], -90.0)
+        cols.append((fine.matrix(*x_hi) - fine.matrix(*x_lo)) @ a * fine.w / (x_hi[i] - x_lo[i]))
+    J = np.column_stack(cols + [A[:, sup]])
+    dof = max(len(fine.t) - J.shape[1], 1)
+    red = chi2 / dof
+    scale2 = max(red, 1.0) if sigma is not None else red
+    try:
+        cov = np.linalg.pinv(J.T @ J)[:3, :3] * scale2
+        err = np.sqrt(np.clip(np.diag(cov), 0, None))
+    except np.linalg.LinAlgError:  # pragma: no cover - pinv converges on finite input
+        err = np.full(3, np.inf)
+    formal_pole = float(np.hypot(err[1], np.cos(np.radians(lat)) * err[0]))
+    pole_err = float(np.hypot(formal_pole, grid_pole))
+    period_err = float(np.hypot(err[2] / f ** 2, grid_period))
+    alts = []
+    for c2, lo2, la2, f2 in finals[1:]:
+        lo2 = float((lo2 + 180.0) % 360.0 - 180.0)
+        alts.append({"pole_lon_deg": lo2, "pole_lat_deg": float(la2), "period_s": float(1 / f2), "chi2": float(c2),
+                     "delta_chi2": float((c2 - chi2) / scale2), "separation_deg": _separation_deg((lon, lat), (lo2, la2))})
+    ambiguous = any(al["delta_chi2"] < 9.0 and al["separation_deg"] > 10.0 for al in alts)
+    # the residual on every sample (not only the fit's subset)
+    full = _Fit(t, y, w, S, O, fine.N, brdf, frame)
+    resid = y - full.matrix(lon, lat, f) @ a
+    return SpinSolution(pole_lon_deg=lon, pole_lat_deg=float(lat), period_s=float(1 / f), lon_err_deg=float(err[0]),
+                        lat_err_deg=float(err[1]), pole_err_deg=pole_err, period_err_s=period_err,
+                        formal_pole_err_deg=formal_pole, formal_period_err_s=float(err[2] / f ** 2), grid_pole_shift_deg=grid_pole,
+                        grid_period_shift_s=float(grid_period),
+                        chi2=float(chi2), reduced_chi2=float(red), normals=fine.N[sup], areas=a[sup], residual=resid,
+                        synodic=synodic, alternatives=alts, ambiguous=bool(ambiguous), frame=frame, brdf=brdf,
+                        coarse=[{"chi2": float(r[0]), "pole_lon_deg": float(r[1]), "pole_lat_deg": float(r[2]),
+                                 "period_s": float(1 / r[3])} for r in table])

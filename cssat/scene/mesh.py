@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cssat._checks import FieldError, FieldTypeError
+from cssat._checks import FieldError, FieldTypeError, float_param
 
 if TYPE_CHECKING:
     from typing import Sequence
@@ -358,7 +358,7 @@ def merge(meshes: Sequence[Mesh], name: str = "") -> Mesh:
     return Mesh(np.concatenate(verts), np.concatenate(faces), np.concatenate(cd), np.concatenate(cs), name=name)
 
 
-def astra_like(cd: float = 0.8, cs: float = 0.2) -> Mesh:
+def astra_like(cd: float = 0.8, cs: float = 0.2, array_angle_deg: float = 0.0) -> Mesh:
     """A procedural GEO communications satellite like Astra 1KR (paper Fig. 3b), 4,028 facets
     like the paper's model.
 
@@ -366,14 +366,22 @@ def astra_like(cd: float = 0.8, cs: float = 0.2) -> Mesh:
     solar-array axis (perpendicular to the orbit), ±x east/west. A 2.6 × 2.4 × 3.6 m bus, two
     wings of four 2.4 × 2.2 m two-sided solar panels on 1.5 m yokes (≈ 23 m span), and two
     2.3 m two-sided parabolic reflectors on the ±x faces, facing the Earth.
+
+    ``array_angle_deg``: the solar-array drive angle, both wings turned about the ±y axis by
+    that angle from the y–z plane (0: the panels' normals along ±x). A nadir-pointing satellite's
+    arrays track the Sun; a defunct one's are frozen at some angle — which also breaks the
+    bus's symmetry under a half turn about its axes (a Lambertian light curve of the symmetric
+    model repeats every half rotation, so its period is ambiguous).
     """
+    ang = math.radians(float_param(array_angle_deg, "array_angle_deg", -360.0, 360.0))
+    v = 2.4 * np.array([math.sin(ang), 0.0, math.cos(ang)])
     parts = [box((2.6, 2.4, 3.6), divisions=4, cd=cd, cs=cs)]
     for side in (1, -1):
         yoke = box((0.08, 1.5, 0.08), center=(0, side * (1.2 + 0.75), 0), cd=cd, cs=cs)
         parts.append(yoke)
         for k in range(4):
             y0 = 2.7 + 2.3 * k if side > 0 else -(2.7 + 2.3 * k + 2.2)
-            parts.append(panel((0, 2.2, 0), (0, 0, 2.4), (0, y0, -1.2), divisions=(2, 2), cd=cd, cs=cs))
+            parts.append(panel((0, 2.2, 0), v, np.array([0.0, y0, 0.0]) - v / 2, divisions=(2, 2), cd=cd, cs=cs))
         parts.append(dish(1.15, 0.35, center=(side * 1.65, 0, 0.6), axis=(side * 0.35, 0, 1.0),
                           rings=12, segments=40, cd=cd, cs=cs))
     # a two-sided telemetry plate on the anti-Earth face (4 facets): 4,028 facets in all
@@ -403,11 +411,13 @@ def tess_like(cd: float = 0.8, cs: float = 0.2) -> Mesh:
 MODELS = {"astra_like": astra_like, "tess_like": tess_like}
 
 
-def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float = 0.8, cs: float = 0.2) -> Mesh:
+def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float = 0.8, cs: float = 0.2,
+              array_angle_deg: float | None = None) -> Mesh:
     """A satellite model from config: a procedural one by ``name`` (``astra_like``, ``tess_like``)
     or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``). ``scale``
     multiplies a procedural model too (its native size is metres); the result must be a satellite:
-    at most :data:`MAX_RADIUS_M` from its centre to its farthest vertex."""
+    at most :data:`MAX_RADIUS_M` from its centre to its farthest vertex. ``array_angle_deg``: the
+    ``astra_like`` model's solar-array angle (null: 0; an error for the other models)."""
     for fname, val in (("cd", cd), ("cs", cs)):
         if not (isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val) and val >= 0):
             raise FieldError(fname, f"must be a number >= 0, got {val!r}")
@@ -420,7 +430,12 @@ def get_model(name: str = "astra_like", path: str | None = None, scale: float = 
     elif name not in MODELS:
         raise FieldError("name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
     else:
-        mesh = MODELS[name](cd=cd, cs=cs)
+        extra = {}
+        if array_angle_deg is not None:
+            if name != "astra_like":
+                raise FieldError("array_angle_deg", f"only the astra_like model has solar arrays to turn, not {name!r}")
+            extra["array_angle_deg"] = array_angle_deg
+        mesh = MODELS[name](cd=cd, cs=cs, **extra)
         if scale != 1.0:
             mesh = Mesh(mesh.vertices * float(scale), mesh.faces, mesh.cd, mesh.cs, name=mesh.name)
     if not mesh.radius <= MAX_RADIUS_M:
