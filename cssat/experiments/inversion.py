@@ -29,7 +29,6 @@ principal-axis spin); the simulated truth has shadows when ``shadows`` is true.
 from __future__ import annotations
 
 import logging
-import time
 from pathlib import Path
 from typing import Any
 

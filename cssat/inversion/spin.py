@@ -243,9 +243,10 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         raise FieldError("flux", "the times, fluxes and directions must be finite")
     if np.any(np.diff(t) <= 0):
         raise FieldError("times_s", "the times must increase")
-    w = np.ones(T) if sigma is None else 1.0 / np.broadcast_to(np.asarray(sigma, dtype=np.float64), (T,))
-    if not (np.isfinite(w).all() and (w > 0).all()):
+    sig = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), (T,))
+    if sig is not None and not (np.isfinite(sig).all() and (sig > 0).all()):
         raise FieldError("sigma", "the uncertainties must be finite and > 0")
+    w = np.ones(T) if sig is None else 1.0 / sig
     n_poles, n_starts, n_refine = (int_param(v, k, 1) for v, k in ((n_poles, "n_poles"), (n_starts, "n_starts"), (n_refine, "n_refine")))
     n_refine = min(n_refine, n_starts)
     span = float(t[-1] - t[0])
