@@ -60,7 +60,9 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e
     """The convex polyhedron whose facets have ``normals (K, 3)`` and ``areas (K,) ≥ 0`` (zero
     areas are dropped), as a ``trimesh.Trimesh`` centred on its centroid, and ``info``
     (``iterations``, ``area_error``: the largest |facet area − a_k| over Σa, ``closure``: |Σ a n|
-    over Σa). Stops when every facet's share of the surface is within ``tol`` of ``a_k/Σa``. The
+    over Σa). Stops when every facet's share of the surface is within ``tol`` of ``a_k/Σa``, or at
+    a stationary point of the program (the gradient, less the plane's normal and the
+    translations, under ``tol`` of its norm: an EGI that is not exactly closed is met there). The
     normals with area must not all lie in a closed hemisphere."""
     import trimesh
 
@@ -80,6 +82,15 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e
     total = a.sum()
     closure = float(np.linalg.norm(a @ N) / total)
     w = a / total
+    # a body's EGI is closed (Σ w n = 0); one measured is not quite, and Little's program has no
+    # maximum then (a translation changes Σ w h but not V): close it first, by alternating
+    # projections onto Σ w n = 0 and w ≥ 0 (the change is of the order of `closure`)
+    P = np.linalg.pinv(N.T)
+    for _ in range(200):
+        if np.linalg.norm(w @ N) <= 1e-13:
+            break
+        w = np.clip(w - P @ (N.T @ w), 0.0, None)
+    w /= w.sum()
     h = np.full(len(N), 1.0)
     h /= w @ h
     try:
@@ -88,12 +99,16 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e
         raise FieldError("normals", f"these normals do not enclose a body (they lie in a hemisphere?): {err}") from None
     it = 0
     step = 0.1
+    # the directions V does not see: the plane's normal w and the translations h → h + N c
+    Q, _ = np.linalg.qr(np.column_stack([w, N]))
     for it in range(1, max_iter + 1):
         if np.abs(A / A.sum() - w).max() < tol:  # the facets' areas ∝ a: the Lagrange condition
             break
         g = A / V
-        g -= (g @ w) / (w @ w) * w  # the tangent of the plane Σ w h = 1
+        g -= Q @ (Q.T @ g)  # the tangent of Σ w h = 1, translations removed
         gn = np.linalg.norm(g)
+        if gn <= tol * np.linalg.norm(A / V):  # stationary: an EGI that is not closed is matched up to N c
+            break
         while True:
             h_new = h + step * g / gn * np.mean(h)
             if (h_new > 0).all():
@@ -114,7 +129,7 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e
         step = min(step * 2, 1.0)
     scale = np.sqrt(total / A.sum())
     mesh = trimesh.convex.convex_hull(pts * scale)  # outward, watertight
-    err = float(np.abs(A * scale ** 2 - a).max() / total)
+    err = float(np.abs(A * scale ** 2 - a).max() / total)  # against the areas given, before closing
     return mesh, {"iterations": it, "area_error": err, "closure": closure}
 
 
