@@ -6,7 +6,7 @@ Stages: the ``model`` in the ``attitude`` over ``nights.n`` nights of the ground
 (``scenario``: the samples where the Sun is below ``nights.sun_alt_max_deg`` at the station, the
 object above ``nights.min_elevation_deg`` and fully sunlit), its light curve with the ``brdf``
 group's surface and ``shadows``, photometric noise (``noise``: a 1 m telescope at the object's
-own magnitude by default) → the first ``nights.fit`` nights fitted, the others held out →
+own magnitude by default) → the first ``nights.fit`` nights fitted (null: all but the last), the others held out →
 the spin (``inversion.spin``: ``search`` — the pole and sidereal period by
 :func:`~cssat.inversion.estimate_spin` —, ``known`` — the true attitude, an **oracle** —, or
 ``auto``: search for a ``spin`` attitude or a measured file, known otherwise) → the EGI on
@@ -16,7 +16,8 @@ fitted geometry.
 
 ``observations=<file>`` inverts a measured light curve instead (read with the ``observed``
 settings; its time stamps give the scenario; the ``scenario.tle`` must be the object's): every
-sample is fitted unless ``nights.fit`` leaves nights out, and no truth is scored.
+night but the last is fitted (``nights.fit``; nights are split by gaps over 6 h), and no truth is
+scored.
 
 Outputs: ``arrays.npz``, ``shape.obj`` (the recovered convex shape, metres), ``egi.csv``
 (normals and areas in the fitted body frame), ``lightcurve.csv`` and the figures
@@ -99,7 +100,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         nights_cfg = cfg.get("nights") or {}
         inv = cfg.get("inversion") or {}
         n_nights = int_param(nights_cfg.get("n", 3), "nights.n", 1, 366)
-        n_fit = int_param(nights_cfg.get("fit", 2), "nights.fit", 1, 366)
+        n_fit = nights_cfg.get("fit")  # null: all nights but the last
+        n_fit = None if n_fit is None else int_param(n_fit, "nights.fit", 1, 366)
         sun_alt = float_param(nights_cfg.get("sun_alt_max_deg", -12.0), "nights.sun_alt_max_deg", -90.0, 90.0)
         min_el = float_param(nights_cfg.get("min_elevation_deg", 20.0), "nights.min_elevation_deg", -90.0, 90.0)
         spin_mode = choice_param(inv.get("spin", "auto"), "inversion.spin", ("auto", "search", "known"))
@@ -163,6 +165,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
             sigma_w = np.sqrt(var) if var is not None and np.all(var > 0) else None
         y_unit = flux_w * unit
         sigma = sigma_w * unit if sigma_w is not None else None
+        if n_fit is None:
+            n_fit = max(int(night.max()), 1)
         fit = night < n_fit
         held = ~fit
         metrics.update(n_fit=int(fit.sum()), n_heldout=int(held.sum()), **noise.describe())
