@@ -77,6 +77,14 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e
         raise FieldError("areas", f"a closed convex body needs at least 4 facets with area, got {int(keep.sum())}")
     N = N[keep] / np.linalg.norm(N[keep], axis=1, keepdims=True)
     a = a[keep]
+    # one facet per direction: normals within 1e-6 rad are one plane (their areas add up)
+    uniq, inv = np.unique(np.round(N, 6), axis=0, return_inverse=True)
+    if len(uniq) < len(N):
+        inv = inv.reshape(-1)
+        a_sum = np.bincount(inv, weights=a)
+        N = np.stack([np.bincount(inv, weights=a * N[:, i]) for i in range(3)], 1)
+        N /= np.linalg.norm(N, axis=1, keepdims=True)
+        a = a_sum
     if not _encloses(N):
         raise FieldError("normals", "the normals with area lie in a closed hemisphere: they enclose no body")
     total = a.sum()
@@ -148,12 +156,14 @@ class ConvexInversion:
 
 
 def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambert", n_normals: int = 1000,
-                  sigma: Any = None, method: str = "nnls", closure: float = 1.0) -> ConvexInversion:
+                  sigma: Any = None, method: str = "nnls", closure: float = 1.0, refine: bool = True) -> ConvexInversion:
     """The convex shape of a light curve: ``flux (T,)`` per unit irradiance and range (for
     ``brdf="lambert"``: ``Σ_f A_f (albedo/π) max(0, s·n_f) max(0, o·n_f)``, so the areas come
     back in the flux's units × albedo), ``sun_body``/``obs_body (T, 3)`` body-frame unit vectors;
     the EGI on a ``n_normals`` Fibonacci grid by :func:`~cssat.inversion.recover_egi` (``method``,
-    weights ``1/sigma``, ``closure``), then :func:`minkowski`. ``brdf``: a
+    weights ``1/sigma``, ``closure``), with ``refine`` its atoms moved off the grid
+    (:func:`~cssat.inversion.recover.refine_egi`: neighbours within 1.5 grid spacings merged,
+    directions and areas fitted by least squares), then :func:`minkowski`. ``brdf``: a
     :mod:`cssat.optics.brdf` object or its name (default parameters, albedo 1 for Lambert)."""
     from cssat.inversion.egi import egi_operator, fibonacci_sphere
     from cssat.inversion.recover import recover_egi
@@ -169,11 +179,23 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     a, info = recover_egi(G, y, sigma=sigma, method=method, closure=closure)
     keep = a > 1e-9 * max(float(a.max()), 1e-300)
     normals, areas = N.numpy()[keep], a[keep]
+    Gm = G.matrix().numpy()
+    model = Gm @ a
+    if refine and keep.any():
+        from cssat.inversion.recover import refine_egi
+
+        spacing = np.degrees(np.sqrt(4 * np.pi / len(N)))
+        S_, O_ = (np.asarray(v, dtype=np.float64) for v in (sun_body, obs_body))
+        normals, areas, rinfo = refine_egi(S_, O_, y, normals, areas, sigma=sigma, brdf=brdf, closure=closure,
+                                           merge_deg=1.5 * spacing)
+        info.update(grid_chi2=info["chi2"], chi2=rinfo["chi2"], refined_atoms=len(areas), atoms_merged=rinfo["atoms_merged"],
+                    refine_nfev=rinfo["nfev"])
+        model = egi_operator(S_, O_, normals, brdf).matrix().numpy() @ areas
     mesh = None
     if keep.sum() >= 4:
         mesh, minfo = minkowski(normals, areas)
         info.update({f"minkowski_{k}": v for k, v in minfo.items()})
-    return ConvexInversion(normals, areas, mesh, y - G.matrix().numpy() @ a, info)
+    return ConvexInversion(normals, areas, mesh, y - model, info)
 
 
 def convex_iou(a: Any, b: Any, *, match_volume: bool = True, align_centroids: bool = True) -> float:
