@@ -207,10 +207,12 @@ def test_refine_egi_moves_atoms_onto_the_true_facets():
     y = (a / np.pi * np.clip(S @ N.T, 0, None) * np.clip(O @ N.T, 0, None)).sum(1)  # brute force
     Np = N + 0.05 * rng.normal(size=N.shape)
     Np /= np.linalg.norm(Np, axis=1, keepdims=True)
-    n2, a2, info = refine_egi(S, O, y, Np, 1.1 * a)
+    n2, a2, info = refine_egi(S, O, y, Np, 1.1 * a, ridge=0.0)
     match = np.argmax(n2 @ N.T, 0)
     assert np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", n2[match], N), -1, 1))).max() < 1e-5
     assert np.allclose(a2[match], a, rtol=1e-6) and info["chi2"] < 1e-20
+    n3, a3, _ = refine_egi(S, O, y, Np, 1.1 * a)  # the default ridge (1e-6) biases well-seen atoms little
+    assert np.allclose(a3[np.argmax(n3 @ N.T, 0)], a, rtol=1e-3)
 
 
 @pytest.mark.parametrize("proportions", [(2.6, 2.4, 3.6, 10.0, 2.4), (1.5, 2.5, 2.0, 12.0, 0.8)])

@@ -144,7 +144,8 @@ def _merge_atoms(N: np.ndarray, a: np.ndarray, merge_deg: float) -> tuple[np.nda
 
 
 def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *, sigma: Any = None, brdf: Any = None,
-               closure: float = 0.0, merge_deg: float | None = None, max_nfev: int = 200) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+               closure: float = 0.0, merge_deg: float | None = None, max_nfev: int = 200,
+               ridge: float = 1e-6) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Off the grid: the EGI's atoms moved on the sphere and re-weighted to fit the light curve.
 
     A grid of normals splits a facet whose normal falls between grid points over its neighbours
@@ -156,7 +157,11 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
     Lambert BRDF (``∂G/∂n = f ((o·n) s + (s·n) o)`` where both are positive), by differences
     otherwise. The merged start is kept only if the refined fit is not worse than the unmerged
     atoms refined alike; atoms that end within 0.5° of each other are merged last (their areas
-    refitted by NNLS). Returns ``(normals (J, 3), areas (J,), info)`` with ``chi2``
+    refitted by NNLS). ``ridge``: a penalty ``μ Σ a_k²`` with ``μ = ridge × the median
+    ‖W G_k‖²`` of the starting atoms — an atom the geometry barely sees (lit while seen only at
+    grazing angles) would otherwise take any area the closure asks for (hundreds of m² in one
+    seed of the default experiment); a well-seen atom's data curvature is ~1/ridge times the
+    penalty's, so it barely moves. Returns ``(normals (J, 3), areas (J,), info)`` with ``chi2``
     (weighted, without the closure rows), ``atoms_merged`` and ``nfev``."""
     from scipy.optimize import least_squares
 
@@ -172,10 +177,9 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
         raise FieldError("normals", f"expected normals (J, 3), areas (J,), sun/obs (T, 3), y (T,): got {N0.shape}, "
                                     f"{a0.shape}, {S.shape}, {O.shape}, {y.shape}")
     lam = 1.0 / np.pi if brdf is None else brdf.albedo / np.pi if type(brdf) is Lambert else None
-    wc = 0.0
-    if closure > 0:
-        G0 = egi_operator(S, O, N0, brdf).matrix().numpy() * w[:, None]
-        wc = closure * np.linalg.norm(G0, 2) / np.sqrt(max(len(N0), 1))
+    G0 = egi_operator(S, O, N0, brdf).matrix().numpy() * w[:, None]
+    wc = closure * np.linalg.norm(G0, 2) / np.sqrt(max(len(N0), 1)) if closure > 0 else 0.0
+    sr = float(np.sqrt(float_param(ridge, "ridge", 0.0) * np.median((G0 ** 2).sum(0)))) if len(N0) else 0.0
 
     def fit(N_start, a_start):
         J = len(a_start)
@@ -197,8 +201,12 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
                 G = lam * np.clip(S @ N.T, 0, None) * np.clip(O @ N.T, 0, None)
             else:
                 G = egi_operator(S, O, N, brdf).matrix().numpy()
-            out = w * (G @ a - y)
-            return np.concatenate([out, wc * (a @ N)]) if wc > 0 else out
+            out = [w * (G @ a - y)]
+            if wc > 0:
+                out.append(wc * (a @ N))
+            if sr > 0:
+                out.append(sr * a)
+            return np.concatenate(out)
 
         def jac(x):
             N, r, a = unpack(x)
@@ -218,6 +226,8 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
                     dn = (e - N * np.einsum("jk,jk->j", N, e)[:, None]) / r
                     ccols.append(wc * (a[:, None] * dn).T)  # (3, J)
                 Jm = np.vstack([Jm, np.hstack(ccols + [wc * N.T])])
+            if sr > 0:
+                Jm = np.vstack([Jm, np.hstack([np.zeros((J, 2 * J)), sr * np.eye(J)])])
             return Jm
 
         x0 = np.concatenate([np.zeros(2 * J), a_start])
@@ -248,7 +258,8 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
         from scipy.optimize import nnls
 
         Gm = egi_operator(S, O, Nm, brdf).matrix().numpy() * w[:, None]
-        am, _ = nnls(Gm, w * y, maxiter=max(50 * len(am), 1000))
+        am, _ = nnls(np.vstack([Gm, sr * np.eye(len(am))]), np.concatenate([w * y, np.zeros(len(am))]),
+                     maxiter=max(50 * len(am), 1000))
         r = Gm @ am - w * y
         merged += len(a) - len(am)
         N, a, chi2 = Nm[am > 0], am[am > 0], float(r @ r)
