@@ -2,9 +2,17 @@
 shadow of an occulter on the ground and its sampling by telescopes.
 
 :mod:`cssat.occultation.fresnel`: ``shadow`` (the ground intensity behind an opaque mask, by
-Babinet's principle and an exactly pixel-integrated Fresnel kernel) and ``aperture_field``.
+Babinet's principle and an exactly pixel-integrated Fresnel kernel) and ``aperture_field``;
+:mod:`cssat.occultation.geometry`: the fundamental plane, the shadow's track and velocity from a
+scenario and a star, the mesh's silhouette; :mod:`cssat.occultation.record`: the averages over
+aperture, exposure and the star's disk, the telescopes' series and their noise;
+:mod:`cssat.occultation.invert`: the silhouette from the series (non-linear, autograd).
 """
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
+from cssat.occultation.geometry import plane_basis, shadow_track, silhouette, star_direction
+from cssat.occultation.invert import invert_silhouette, iou
+from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
-__all__ = ["shadow", "aperture_field", "fresnel_scale"]
+__all__ = ["shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
+           "invert_silhouette", "iou", "noisy", "pattern_kernel", "photons", "record", "smooth"]

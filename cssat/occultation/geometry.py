@@ -1,0 +1,96 @@
+"""The occultation's geometry and the occulter's silhouette (issue 25, point 1).
+
+The *fundamental plane* (the occultation convention of Bessel, used by SORA and pyote for
+asteroids) is the plane through the observer perpendicular to the star's direction ``d``; the
+occulter's shadow moves across it. The satellite's shadow centre, relative to the observer, is
+``s(t) = P (r_sat(t) − r_obs(t))`` with ``P = I − d dᵀ``; its velocity ``ṡ`` (km/s) sets the
+shadow's speed and direction over the ground (≈ 2.6 km/s for a GEO satellite: the star drifts
+at the sidereal rate behind a nearly fixed satellite; on the ground itself the shadow is longer
+by ``1/cos`` of the star's zenith angle — not modelled: telescopes are placed in the fundamental
+plane). Assumptions: a star at infinity (parallel light), the satellite's positions of the
+scenario (SGP4), the star's catalogue direction (no aberration or proper motion: the shadow
+track is shifted, not changed, by them).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import FieldError, float_param, int_param
+
+__all__ = ["star_direction", "plane_basis", "shadow_track", "silhouette"]
+
+
+def star_direction(ra_deg: float, dec_deg: float) -> np.ndarray:
+    """The unit vector ``(3,)`` (GCRS) of a star at right ascension / declination (ICRS, deg)."""
+    ra = np.radians(float_param(ra_deg, "star.ra_deg", -360.0, 360.0))
+    dec = np.radians(float_param(dec_deg, "star.dec_deg", -90.0, 90.0))
+    return np.array([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)])
+
+
+def plane_basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors ``(e_east, e_north)`` spanning the fundamental plane ⟂ ``d``: ``e_north``
+    towards the celestial north pole's projection, ``e_east = e_north × d`` (east on the sky as
+    seen from the ground)."""
+    d = np.asarray(d, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    z = np.array([0.0, 0.0, 1.0])
+    n = z - d * (z @ d)
+    if np.linalg.norm(n) < 1e-12:  # a star at the pole: any north
+        n = np.array([1.0, 0.0, 0.0]) - d * d[0]
+    n /= np.linalg.norm(n)
+    return np.cross(n, d), n
+
+
+def shadow_track(scenario: Any, d: np.ndarray) -> dict[str, np.ndarray]:
+    """The shadow centre in the fundamental plane over the ``scenario``'s times: ``xy_km (T, 2)``
+    (east, north of the observer), ``velocity_km_s (T, 2)`` (central differences), ``speed_km_s
+    (T,)``, ``distance_km (T,)`` (the satellite's distance along ``d``: the propagation distance)
+    and ``miss_km (T,)`` (the shadow centre's distance from the observer)."""
+    if len(scenario) < 2:
+        raise FieldError("scenario.n_steps", "the shadow's velocity needs at least 2 times")
+    e, n = plane_basis(d)
+    rel = scenario.r_sat - scenario.r_obs
+    xy = np.stack([rel @ e, rel @ n], 1)
+    t = (scenario.times - scenario.times[0]) / np.timedelta64(1, "s")
+    v = np.gradient(xy, t, axis=0)
+    return {"xy_km": xy, "velocity_km_s": v, "speed_km_s": np.linalg.norm(v, axis=1), "distance_km": rel @ d,
+            "miss_km": np.linalg.norm(xy, axis=1)}
+
+
+def silhouette(mesh: Any, view_body: Any, pixel_m: float, size: int, *, supersample: int = 4,
+               center: Any = None) -> np.ndarray:
+    """The occulter mask ``(size, size)`` in [0, 1] (1 = opaque: the fraction of each pixel the
+    mesh covers, from ``supersample``² samples a pixel) of ``mesh`` projected along the
+    body-frame unit vector ``view_body`` (from the star through the satellite to the observer,
+    or its opposite: a projection), on a grid of ``pixel_m`` centred on ``center`` (body frame,
+    m; default the mesh's bounding-box centre). Rows run along the plane's ``e_north`` of
+    :func:`plane_basis` (of ``view_body``), columns along ``e_east``."""
+    from skimage.draw import polygon
+
+    from cssat.scene import as_mesh
+
+    m = as_mesh(mesh)
+    size = int_param(size, "size", 1, 1 << 14)
+    ss = int_param(supersample, "supersample", 1, 64)
+    pixel_m = float_param(pixel_m, "pixel_m", 0.0, open_lo=True)
+    v = np.asarray(view_body, dtype=np.float64).reshape(3)
+    if not np.isfinite(v).all() or np.linalg.norm(v) == 0:
+        raise FieldError("view_body", f"expected a direction (3,), got {view_body!r}")
+    e, n = plane_basis(v)
+    verts = np.asarray(m.vertices, dtype=np.float64)
+    c = (verts.min(0) + verts.max(0)) / 2 if center is None else np.asarray(center, dtype=np.float64)
+    p = verts - c
+    fine = size * ss
+    step = pixel_m / ss
+    # fine-grid coordinates: pixel centres of the fine grid at (k + 0.5) step − size·pixel/2
+    col = (p @ e) / step + fine / 2 - 0.5
+    row = (p @ n) / step + fine / 2 - 0.5
+    out = np.zeros((fine, fine), bool)
+    tri = np.asarray(m.faces)
+    for f in tri:
+        rr, cc = polygon(row[f], col[f], shape=out.shape)
+        out[rr, cc] = True
+    return out.reshape(size, ss, size, ss).mean((1, 3))

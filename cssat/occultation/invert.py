@@ -1,0 +1,109 @@
+"""The silhouette from recorded shadow series (issue 25, point 3b): the full non-linear model
+inverted by gradient descent through the differentiable forward (torch autograd).
+
+Unknown: the mask ``m = σ(θ) ∈ (0, 1)`` on the pattern's grid. Objective (Adam on ``θ``):
+
+    ``½ Σ ((R(S(m)) − y)/σ)² / n + λ_TV TV(m) + λ_bin Σ m (1 − m) / N``
+
+with ``S`` :func:`~cssat.occultation.shadow` (wavelengths and weights), the averaging kernel and
+``R`` :func:`~cssat.occultation.record.record`; ``TV`` the isotropic total variation (smoothed
+by 1e-6), the binary prior pushing each pixel to 0 or 1. Minimised by L-BFGS (strong Wolfe line
+search; ``method="adam"``: Adam at ``lr``), the first start the empty mask (``θ = −2``), the
+others random; the lowest objective kept. Ambiguities: the data are intensities only, ``I = 1 − 2 Re(h∗m) + |h∗m|²``; the
+in-line-holography twin (the mask propagated by −2z, which matches the linear term) is not a
+real mask in [0, 1], so the bounds and the binary prior remove it, but a mask is only determined
+up to what the array samples: rows between telescopes are interpolated by the priors, not
+measured.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from cssat._checks import float_param, int_param
+
+__all__ = ["invert_silhouette", "iou"]
+
+
+def iou(a: Any, b: Any, threshold: float = 0.5) -> float:
+    """Intersection over union of two masks thresholded at ``threshold``."""
+    A = np.asarray(a) >= threshold
+    B = np.asarray(b) >= threshold
+    union = (A | B).sum()
+    return float((A & B).sum() / union) if union else 1.0
+
+
+def _tv(m: Tensor) -> Tensor:
+    dx = m[..., :, 1:] - m[..., :, :-1]
+    dy = m[..., 1:, :] - m[..., :-1, :]
+    return torch.sqrt(dx[..., :-1, :] ** 2 + dy[..., :, :-1] ** 2 + 1e-6).sum()
+
+
+def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, wavelength_m: Any,
+                      distance_m: float, positions_m: Any, velocity_m_s: Any, times_s: Any, *, kernel: Any = None,
+                      weights: Any = None, tv: float = 1e-3, binary: float = 0.0, n_starts: int = 1, iters: int = 1500,
+                      lr: float = 0.1, seed: int = 0, method: str = "lbfgs", dtype: torch.dtype = torch.float64, device: Any = None) -> tuple[np.ndarray, dict]:
+    """The occulter mask ``(H, W)`` in [0, 1] whose recorded shadow matches ``series (J, K)``
+    (1σ ``sigma``, scalar or ``(J, K)``), for the recording geometry of
+    :func:`~cssat.occultation.record.record` and the averaging ``kernel``
+    (:func:`~cssat.occultation.record.pattern_kernel`; None: none). Returns ``(mask, info)``:
+    ``loss``, ``chi2_per_sample`` of the kept start, every start's ``losses``."""
+    from cssat.occultation.fresnel import shadow
+    from cssat.occultation.record import record, smooth
+
+    H, W = (int_param(v, "shape", 1, 1 << 12) for v in shape)
+    tv = float_param(tv, "tv", 0.0)
+    binary = float_param(binary, "binary", 0.0)
+    n_starts, iters = int_param(n_starts, "n_starts", 1), int_param(iters, "iters", 1)
+    y = torch.as_tensor(np.asarray(series, dtype=np.float64), dtype=dtype, device=device)
+    s = torch.as_tensor(np.broadcast_to(np.asarray(sigma, dtype=np.float64), tuple(y.shape)).copy(), dtype=dtype, device=device)
+    k = np.ones((1, 1)) if kernel is None else np.asarray(kernel, dtype=np.float64)
+    g = torch.Generator(device="cpu").manual_seed(int(seed))
+
+    def model(m):
+        I = shadow(m, pixel_m, wavelength_m, distance_m, weights=weights)
+        return record(smooth(I, k), pixel_m, positions_m, velocity_m_s, times_s)
+
+    from cssat._checks import choice_param
+
+    method = choice_param(method, "method", ("lbfgs", "adam"))
+    best, losses = None, []
+    n = y.numel()
+
+    def objective(m):
+        r = (model(m) - y) / s
+        return 0.5 * (r * r).sum() / n + tv * _tv(m) / (H * W) ** 0.5 + binary * (m * (1 - m)).sum() / (H * W), r
+
+    for start in range(n_starts):
+        init = torch.full((H, W), -2.0, dtype=torch.float64) if start == 0 else \
+            0.5 * torch.randn((H, W), generator=g, dtype=torch.float64) - 1.0
+        theta = init.to(dtype=dtype, device=device).requires_grad_(True)
+        if method == "lbfgs":
+            opt = torch.optim.LBFGS([theta], lr=1.0, max_iter=iters, max_eval=int(1.25 * iters), history_size=20,
+                                    tolerance_grad=1e-9, tolerance_change=1e-12, line_search_fn="strong_wolfe")
+
+            def closure():
+                opt.zero_grad()
+                loss, _ = objective(torch.sigmoid(theta))
+                loss.backward()
+                return loss
+
+            opt.step(closure)
+        else:
+            opt = torch.optim.Adam([theta], lr=float(lr))
+            for _ in range(iters):
+                opt.zero_grad()
+                loss, _ = objective(torch.sigmoid(theta))
+                loss.backward()
+                opt.step()
+        with torch.no_grad():
+            m = torch.sigmoid(theta)
+            final, r = objective(m)
+            losses.append(float(final))
+            if best is None or float(final) < best[0]:
+                best = (float(final), m.detach().cpu().numpy(), float((r * r).sum() / n))
+    return best[1], {"loss": best[0], "chi2_per_sample": best[2], "losses": losses}

@@ -1,0 +1,147 @@
+"""What telescopes record of a moving shadow (issue 25, point 1).
+
+A telescope at ``p`` in the fundamental plane sees the shadow pattern ``I(x)`` move past at the
+velocity ``v``: its ``k``-th exposure, starting at ``t_k``, is the pattern averaged over
+
+* its aperture (a disk of ``aperture_m``; a central obstruction is neglected),
+* the exposure (the segment ``p − v [t_k, t_k + t_exp]``),
+* the star's disk projected to the satellite's distance (``star_diameter_m = θ⋆ z``; a linear
+  limb darkening ``I(μ) ∝ 1 − u (1 − μ)``), and
+* the filter's bandwidth (:func:`~cssat.occultation.shadow` ``wavelength_m`` as a sequence),
+
+so the series is the pattern convolved with one kernel (aperture ∗ star ∗ smear) and sampled at
+``p − v (t_k + t_exp/2)``. Then the noise (:func:`noisy`): photon (Poisson) counts of a star of
+V magnitude ``star_mag`` (cssat's V zero point, ``throughput``), Gaussian read noise and the
+atmosphere's scintillation — a multiplicative ``1 + σ_I ε`` per exposure with ``σ_I²`` the
+short-exposure index of :func:`cssat.physics.turbulence.scintillation_index` for that aperture,
+exposure and airmass (independent between exposures and telescopes: the exposures are shorter
+than the scintillation's correlation time only for small apertures, which this neglects).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from cssat._checks import FieldError, float_param, int_param
+
+__all__ = ["pattern_kernel", "smooth", "record", "noisy", "photons"]
+
+
+def pattern_kernel(pixel_m: float, *, aperture_m: float = 0.0, star_diameter_m: float = 0.0, limb_darkening: float = 0.6,
+                   smear_m: float = 0.0, smear_dir: Any = (1.0, 0.0), supersample: int = 8) -> np.ndarray:
+    """The averaging kernel ``(k, k)`` on the pattern's pixels (rows north, columns east), sum 1:
+    a uniform disk of ``aperture_m`` ∗ a limb-darkened disk of ``star_diameter_m`` ∗ a segment
+    of ``smear_m`` along ``smear_dir`` (east, north), each sampled ``supersample``² times a pixel."""
+    from scipy.signal import fftconvolve
+
+    pixel_m = float_param(pixel_m, "pixel_m", 0.0, open_lo=True)
+    ss = int_param(supersample, "supersample", 1, 64)
+    u = float_param(limb_darkening, "limb_darkening", 0.0, 1.0)
+
+    def grid(radius_m):
+        n = int(math.ceil(radius_m / pixel_m)) + 1
+        c = (np.arange(-n * ss, (n + 1) * ss) + 0.5) / ss - 0.5  # sub-pixel centres, pixel units
+        yy, xx = np.meshgrid(c, c, indexing="ij")
+        return n, yy * pixel_m, xx * pixel_m
+
+    def binned(w, n):
+        k = 2 * n + 1
+        w = w.reshape(k, ss, k, ss).sum((1, 3))
+        return w / w.sum()
+
+    kernels = []
+    a = float_param(aperture_m, "aperture_m", 0.0)
+    if a > 0:
+        n, yy, xx = grid(a / 2)
+        kernels.append(binned((np.hypot(xx, yy) <= a / 2).astype(float), n))
+    s = float_param(star_diameter_m, "star_diameter_m", 0.0)
+    if s > 0:
+        n, yy, xx = grid(s / 2)
+        r = np.hypot(xx, yy) / (s / 2)
+        mu = np.sqrt(np.clip(1 - r * r, 0, None))
+        kernels.append(binned(np.where(r <= 1, 1 - u * (1 - mu), 0.0), n))
+    L = float_param(smear_m, "smear_m", 0.0)
+    if L > 0:
+        d = np.asarray(smear_dir, dtype=np.float64).reshape(2)
+        d = d / np.linalg.norm(d)
+        n, yy, xx = grid(L / 2)
+        t = np.linspace(-L / 2, L / 2, max(int(4 * L / pixel_m * ss), 2))
+        w = np.zeros_like(xx)
+        h = pixel_m / ss
+        ix = np.clip(np.round((t * d[0]) / h + (xx.shape[1] - 1) / 2).astype(int), 0, xx.shape[1] - 1)
+        iy = np.clip(np.round((t * d[1]) / h + (xx.shape[0] - 1) / 2).astype(int), 0, xx.shape[0] - 1)
+        np.add.at(w, (iy, ix), 1.0)
+        kernels.append(binned(w, n))
+    out = np.ones((1, 1))
+    for k in kernels:
+        out = fftconvolve(out, k)
+    out = np.clip(out, 0, None)
+    return out / out.sum()
+
+
+def smooth(I: Tensor, kernel: np.ndarray) -> Tensor:
+    """The pattern ``I (..., H, W)`` averaged by ``kernel`` (linear convolution; 1 — the
+    unocculted star — outside the grid). Differentiable in ``I``."""
+    if kernel.shape == (1, 1):
+        return I
+    k = torch.as_tensor(kernel, dtype=I.dtype, device=I.device)
+    H, W = I.shape[-2:]
+    kh, kw = k.shape
+    s = (H + kh - 1, W + kw - 1)
+    F = torch.fft.rfft2(I - 1, s=s) * torch.fft.rfft2(k, s=s)
+    full = torch.fft.irfft2(F, s=s)
+    return full[..., kh // 2:kh // 2 + H, kw // 2:kw // 2 + W] + 1
+
+
+def record(I: Tensor, pixel_m: float, positions_m: Any, velocity_m_s: Any, times_s: Any) -> Tensor:
+    """The pattern ``I (H, W)`` (already :func:`smooth`-ed) sampled by telescopes at
+    ``positions_m (J, 2)`` (east, north of the grid's centre, m) while it moves at
+    ``velocity_m_s (2,)``: ``(J, K)`` at ``times_s (K,)`` (the exposures' mid-times; the
+    pattern's centre passes the grid's centre at t = 0) — bilinear between the pixel centres,
+    1 outside the grid. Differentiable in ``I``."""
+    import torch.nn.functional as Fn
+
+    P = torch.as_tensor(np.asarray(positions_m, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(-1, 2)
+    v = torch.as_tensor(np.asarray(velocity_m_s, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(2)
+    t = torch.as_tensor(np.asarray(times_s, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(-1)
+    if I.ndim != 2:
+        raise FieldError("pattern", f"expected one pattern (H, W), got shape {tuple(I.shape)}")
+    H, W = I.shape
+    xy = P[:, None, :] - t[None, :, None] * v  # (J, K, 2) where each telescope is in the pattern's frame
+    gx = xy[..., 0] / (W * pixel_m / 2)  # grid_sample's [-1, 1] across the pixel edges (align_corners=False)
+    gy = xy[..., 1] / (H * pixel_m / 2)
+    grid = torch.stack([gx, gy], -1)[None]
+    out = Fn.grid_sample((I - 1)[None, None], grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    return out[0, 0] + 1
+
+
+def photons(star_mag: float, aperture_m: float, exposure_s: float, throughput: float = 0.5) -> float:
+    """Photo-electrons of the unocculted star per exposure: ``F₀ 10^(−0.4 V) (π D²/4) τ t``."""
+    from cssat.physics.photometry import magnitude_to_photon_rate
+
+    return magnitude_to_photon_rate(float(star_mag)) * math.pi * aperture_m ** 2 / 4 * throughput * exposure_s
+
+
+def noisy(series: Tensor, star_mag: float, aperture_m: float, exposure_s: float, *, throughput: float = 0.5,
+          read_noise_e: float = 5.0, scintillation: bool = True, airmass: float = 1.0,
+          generator: torch.Generator | None = None) -> tuple[Tensor, Tensor]:
+    """The recorded series with noise, relative to the unocculted star, and its 1σ: photon counts
+    ``Poisson(N⋆ I (1 + σ_I ε))``, read noise, divided by ``N⋆`` (:func:`photons`)."""
+    N = photons(star_mag, aperture_m, exposure_s, throughput)
+    sig_i = 0.0
+    if scintillation:
+        from cssat.physics.turbulence import scintillation_index
+
+        sig_i = math.sqrt(scintillation_index(aperture_m, airmass, exposure_s))
+    s = series.double().cpu().clamp_min(0)
+    g = generator or torch.Generator().manual_seed(0)
+    scint = 1 + sig_i * torch.randn(s.shape, generator=g, dtype=torch.float64)
+    counts = torch.poisson((N * s * scint).clamp_min(0), generator=g)
+    counts = counts + read_noise_e * torch.randn(s.shape, generator=g, dtype=torch.float64)
+    sigma = torch.sqrt(N * s + read_noise_e ** 2 + (sig_i * N * s) ** 2) / N
+    return (counts / N).to(series.dtype).to(series.device), sigma.to(series.dtype).to(series.device)
