@@ -230,3 +230,19 @@ def test_the_silhouette_of_a_box_is_its_projected_area():
     v = np.array([1.0, 1.0, 1.0]) / np.sqrt(3)
     proj = 0.5 * (2 * 3 * 2 * abs(v[2]) + 2 * 1 * 2 * abs(v[1]) + 3 * 1 * 2 * abs(v[0]))
     assert silhouette(b, v, 0.05, 100, supersample=8).sum() * 0.05 ** 2 == pytest.approx(proj, rel=5e-3)
+
+
+def test_the_occultation_experiment_runs_and_writes_its_results(tmp_path):
+    from hydra import compose, initialize_config_module
+
+    from cssat.experiments import run_experiment
+
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=["experiment=occultation", "silhouette.size=24", "silhouette.pixel_m=0.5",
+                                                       "invert.iters=5", "threads=1"])
+    met = run_experiment(cfg, tmp_path / "run")
+    assert met["status"] == "ok" and 2.5 < met["shadow_speed_km_s"] < 3.0 and 0 <= met["iou"] <= 1
+    assert met["fresnel_scale_m"] == pytest.approx(np.sqrt(550e-9 * met["distance_km"] * 1e3))
+    for f in ("arrays.npz", "figures/occultation_shadow.png", "figures/occultation_series.png",
+              "figures/occultation_silhouette.png"):
+        assert (tmp_path / "run" / f).is_file()

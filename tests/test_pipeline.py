@@ -29,9 +29,10 @@ TINY = {
                 "~grid.axes.0.cells.leo_pass"],  # its 160 samples need N >= 160
     "lightcurve": ["scenario.n_steps=3", "render.size=8"],
     "inversion": ["nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known", "inversion.n_normals=64"],
+    "occultation": ["silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5"],
 }
 #: the groups an experiment of its own module does not use (its matrix is the groups it uses)
-UNUSED = {"inversion": ("atmosphere", "solver", "denoiser")}
+UNUSED = {"inversion": ("atmosphere", "solver", "denoiser"), "occultation": ("atmosphere", "noise", "solver", "denoiser")}
 #: options made quick (their numbers are not what these tests check)
 QUICK = {
     ("solver", "pnp"): ["solver.max_iter=2", "solver.denoiser.n_iter=1"],

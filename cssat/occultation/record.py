@@ -52,6 +52,9 @@ def pattern_kernel(pixel_m: float, *, aperture_m: float = 0.0, star_diameter_m: 
     def binned(w, n):
         k = 2 * n + 1
         w = w.reshape(k, ss, k, ss).sum((1, 3))
+        if not w.sum() > 0:  # a disk smaller than a sub-sample: a point at the centre
+            w = np.zeros((k, k))
+            w[n, n] = 1.0
         return w / w.sum()
 
     kernels = []

@@ -1,0 +1,173 @@
+"""The occultation experiment (``cssat experiment=occultation``, issue 25): a GEO satellite's
+Fresnel shadow on a star, recorded by a line of telescopes across its track, and the
+silhouette inverted from the recorded series (:mod:`cssat.occultation`).
+
+Stages: the ``scenario`` at ``scenario.start_utc`` → the star (``star.ra_deg``/``dec_deg``;
+null: exactly behind the satellite then) → the fundamental plane, the shadow's velocity and the
+satellite's distance along the line of sight (:func:`~cssat.occultation.shadow_track`) → the
+``model``'s silhouette in its ``attitude`` seen along that line (``silhouette.size`` pixels of
+``silhouette.pixel_m``) → the ground shadow (:func:`~cssat.occultation.shadow`, ``optics.n_wavelengths``
+over the filter) → the averages over each telescope's aperture, its exposure and the star's
+limb-darkened disk → ``array.n_slots`` positions across the track, one telescope every
+``array.spacing_m``, of which a random ``array.fill`` are present (seeded) → their series with
+photon, read and scintillation noise → the silhouette by :func:`~cssat.occultation.invert_silhouette`.
+Outputs: ``arrays.npz`` (truth, pattern, series, reconstruction), the figures
+``occultation_shadow``, ``occultation_series``, ``occultation_silhouette``; metrics ``iou``,
+``iou_geometric`` (the shadow's own dark region thresholded at 0.5: what a geometric-chord
+analysis sees) and the photon budget.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import FieldError, float_param, int_param
+
+log = logging.getLogger("cssat")
+
+
+def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
+    """Run the occultation experiment ``cfg`` into ``out_dir`` and return its metrics."""
+    import torch
+
+    from cssat.experiments.build import build, build_model
+    from cssat.experiments.context import Run
+    from cssat.experiments.files import write_npz
+    from cssat.experiments.scene import build_scenario
+    from cssat.occultation import (invert_silhouette, iou, noisy, pattern_kernel, photons, record, shadow, shadow_track,
+                                   silhouette, smooth, star_direction)
+    from cssat.scene.attitude import nadir_pointing_frame
+
+    run_ = Run.from_config(cfg, out_dir)
+    with run_.stage("setup"):
+        star, optics, array, sil, inv = (cfg.get(k) or {} for k in ("star", "optics", "array", "silhouette", "invert"))
+        size = int_param(sil.get("size", 128), "silhouette.size", 8, 4096)
+        pixel = float_param(sil.get("pixel_m", 0.2), "silhouette.pixel_m", 0.0, open_lo=True)
+        lam = float_param(optics.get("wavelength_m", 550e-9), "optics.wavelength_m", 0.0, open_lo=True)
+        band = float_param(optics.get("bandwidth_m", 0.0), "optics.bandwidth_m", 0.0)
+        n_lam = int_param(optics.get("n_wavelengths", 1), "optics.n_wavelengths", 1, 64)
+        mag = float_param(star.get("magnitude", 8.0), "star.magnitude", -30.0, 30.0)
+        diam_mas = float_param(star.get("diameter_mas", 0.2), "star.diameter_mas", 0.0)
+        limb = float_param(star.get("limb_darkening", 0.6), "star.limb_darkening", 0.0, 1.0)
+        D = float_param(array.get("aperture_m", 0.5), "array.aperture_m", 0.0, open_lo=True)
+        spacing = float_param(array.get("spacing_m", D), "array.spacing_m", 0.0, open_lo=True)
+        fill = float_param(array.get("fill", 0.25), "array.fill", 0.0, 1.0, open_lo=True)
+        t_exp = float_param(array.get("exposure_s", 1e-4), "array.exposure_s", 0.0, open_lo=True)
+        mesh = build_model(cfg.model)
+        attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
+    metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": mesh.name, "seed": run_.seed}
+
+    with run_.stage("geometry"):
+        from omegaconf import OmegaConf, open_dict
+
+        cfg2 = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+        with open_dict(cfg2):
+            cfg2.scenario.n_steps, cfg2.scenario.step_s, cfg2.scenario.times = 3, 1.0, None
+        sc = build_scenario(cfg2)
+        if star.get("ra_deg") is None or star.get("dec_deg") is None:
+            rel = sc.r_sat[1] - sc.r_obs[1]
+            d = rel / np.linalg.norm(rel)  # a star exactly behind the satellite at the middle time
+        else:
+            d = star_direction(star.ra_deg, star.dec_deg)
+        tr = shadow_track(sc, d)
+        z = float(tr["distance_km"][1]) * 1e3
+        v = tr["velocity_km_s"][1] * 1e3  # m/s in the plane (east, north)
+        frames = attitude.frames(sc) if attitude is not None else nadir_pointing_frame(sc.r_sat, sc.v_sat)
+        view = frames[1] @ d  # the line of sight in the body frame
+        metrics.update(distance_km=z / 1e3, shadow_speed_km_s=float(np.linalg.norm(v)) / 1e3,
+                       miss_km=float(tr["miss_km"][1]), fresnel_scale_m=math.sqrt(lam * z))
+        if float(tr["miss_km"][1]) * 1e3 > size * pixel:
+            log.info("occultation: the shadow's centre passes %.3g km from the station; the array is placed on the track",
+                     tr["miss_km"][1])
+
+    with run_.stage("shadow"):
+        truth = silhouette(mesh, view, pixel, size)
+        lams = lam + band * (np.arange(n_lam) + 0.5 - n_lam / 2) / n_lam if n_lam > 1 else np.array([lam])
+        theta = diam_mas * 1e-3 / 206265.0
+        speed = float(np.linalg.norm(v))
+        if speed <= 0:
+            raise FieldError("star", "the shadow does not move (the satellite moves with the star)")
+        k = pattern_kernel(pixel, aperture_m=D, star_diameter_m=theta * z, limb_darkening=limb, smear_m=speed * t_exp,
+                           smear_dir=v / speed)
+        dtype = torch.float64
+        I = shadow(torch.as_tensor(truth, dtype=dtype), pixel, lams, z)
+        Is = smooth(I, k)
+
+    with run_.stage("record"):
+        u = v / speed
+        across = np.array([-u[1], u[0]])
+        span = size * pixel
+        n_slots = int_param(array.get("n_slots") or int(span // spacing), "array.n_slots", 1, 100000)
+        offsets = (np.arange(n_slots) - (n_slots - 1) / 2) * spacing
+        rng = np.random.default_rng(run_.seed)
+        n_on = max(1, int(round(fill * n_slots)))
+        on = np.sort(rng.choice(n_slots, n_on, replace=False))
+        pos = offsets[on, None] * across[None, :]
+        t_half = span / 2 / speed
+        times = np.arange(-t_half, t_half, t_exp)
+        clean = record(Is, pixel, pos, v, times)
+        gen = torch.Generator().manual_seed(run_.seed + 1)
+        y, sig = noisy(clean, mag, D, t_exp, throughput=float(array.get("throughput", 0.5)),
+                       read_noise_e=float(array.get("read_noise_e", 1.0)), scintillation=bool(array.get("scintillation", True)),
+                       generator=gen)
+        metrics.update(n_telescopes=int(n_on), n_slots=n_slots, fill=n_on / n_slots, n_samples=int(y.numel()),
+                       photons_per_exposure=photons(mag, D, t_exp), star_magnitude=mag, aperture_m=D)
+
+    with run_.stage("invert"):
+        m, info = invert_silhouette(y, sig, (size, size), pixel, lams, z, pos, v, times, kernel=k,
+                                    tv=float(inv.get("tv", 1e-3)), iters=int(inv.get("iters", 300)),
+                                    n_starts=int(inv.get("n_starts", 1)), seed=run_.seed)
+        geometric = np.clip(1 - Is.numpy(), 0, 1)
+        metrics.update(iou=iou(m, truth), iou_geometric=iou(geometric, truth), chi2_per_sample=info["chi2_per_sample"],
+                       silhouette_area_m2=float(truth.sum() * pixel ** 2))
+
+    with run_.stage("write"):
+        out = Path(out_dir)
+        write_npz(out / "arrays.npz", truth=truth, pattern=I.numpy(), smoothed=Is.numpy(), series=y.numpy(), sigma=sig.numpy(),
+                  clean=clean.numpy(), positions_m=pos, times_s=times, velocity_m_s=v, reconstruction=m)
+        _figures(run_, truth, I.numpy(), y.numpy(), m, geometric, pixel, times, metrics)
+    metrics.update(run_.timings())
+    log.info("occultation: %s at %.0f km, shadow %.2f km/s, Fresnel scale %.2f m; %d of %d telescopes; IoU %.3f "
+             "(the shadow's dark region: %.3f)", mesh.name, z / 1e3, speed / 1e3, math.sqrt(lam * z), n_on, n_slots,
+             metrics["iou"], metrics["iou_geometric"])
+    return metrics
+
+
+def _figures(run_, truth, pattern, series, recon, geometric, pixel, times, metrics) -> None:
+    from matplotlib.figure import Figure
+
+    from cssat.plots import save_figure
+
+    ext = [-truth.shape[1] * pixel / 2, truth.shape[1] * pixel / 2, -truth.shape[0] * pixel / 2, truth.shape[0] * pixel / 2]
+    fig = Figure(figsize=(6, 5))
+    ax = fig.add_subplot()
+    im = ax.imshow(pattern, origin="lower", extent=ext, cmap="gray")
+    fig.colorbar(im, ax=ax, label="intensity / unocculted star")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_title(f"Ground shadow (Fresnel scale {metrics['fresnel_scale_m']:.1f} m)", fontsize=10)
+    fig.tight_layout()
+    save_figure(fig, run_.figure("occultation_shadow"))
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot()
+    im = ax.imshow(series, aspect="auto", cmap="gray", extent=[times[0] * 1e3, times[-1] * 1e3, len(series) - 0.5, -0.5])
+    fig.colorbar(im, ax=ax, label="recorded / unocculted")
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel("telescope")
+    ax.set_title(f"Recorded series: {metrics['n_telescopes']} telescopes, V = {metrics['star_magnitude']:g}", fontsize=10)
+    fig.tight_layout()
+    save_figure(fig, run_.figure("occultation_series"))
+    fig = Figure(figsize=(12, 4))
+    for i, (img, title) in enumerate(((truth, "true silhouette"), (geometric, f"shadow's dark region (IoU {metrics['iou_geometric']:.2f})"),
+                                      (recon, f"reconstructed (IoU {metrics['iou']:.2f})"))):
+        ax = fig.add_subplot(1, 3, i + 1)
+        ax.imshow(img, origin="lower", extent=ext, cmap="gray_r", vmin=0, vmax=1)
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("east (m)")
+    fig.tight_layout()
+    save_figure(fig, run_.figure("occultation_silhouette"))
