@@ -144,24 +144,22 @@ def _figures(run_, truth, pattern, series, recon, geometric, pixel, times, metri
     from cssat.plots import save_figure
 
     ext = [-truth.shape[1] * pixel / 2, truth.shape[1] * pixel / 2, -truth.shape[0] * pixel / 2, truth.shape[0] * pixel / 2]
-    fig = Figure(figsize=(6, 5))
-    ax = fig.add_subplot()
-    im = ax.imshow(pattern, origin="lower", extent=ext, cmap="gray")
-    fig.colorbar(im, ax=ax, label="intensity / unocculted star")
-    ax.set_xlabel("east (m)")
-    ax.set_ylabel("north (m)")
-    ax.set_title(f"Ground shadow (Fresnel scale {metrics['fresnel_scale_m']:.1f} m)", fontsize=10)
-    fig.tight_layout()
-    save_figure(fig, run_.figure("occultation_shadow"))
-    fig = Figure(figsize=(7, 4))
-    ax = fig.add_subplot()
-    im = ax.imshow(series, aspect="auto", cmap="gray", extent=[times[0] * 1e3, times[-1] * 1e3, len(series) - 0.5, -0.5])
-    fig.colorbar(im, ax=ax, label="recorded / unocculted")
-    ax.set_xlabel("time (ms)")
-    ax.set_ylabel("telescope")
-    ax.set_title(f"Recorded series: {metrics['n_telescopes']} telescopes, V = {metrics['star_magnitude']:g}", fontsize=10)
-    fig.tight_layout()
-    save_figure(fig, run_.figure("occultation_series"))
+
+    def panel(img, size, label, xlabel, ylabel, title, stem, **show):
+        fig = Figure(figsize=size)
+        ax = fig.add_subplot()
+        fig.colorbar(ax.imshow(img, cmap="gray", **show), ax=ax, label=label)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, fontsize=10)
+        fig.tight_layout()
+        save_figure(fig, run_.figure(stem))
+
+    panel(pattern, (6, 5), "intensity / unocculted star", "east (m)", "north (m)",
+          f"Ground shadow (Fresnel scale {metrics['fresnel_scale_m']:.1f} m)", "occultation_shadow", origin="lower", extent=ext)
+    panel(series, (7, 4), "recorded / unocculted", "time (ms)", "telescope",
+          f"Recorded series: {metrics['n_telescopes']} telescopes, V = {metrics['star_magnitude']:g}", "occultation_series",
+          aspect="auto", extent=[times[0] * 1e3, times[-1] * 1e3, len(series) - 0.5, -0.5])
     fig = Figure(figsize=(12, 4))
     for i, (img, title) in enumerate(((truth, "true silhouette"), (geometric, f"shadow's dark region (IoU {metrics['iou_geometric']:.2f})"),
                                       (recon, f"reconstructed (IoU {metrics['iou']:.2f})"))):

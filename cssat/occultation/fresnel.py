@@ -59,10 +59,6 @@ def pixel_kernel(n: int, pixel_m: float, wavelength_m: float, distance_m: float)
 
 
 def _check(mask: Tensor, pixel_m: float, wavelength_m: float, distance_m: float) -> None:
-    if mask.ndim < 2:
-        raise FieldError("mask", f"expected an occulter mask (..., H, W), got shape {tuple(mask.shape)}")
-    if not bool(torch.isfinite(mask).all()):
-        raise FieldError("mask", "the mask must be finite (1 = opaque, 0 = clear)")
     H, W = mask.shape[-2:]
     r_max = 0.5 * math.hypot(H, W) * pixel_m  # the farthest a grid point is from the occulter's centre
     limit = wavelength_m * distance_m / (2 * pixel_m)
@@ -88,10 +84,10 @@ def aperture_field(mask: Any, pixel_m: float, wavelength_m: float, distance_m: f
         m = m.to(torch.float64)
     if m.ndim < 2:
         raise FieldError("mask", f"expected an occulter mask (..., H, W), got shape {tuple(m.shape)}")
+    if not bool(torch.isfinite(m).all()):
+        raise FieldError("mask", "the mask must be finite (1 = opaque, 0 = clear)")
     if check_sampling:
         _check(m, pixel_m, wavelength_m, distance_m)
-    elif not bool(torch.isfinite(m).all()):
-        raise FieldError("mask", "the mask must be finite (1 = opaque, 0 = clear)")
     H, W = m.shape[-2:]
     cdtype = torch.complex128 if m.dtype == torch.float64 else torch.complex64
     ky = torch.as_tensor(pixel_kernel(H, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=m.device)
