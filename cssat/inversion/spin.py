@@ -210,10 +210,13 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        ``min_period_s`` and ``max_period_s``); both ``P₀`` and ``2 P₀`` are candidates.
     2. Coarse search: for each of ``n_poles`` poles on a Fibonacci grid of the whole sphere
        (the sense of rotation is the pole's: the period stays positive), a scan of the sidereal
-       frequency over ``1/P ± (1.5 ω/2π + 0.5/span)`` — ``ω`` the median angular rate of the
-       Sun–observer bisector, which bounds the synodic–sidereal difference — in steps of
-       ``1/(20 span)``, each spin scored by the NNLS EGI fit's χ² on ``coarse_samples`` samples
-       and ``coarse_normals`` normals.
+       frequency ``f = 1/P + δ`` in steps of ``1/(20 span)``, each spin scored by the NNLS EGI
+       fit's χ² on ``coarse_samples`` samples and ``coarse_normals`` normals. A facet's
+       brightness is a product of two cosines, one turning with the Sun's longitude about the
+       pole and one with the observer's, so the light curve's frequency is the sidereal one less
+       a weighted mean of the two longitude rates ``λ̇☉``, ``λ̇ₒ``: ``δ`` spans
+       ``[min(0, λ̇☉, λ̇ₒ), max(0, λ̇☉, λ̇ₒ)]/2π`` widened by ``0.5/span + 10 %`` (for a GEO
+       object the observer turns with the Earth, so ``δ`` reaches a cycle per sidereal day).
     3. The ``n_starts`` best distinct poles refined by Nelder–Mead in ``(λ, β, f)`` at that
        resolution; the ``n_refine`` best refined again on up to ``max_samples`` samples and
        ``n_normals`` normals. The best is the solution, the others its ``alternatives``.
@@ -257,16 +260,29 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     else:
         P0 = float_param(period_s, "period_s", 0.0, open_lo=True)
         synodic = {"period_s": P0, "given": True}
-    # the bisector's angular rate bounds how far the sidereal frequency is from the synodic one
-    b = S + O
-    b /= np.maximum(np.linalg.norm(b, axis=1, keepdims=True), 1e-300)
+    # The light curve's apparent (synodic) frequency is the sidereal one less a weighted rate of
+    # the longitudes of the Sun and the observer about the pole (each cosine factor of a facet's
+    # brightness turns with its own direction): for each pole the scan covers the sidereal
+    # frequencies between those two rates, plus a margin of half a cycle over the span
     dt = np.diff(t)
     close = dt < 10 * np.median(dt)
-    rate = np.arccos(np.clip(np.einsum("ij,ij->i", b[1:], b[:-1]), -1, 1))[close] / dt[close]
-    omega = float(np.median(rate)) if rate.size else 0.0
-    half = 1.5 * omega / (2 * np.pi) + 0.5 / span
     step = 1.0 / (20 * span)
-    offsets = np.arange(-half, half + step / 2, step)
+
+    def shifts(lon, lat):
+        """The Sun's and the observer's median longitude rates about the pole, in Hz, at most
+        3× their angular rates (a direction near the pole turns fast in longitude but hardly
+        modulates the light curve)."""
+        from cssat.scene.attitude import spin_frame
+
+        M = spin_frame(np.zeros(1), lon, lat, 1.0, 0.0, frame)[0]  # the pole's fixed rotation, as in _Fit
+        out = []
+        for v in (S @ M.T, O @ M.T):
+            dl = (np.diff(np.arctan2(v[:, 1], v[:, 0])) + np.pi) % (2 * np.pi) - np.pi
+            out.append(float(np.clip(np.median(dl[close] / dt[close]), -cap, cap)) / (2 * np.pi) if close.any() else 0.0)
+        return out
+
+    cap = 3.0 * max((float(np.median(np.arccos(np.clip(np.einsum("ij,ij->i", v[1:], v[:-1]), -1, 1))[close] / dt[close]))
+                     if close.any() else 0.0) for v in (S, O))
 
     def subset(n):
         idx = np.unique(np.linspace(0, T - 1, min(n, T)).round().astype(int))
@@ -282,6 +298,9 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     table = []  # (chi2, lon, lat, f)
     for lo, la in zip(lons, lats):
         best = (np.inf, lo, la, cands[0])
+        r = shifts(lo, la)
+        margin = 0.5 / span + 0.1 * max(abs(r[0]), abs(r[1]))
+        offsets = np.arange(min(0.0, *r) - margin, max(0.0, *r) + margin + step / 2, step)
         for fc in cands:
             for f in fc + offsets:
                 if f > 0:
@@ -289,7 +308,10 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
                     if c < best[0]:
                         best = (c, lo, la, f)
         table.append(best)
-    table.sort(key=lambda r: r[0])
+    # the coarse grid's bias is as large as the χ² differences between poles: each pole's best
+    # spin is scored again on the fine grid of normals before the starts are chosen
+    medium = _Fit(coarse.t, coarse.y, coarse.w, coarse.S, coarse.O, fine.N, brdf, frame)
+    table = sorted(((medium.chi2(*r[1:]), *r[1:]) for r in table), key=lambda r: r[0])
     spacing = np.degrees(np.sqrt(4 * np.pi / n_poles))
     starts: list[tuple] = []
     for r in table:
