@@ -246,3 +246,60 @@ def test_the_occultation_experiment_runs_and_writes_its_results(tmp_path):
     for f in ("arrays.npz", "figures/occultation_shadow.png", "figures/occultation_series.png",
               "figures/occultation_silhouette.png"):
         assert (tmp_path / "run" / f).is_file()
+
+
+def _linear_case(N=32, px=0.25):
+    from cssat.occultation.record import pattern_kernel
+
+    v = np.array([2600.0, 0.0])
+    pos = np.stack([np.zeros(10), (np.arange(10) - 4.5) * 3 * px], 1)
+    times = np.arange(-N / 2, N / 2) * px / 2600.0
+    k = pattern_kernel(px, aperture_m=0.5, smear_m=px, smear_dir=(1, 0))
+    return dict(pixel_m=px, wavelength_m=550e-9, distance_m=3.5786e7, positions_m=pos, velocity_m_s=v, times_s=times,
+                kernel=k)
+
+
+def test_the_linearised_shadow_is_a_linear_operator_with_its_adjoint():
+    """<A x, y> = <x, Aᵀ y> (the adjoint by autograd), and A's columns are the brute-force
+    linear term −2 Re(h ∗ e_ij) recorded: one pixel's column from the exact shadow of a faint
+    pixel, (I(ε e) − 1)/ε → −2 Re(h ∗ e) as ε → 0."""
+    from cssat.occultation import ShadowOperator, shadow
+    from cssat.occultation.record import record, smooth
+
+    c = _linear_case()
+    op = ShadowOperator((32, 32), **c)
+    g = torch.Generator().manual_seed(0)
+    x = torch.randn(2, 32 * 32, generator=g, dtype=torch.float64)
+    y = torch.randn(2, op.n_out, generator=g, dtype=torch.float64)
+    assert float((op(x) * y).sum()) == pytest.approx(float((x * op.adjoint(y)).sum()), rel=1e-10)
+    e = torch.zeros(32, 32, dtype=torch.float64)
+    e[14, 17] = 1.0
+    eps = 1e-6
+    geo = {k: c[k] for k in ("positions_m", "velocity_m_s", "times_s")}
+    exact = (record(smooth(shadow(eps * e, c["pixel_m"], c["wavelength_m"], c["distance_m"]), c["kernel"]), c["pixel_m"],
+                    **geo) - 1) / eps
+    assert torch.allclose(op(e.reshape(1, -1))[0], exact.reshape(-1), atol=1e-6 * float(exact.abs().max()))
+    with pytest.raises(Exception, match="sigma"):
+        ShadowOperator((32, 32), **c, sigma=0.0)
+
+
+def test_a_faint_occulter_comes_back_through_the_linear_solvers():
+    """A semi-transparent (10 %) 2 × 1.5 m plate — a weak occulter, where the linearised model
+    holds — recorded by 10 telescopes with 0.1 % noise: TV on the linearised operator recovers
+    its support (IoU of the support ≥ 0.7 where the empty estimate scores 0) and its opacity
+    (the recovered mean over the plate within 25 % of 0.1)."""
+    from cssat.occultation import ShadowOperator, invert_linear
+
+    c = _linear_case()
+    truth = np.zeros((32, 32))
+    truth[12:18, 10:18] = 0.1
+    op = ShadowOperator((32, 32), **c)
+    rng = np.random.default_rng(2)
+    y = 1 + op(torch.tensor(truth).reshape(1, -1))[0].numpy().reshape(10, -1) + 1e-3 * rng.standard_normal((10, 32))
+    from cssat.recon import TV
+
+    m, info = invert_linear(y, 1e-3, (32, 32), **c, solver=TV(lam=3e-3, method="pdhg", max_iter=800))
+    sup = truth > 0
+    assert (((m > 0.05) & sup).sum() / ((m > 0.05) | sup).sum()) >= 0.7, info
+    assert m[sup].mean() == pytest.approx(0.1, rel=0.25)
+    assert info["chi2_per_sample"] < 2.0

@@ -6,13 +6,16 @@ Babinet's principle and an exactly pixel-integrated Fresnel kernel) and ``apertu
 :mod:`cssat.occultation.geometry`: the fundamental plane, the shadow's track and velocity from a
 scenario and a star, the mesh's silhouette; :mod:`cssat.occultation.record`: the averages over
 aperture, exposure and the star's disk, the telescopes' series and their noise;
-:mod:`cssat.occultation.invert`: the silhouette from the series (non-linear, autograd).
+:mod:`cssat.occultation.invert`: the silhouette from the series (non-linear, autograd);
+:mod:`cssat.occultation.linear`: the linearised (weak-occulter) model as a linear operator for
+cssat's linear solvers.
 """
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
 from cssat.occultation.geometry import plane_basis, shadow_track, silhouette, star_direction
 from cssat.occultation.invert import invert_silhouette, iou
+from cssat.occultation.linear import ShadowOperator, invert_linear
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
 __all__ = ["shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
-           "invert_silhouette", "iou", "noisy", "pattern_kernel", "photons", "record", "smooth"]
+           "invert_silhouette", "iou", "ShadowOperator", "invert_linear", "noisy", "pattern_kernel", "photons", "record", "smooth"]

@@ -8,8 +8,8 @@ Unknown: the mask ``m = σ(θ) ∈ (0, 1)`` on the pattern's grid. Objective (Ad
 with ``S`` :func:`~cssat.occultation.shadow` (wavelengths and weights), the averaging kernel and
 ``R`` :func:`~cssat.occultation.record.record`; ``TV`` the isotropic total variation (smoothed
 by 1e-6), the binary prior pushing each pixel to 0 or 1. Minimised by L-BFGS (strong Wolfe line
-search; ``method="adam"``: Adam at ``lr``), the first start the empty mask (``θ = −2``), the
-others random; the lowest objective kept. Ambiguities: the data are intensities only, ``I = 1 − 2 Re(h∗m) + |h∗m|²``; the
+search; ``method="adam"``: Adam at ``lr``), the first start ``init`` or the empty mask
+(``θ = −2``), the others random; the lowest objective kept. Ambiguities: the data are intensities only, ``I = 1 − 2 Re(h∗m) + |h∗m|²``; the
 in-line-holography twin (the mask propagated by −2z, which matches the linear term) is not a
 real mask in [0, 1], so the bounds and the binary prior remove it, but a mask is only determined
 up to what the array samples: rows between telescopes are interpolated by the priors, not
@@ -46,11 +46,14 @@ def _tv(m: Tensor) -> Tensor:
 def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, wavelength_m: Any,
                       distance_m: float, positions_m: Any, velocity_m_s: Any, times_s: Any, *, kernel: Any = None,
                       weights: Any = None, tv: float = 1e-3, binary: float = 0.0, n_starts: int = 1, iters: int = 1500,
-                      lr: float = 0.1, seed: int = 0, method: str = "lbfgs", dtype: torch.dtype = torch.float64, device: Any = None) -> tuple[np.ndarray, dict]:
+                      lr: float = 0.1, seed: int = 0, method: str = "lbfgs", init: Any = None, dtype: torch.dtype = torch.float64,
+                      device: Any = None) -> tuple[np.ndarray, dict]:
     """The occulter mask ``(H, W)`` in [0, 1] whose recorded shadow matches ``series (J, K)``
     (1σ ``sigma``, scalar or ``(J, K)``), for the recording geometry of
     :func:`~cssat.occultation.record.record` and the averaging ``kernel``
-    (:func:`~cssat.occultation.record.pattern_kernel`; None: none). Returns ``(mask, info)``:
+    (:func:`~cssat.occultation.record.pattern_kernel`; None: none). ``init``: a mask ``(H, W)``
+    in [0, 1] for the first start (e.g. :func:`~cssat.occultation.invert_linear`'s; clipped to
+    [0.02, 0.98] before its logit), else the empty mask. Returns ``(mask, info)``:
     ``loss``, ``chi2_per_sample`` of the kept start, every start's ``losses``."""
     from cssat.occultation.fresnel import shadow
     from cssat.occultation.record import record, smooth
@@ -63,6 +66,10 @@ def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: 
     s = torch.as_tensor(np.broadcast_to(np.asarray(sigma, dtype=np.float64), tuple(y.shape)).copy(), dtype=dtype, device=device)
     k = np.ones((1, 1)) if kernel is None else np.asarray(kernel, dtype=np.float64)
     g = torch.Generator(device="cpu").manual_seed(int(seed))
+    if init is not None and (np.shape(init) != (H, W) or not np.isfinite(np.asarray(init, dtype=np.float64)).all()):
+        from cssat._checks import FieldError
+
+        raise FieldError("init", f"expected a finite mask of shape {(H, W)}, got shape {np.shape(init)}")
 
     def model(m):
         I = shadow(m, pixel_m, wavelength_m, distance_m, weights=weights)
@@ -79,9 +86,12 @@ def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: 
         return 0.5 * (r * r).sum() / n + tv * _tv(m) / (H * W) ** 0.5 + binary * (m * (1 - m)).sum() / (H * W), r
 
     for start in range(n_starts):
-        init = torch.full((H, W), -2.0, dtype=torch.float64) if start == 0 else \
-            0.5 * torch.randn((H, W), generator=g, dtype=torch.float64) - 1.0
-        theta = init.to(dtype=dtype, device=device).requires_grad_(True)
+        if start == 0:
+            th0 = torch.full((H, W), -2.0, dtype=torch.float64) if init is None else \
+                torch.logit(torch.as_tensor(np.clip(np.asarray(init, dtype=np.float64), 0.02, 0.98)))
+        else:
+            th0 = 0.5 * torch.randn((H, W), generator=g, dtype=torch.float64) - 1.0
+        theta = th0.to(dtype=dtype, device=device).requires_grad_(True)
         if method == "lbfgs":
             opt = torch.optim.LBFGS([theta], lr=1.0, max_iter=iters, max_eval=int(1.25 * iters), history_size=20,
                                     tolerance_grad=1e-9, tolerance_change=1e-12, line_search_fn="strong_wolfe")

@@ -102,9 +102,9 @@ def smooth(I: Tensor, kernel: np.ndarray) -> Tensor:
 
 
 def record(I: Tensor, pixel_m: float, positions_m: Any, velocity_m_s: Any, times_s: Any) -> Tensor:
-    """The pattern ``I (H, W)`` (already :func:`smooth`-ed) sampled by telescopes at
-    ``positions_m (J, 2)`` (east, north of the grid's centre, m) while it moves at
-    ``velocity_m_s (2,)``: ``(J, K)`` at ``times_s (K,)`` (the exposures' mid-times; the
+    """The pattern ``I (..., H, W)`` (already :func:`smooth`-ed; any leading batch axes) sampled
+    by telescopes at ``positions_m (J, 2)`` (east, north of the grid's centre, m) while it moves
+    at ``velocity_m_s (2,)``: ``(..., J, K)`` at ``times_s (K,)`` (the exposures' mid-times; the
     pattern's centre passes the grid's centre at t = 0) — bilinear between the pixel centres,
     1 outside the grid. Differentiable in ``I``."""
     import torch.nn.functional as Fn
@@ -112,15 +112,16 @@ def record(I: Tensor, pixel_m: float, positions_m: Any, velocity_m_s: Any, times
     P = torch.as_tensor(np.asarray(positions_m, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(-1, 2)
     v = torch.as_tensor(np.asarray(velocity_m_s, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(2)
     t = torch.as_tensor(np.asarray(times_s, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(-1)
-    if I.ndim != 2:
-        raise FieldError("pattern", f"expected one pattern (H, W), got shape {tuple(I.shape)}")
-    H, W = I.shape
+    if I.ndim < 2:
+        raise FieldError("pattern", f"expected patterns (..., H, W), got shape {tuple(I.shape)}")
+    H, W = I.shape[-2:]
+    batch = I.shape[:-2]
     xy = P[:, None, :] - t[None, :, None] * v  # (J, K, 2) where each telescope is in the pattern's frame
     gx = xy[..., 0] / (W * pixel_m / 2)  # grid_sample's [-1, 1] across the pixel edges (align_corners=False)
     gy = xy[..., 1] / (H * pixel_m / 2)
     grid = torch.stack([gx, gy], -1)[None]
-    out = Fn.grid_sample((I - 1)[None, None], grid, mode="bilinear", padding_mode="zeros", align_corners=False)
-    return out[0, 0] + 1
+    out = Fn.grid_sample((I - 1).reshape(1, -1, H, W), grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    return out[0].reshape(*batch, *out.shape[-2:]) + 1
 
 
 def photons(star_mag: float, aperture_m: float, exposure_s: float, throughput: float = 0.5) -> float:
