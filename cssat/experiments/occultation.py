@@ -6,15 +6,20 @@ Stages: the ``scenario`` at ``scenario.start_utc`` → the star (``star.ra_deg``
 null: exactly behind the satellite then) → the fundamental plane, the shadow's velocity and the
 satellite's distance along the line of sight (:func:`~cssat.occultation.shadow_track`) → the
 ``model``'s silhouette in its ``attitude`` seen along that line (``silhouette.size`` pixels of
-``silhouette.pixel_m``) → the ground shadow (:func:`~cssat.occultation.shadow`, ``optics.n_wavelengths``
+``silhouette.pixel_m``) → the ground shadow (on ``silhouette.ground`` × the silhouette's grid) (:func:`~cssat.occultation.shadow`, ``optics.n_wavelengths``
 over the filter) → the averages over each telescope's aperture, its exposure and the star's
 limb-darkened disk → ``array.n_slots`` positions across the track, one telescope every
 ``array.spacing_m``, of which a random ``array.fill`` are present (seeded) → their series with
-photon, read and scintillation noise → the silhouette by :func:`~cssat.occultation.invert_silhouette`.
-Outputs: ``arrays.npz`` (truth, pattern, series, reconstruction), the figures
-``occultation_shadow``, ``occultation_series``, ``occultation_silhouette``; metrics ``iou``,
-``iou_geometric`` (the shadow's own dark region thresholded at 0.5: what a geometric-chord
-analysis sees) and the photon budget.
+photon, read and scintillation noise → the silhouette: first by TV on the linearised model
+(:func:`~cssat.occultation.invert_linear`, ``invert.linear_tv``; ``invert.init: empty`` skips
+it), then by the non-linear fit started from it (:func:`~cssat.occultation.invert_silhouette`,
+``invert.tv``, ``invert.iters``).
+Outputs: ``arrays.npz`` (truth, pattern, series, reconstructions), the figures
+``occultation_shadow``, ``occultation_series``, ``occultation_silhouette``; metrics ``iou``
+(``iou_linear``: the linear route alone), ``iou_geometric`` (the shadow's own dark region
+thresholded at 0.5: what a geometric-chord analysis sees), ``edge_width_m`` (10–90 %,
+:func:`~cssat.occultation.edge_width`), ``thin_contrast`` / ``gap_contrast`` (features narrower
+than ``invert.feature_m``, :func:`~cssat.occultation.feature_contrast`) and the photon budget.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, float_param, int_param
+from cssat._checks import FieldError, choice_param, float_param, int_param
 
 log = logging.getLogger("cssat")
 
@@ -39,8 +44,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     from cssat.experiments.context import Run
     from cssat.experiments.files import write_npz
     from cssat.experiments.scene import build_scenario
-    from cssat.occultation import (invert_silhouette, iou, noisy, pattern_kernel, photons, record, shadow, shadow_track,
-                                   silhouette, smooth, star_direction)
+    from cssat.occultation import (edge_width, feature_contrast, invert_linear, invert_silhouette, iou, noisy, pattern_kernel,
+                                   photons, record, shadow, shadow_track, silhouette, smooth, star_direction)
     from cssat.scene.attitude import nadir_pointing_frame
 
     run_ = Run.from_config(cfg, out_dir)
@@ -95,7 +100,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         k = pattern_kernel(pixel, aperture_m=D, star_diameter_m=theta * z, limb_darkening=limb, smear_m=speed * t_exp,
                            smear_dir=v / speed)
         dtype = torch.float64
-        I = shadow(torch.as_tensor(truth, dtype=dtype), pixel, lams, z)
+        ground = float_param(sil.get("ground", 1.0), "silhouette.ground", 1.0, 8.0)
+        I = shadow(torch.as_tensor(truth, dtype=dtype), pixel, lams, z, ground=ground)
         Is = smooth(I, k)
 
     with run_.stage("record"):
@@ -108,7 +114,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         n_on = max(1, int(round(fill * n_slots)))
         on = np.sort(rng.choice(n_slots, n_on, replace=False))
         pos = offsets[on, None] * across[None, :]
-        t_half = span / 2 / speed
+        t_half = I.shape[-1] * pixel / 2 / speed  # the whole ground grid passes each telescope
         times = np.arange(-t_half, t_half, t_exp)
         clean = record(Is, pixel, pos, v, times)
         gen = torch.Generator().manual_seed(run_.seed + 1)
@@ -118,18 +124,37 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         metrics.update(n_telescopes=int(n_on), n_slots=n_slots, fill=n_on / n_slots, n_samples=int(y.numel()),
                        photons_per_exposure=photons(mag, D, t_exp), star_magnitude=mag, aperture_m=D)
 
+    with run_.stage("invert_linear"):
+        geo = (y, sig, (size, size), pixel, lams, z, pos, v, times)
+        init = choice_param(inv.get("init", "linear"), "invert.init", ("linear", "empty"))
+        linear = None
+        if init == "linear":
+            from cssat.recon import TV
+
+            solver = TV(lam=float_param(inv.get("linear_tv", 1e-2), "invert.linear_tv", 0.0), method="pdhg",
+                        max_iter=int_param(inv.get("linear_iters", 500), "invert.linear_iters", 1))
+            linear, linfo = invert_linear(*geo, kernel=k, solver=solver, ground=ground)
+            metrics.update(iou_linear=iou(linear, truth), chi2_per_sample_linear=linfo["chi2_per_sample"])
+
     with run_.stage("invert"):
-        m, info = invert_silhouette(y, sig, (size, size), pixel, lams, z, pos, v, times, kernel=k,
-                                    tv=float(inv.get("tv", 1e-3)), iters=int(inv.get("iters", 300)),
-                                    n_starts=int(inv.get("n_starts", 1)), seed=run_.seed)
-        geometric = np.clip(1 - Is.numpy(), 0, 1)
+        m, info = invert_silhouette(*geo, kernel=k, tv=float_param(inv.get("tv", 0.3), "invert.tv", 0.0),
+                                    iters=int_param(inv.get("iters", 300), "invert.iters", 1),
+                                    n_starts=int_param(inv.get("n_starts", 1), "invert.n_starts", 1), seed=run_.seed, init=linear,
+                                    ground=ground)
+        gy, gx = (I.shape[-2] - size) // 2, (I.shape[-1] - size) // 2
+        geometric = np.clip(1 - Is.numpy()[gy:gy + size, gx:gx + size], 0, 1)  # on the silhouette's grid
+        feat = float_param(inv.get("feature_m", 0.5), "invert.feature_m", 0.0, open_lo=True)
+        fc = feature_contrast(m, truth, pixel, feat)
         metrics.update(iou=iou(m, truth), iou_geometric=iou(geometric, truth), chi2_per_sample=info["chi2_per_sample"],
-                       silhouette_area_m2=float(truth.sum() * pixel ** 2))
+                       silhouette_area_m2=float(truth.sum() * pixel ** 2), edge_width_m=edge_width(m, truth, pixel),
+                       feature_m=feat, thin_contrast=fc["thin_contrast"], gap_contrast=fc["gap_contrast"],
+                       thin_pixels=fc["thin_pixels"], gap_pixels=fc["gap_pixels"])
 
     with run_.stage("write"):
         out = Path(out_dir)
         write_npz(out / "arrays.npz", truth=truth, pattern=I.numpy(), smoothed=Is.numpy(), series=y.numpy(), sigma=sig.numpy(),
-                  clean=clean.numpy(), positions_m=pos, times_s=times, velocity_m_s=v, reconstruction=m)
+                  clean=clean.numpy(), positions_m=pos, times_s=times, velocity_m_s=v, reconstruction=m,
+                  **({} if linear is None else {"reconstruction_linear": linear}))
         _figures(run_, truth, I.numpy(), y.numpy(), m, geometric, pixel, times, metrics)
     metrics.update(run_.timings())
     log.info("occultation: %s at %.0f km, shadow %.2f km/s, Fresnel scale %.2f m; %d of %d telescopes; IoU %.3f "
@@ -155,8 +180,9 @@ def _figures(run_, truth, pattern, series, recon, geometric, pixel, times, metri
         fig.tight_layout()
         save_figure(fig, run_.figure(stem))
 
+    gext = [-pattern.shape[1] * pixel / 2, pattern.shape[1] * pixel / 2, -pattern.shape[0] * pixel / 2, pattern.shape[0] * pixel / 2]
     panel(pattern, (6, 5), "intensity / unocculted star", "east (m)", "north (m)",
-          f"Ground shadow (Fresnel scale {metrics['fresnel_scale_m']:.1f} m)", "occultation_shadow", origin="lower", extent=ext)
+          f"Ground shadow (Fresnel scale {metrics['fresnel_scale_m']:.1f} m)", "occultation_shadow", origin="lower", extent=gext)
     panel(series, (7, 4), "recorded / unocculted", "time (ms)", "telescope",
           f"Recorded series: {metrics['n_telescopes']} telescopes, V = {metrics['star_magnitude']:g}", "occultation_series",
           aspect="auto", extent=[times[0] * 1e3, times[-1] * 1e3, len(series) - 0.5, -0.5])

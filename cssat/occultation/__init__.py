@@ -13,9 +13,9 @@ cssat's linear solvers.
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
 from cssat.occultation.geometry import plane_basis, shadow_track, silhouette, star_direction
-from cssat.occultation.invert import invert_silhouette, iou
+from cssat.occultation.invert import edge_width, feature_contrast, invert_silhouette, iou
 from cssat.occultation.linear import ShadowOperator, invert_linear
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
 __all__ = ["shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
-           "invert_silhouette", "iou", "ShadowOperator", "invert_linear", "noisy", "pattern_kernel", "photons", "record", "smooth"]
+           "invert_silhouette", "iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "noisy", "pattern_kernel", "photons", "record", "smooth"]

@@ -58,8 +58,28 @@ def pixel_kernel(n: int, pixel_m: float, wavelength_m: float, distance_m: float)
     return np.diff(C) + 1j * np.diff(S)
 
 
-def _check(mask: Tensor, pixel_m: float, wavelength_m: float, distance_m: float) -> None:
+def _ground_shape(mask: Tensor, ground: Any) -> tuple[int, int]:
+    """The ground grid ``(Hg, Wg)``: the mask's, or ``ground`` — a shape ``(Hg, Wg)`` ≥ the mask's
+    with ``Hg − H`` and ``Wg − W`` even (so the centres coincide) or one factor ≥ 1 (rounded to
+    that parity)."""
     H, W = mask.shape[-2:]
+    if ground is None:
+        return H, W
+    if np.ndim(ground) == 0:
+        f = float_param(ground, "ground", 1.0)
+        Hg, Wg = (int(round(f * n)) for n in (H, W))
+        return Hg + (Hg - H) % 2, Wg + (Wg - W) % 2
+    try:
+        Hg, Wg = (int(v) for v in ground)
+    except (TypeError, ValueError):
+        raise FieldError("ground", f"expected a factor >= 1 or a shape (Hg, Wg), got {ground!r}") from None
+    if Hg < H or Wg < W or (Hg - H) % 2 or (Wg - W) % 2:
+        raise FieldError("ground", f"the ground grid {(Hg, Wg)} must cover the mask's {(H, W)} with an even margin on each axis")
+    return Hg, Wg
+
+
+def _check(mask: Tensor, pixel_m: float, wavelength_m: float, distance_m: float, ground: tuple[int, int] | None = None) -> None:
+    H, W = mask.shape[-2:] if ground is None else ground
     r_max = 0.5 * math.hypot(H, W) * pixel_m  # the farthest a grid point is from the occulter's centre
     limit = wavelength_m * distance_m / (2 * pixel_m)
     if r_max > limit:
@@ -69,13 +89,15 @@ def _check(mask: Tensor, pixel_m: float, wavelength_m: float, distance_m: float)
 
 
 def aperture_field(mask: Any, pixel_m: float, wavelength_m: float, distance_m: float, *,
-                   check_sampling: bool = True) -> Tensor:
+                   check_sampling: bool = True, ground: Any = None) -> Tensor:
     """``(h * m)`` on the mask's grid: the complex field (unit incident amplitude) on the ground
     behind an *aperture* of transmission ``mask (..., H, W)``, Fresnel-propagated over
     ``distance_m``; complex, the mask's device, float64 → complex128 (float32 → complex64).
     Differentiable in ``mask``. ``check_sampling=False`` skips the fringe-sampling check (the
     values at the pixel centres are exact either way; only what is drawn from them between the
-    centres needs it)."""
+    centres needs it). ``ground``: a larger ground grid, centred on the mask's, same pixels —
+    ``(Hg, Wg)`` or a factor — on which the field is returned ``(..., Hg, Wg)`` (the fringes
+    beyond the occulter's own extent, at no extra cost to the unknowns)."""
     pixel_m = float_param(pixel_m, "pixel_m", 0.0, open_lo=True)
     wavelength_m = float_param(wavelength_m, "wavelength_m", 0.0, open_lo=True)
     distance_m = float_param(distance_m, "distance_m", 0.0, open_lo=True)
@@ -86,32 +108,36 @@ def aperture_field(mask: Any, pixel_m: float, wavelength_m: float, distance_m: f
         raise FieldError("mask", f"expected an occulter mask (..., H, W), got shape {tuple(m.shape)}")
     if not bool(torch.isfinite(m).all()):
         raise FieldError("mask", "the mask must be finite (1 = opaque, 0 = clear)")
+    Hg, Wg = _ground_shape(m, ground)
     if check_sampling:
-        _check(m, pixel_m, wavelength_m, distance_m)
+        _check(m, pixel_m, wavelength_m, distance_m, (Hg, Wg))
     H, W = m.shape[-2:]
     cdtype = torch.complex128 if m.dtype == torch.float64 else torch.complex64
-    ky = torch.as_tensor(pixel_kernel(H, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=m.device)
-    kx = torch.as_tensor(pixel_kernel(W, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=m.device)
-    # linear convolution by FFT: sizes ≥ H + (2H − 1) − 1 so nothing wraps
+    # offsets between a mask pixel and a ground pixel reach ±((H + Hg)/2 − 1)
+    ky = torch.as_tensor(pixel_kernel((H + Hg) // 2, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=m.device)
+    kx = torch.as_tensor(pixel_kernel((W + Wg) // 2, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=m.device)
+    # linear convolution by FFT: sizes ≥ H + (H + Hg − 1) − 1 so nothing wraps
     from scipy.fft import next_fast_len
 
-    Py, Px = next_fast_len(3 * H - 2), next_fast_len(3 * W - 2)  # 2·383 = 766 would be 5× slower than 768
+    Py, Px = next_fast_len(2 * H + Hg - 2), next_fast_len(2 * W + Wg - 2)  # 2·383 = 766 would be 5× slower than 768
     Ky = torch.fft.fft(ky, n=Py)
     Kx = torch.fft.fft(kx, n=Px)
     M = torch.fft.fft2(m.to(cdtype), s=(Py, Px))
     full = torch.fft.ifft2(M * Ky[:, None] * Kx[None, :] / 2j, s=(Py, Px))
-    # output pixel (i, j) is the sum over mask pixels (p, q) of K[i − p, j − q]; K index 0 ↔ offset −(n−1)
-    return full[..., H - 1:2 * H - 1, W - 1:2 * W - 1]
+    # ground pixel (i, j) is the sum over mask pixels (p, q) of K[i − p + H − 1, j − q + W − 1]
+    # (K index 0 ↔ offset −((H + Hg)/2 − 1); the grids' centres coincide)
+    return full[..., H - 1:H - 1 + Hg, W - 1:W - 1 + Wg]
 
 
 def shadow(mask: Any, pixel_m: float, wavelength_m: float | Any, distance_m: float, *,
-           weights: Any = None, check_sampling: bool = True) -> Tensor:
+           weights: Any = None, check_sampling: bool = True, ground: Any = None) -> Tensor:
     """The ground intensity ``|1 − (h * m)|²`` behind an opaque occulter ``mask (..., H, W)``
     (1 = opaque) on a grid of ``pixel_m``, relative to the unocculted star (→ 1 far from the
     shadow), for a point star at ``wavelength_m`` over ``distance_m``; on the mask's own grid
     (padded internally). ``wavelength_m`` may be a sequence: the intensity averaged over it with
     ``weights`` (a filter's band × the star's spectrum; default equal). Real, the mask's dtype
-    and device; differentiable in ``mask``."""
+    and device; differentiable in ``mask``. ``ground``: a larger ground grid ``(Hg, Wg)`` (or a
+    factor) centred on the mask's, as in :func:`aperture_field`."""
     lams = np.atleast_1d(np.asarray(wavelength_m, dtype=np.float64))
     w = np.ones(len(lams)) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
     if w.shape != lams.shape or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
@@ -119,6 +145,7 @@ def shadow(mask: Any, pixel_m: float, wavelength_m: float | Any, distance_m: flo
     w = w / w.sum()
     out = None
     for lam, wi in zip(lams, w):
-        I = (1 - aperture_field(mask, pixel_m, float(lam), distance_m, check_sampling=check_sampling)).abs() ** 2 * float(wi)
+        I = (1 - aperture_field(mask, pixel_m, float(lam), distance_m, check_sampling=check_sampling,
+                                ground=ground)).abs() ** 2 * float(wi)
         out = I if out is None else out + I
     return out.to(torch.as_tensor(mask).dtype if torch.as_tensor(mask).is_floating_point() else torch.float64)

@@ -38,17 +38,20 @@ class ShadowOperator(LinearOperator):
     """``A (J·K, H·W)``: an occulter mask ``(B, H, W)`` (or rows ``(B, H·W)``) ↦ the linearised
     recorded series less 1, rows ``(B, J·K)`` (telescope-major: ``J`` telescopes × ``K`` exposures),
     each row divided by ``sigma`` when given. The geometry's arguments are those of
-    :func:`~cssat.occultation.record.record` and :func:`~cssat.occultation.shadow`. Matrix-free:
+    :func:`~cssat.occultation.record.record` and :func:`~cssat.occultation.shadow` (``ground``: the
+    pattern on a larger ground grid than the mask's). Matrix-free:
     the forward is FFTs and a bilinear sampling; the adjoint is the forward's vector–Jacobian
     product (exact: the map is linear). Follows the input's dtype and device (float64 →
     complex128 kernels)."""
 
     def __init__(self, shape: Sequence[int], pixel_m: float, wavelength_m: Any, distance_m: float, positions_m: Any,
-                 velocity_m_s: Any, times_s: Any, *, kernel: Any = None, weights: Any = None, sigma: Any = None):
+                 velocity_m_s: Any, times_s: Any, *, kernel: Any = None, weights: Any = None, sigma: Any = None,
+                 ground: Any = None):
         super().__init__()
         H, W = (int_param(v, "shape", 1, 1 << 14) for v in shape)
         self.in_shape = (H, W)
         self.n_in = H * W
+        self.ground = ground
         self.pixel_m, self.distance_m = float(pixel_m), float(distance_m)
         self.lams = np.atleast_1d(np.asarray(wavelength_m, dtype=np.float64))
         w = np.ones(len(self.lams)) if weights is None else np.asarray(weights, dtype=np.float64).reshape(-1)
@@ -81,7 +84,7 @@ class ShadowOperator(LinearOperator):
         lin = None
         for lam, wi in zip(self.lams, self.w):
             f = -2.0 * float(wi) * aperture_field(m, self.pixel_m, float(lam), self.distance_m,
-                                                  check_sampling=not self._checked).real
+                                                  check_sampling=not self._checked, ground=self.ground).real
             lin = f if lin is None else lin + f
         self._checked = True
         out = record(smooth(lin + 1, self.kernel), self.pixel_m, self.positions, self.velocity, self.times) - 1
@@ -104,7 +107,7 @@ class ShadowOperator(LinearOperator):
 
 def invert_linear(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, wavelength_m: Any, distance_m: float,
                   positions_m: Any, velocity_m_s: Any, times_s: Any, *, kernel: Any = None, weights: Any = None,
-                  solver: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
+                  solver: Any = None, ground: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
     """The silhouette ``(H, W)`` from the recorded ``series (J, K)`` by a linear solver on the
     linearised model (:class:`ShadowOperator`, rows weighted by ``1/sigma``): ``solver`` any
     cssat solver (``x, info = solver(problem, y)``, e.g. from the ``solver`` config group) or one
@@ -116,7 +119,7 @@ def invert_linear(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float,
 
     y = np.asarray(series, dtype=np.float64)
     op = ShadowOperator(shape, pixel_m, wavelength_m, distance_m, positions_m, velocity_m_s, times_s, kernel=kernel,
-                        weights=weights, sigma=sigma)
+                        weights=weights, sigma=sigma, ground=ground)
     if y.size != op.n_out:
         raise FieldError("series", f"expected {len(op.positions)} × {len(op.times)} samples, got shape {y.shape}")
     if solver is None or isinstance(solver, str):
