@@ -303,3 +303,32 @@ def test_a_faint_occulter_comes_back_through_the_linear_solvers():
     assert (((m > 0.05) & sup).sum() / ((m > 0.05) | sup).sum()) >= 0.7, info
     assert m[sup].mean() == pytest.approx(0.1, rel=0.25)
     assert info["chi2_per_sample"] < 2.0
+
+
+def test_the_occultation_rate_against_a_monte_carlo_sky():
+    """Stars thrown at the assumed density on a band of sky; the satellite fixed in hour angle;
+    a star counts when its separation from the satellite comes within the half-width during the
+    night (vectors, not the rate's formula): the count matches per_night to Poisson's 4σ."""
+    from cssat.occultation import occultation_rate, stars_brighter_than
+
+    dec0, width_deg, hours = np.radians(-7.0), 0.5, 8.0
+    z = 3.85e7
+    width_m = np.radians(width_deg) * z
+    expect = occultation_rate(12.0, width_m, z, dec_deg=-7.0, night_hours=hours)["per_night"]
+    rng = np.random.default_rng(0)
+    band = np.radians(1.0)  # stars within ±1° of dec0, all right ascensions
+    area = 2 * np.pi * (np.sin(dec0 + band) - np.sin(dec0 - band)) * (180 / np.pi) ** 2
+    n = rng.poisson(stars_brighter_than(12.0) * area)
+    ra = rng.uniform(0, 2 * np.pi, n)
+    dec = np.arcsin(rng.uniform(np.sin(dec0 - band), np.sin(dec0 + band), n))
+    # the satellite at hour angle 0: the star's hour angle runs over the night from −hours/2 to +hours/2
+    ha_span = np.radians(15.041 * hours)
+    ha = (ra + np.pi) % (2 * np.pi) - np.pi  # the star's hour angle at midnight = −(its RA − the LST)
+    crosses = np.abs(ha) <= ha_span / 2  # it crosses the satellite's meridian during the night
+    sat = np.array([np.cos(dec0), 0.0, np.sin(dec0)])
+    star_at_crossing = np.stack([np.cos(dec), np.zeros(n), np.sin(dec)], 1)  # its closest approach, on the meridian
+    sep = np.degrees(np.arccos(np.clip(star_at_crossing @ sat, -1, 1)))
+    count = int((crosses & (sep <= width_deg / 2)).sum())
+    assert abs(count - expect) < 4 * np.sqrt(expect) + 1, (count, expect)
+    with pytest.raises(Exception, match="magnitude"):
+        stars_brighter_than(20.0)

@@ -15,7 +15,8 @@ computed **exactly for such a mask**: the kernel of each pixel is the Fresnel in
 pixel, separable into ``(1/2i) k(m) k(n)`` with ``k(m) = ΔC + iΔS`` — differences of the Fresnel
 integrals ``C``, ``S`` (``scipy.special.fresnel``) at ``v = √(2/(λz)) pixel (m ± ½)`` — so a
 straight edge or a square gives the textbook pattern to round-off, however coarse the pixels.
-The convolution is a zero-padded FFT (linear, not circular) of size ≥ 2× the mask's.
+The convolution is a zero-padded FFT, circular on a grid just large enough that no sample of
+the output wraps (overlap-save: ``H + Hg − 1`` for a mask of ``H`` rows on a ground of ``Hg``).
 
 Sampling: the values are exact at the pixel centres; between them the pattern must be resolved
 for averages over apertures, exposures or stars drawn from those samples. The local fringe
@@ -88,6 +89,34 @@ def _check(mask: Tensor, pixel_m: float, wavelength_m: float, distance_m: float,
                                     f"≤ λz/(2·pixel_m) = {limit:.3g} m (smaller pixels or a smaller grid)")
 
 
+_SPECTRA: dict = {}
+
+
+def _kernel_spectrum(H, W, Hg, Wg, pixel_m, wavelength_m, distance_m, cdtype, device):
+    """The 2-D transfer function ``k(m) k(n)/(2i)`` on the FFT grid ``(Py, Px)``, cached (an
+    inversion calls the forward hundreds of times with one geometry).
+
+    A circular convolution of size ``P`` equals the linear one on the ground samples when
+    ``P ≥ H + Hg − 1``: the full linear convolution is ``2H + Hg − 2`` long and the ground
+    samples are its indices ``H − 1 … H + Hg − 2``, which nothing from beyond ``P`` wraps onto
+    (overlap-save) — 511 rather than 766 for a 256² mask on its own grid, 0.44× the FFT work."""
+    from scipy.fft import next_fast_len
+
+    key = (H, W, Hg, Wg, pixel_m, wavelength_m, distance_m, cdtype, str(device))
+    hit = _SPECTRA.get(key)
+    if hit is not None:
+        return hit
+    Py, Px = next_fast_len(H + Hg - 1), next_fast_len(W + Wg - 1)
+    # offsets between a mask pixel and a ground pixel reach ±((H + Hg)/2 − 1)
+    ky = torch.as_tensor(pixel_kernel((H + Hg) // 2, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=device)
+    kx = torch.as_tensor(pixel_kernel((W + Wg) // 2, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=device)
+    K = torch.fft.fft(ky, n=Py)[:, None] * (torch.fft.fft(kx, n=Px) / 2j)[None, :]
+    if len(_SPECTRA) >= 16:
+        _SPECTRA.pop(next(iter(_SPECTRA)))
+    _SPECTRA[key] = (K, (Py, Px))
+    return _SPECTRA[key]
+
+
 def aperture_field(mask: Any, pixel_m: float, wavelength_m: float, distance_m: float, *,
                    check_sampling: bool = True, ground: Any = None) -> Tensor:
     """``(h * m)`` on the mask's grid: the complex field (unit incident amplitude) on the ground
@@ -113,19 +142,8 @@ def aperture_field(mask: Any, pixel_m: float, wavelength_m: float, distance_m: f
         _check(m, pixel_m, wavelength_m, distance_m, (Hg, Wg))
     H, W = m.shape[-2:]
     cdtype = torch.complex128 if m.dtype == torch.float64 else torch.complex64
-    # offsets between a mask pixel and a ground pixel reach ±((H + Hg)/2 − 1)
-    ky = torch.as_tensor(pixel_kernel((H + Hg) // 2, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=m.device)
-    kx = torch.as_tensor(pixel_kernel((W + Wg) // 2, pixel_m, wavelength_m, distance_m), dtype=cdtype, device=m.device)
-    # linear convolution by FFT: sizes ≥ H + (H + Hg − 1) − 1 so nothing wraps
-    from scipy.fft import next_fast_len
-
-    Py, Px = next_fast_len(2 * H + Hg - 2), next_fast_len(2 * W + Wg - 2)  # 2·383 = 766 would be 5× slower than 768
-    Ky = torch.fft.fft(ky, n=Py)
-    Kx = torch.fft.fft(kx, n=Px)
-    M = torch.fft.fft2(m.to(cdtype), s=(Py, Px))
-    full = torch.fft.ifft2(M * Ky[:, None] * Kx[None, :] / 2j, s=(Py, Px))
-    # ground pixel (i, j) is the sum over mask pixels (p, q) of K[i − p + H − 1, j − q + W − 1]
-    # (K index 0 ↔ offset −((H + Hg)/2 − 1); the grids' centres coincide)
+    K, (Py, Px) = _kernel_spectrum(H, W, Hg, Wg, pixel_m, wavelength_m, distance_m, cdtype, m.device)
+    full = torch.fft.ifft2(torch.fft.fft2(m.to(cdtype), s=(Py, Px)) * K)
     return full[..., H - 1:H - 1 + Hg, W - 1:W - 1 + Wg]
 
 
@@ -145,7 +163,7 @@ def shadow(mask: Any, pixel_m: float, wavelength_m: float | Any, distance_m: flo
     w = w / w.sum()
     out = None
     for lam, wi in zip(lams, w):
-        I = (1 - aperture_field(mask, pixel_m, float(lam), distance_m, check_sampling=check_sampling,
-                                ground=ground)).abs() ** 2 * float(wi)
+        f = aperture_field(mask, pixel_m, float(lam), distance_m, check_sampling=check_sampling, ground=ground)
+        I = ((1 - f.real) ** 2 + f.imag ** 2) * float(wi)  # |1 − f|², without abs's square root
         out = I if out is None else out + I
     return out.to(torch.as_tensor(mask).dtype if torch.as_tensor(mask).is_floating_point() else torch.float64)
