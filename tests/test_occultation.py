@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import torch
@@ -332,3 +334,20 @@ def test_the_occultation_rate_against_a_monte_carlo_sky():
     assert abs(count - expect) < 4 * np.sqrt(expect) + 1, (count, expect)
     with pytest.raises(Exception, match="magnitude"):
         stars_brighter_than(20.0)
+
+
+def test_the_recorded_noise_has_the_stated_variance():
+    """A flat series at half the star's light: the sample variance of the noisy series is the
+    Poisson + read + scintillation variance (N I + r² + (σ_I N I)²)/N² to 3 %, its mean is I, and
+    the assigned 1σ (from the measured counts) has that median to 3 %."""
+    from cssat.occultation import noisy, photons
+    from cssat.physics.turbulence import scintillation_index
+
+    N = photons(8.0, 0.5, 2e-4)
+    s_i2 = scintillation_index(0.5, 1.0, 2e-4)
+    I = torch.full((200, 200), 0.5, dtype=torch.float64)
+    y, sig = noisy(I, 8.0, 0.5, 2e-4, read_noise_e=3.0, generator=torch.Generator().manual_seed(3))
+    var = (N * 0.5 + 9.0 + s_i2 * (N * 0.5) ** 2) / N ** 2
+    assert float(y.mean()) == pytest.approx(0.5, abs=4 * math.sqrt(var / y.numel()))
+    assert float(y.var()) == pytest.approx(var, rel=0.03)
+    assert float(sig.median()) ** 2 == pytest.approx(var, rel=0.03)

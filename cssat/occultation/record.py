@@ -135,7 +135,9 @@ def noisy(series: Tensor, star_mag: float, aperture_m: float, exposure_s: float,
           read_noise_e: float = 5.0, scintillation: bool = True, airmass: float = 1.0,
           generator: torch.Generator | None = None) -> tuple[Tensor, Tensor]:
     """The recorded series with noise, relative to the unocculted star, and its 1σ: photon counts
-    ``Poisson(N⋆ I (1 + σ_I ε))``, read noise, divided by ``N⋆`` (:func:`photons`)."""
+    ``Poisson(N⋆ I (1 + σ_I ε))``, read noise, divided by ``N⋆`` (:func:`photons`). The 1σ is
+    what an observer would assign from the *measured* counts ``c`` (not the true intensity,
+    which the observer does not have): ``√(max(c, 1) + r² + (σ_I c)²) / N⋆``."""
     N = photons(star_mag, aperture_m, exposure_s, throughput)
     sig_i = 0.0
     if scintillation:
@@ -147,5 +149,6 @@ def noisy(series: Tensor, star_mag: float, aperture_m: float, exposure_s: float,
     scint = 1 + sig_i * torch.randn(s.shape, generator=g, dtype=torch.float64)
     counts = torch.poisson((N * s * scint).clamp_min(0), generator=g)
     counts = counts + read_noise_e * torch.randn(s.shape, generator=g, dtype=torch.float64)
-    sigma = torch.sqrt(N * s + read_noise_e ** 2 + (sig_i * N * s) ** 2) / N
+    c = counts.clamp_min(1.0)
+    sigma = torch.sqrt(c + read_noise_e ** 2 + (sig_i * c) ** 2) / N
     return (counts / N).to(series.dtype).to(series.device), sigma.to(series.dtype).to(series.device)
