@@ -351,3 +351,24 @@ def test_the_recorded_noise_has_the_stated_variance():
     assert float(y.mean()) == pytest.approx(0.5, abs=4 * math.sqrt(var / y.numel()))
     assert float(y.var()) == pytest.approx(var, rel=0.03)
     assert float(sig.median()) ** 2 == pytest.approx(var, rel=0.03)
+
+
+def test_edge_width_and_feature_contrast_against_blurred_targets():
+    """A square blurred by a Gaussian of σ has the 10–90 % edge width 2 · 1.2816 σ (the normal
+    quantiles); a bar target's 0.5 m bars and gaps score contrast 1 in the truth and lose it
+    when blurred by σ = 0.3 m (the MTF at their 1 m period: exp(−2π² σ²/1 m²) = 0.17)."""
+    from scipy.ndimage import gaussian_filter
+
+    from cssat.occultation import bar_target, edge_width, feature_contrast
+
+    t = np.zeros((128, 128))
+    t[30:98, 30:98] = 1
+    for sig in (2.0, 4.0):
+        assert edge_width(gaussian_filter(t, sig), t, 0.1) == pytest.approx(2 * 1.2816 * sig * 0.1, rel=0.05)
+    bars = bar_target(128, 0.1, 0.5)
+    assert bars.sum() * 0.01 == pytest.approx(4.0 + 2 * 4 * 0.5 * 4.0, rel=1e-9)  # the bus and 8 bars of 0.5 × 4 m
+    perfect = feature_contrast((bars >= 0.5).astype(float), bars, 0.1, 0.5)  # (the target's edges fall mid-pixel)
+    assert perfect["gap_contrast"] == 1.0 and perfect["gap_pixels"] > 0
+    blurred = feature_contrast(gaussian_filter(bars, 3.0), bars, 0.1, 0.5)
+    assert blurred["gap_contrast"] < 0.3
+    assert feature_contrast(bars, bars, 0.1, 0.2)["gap_pixels"] == 0  # no gap is as narrow as 0.2 m

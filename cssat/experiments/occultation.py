@@ -5,7 +5,8 @@ silhouette inverted from the recorded series (:mod:`cssat.occultation`).
 Stages: the ``scenario`` at ``scenario.start_utc`` → the star (``star.ra_deg``/``dec_deg``;
 null: exactly behind the satellite then) → the fundamental plane, the shadow's velocity and the
 satellite's distance along the line of sight (:func:`~cssat.occultation.shadow_track`) → the
-``model``'s silhouette in its ``attitude`` seen along that line (``silhouette.size`` pixels of
+``model``'s silhouette in its ``attitude`` seen along that line (``silhouette.target: bars``:
+a resolution target of ``silhouette.bar_m`` bars and gaps instead, :func:`~cssat.occultation.bar_target`) (``silhouette.size`` pixels of
 ``silhouette.pixel_m``) → the ground shadow (on ``silhouette.ground`` × the silhouette's grid) (:func:`~cssat.occultation.shadow`, ``optics.n_wavelengths``
 over the filter) → the averages over each telescope's aperture, its exposure and the star's
 limb-darkened disk → ``array.n_slots`` positions across the track, one telescope every
@@ -91,7 +92,14 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                      tr["miss_km"][1])
 
     with run_.stage("shadow"):
-        truth = silhouette(mesh, view, pixel, size)
+        target = choice_param(sil.get("target", "model"), "silhouette.target", ("model", "bars"))
+        if target == "bars":
+            from cssat.occultation import bar_target
+
+            truth = bar_target(size, pixel, float_param(sil.get("bar_m", 0.5), "silhouette.bar_m", 0.0, open_lo=True))
+        else:
+            truth = silhouette(mesh, view, pixel, size)
+        metrics["target"] = target
         lams = lam + band * (np.arange(n_lam) + 0.5 - n_lam / 2) / n_lam if n_lam > 1 else np.array([lam])
         theta = diam_mas * 1e-3 / 206265.0
         speed = float(np.linalg.norm(v))

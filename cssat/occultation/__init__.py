@@ -12,11 +12,11 @@ cssat's linear solvers; :mod:`cssat.occultation.rate`: how often such occultatio
 """
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
-from cssat.occultation.geometry import plane_basis, shadow_track, silhouette, star_direction
+from cssat.occultation.geometry import bar_target, plane_basis, shadow_track, silhouette, star_direction
 from cssat.occultation.invert import edge_width, feature_contrast, invert_silhouette, iou
 from cssat.occultation.linear import ShadowOperator, invert_linear
 from cssat.occultation.rate import occultation_rate, stars_brighter_than
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
-__all__ = ["shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
+__all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
            "invert_silhouette", "iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "noisy", "pattern_kernel", "photons", "record", "smooth"]

@@ -20,7 +20,7 @@ import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
 
-__all__ = ["star_direction", "plane_basis", "shadow_track", "silhouette"]
+__all__ = ["bar_target", "star_direction", "plane_basis", "shadow_track", "silhouette"]
 
 
 def star_direction(ra_deg: float, dec_deg: float) -> np.ndarray:
@@ -93,4 +93,29 @@ def silhouette(mesh: Any, view_body: Any, pixel_m: float, size: int, *, supersam
     for f in tri:
         rr, cc = polygon(row[f], col[f], shape=out.shape)
         out[rr, cc] = True
+    return out.reshape(size, ss, size, ss).mean((1, 3))
+
+
+def bar_target(size: int, pixel_m: float, bar_m: float = 0.5, *, n_bars: int = 4, length_m: float = 4.0) -> np.ndarray:
+    """A resolution target ``(size, size)`` in [0, 1] (pixel-area fractions, 1 = opaque): a 2 m
+    square "bus" at the centre and two groups of ``n_bars`` bars ``bar_m`` wide and ``length_m``
+    long separated by gaps of ``bar_m`` — north of the bus the bars run east–west (their gaps
+    resolved across the array's line), south of it north–south (their gaps resolved along the
+    shadow's motion, by time). Whether the gaps come back (:func:`~cssat.occultation.feature_contrast`)
+    says whether ``bar_m`` features are resolved."""
+    size = int_param(size, "size", 8, 1 << 14)
+    px = float_param(pixel_m, "pixel_m", 0.0, open_lo=True)
+    bar = float_param(bar_m, "bar_m", 0.0, open_lo=True)
+    n = int_param(n_bars, "n_bars", 1, 1000)
+    ss = 8
+    c = (np.arange(size * ss) + 0.5) / ss * px - size * px / 2  # fine-grid centres, m
+    X, Y = np.meshgrid(c, c)  # columns east, rows north
+    out = (np.abs(X) <= 1.0) & (np.abs(Y) <= 1.0)
+    group = (2 * n - 1) * bar  # the bars and gaps across the group
+    for k in range(n):
+        lo = -group / 2 + 2 * k * bar
+        out |= (Y >= 1.5 + lo + group / 2) & (Y < 1.5 + lo + group / 2 + bar) & (np.abs(X) <= length_m / 2)
+        out |= (X >= lo) & (X < lo + bar) & (Y <= -1.5) & (Y >= -1.5 - length_m)
+    if (np.abs(Y[out]).max() if out.any() else 0) > size * px / 2 - px:
+        raise FieldError("size", f"the bar target does not fit a {size} × {size} grid of {px:g} m pixels")
     return out.reshape(size, ss, size, ss).mean((1, 3))

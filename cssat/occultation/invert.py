@@ -18,6 +18,7 @@ measured.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -76,8 +77,8 @@ def edge_width(mask: Any, truth: Any, pixel_m: float, *, reach_m: float = 3.0) -
 
 
 def feature_contrast(mask: Any, truth: Any, pixel_m: float, width_m: float = 0.5) -> dict[str, Any]:
-    """How well features narrower than ``width_m`` come back: the true silhouette's opaque
-    features that an opening by a disk of diameter ``width_m`` removes (booms, yokes, thin
+    """How well features up to ``width_m`` wide come back: the true silhouette's opaque
+    features that an opening by a disk of diameter ``width_m`` (rounded up to odd pixels) removes (booms, yokes, thin
     edges) and its clear gaps that a closing fills (gaps between panels), each scored by the
     reconstruction's contrast against its surroundings within ``width_m`` (the clear ones for a
     thin feature, the opaque ones for a gap): 1 for a perfect mask, 0 where the feature is lost.
@@ -87,7 +88,7 @@ def feature_contrast(mask: Any, truth: Any, pixel_m: float, width_m: float = 0.5
 
     T = np.asarray(truth) >= 0.5
     m = np.asarray(mask, dtype=np.float64)
-    r = max(1, int(round(float(width_m) / float(pixel_m) / 2)))
+    r = max(1, math.ceil(float(width_m) / float(pixel_m) / 2 - 1e-9))  # a disk ≥ width_m across: it bridges gaps ≤ width_m
     yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
     disk = xx * xx + yy * yy <= r * r
     pad = ((r + 1, r + 1), (r + 1, r + 1))
