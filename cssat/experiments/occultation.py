@@ -151,7 +151,9 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                                     ground=ground)
         gy, gx = (I.shape[-2] - size) // 2, (I.shape[-1] - size) // 2
         geometric = np.clip(1 - Is.numpy()[gy:gy + size, gx:gx + size], 0, 1)  # on the silhouette's grid
-        feat = float_param(inv.get("feature_m", 0.5), "invert.feature_m", 0.0, open_lo=True)
+        feat = inv.get("feature_m")  # null: the bar width for a bar target, else 0.5 m
+        feat = float_param(feat if feat is not None else (sil.get("bar_m", 0.5) if target == "bars" else 0.5), "invert.feature_m",
+                           0.0, open_lo=True)
         fc = feature_contrast(m, truth, pixel, feat)
         metrics.update(iou=iou(m, truth), iou_geometric=iou(geometric, truth), chi2_per_sample=info["chi2_per_sample"],
                        silhouette_area_m2=float(truth.sum() * pixel ** 2), edge_width_m=edge_width(m, truth, pixel),

@@ -11,9 +11,13 @@ by 1e-6), the binary prior pushing each pixel to 0 or 1. Minimised by L-BFGS (st
 search; ``method="adam"``: Adam at ``lr``), the first start ``init`` or the empty mask
 (``θ = −2``), the others random; the lowest objective kept. Ambiguities: the data are intensities only, ``I = 1 − 2 Re(h∗m) + |h∗m|²``; the
 in-line-holography twin (the mask propagated by −2z, which matches the linear term) is not a
-real mask in [0, 1], so the bounds and the binary prior remove it, but a mask is only determined
-up to what the array samples: rows between telescopes are interpolated by the priors, not
-measured.
+real mask in [0, 1], so the bounds and the binary prior remove it. The orientation ambiguity of
+intensity-only data — ``m(x)`` and its point reflection ``m(−x)`` share a far-field (Fraunhofer)
+pattern — is broken in the near field the ground samples (Fresnel number ``a²/(λz) ≈ 1`` for
+10 m at GEO: the reflected mask's ground pattern is the reflected pattern, which fixed telescopes
+tell apart), but it returns as the Fresnel scale outgrows the object. And a mask is only
+determined up to what the array samples: rows between telescopes are interpolated by the priors,
+not measured; features below the aperture and the exposure's smear (~0.5 m) come back grey.
 """
 
 from __future__ import annotations
