@@ -88,7 +88,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     from cssat.experiments.context import Run
     from cssat.experiments.files import write_csv, write_npz
     from cssat.experiments.scene import build_scenario, read_observations
-    from cssat.inversion import egi, estimate_spin, invert_convex, observability
+    from cssat.inversion import egi, estimate_spin, estimate_tumbling_periods, invert_convex, observability
     from cssat.inversion.shape import convex_iou
     from cssat.optics.lightcurve import simulate_light_curve
     from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
@@ -174,6 +174,19 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
             metrics["noise_relative_median"] = float(np.median(sigma / np.maximum(np.abs(y_unit), 1e-300)))
 
     with run_.stage("spin"):
+        # one period or two: a tumbling (non-principal-axis) light curve has two fundamental frequencies
+        try:
+            tp = estimate_tumbling_periods(t[fit], y_unit[fit], sigma=None if sigma is None else sigma[fit],
+                                           min_period_s=float(inv.get("min_period_s") or 60.0),
+                                           max_period_s=float(inv.get("max_period_s") or 86400.0))
+            metrics.update(lc_tumbling=tp["tumbling"], lc_delta_bic=tp["delta_bic"], lc_periods_s=[float(p) for p in tp["periods_s"]],
+                           lc_single_period_s=tp["single_period_s"])
+            searched = spin_mode == "search" or (spin_mode == "auto" and (observed is not None or isinstance(attitude, Spin)))
+            if tp["tumbling"] and searched:
+                log.warning("inversion: the light curve has two fundamental periods (%.1f s, %.1f s; ΔBIC %.0f): it looks "
+                            "tumbling, and the spin search assumes a principal-axis rotation", *tp["periods_s"], tp["delta_bic"])
+        except FieldError as e:  # too few samples or no second frequency: the period analysis is skipped
+            log.info("inversion: no two-period analysis (%s)", e)
         if spin_mode == "auto":
             spin_mode = "search" if observed is not None or isinstance(attitude, Spin) else "known"
         if spin_mode == "known" and true_frames is None:

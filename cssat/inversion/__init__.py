@@ -12,7 +12,8 @@ from cssat.inversion.egi import EGIOperator, egi, egi_operator, fibonacci_sphere
 from cssat.inversion.observability import observability
 from cssat.inversion.recover import recover_egi
 from cssat.inversion.shape import ConvexInversion, convex_iou, invert_convex, minkowski
-from cssat.inversion.spin import SpinSolution, estimate_period, estimate_spin
+from cssat.inversion.spin import SpinSolution, estimate_period, estimate_spin, estimate_tumbling_periods
 
 __all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi", "minkowski", "invert_convex",
-           "ConvexInversion", "observability", "estimate_period", "estimate_spin", "SpinSolution", "convex_iou"]
+           "ConvexInversion", "observability", "estimate_period", "estimate_spin", "estimate_tumbling_periods",
+           "SpinSolution", "convex_iou"]

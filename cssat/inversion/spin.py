@@ -23,7 +23,7 @@ import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
 
-__all__ = ["estimate_period", "estimate_spin", "SpinSolution"]
+__all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution"]
 
 
 def _design(t: np.ndarray, period: float, n: int) -> np.ndarray:
@@ -86,6 +86,96 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     sig_f = np.sqrt(2 * scale / curv) if curv > 0 else np.inf
     return {"period_s": period, "period_err_s": float(sig_f * period ** 2), "f0_period_s": 1 / f0, "doubled": bool(doubled),
             "chi2": chi2}
+
+
+def _lattice(order: int) -> np.ndarray:
+    """The integer pairs ``(j, k) ≠ 0`` with ``|j| + |k| ≤ order``, one of each ``±`` pair."""
+    out = [(j, k) for j in range(0, order + 1) for k in range(-order, order + 1)
+           if 0 < abs(j) + abs(k) <= order and (j > 0 or k > 0)]
+    return np.array(out, dtype=np.float64)
+
+
+def _chi2_2d(t, y, w, f1, f2, jk) -> float:
+    ph = 2 * np.pi * t[:, None] * (jk[:, 0] * f1 + jk[:, 1] * f2)[None, :]
+    X = np.concatenate([np.ones((len(t), 1)), np.cos(ph), np.sin(ph)], 1) * w[:, None]
+    coef, *_ = np.linalg.lstsq(X, y * w, rcond=None)
+    r = X @ coef - y * w
+    return float(r @ r)
+
+
+def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float = 60.0,
+                              max_period_s: float = 86400.0, order: int = 3, n_peaks: int = 8,
+                              samples_per_peak: int = 10) -> dict[str, Any]:
+    """The two fundamental frequencies of a tumbling (non-principal-axis) rotator's light curve,
+    ``flux (T,)`` at ``times_s (T,)``: the 2-D Fourier series of Pravec et al. (2005),
+
+        ``y(t) = c₀ + Σ_{(j,k)} [a_jk cos 2π(j f₁ + k f₂)t + b_jk sin 2π(j f₁ + k f₂)t]``,
+        ``0 < |j| + |k| ≤ order``,
+
+    fitted by least squares for candidate pairs ``(f₁, f₂)`` built from the ``n_peaks``
+    strongest Lomb–Scargle peaks and their halves (a peak may be a harmonic or a combination),
+    the best pairs refined by Nelder–Mead; the single-period series of the same number of terms
+    (:func:`estimate_period`'s model, ``order² + order`` harmonics) is the alternative. Returns
+    ``frequencies_hz (2,)`` and ``periods_s (2,)`` (a basis of the light curve's frequency
+    lattice: any unimodular integer change of it fits equally — for a short-axis-mode tumbler it
+    is the precession frequency and the angular velocity's own), ``chi2``, ``chi2_single``,
+    ``single_period_s``, ``delta_bic`` (the single-period BIC less the two-period one: > 10 is
+    strong evidence of tumbling) and ``tumbling`` (``delta_bic > 10``).
+
+    Assumptions: torque-free motion, whose attitude relative to the fixed angular momentum is
+    periodic up to a uniform precession, so the light curve is quasi-periodic in two frequencies;
+    the samples span many cycles of both."""
+    from astropy.timeseries import LombScargle
+    from scipy.optimize import minimize
+
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    if t.shape != y.shape or not (np.isfinite(t).all() and np.isfinite(y).all()):
+        raise FieldError("flux", "expected finite times and values of one length")
+    order = int_param(order, "order", 1, 10)
+    jk = _lattice(order)
+    n_par = 2 * len(jk) + 1
+    if len(t) < 2 * n_par:
+        raise FieldError("flux", f"a 2-D Fourier series of order {order} needs at least {2 * n_par} samples, got {len(t)}")
+    lo = float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
+    hi = float_param(max_period_s, "max_period_s", lo, open_lo=True)
+    dy = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape)
+    w = np.ones_like(y) if dy is None else 1.0 / dy
+    t = t - t[0]
+    span = float(t[-1])
+    freq, power = LombScargle(t, y, dy).autopower(minimum_frequency=1 / hi, maximum_frequency=2 / lo,
+                                                  samples_per_peak=int_param(samples_per_peak, "samples_per_peak", 1))
+    peaks: list[float] = []
+    for i in np.argsort(power)[::-1]:
+        if all(abs(freq[i] - p) > 2 / span for p in peaks):
+            peaks.append(float(freq[i]))
+        if len(peaks) == int_param(n_peaks, "n_peaks", 2, 50):
+            break
+    cands = sorted(set(peaks + [p / 2 for p in peaks if p / 2 >= 1 / hi]))
+
+    def degenerate(f1, f2):  # a small integer combination vanishes: the pair spans one frequency
+        return any(abs(j * f1 + k * f2) < 2 / span for j, k in jk)
+
+    scored = sorted((_chi2_2d(t, y, w, a, b, jk), a, b) for i, a in enumerate(cands) for b in cands[i + 1:]
+                    if not degenerate(a, b))
+    if not scored:
+        raise FieldError("flux", "no two independent frequencies in the periodogram's peaks")
+    best = None
+    for c0, a, b in scored[:3]:
+        scale = 1.0 / (360.0 * span)  # a frequency step of 1° of phase over the span
+        res = minimize(lambda z: _chi2_2d(t, y, w, a + z[0] * scale, b + z[1] * scale, jk), np.zeros(2), method="Nelder-Mead",
+                       options={"initial_simplex": [[0, 0], [30, 0], [0, 30]], "xatol": 1e-3, "fatol": 1e-12 * max(c0, 1e-300)})
+        cand = (float(res.fun), a + res.x[0] * scale, b + res.x[1] * scale)
+        if best is None or cand[0] < best[0]:
+            best = cand
+    chi2, f1, f2 = best
+    single = estimate_period(t, y, sigma=dy, min_period_s=lo, max_period_s=hi, n_harmonics=min(len(jk), 50))
+    T = len(t)
+    bic = lambda c, k: (c if dy is not None else T * np.log(max(c, 1e-300) / T)) + k * np.log(T)  # noqa: E731
+    delta = float(bic(single["chi2"], 2 * min(len(jk), 50) + 2) - bic(chi2, n_par + 2))
+    fs = np.array(sorted((abs(f1), abs(f2)), reverse=True))
+    return {"frequencies_hz": fs, "periods_s": 1.0 / fs, "chi2": chi2, "chi2_single": float(single["chi2"]),
+            "single_period_s": float(single["period_s"]), "delta_bic": delta, "tumbling": bool(delta > 10.0)}
 
 
 # --- the pole and the sidereal period (issue 24, point 4, second part) ---------------------------
