@@ -150,6 +150,27 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                                     n_starts=int_param(inv.get("n_starts", 1), "invert.n_starts", 1), seed=run_.seed, init=linear,
                                     ground=ground)
         gy, gx = (I.shape[-2] - size) // 2, (I.shape[-1] - size) // 2
+        metrics.update(iou_pixels=iou(m, truth), chi2_per_sample_pixels=info["chi2_per_sample"])
+        prior = choice_param(inv.get("prior", "auto"), "invert.prior", ("auto", "pixels", "shapes"))
+        used, shapes = "pixels", None
+        if prior != "pixels":
+            from cssat.occultation import fit_shapes
+
+            try:
+                ms, params, sinfo = fit_shapes(*geo, init_mask=m, kernel=k, ground=ground,
+                                               iters=int_param(inv.get("shape_iters", 200), "invert.shape_iters", 1))
+                n_y = int(y.numel())
+                # the sparse model is kept when it explains the data to the noise (χ² per sample within
+                # 3σ of 1: 1 + 3√(2/n)), or always with prior: shapes
+                fits = sinfo["chi2_per_sample"] <= 1 + 3 * math.sqrt(2 / n_y)
+                metrics.update(iou_shapes=iou(ms, truth), chi2_per_sample_shapes=sinfo["chi2_per_sample"], n_shapes=sinfo["n_shapes"])
+                if prior == "shapes" or fits:
+                    m, info, used, shapes = ms, {**info, "chi2_per_sample": sinfo["chi2_per_sample"]}, "shapes", params
+            except FieldError as e:
+                if prior == "shapes":
+                    raise
+                log.info("occultation: no shapes fitted (%s)", e)
+        metrics["prior_used"] = used
         geometric = np.clip(1 - Is.numpy()[gy:gy + size, gx:gx + size], 0, 1)  # on the silhouette's grid
         feat = inv.get("feature_m")  # null: the bar width for a bar target, else 0.5 m
         feat = float_param(feat if feat is not None else (sil.get("bar_m", 0.5) if target == "bars" else 0.5), "invert.feature_m",
@@ -164,7 +185,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         out = Path(out_dir)
         write_npz(out / "arrays.npz", truth=truth, pattern=I.numpy(), smoothed=Is.numpy(), series=y.numpy(), sigma=sig.numpy(),
                   clean=clean.numpy(), positions_m=pos, times_s=times, velocity_m_s=v, reconstruction=m,
-                  **({} if linear is None else {"reconstruction_linear": linear}))
+                  **({} if linear is None else {"reconstruction_linear": linear}),
+                  **({} if shapes is None else {"shapes": shapes}))
         _figures(run_, truth, I.numpy(), y.numpy(), m, geometric, pixel, times, metrics)
     metrics.update(run_.timings())
     log.info("occultation: %s at %.0f km, shadow %.2f km/s, Fresnel scale %.2f m; %d of %d telescopes; IoU %.3f "

@@ -8,7 +8,9 @@ scenario and a star, the mesh's silhouette; :mod:`cssat.occultation.record`: the
 aperture, exposure and the star's disk, the telescopes' series and their noise;
 :mod:`cssat.occultation.invert`: the silhouette from the series (non-linear, autograd);
 :mod:`cssat.occultation.linear`: the linearised (weak-occulter) model as a linear operator for
-cssat's linear solvers; :mod:`cssat.occultation.rate`: how often such occultations happen.
+cssat's linear solvers; :mod:`cssat.occultation.shapes`: the silhouette as a union of a few
+superellipses (a sparse model) fitted to the series; :mod:`cssat.occultation.rate`: how often
+such occultations happen.
 """
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
@@ -16,7 +18,9 @@ from cssat.occultation.geometry import bar_target, plane_basis, shadow_track, si
 from cssat.occultation.invert import edge_width, feature_contrast, invert_silhouette, iou
 from cssat.occultation.linear import ShadowOperator, invert_linear
 from cssat.occultation.rate import occultation_rate, stars_brighter_than
+from cssat.occultation.shapes import fit_shapes, render_shapes, shapes_from_mask
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
 __all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
-           "invert_silhouette", "iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "noisy", "pattern_kernel", "photons", "record", "smooth"]
+           "invert_silhouette", "iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "fit_shapes", "render_shapes",
+           "shapes_from_mask", "noisy", "pattern_kernel", "photons", "record", "smooth"]
