@@ -372,3 +372,50 @@ def test_edge_width_and_feature_contrast_against_blurred_targets():
     blurred = feature_contrast(gaussian_filter(bars, 3.0), bars, 0.1, 0.5)
     assert blurred["gap_contrast"] < 0.3
     assert feature_contrast(bars, bars, 0.1, 0.2)["gap_pixels"] == 0  # no gap is as narrow as 0.2 m
+
+
+def test_a_superellipse_has_its_analytic_area():
+    """The area of |u/a|^p + |w/b|^p ≤ 1 is 4ab Γ(1 + 1/p)² / Γ(1 + 2/p): an ellipse (p → 2) πab,
+    a near-rectangle (p = 2 + e⁴) almost 4ab; the rendered soft mask's sum matches to 0.5 %, at any angle."""
+    from scipy.special import gamma
+
+    from cssat.occultation import render_shapes
+
+    a, b = 2.0, 0.7
+    for q in (-4.0, 0.0, 4.0):
+        p = 2 + np.exp(q)
+        exact = 4 * a * b * gamma(1 + 1 / p) ** 2 / gamma(1 + 2 / p)
+        for ang in (0.0, 0.4):
+            m = render_shapes([[0.3, -0.2, np.log(a), np.log(b), ang, q]], (120, 120), 0.05)
+            assert float(m.sum()) * 0.05 ** 2 == pytest.approx(exact, rel=5e-3)
+    two = render_shapes([[-1.0, 0, 0, 0, 0, 0], [1.0, 0, 0, 0, 0, 0]], (100, 100), 0.05)  # two unit discs touching: the union
+    assert float(two.max()) == pytest.approx(1.0, abs=1e-6) and float(two.min()) >= 0.0
+
+
+def test_fit_shapes_recovers_a_box_wing_from_its_shadow():
+    """A bus (a 2 × 2 m square) and a wing (6 × 1 m) on 0.25 m pixels at GEO's range, recorded
+    by 12 telescopes with 1 % noise; started from a crude mask (the truth dilated by a pixel:
+    IoU < 0.85), the superellipses' fit returns IoU ≥ 0.9, the wing's length to 10 %, both
+    centres to 0.1 m (0.4 pixel)."""
+    from scipy.ndimage import binary_dilation
+
+    from cssat.occultation import fit_shapes, iou, render_shapes, shadow
+    from cssat.occultation.record import pattern_kernel, record, smooth
+
+    lam, px, z, N = 550e-9, 0.25, 3.5786e7, 48
+    truth = render_shapes([[0.0, 1.5, 0.0, 0.0, 0.0, 4.0], [0.0, -1.5, np.log(3.0), np.log(0.5), np.pi / 2, 4.0]], (N, N), px,
+                          softness=0.05).numpy()
+    v = np.array([2600.0, 0.0])
+    pos = np.stack([np.zeros(12), (np.arange(12) - 5.5) * 0.9], 1)
+    times = np.arange(-N / 2, N / 2) * px / 2600.0
+    k = pattern_kernel(px, aperture_m=0.5, smear_m=px, smear_dir=(1, 0))
+    with torch.no_grad():
+        y = record(smooth(shadow(torch.tensor(truth), px, lam, z), k), px, pos, v, times)
+    y = y + 0.01 * torch.randn(y.shape, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    crude = binary_dilation(truth >= 0.5, iterations=1).astype(float)
+    assert iou(crude, truth) < 0.85
+    m, params, info = fit_shapes(y, 0.01, (N, N), px, lam, z, pos, v, times, init_mask=crude, kernel=k)
+    assert iou(m, truth) >= 0.9, (info, params)
+    wing, bus = (params[0], params[1]) if params[0, 1] < 0 else (params[1], params[0])
+    assert max(np.exp(wing[2]), np.exp(wing[3])) == pytest.approx(3.0, rel=0.1)  # the wing's half-length
+    assert np.hypot(bus[0], bus[1] - 1.5) < 0.1 and np.hypot(wing[0], wing[1] + 1.5) < 0.1
