@@ -437,3 +437,17 @@ def test_the_linear_route_runs_every_named_solver(name):
     assert np.corrcoef(m.ravel(), truth.ravel())[0, 1] > 0.7 and info["chi2_per_sample"] < 1.6
     with pytest.raises(Exception, match="solver"):
         invert_linear(y, 1e-3, (32, 32), **c, solver="cg")
+
+
+def test_the_occultation_experiment_names_its_bad_choices_before_any_work(tmp_path):
+    from hydra import compose, initialize_config_module
+
+    from cssat._checks import FieldError
+    from cssat.experiments import run_experiment
+
+    for bad in ("invert.prior=foo", "silhouette.target=foo", "invert.init=foo", "array.fill=0"):
+        with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+            cfg = compose(config_name="config", overrides=["experiment=occultation", bad, "threads=1"])
+        field = bad.split("=")[0]
+        with pytest.raises(FieldError, match=field.replace(".", r"\.")):
+            run_experiment(cfg, tmp_path / field)

@@ -64,6 +64,10 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         spacing = float_param(array.get("spacing_m", D), "array.spacing_m", 0.0, open_lo=True)
         fill = float_param(array.get("fill", 0.25), "array.fill", 0.0, 1.0, open_lo=True)
         t_exp = float_param(array.get("exposure_s", 1e-4), "array.exposure_s", 0.0, open_lo=True)
+        # every choice checked before any work
+        target = choice_param(sil.get("target", "model"), "silhouette.target", ("model", "bars"))
+        init = choice_param(inv.get("init", "linear"), "invert.init", ("linear", "empty"))
+        prior = choice_param(inv.get("prior", "auto"), "invert.prior", ("auto", "pixels", "shapes"))
         mesh = build_model(cfg.model)
         attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
     metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": mesh.name, "seed": run_.seed}
@@ -92,7 +96,6 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                      tr["miss_km"][1])
 
     with run_.stage("shadow"):
-        target = choice_param(sil.get("target", "model"), "silhouette.target", ("model", "bars"))
         if target == "bars":
             from cssat.occultation import bar_target
 
@@ -134,7 +137,6 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
 
     with run_.stage("invert_linear"):
         geo = (y, sig, (size, size), pixel, lams, z, pos, v, times)
-        init = choice_param(inv.get("init", "linear"), "invert.init", ("linear", "empty"))
         linear = None
         if init == "linear":
             from cssat.recon import TV
@@ -151,7 +153,6 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                                     ground=ground)
         gy, gx = (I.shape[-2] - size) // 2, (I.shape[-1] - size) // 2
         metrics.update(iou_pixels=iou(m, truth), chi2_per_sample_pixels=info["chi2_per_sample"])
-        prior = choice_param(inv.get("prior", "auto"), "invert.prior", ("auto", "pixels", "shapes"))
         used, shapes = "pixels", None
         if prior != "pixels":
             from cssat.occultation import fit_shapes
