@@ -261,6 +261,19 @@ def _linear_case(N=32, px=0.25):
                 kernel=k)
 
 
+def _faint_plate():
+    """A 10 %-opaque 2 × 1.5 m plate on 32² pixels of 0.25 m, its linearised series with 0.1 % noise."""
+    from cssat.occultation import ShadowOperator
+
+    c = _linear_case()
+    truth = np.zeros((32, 32))
+    truth[12:18, 10:18] = 0.1
+    op = ShadowOperator((32, 32), **c)
+    rng = np.random.default_rng(2)
+    y = 1 + op(torch.tensor(truth).reshape(1, -1))[0].numpy().reshape(10, -1) + 1e-3 * rng.standard_normal((10, 32))
+    return c, truth, y
+
+
 def test_the_linearised_shadow_is_a_linear_operator_with_its_adjoint():
     """<A x, y> = <x, Aᵀ y> (the adjoint by autograd), and A's columns are the brute-force
     linear term −2 Re(h ∗ e_ij) recorded: one pixel's column from the exact shadow of a faint
@@ -290,14 +303,9 @@ def test_a_faint_occulter_comes_back_through_the_linear_solvers():
     holds — recorded by 10 telescopes with 0.1 % noise: TV on the linearised operator recovers
     its support (IoU of the support ≥ 0.7 where the empty estimate scores 0) and its opacity
     (the recovered mean over the plate within 25 % of 0.1)."""
-    from cssat.occultation import ShadowOperator, invert_linear
+    from cssat.occultation import invert_linear
 
-    c = _linear_case()
-    truth = np.zeros((32, 32))
-    truth[12:18, 10:18] = 0.1
-    op = ShadowOperator((32, 32), **c)
-    rng = np.random.default_rng(2)
-    y = 1 + op(torch.tensor(truth).reshape(1, -1))[0].numpy().reshape(10, -1) + 1e-3 * rng.standard_normal((10, 32))
+    c, truth, y = _faint_plate()
     from cssat.recon import TV
 
     m, info = invert_linear(y, 1e-3, (32, 32), **c, solver=TV(lam=3e-3, method="pdhg", max_iter=800))
@@ -425,14 +433,9 @@ def test_fit_shapes_recovers_a_box_wing_from_its_shadow():
 def test_the_linear_route_runs_every_named_solver(name):
     """ℓ1 and OMP in the DCT and Landweber on the same faint plate: each estimate correlates with
     the truth (> 0.7; a blank or random estimate scores ~0) and fits to within 1.6× the noise."""
-    from cssat.occultation import ShadowOperator, invert_linear
+    from cssat.occultation import invert_linear
 
-    c = _linear_case()
-    truth = np.zeros((32, 32))
-    truth[12:18, 10:18] = 0.1
-    op = ShadowOperator((32, 32), **c)
-    rng = np.random.default_rng(2)
-    y = 1 + op(torch.tensor(truth).reshape(1, -1))[0].numpy().reshape(10, -1) + 1e-3 * rng.standard_normal((10, 32))
+    c, truth, y = _faint_plate()
     m, info = invert_linear(y, 1e-3, (32, 32), **c, solver=name)
     assert np.corrcoef(m.ravel(), truth.ravel())[0, 1] > 0.7 and info["chi2_per_sample"] < 1.6
     with pytest.raises(Exception, match="solver"):

@@ -34,11 +34,16 @@ def _design(t: np.ndarray, period: float, n: int) -> np.ndarray:
     return np.stack(cols, 1)
 
 
-def _chi2(t: np.ndarray, y: np.ndarray, w: np.ndarray, period: float, n: int) -> float:
-    X = _design(t, period, n) * w[:, None]
-    coef, *_ = np.linalg.lstsq(X, y * w, rcond=None)
-    r = X @ coef - y * w
+def _wls_chi2(X: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    """χ² of the weighted least-squares fit of the design ``X (T, p)`` to ``y`` (weights ``w = 1/σ``)."""
+    Xw = X * w[:, None]
+    coef, *_ = np.linalg.lstsq(Xw, y * w, rcond=None)
+    r = Xw @ coef - y * w
     return float(r @ r)
+
+
+def _chi2(t: np.ndarray, y: np.ndarray, w: np.ndarray, period: float, n: int) -> float:
+    return _wls_chi2(_design(t, period, n), y, w)
 
 
 def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float = 60.0,
@@ -97,10 +102,7 @@ def _lattice(order: int) -> np.ndarray:
 
 def _chi2_2d(t, y, w, f1, f2, jk) -> float:
     ph = 2 * np.pi * t[:, None] * (jk[:, 0] * f1 + jk[:, 1] * f2)[None, :]
-    X = np.concatenate([np.ones((len(t), 1)), np.cos(ph), np.sin(ph)], 1) * w[:, None]
-    coef, *_ = np.linalg.lstsq(X, y * w, rcond=None)
-    r = X @ coef - y * w
-    return float(r @ r)
+    return _wls_chi2(np.concatenate([np.ones((len(t), 1)), np.cos(ph), np.sin(ph)], 1), y, w)
 
 
 def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float = 60.0,
@@ -234,6 +236,13 @@ def _separation_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
     return float(np.degrees(np.arccos(np.clip(_pole_vector(*a) @ _pole_vector(*b), -1.0, 1.0))))
 
 
+def _pole_rotation(lon: float, lat: float, frame: str) -> np.ndarray:
+    """``(3, 3)``: inertial → the frame whose z is the pole (spin_frame at zero phase)."""
+    from cssat.scene.attitude import spin_frame
+
+    return spin_frame(np.zeros(1), lon, lat, 1.0, 0.0, frame)[0]
+
+
 class _Fit:
     """The EGI fit's χ² as a function of the spin ``(λ, β, f)`` on a subset of samples and a
     grid of normals: NNLS in the EGI for each spin. The pole's fixed rotation is cached, so a
@@ -249,10 +258,8 @@ class _Fit:
         self._pole: tuple | None = None
 
     def _at_pole(self, lon, lat):
-        from cssat.scene.attitude import spin_frame
-
         if self._pole != (lon, lat):
-            M = spin_frame(np.zeros(1), lon, lat, 1.0, 0.0, self.frame)[0]  # the pole's fixed rotation
+            M = _pole_rotation(lon, lat, self.frame)
             self._sp, self._op, self._pole = self.S @ M.T, self.O @ M.T, (lon, lat)
         return self._sp, self._op
 
@@ -362,9 +369,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         """The Sun's and the observer's median longitude rates about the pole, in Hz, at most
         3× their angular rates (a direction near the pole turns fast in longitude but hardly
         modulates the light curve)."""
-        from cssat.scene.attitude import spin_frame
-
-        M = spin_frame(np.zeros(1), lon, lat, 1.0, 0.0, frame)[0]  # the pole's fixed rotation, as in _Fit
+        M = _pole_rotation(lon, lat, frame)
         out = []
         for v in (S @ M.T, O @ M.T):
             dl = (np.diff(np.arctan2(v[:, 1], v[:, 0])) + np.pi) % (2 * np.pi) - np.pi

@@ -113,6 +113,18 @@ def feature_contrast(mask: Any, truth: Any, pixel_m: float, width_m: float = 0.5
     return out
 
 
+def recorded(m: Tensor, pixel_m: float, wavelength_m: Any, distance_m: float, positions_m: Any, velocity_m_s: Any,
+             times_s: Any, *, kernel: Any = None, weights: Any = None, ground: Any = None) -> Tensor:
+    """The full forward model: the series ``(J, K)`` the telescopes record behind the mask ``m``
+    (:func:`~cssat.occultation.shadow`, the averaging ``kernel``, :func:`~cssat.occultation.record.record`)."""
+    from cssat.occultation.fresnel import shadow
+    from cssat.occultation.record import record, smooth
+
+    k = np.ones((1, 1)) if kernel is None else np.asarray(kernel, dtype=np.float64)
+    I = shadow(m, pixel_m, wavelength_m, distance_m, weights=weights, ground=ground)
+    return record(smooth(I, k), pixel_m, positions_m, velocity_m_s, times_s)
+
+
 def _tv(m: Tensor) -> Tensor:
     dx = m[..., :, 1:] - m[..., :, :-1]
     dy = m[..., 1:, :] - m[..., :-1, :]
@@ -132,16 +144,12 @@ def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: 
     [0.02, 0.98] before its logit), else the empty mask. ``ground``: the pattern's grid when
     larger than the mask's (:func:`~cssat.occultation.shadow`). Returns ``(mask, info)``:
     ``loss``, ``chi2_per_sample`` of the kept start, every start's ``losses``."""
-    from cssat.occultation.fresnel import shadow
-    from cssat.occultation.record import record, smooth
-
     H, W = (int_param(v, "shape", 1, 1 << 12) for v in shape)
     tv = float_param(tv, "tv", 0.0)
     binary = float_param(binary, "binary", 0.0)
     n_starts, iters = int_param(n_starts, "n_starts", 1), int_param(iters, "iters", 1)
     y = torch.as_tensor(np.asarray(series, dtype=np.float64), dtype=dtype, device=device)
     s = torch.as_tensor(np.broadcast_to(np.asarray(sigma, dtype=np.float64), tuple(y.shape)).copy(), dtype=dtype, device=device)
-    k = np.ones((1, 1)) if kernel is None else np.asarray(kernel, dtype=np.float64)
     g = torch.Generator(device="cpu").manual_seed(int(seed))
     if init is not None and (np.shape(init) != (H, W) or not np.isfinite(np.asarray(init, dtype=np.float64)).all()):
         from cssat._checks import FieldError
@@ -149,8 +157,8 @@ def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: 
         raise FieldError("init", f"expected a finite mask of shape {(H, W)}, got shape {np.shape(init)}")
 
     def model(m):
-        I = shadow(m, pixel_m, wavelength_m, distance_m, weights=weights, ground=ground)
-        return record(smooth(I, k), pixel_m, positions_m, velocity_m_s, times_s)
+        return recorded(m, pixel_m, wavelength_m, distance_m, positions_m, velocity_m_s, times_s, kernel=kernel,
+                        weights=weights, ground=ground)
 
     from cssat._checks import choice_param
 

@@ -90,8 +90,7 @@ def fit_shapes(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, 
     :func:`~cssat.occultation.invert_silhouette`). Returns ``(mask (H, W), params (K, 6),
     info)`` with ``chi2_per_sample``, ``n_shapes``. Raises :class:`~cssat._checks.FieldError`
     (``init_mask``) when the start has no component of ``min_area_m2``."""
-    from cssat.occultation.fresnel import shadow
-    from cssat.occultation.record import record, smooth
+    from cssat.occultation.invert import recorded
 
     H, W = (int_param(v, "shape", 1, 1 << 14) for v in shape)
     start = shapes_from_mask(init_mask, pixel_m, min_area_m2=min_area_m2, max_shapes=max_shapes)
@@ -99,7 +98,6 @@ def fit_shapes(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, 
         raise FieldError("init_mask", f"no component of at least {min_area_m2} m² to start the shapes from")
     y = torch.as_tensor(np.asarray(series, dtype=np.float64))
     s = torch.as_tensor(np.broadcast_to(np.asarray(sigma, dtype=np.float64), tuple(y.shape)).copy())
-    k = np.ones((1, 1)) if kernel is None else np.asarray(kernel, dtype=np.float64)
     th = torch.tensor(start, requires_grad=True)
     n = y.numel()
 
@@ -107,8 +105,8 @@ def fit_shapes(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, 
 
     def chi2():
         m = render_shapes(th, (H, W), pixel_m, softness=soft[0])
-        r = (record(smooth(shadow(m, pixel_m, wavelength_m, distance_m, weights=weights, ground=ground), k), pixel_m, positions_m,
-                    velocity_m_s, times_s) - y) / s
+        r = (recorded(m, pixel_m, wavelength_m, distance_m, positions_m, velocity_m_s, times_s, kernel=kernel, weights=weights,
+                      ground=ground) - y) / s
         return (r * r).sum() / n
 
     # continuation: soft edges first (a smoother objective: an edge's position is felt from farther),
