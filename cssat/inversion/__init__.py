@@ -5,7 +5,9 @@ Gaussian image (area × albedo per surface normal), whose sensing matrix is know
 and a mesh's own EGI; :mod:`cssat.inversion.recover`: non-negative sparse recovery of the EGI
 (NNLS, non-negative OMP, non-negative ℓ1) with photometric weights and the closure constraint;
 :mod:`cssat.inversion.shape`: the convex shape of an EGI (Minkowski, Little's program) and
-``invert_convex`` from a light curve.
+``invert_convex`` from a light curve; :mod:`cssat.inversion.spin`: the period, the tumbling
+periods and the pole of a principal-axis spin; :mod:`cssat.inversion.tumble`: the full state of a
+tumbling (torque-free) object.
 """
 
 from cssat.inversion.egi import EGIOperator, egi, egi_operator, fibonacci_sphere
@@ -13,7 +15,8 @@ from cssat.inversion.observability import observability
 from cssat.inversion.recover import recover_egi
 from cssat.inversion.shape import ConvexInversion, convex_iou, invert_convex, minkowski
 from cssat.inversion.spin import SpinSolution, estimate_period, estimate_spin, estimate_tumbling_periods
+from cssat.inversion.tumble import TumblingSolution, TumblingState, estimate_tumbling, tumbling_rates
 
 __all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi", "minkowski", "invert_convex",
            "ConvexInversion", "observability", "estimate_period", "estimate_spin", "estimate_tumbling_periods",
-           "SpinSolution", "convex_iou"]
+           "SpinSolution", "convex_iou", "estimate_tumbling", "TumblingSolution", "TumblingState", "tumbling_rates"]

@@ -243,6 +243,24 @@ def _pole_rotation(lon: float, lat: float, frame: str) -> np.ndarray:
     return spin_frame(np.zeros(1), lon, lat, 1.0, 0.0, frame)[0]
 
 
+def _check_light_curve(times_s, flux, sun, obs, sigma):
+    """``t (T,), y (T,), S, O (T, 3), w = 1/σ (T,), σ (T,) or None`` as float64, checked."""
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    S, O = (np.asarray(v, dtype=np.float64) for v in (sun, obs))
+    T = len(t)
+    if y.shape != t.shape or S.shape != (T, 3) or O.shape != (T, 3):
+        raise FieldError("flux", f"expected times (T,), flux (T,) and sun/obs (T, 3), got {t.shape}, {y.shape}, {S.shape}, {O.shape}")
+    if not (np.isfinite(t).all() and np.isfinite(y).all() and np.isfinite(S).all() and np.isfinite(O).all()):
+        raise FieldError("flux", "the times, fluxes and directions must be finite")
+    if np.any(np.diff(t) <= 0):
+        raise FieldError("times_s", "the times must increase")
+    sig = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), (T,))
+    if sig is not None and not (np.isfinite(sig).all() and (sig > 0).all()):
+        raise FieldError("sigma", "the uncertainties must be finite and > 0")
+    return t, y, S, O, (np.ones(T) if sig is None else 1.0 / sig), sig
+
+
 class _Fit:
     """The EGI fit's χ² as a function of the spin ``(λ, β, f)`` on a subset of samples and a
     grid of normals: NNLS in the EGI for each spin. The pole's fixed rotation is cached, so a
@@ -333,20 +351,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     from cssat.inversion.egi import fibonacci_sphere
 
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
-    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
-    y = np.asarray(flux, dtype=np.float64).reshape(-1)
-    S, O = (np.asarray(v, dtype=np.float64) for v in (sun, obs))
+    t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
     T = len(t)
-    if y.shape != t.shape or S.shape != (T, 3) or O.shape != (T, 3):
-        raise FieldError("flux", f"expected times (T,), flux (T,) and sun/obs (T, 3), got {t.shape}, {y.shape}, {S.shape}, {O.shape}")
-    if not (np.isfinite(t).all() and np.isfinite(y).all() and np.isfinite(S).all() and np.isfinite(O).all()):
-        raise FieldError("flux", "the times, fluxes and directions must be finite")
-    if np.any(np.diff(t) <= 0):
-        raise FieldError("times_s", "the times must increase")
-    sig = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), (T,))
-    if sig is not None and not (np.isfinite(sig).all() and (sig > 0).all()):
-        raise FieldError("sigma", "the uncertainties must be finite and > 0")
-    w = np.ones(T) if sig is None else 1.0 / sig
     n_poles, n_starts, n_refine = (int_param(v, k, 1) for v, k in ((n_poles, "n_poles"), (n_starts, "n_starts"), (n_refine, "n_refine")))
     n_refine = min(n_refine, n_starts)
     span = float(t[-1] - t[0])
