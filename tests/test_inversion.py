@@ -264,3 +264,24 @@ def test_a_centrally_symmetric_body_shows_half_its_period():
     y = _spinning_flux(box((2.0, 1.0, 0.5), cs=0.0), 600.0, t, pole=(10.0, 60.0))
     out = estimate_period(t, y / y.max(), min_period_s=60, max_period_s=3600)
     assert abs(out["period_s"] / 300.0 - 1) < 1e-4 and not out["doubled"], out
+
+
+def test_geometry_matrix_is_the_operator_s_matrix():
+    """The search loops' numpy ``G`` (batched over leading axes) equals ``egi_operator``'s for a
+    Lambert surface of any albedo and for a non-Lambert BRDF; a brute-force sum for one entry."""
+    from cssat.inversion.egi import egi_operator, fibonacci_sphere, geometry_matrix
+    from cssat.optics.brdf import Lambert, Phong
+
+    rng = np.random.default_rng(2)
+    S = rng.normal(size=(2, 7, 3))
+    O = rng.normal(size=(2, 7, 3))
+    S /= np.linalg.norm(S, axis=-1, keepdims=True)
+    O /= np.linalg.norm(O, axis=-1, keepdims=True)
+    N = fibonacci_sphere(16).numpy()
+    for brdf in (None, Lambert(0.7), Phong()):
+        G = geometry_matrix(S, O, N, brdf)
+        assert G.shape == (2, 7, 16)
+        for b in range(2):
+            assert np.allclose(G[b], egi_operator(S[b], O[b], N, brdf).matrix().numpy(), rtol=1e-12, atol=0)
+    s, o, n = S[1, 3], O[1, 3], N[5]
+    assert geometry_matrix(S, O, N, Lambert(0.7))[1, 3, 5] == pytest.approx(0.7 / np.pi * max(s @ n, 0) * max(o @ n, 0))

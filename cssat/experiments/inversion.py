@@ -8,8 +8,10 @@ object above ``nights.min_elevation_deg`` and fully sunlit), its light curve wit
 group's surface and ``shadows``, photometric noise (``noise``: a 1 m telescope at the object's
 own magnitude by default) → the first ``nights.fit`` nights fitted (null: all but the last), the others held out →
 the spin (``inversion.spin``: ``search`` — the pole and sidereal period by
-:func:`~cssat.inversion.estimate_spin` —, ``known`` — the true attitude, an **oracle** —, or
-``auto``: search for a ``spin`` attitude or a measured file, known otherwise) → the EGI on
+:func:`~cssat.inversion.estimate_spin` —, ``tumbling`` — the torque-free state by
+:func:`~cssat.inversion.estimate_tumbling`, options under ``inversion.tumbling`` —, ``known`` —
+the true attitude, an **oracle** —, or ``auto``: search for a ``spin`` attitude or a measured
+file, tumbling for a ``tumbling`` attitude, known otherwise) → the EGI on
 ``inversion.n_normals`` normals and its convex shape (:func:`~cssat.inversion.invert_convex`)
 → the held-out nights predicted → scores against the truth and the observability of the
 fitted geometry.
@@ -24,7 +26,8 @@ Outputs: ``arrays.npz``, ``shape.obj`` (the recovered convex shape, metres), ``e
 ``inversion_lightcurve``, ``inversion_egi``, ``inversion_shapes``, ``inversion_observability``.
 Assumptions: those of :func:`~cssat.inversion.egi_operator` (no shadowing in the model,
 single scattering, one BRDF shape) and :func:`~cssat.inversion.estimate_spin` (a
-principal-axis spin); the simulated truth has shadows when ``shadows`` is true.
+principal-axis spin) or :func:`~cssat.inversion.estimate_tumbling` (torque-free rotation); the
+simulated truth has shadows when ``shadows`` is true.
 """
 
 from __future__ import annotations
@@ -88,12 +91,12 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     from cssat.experiments.context import Run
     from cssat.experiments.files import write_csv, write_npz
     from cssat.experiments.scene import build_scenario, read_observations
-    from cssat.inversion import egi, estimate_spin, estimate_tumbling_periods, invert_convex, observability
+    from cssat.inversion import egi, estimate_spin, estimate_tumbling, estimate_tumbling_periods, invert_convex, observability
     from cssat.inversion.shape import convex_iou
     from cssat.optics.lightcurve import simulate_light_curve
     from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
     from cssat.scene.attitude import to_body
-    from cssat.scene.attitudes import Spin
+    from cssat.scene.attitudes import Spin, Tumbling
 
     run_ = Run.from_config(cfg, out_dir)
     with run_.stage("setup"):
@@ -104,7 +107,16 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         n_fit = None if n_fit is None else int_param(n_fit, "nights.fit", 1, 366)
         sun_alt = float_param(nights_cfg.get("sun_alt_max_deg", -12.0), "nights.sun_alt_max_deg", -90.0, 90.0)
         min_el = float_param(nights_cfg.get("min_elevation_deg", 20.0), "nights.min_elevation_deg", -90.0, 90.0)
-        spin_mode = choice_param(inv.get("spin", "auto"), "inversion.spin", ("auto", "search", "known"))
+        spin_mode = choice_param(inv.get("spin", "auto"), "inversion.spin", ("auto", "search", "tumbling", "known"))
+        tumble = {k: v for k, v in _opts(inv.get("tumbling")).items() if v is not None}
+        import inspect
+
+        from cssat.inversion import estimate_tumbling as _et
+
+        allowed = [k for k, p in inspect.signature(_et).parameters.items() if p.kind is p.KEYWORD_ONLY and k not in ("sigma", "brdf", "frame")]
+        for k in tumble:
+            if k not in allowed:
+                raise FieldError(f"inversion.tumbling.{k}", f"unknown option; allowed: {', '.join(allowed)}")
         n_normals = int_param(inv.get("n_normals", 2000), "inversion.n_normals", 16, 20000)
         search_normals = int_param(inv.get("search_normals", 1000), "inversion.search_normals", 16, 20000)
         method = inv.get("method", "nnls")
@@ -181,14 +193,22 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                                            max_period_s=float(inv.get("max_period_s") or 86400.0))
             metrics.update(lc_tumbling=tp["tumbling"], lc_delta_bic=tp["delta_bic"], lc_periods_s=[float(p) for p in tp["periods_s"]],
                            lc_single_period_s=tp["single_period_s"])
-            searched = spin_mode == "search" or (spin_mode == "auto" and (observed is not None or isinstance(attitude, Spin)))
-            if tp["tumbling"] and searched:
+            if tp["tumbling"] and (spin_mode == "search" or (spin_mode == "auto" and observed is not None)):
                 log.warning("inversion: the light curve has two fundamental periods (%.1f s, %.1f s; ΔBIC %.0f): it looks "
-                            "tumbling, and the spin search assumes a principal-axis rotation", *tp["periods_s"], tp["delta_bic"])
+                            "tumbling, and the spin search assumes a principal-axis rotation (inversion.spin=tumbling "
+                            "searches a torque-free tumbling state)", *tp["periods_s"], tp["delta_bic"])
         except FieldError as e:  # too few samples or no second frequency: the period analysis is skipped
+            tp = None
             log.info("inversion: no two-period analysis (%s)", e)
-        if spin_mode == "auto":
-            spin_mode = "search" if observed is not None or isinstance(attitude, Spin) else "known"
+        if spin_mode == "auto":  # a spin attitude is searched as one, a tumbling one as one, a file as a spin
+            # (the 2-D series' BIC also prefers two periods for a spinner seen over changing geometry: a
+            # file's tumbling search is asked for, inversion.spin=tumbling, not guessed)
+            if isinstance(attitude, Tumbling):
+                spin_mode = "tumbling"
+            elif observed is not None or isinstance(attitude, Spin):
+                spin_mode = "search"
+            else:
+                spin_mode = "known"
         if spin_mode == "known" and true_frames is None:
             raise FieldError("inversion.spin", "'known' needs an attitude model (attitude=...) for a measured light curve")
         sol = None
@@ -198,6 +218,11 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
             frames = sol.frames(t)
             metrics.update(sol.describe())
             metrics["spin_synodic_period_s"] = float(sol.synodic["period_s"])
+        elif spin_mode == "tumbling":
+            sol = estimate_tumbling(t[fit], y_unit[fit], sun_in[fit], obs_in[fit], sigma=None if sigma is None else sigma[fit],
+                                    brdf=brdf, frame=getattr(attitude, "frame", "ecliptic"), **tumble)
+            frames = sol.frames(t)
+            metrics.update(sol.describe())
         else:
             frames = true_frames
         metrics.update(spin=spin_mode, attitude_known=spin_mode == "known")
@@ -236,6 +261,19 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
 
                 hull = trimesh.convex.convex_hull(np.asarray(mesh.vertices) @ to_fit.T)
                 metrics["shape_iou_hull"] = convex_iou(hull, res.mesh)
+            if isinstance(attitude, Tumbling) and spin_mode == "tumbling":
+                from cssat.inversion.spin import _separation_deg
+                from cssat.inversion.tumble import torque_free_invariants
+
+                tr = torque_free_invariants(attitude.inertia, attitude.q0, attitude.omega0, sol.state.frame)
+                if tr is not None:
+                    st = sol.state
+                    e_w, e_p = abs(st.f_omega_hz / tr["f_omega_hz"] - 1), abs(st.f_phi_hz / tr["f_phi_hz"] - 1)
+                    metrics.update(pole_error_deg=_separation_deg((st.lon_deg, st.lat_deg), (tr["L_lon_deg"], tr["L_lat_deg"])),
+                                   period_error_relative=max(e_w, e_p), tumble_P_omega_error_relative=e_w,
+                                   tumble_P_phi_error_relative=e_p, tumble_i1_error=st.i1 - tr["i1"], tumble_i2_error=st.i2 - tr["i2"],
+                                   tumble_true_P_omega_s=1 / tr["f_omega_hz"], tumble_true_P_phi_s=1 / tr["f_phi_hz"],
+                                   tumble_true_i1=tr["i1"], tumble_true_i2=tr["i2"], tumble_mode_correct=st.short_axis == tr["short_axis"])
             if isinstance(attitude, Spin) and sol is not None:
                 metrics["period_error_relative"] = abs(sol.period_s - abs(attitude.period_s)) / abs(attitude.period_s)
                 from cssat.inversion.spin import _separation_deg
@@ -268,8 +306,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     metrics.update(run_.timings())
     log.info("inversion: %d samples over %d nights, %s%s, EGI %d normals, held-out rms %s× noise",
              metrics["n_samples"], metrics["n_nights_observed"],
-             f"pole ({metrics.get('spin_pole_lon_deg', float('nan')):.2f}°, {metrics.get('spin_pole_lat_deg', float('nan')):.2f}°) "
-             f"period {metrics.get('spin_period_s', float('nan')):.5f} s" if sol is not None else "attitude known (oracle)",
+             repr(sol) if sol is not None else "attitude known (oracle)",
              f", pole error {metrics['pole_error_deg']:.2f}°" if "pole_error_deg" in metrics else "",
              metrics["egi_n_normals"], f"{metrics['heldout_rms_over_noise']:.2f}" if metrics.get("heldout_rms_over_noise") else "-")
     return metrics

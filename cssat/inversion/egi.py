@@ -24,7 +24,7 @@ from torch import Tensor
 from cssat._checks import FieldError, int_param
 from cssat.sparse.operators import MatrixOperator
 
-__all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere"]
+__all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "geometry_matrix"]
 
 
 def fibonacci_sphere(k: int, *, dtype: torch.dtype = torch.float64, device: Any = None) -> Tensor:
@@ -67,6 +67,28 @@ def egi_operator(sun_body: Any, obs_body: Any, normals: Any, brdf: Any = None) -
     f = (brdf or Lambert(1.0)).evaluate(N[None], S[:, None], O[:, None])
     G = f * (S @ N.T).clamp_min(0) * (O @ N.T).clamp_min(0)
     return EGIOperator(G, N)
+
+
+def lambert_scale(brdf: Any) -> float | None:
+    """``albedo/π`` when ``brdf`` is ``None`` (Lambert, albedo 1) or exactly a
+    :class:`~cssat.optics.brdf.Lambert`; ``None`` for any other BRDF."""
+    from cssat.optics.brdf import Lambert
+
+    return 1.0 / math.pi if brdf is None else brdf.albedo / math.pi if type(brdf) is Lambert else None
+
+
+def geometry_matrix(sun_body: np.ndarray, obs_body: np.ndarray, normals: np.ndarray, brdf: Any = None) -> np.ndarray:
+    """:func:`egi_operator`'s ``G`` as a float64 array for the search loops: ``(..., T, K)`` for
+    body-frame ``sun_body``, ``obs_body`` ``(..., T, 3)`` and ``normals (K, 3)`` — for a Lambert
+    surface by two clipped products in numpy (no tensor round trip), any other BRDF through
+    :func:`egi_operator` batch by batch."""
+    lam = lambert_scale(brdf)
+    if lam is not None:
+        return lam * np.clip(sun_body @ normals.T, 0, None) * np.clip(obs_body @ normals.T, 0, None)
+    S = sun_body.reshape(-1, *sun_body.shape[-2:])
+    O = obs_body.reshape(-1, *obs_body.shape[-2:])
+    G = np.stack([egi_operator(s_, o_, normals, brdf).matrix().numpy() for s_, o_ in zip(S, O)])
+    return G.reshape(*sun_body.shape[:-1], len(normals))
 
 
 def egi(mesh: Any, *, decimals: int = 9) -> tuple[np.ndarray, np.ndarray]:

@@ -165,8 +165,7 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
     (weighted, without the closure rows), ``atoms_merged`` and ``nfev``."""
     from scipy.optimize import least_squares
 
-    from cssat.inversion.egi import egi_operator
-    from cssat.optics.brdf import Lambert
+    from cssat.inversion.egi import egi_operator, geometry_matrix, lambert_scale
 
     S, O = np.asarray(sun_body, dtype=np.float64), np.asarray(obs_body, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).reshape(-1)
@@ -176,7 +175,7 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
     if N0.ndim != 2 or N0.shape[1] != 3 or a0.shape != (len(N0),) or S.shape != (T, 3) or O.shape != (T, 3):
         raise FieldError("normals", f"expected normals (J, 3), areas (J,), sun/obs (T, 3), y (T,): got {N0.shape}, "
                                     f"{a0.shape}, {S.shape}, {O.shape}, {y.shape}")
-    lam = 1.0 / np.pi if brdf is None else brdf.albedo / np.pi if type(brdf) is Lambert else None
+    lam = lambert_scale(brdf)
     G0 = egi_operator(S, O, N0, brdf).matrix().numpy() * w[:, None]
     wc = closure * np.linalg.norm(G0, 2) / np.sqrt(max(len(N0), 1)) if closure > 0 else 0.0
     sr = float(np.sqrt(float_param(ridge, "ridge", 0.0) * np.median((G0 ** 2).sum(0)))) if len(N0) else 0.0
@@ -197,11 +196,7 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
 
         def resid(x):
             N, _, a = unpack(x)
-            if lam is not None:
-                G = lam * np.clip(S @ N.T, 0, None) * np.clip(O @ N.T, 0, None)
-            else:
-                G = egi_operator(S, O, N, brdf).matrix().numpy()
-            out = [w * (G @ a - y)]
+            out = [w * (geometry_matrix(S, O, N, brdf) @ a - y)]
             if wc > 0:
                 out.append(wc * (a @ N))
             if sr > 0:

@@ -267,12 +267,8 @@ class _Fit:
     scan of frequencies at one pole only turns the vectors about the pole."""
 
     def __init__(self, t, y, w, S, O, normals, brdf, frame):
-        from cssat.optics.brdf import Lambert
-
         self.t, self.y, self.w, self.S, self.O, self.N, self.brdf, self.frame = t, y, w, S, O, normals, brdf, frame
         self.yw = y * w
-        # a Lambertian G in numpy (the search's inner loop); any other BRDF through egi_operator
-        self.lambert = 1.0 / np.pi if brdf is None else brdf.albedo / np.pi if type(brdf) is Lambert else None
         self._pole: tuple | None = None
 
     def _at_pole(self, lon, lat):
@@ -289,12 +285,9 @@ class _Fit:
         def turn(v):  # R_z(φ) v, spin_frame's passive rotation
             return np.stack([c * v[:, 0] + s_ * v[:, 1], c * v[:, 1] - s_ * v[:, 0], v[:, 2]], 1)
 
-        sb, ob = turn(sp), turn(op)
-        if self.lambert is not None:
-            return self.lambert * np.clip(sb @ self.N.T, 0, None) * np.clip(ob @ self.N.T, 0, None)
-        from cssat.inversion.egi import egi_operator
+        from cssat.inversion.egi import geometry_matrix
 
-        return egi_operator(sb, ob, self.N, self.brdf).matrix().numpy()
+        return geometry_matrix(turn(sp), turn(op), self.N, self.brdf)
 
     def solve(self, lon, lat, f):
         from scipy.optimize import nnls

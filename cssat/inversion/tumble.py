@@ -30,7 +30,7 @@ import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
 
-__all__ = ["TumblingState", "TumblingSolution", "tumbling_rates", "estimate_tumbling"]
+__all__ = ["TumblingState", "TumblingSolution", "tumbling_rates", "estimate_tumbling", "torque_free_invariants"]
 
 
 def _solution(i1: float, i2: float, alpha: float):
@@ -61,6 +61,42 @@ def tumbling_rates(i1: float, i2: float, alpha_rad: float, *, n: int = 256) -> t
     num = Ip[0] * w[:, 0] ** 2 + Ip[1] * w[:, 1] ** 2
     den = Ip[0] ** 2 * w[:, 0] ** 2 + Ip[1] ** 2 * w[:, 1] ** 2
     return 1.0 / (2 * half), float(np.mean(num / np.maximum(den, 1e-300))) / (2 * math.pi)
+
+
+def torque_free_invariants(inertia_kg_m2: Any, q0: Any, omega0_rad_s: Any, frame: str = "ecliptic") -> dict[str, Any]:
+    """What a light curve can give of a torque-free motion (:func:`~cssat.scene.attitude.torque_free`'s
+    initial state: inertia tensor ``(3, 3)`` or moments ``(3,)``, ``q0`` [x, y, z, w] body →
+    inertial, ``omega0_rad_s`` in the body frame): ``i1``, ``i2`` (moments over the largest),
+    ``f_omega_hz``, ``f_phi_hz``, the direction of ``L`` (``L_lon_deg``, ``L_lat_deg`` in
+    ``frame``), ``alpha`` (rad) and ``short_axis`` — the numbers :func:`estimate_tumbling` estimates.
+    ``None`` for a steady spin."""
+    from cssat.scene.attitude import OBLIQUITY_DEG, _rx3, quaternion_frames
+
+    I = np.asarray(inertia_kg_m2, dtype=np.float64)
+    I = np.diag(I) if I.shape == (3,) else I
+    moments, V = np.linalg.eigh(I)
+    if np.linalg.det(V) < 0:
+        V[:, 0] = -V[:, 0]
+    Ip = moments / moments.max()
+    wp = V.T @ np.asarray(omega0_rad_s, dtype=np.float64).reshape(3)
+    Lb = Ip * wp
+    L = float(np.linalg.norm(Lb))
+    if L == 0:
+        return None
+    e2 = float(np.sum(Ip * wp ** 2)) / L ** 2  # 2E I₃/|L|², in [1, 1/i₁]
+    if Ip[0] >= 1.0 or e2 <= 1.0 + 1e-12:
+        return None
+    alpha = math.asin(math.sqrt(min(max((e2 - 1.0) / (1.0 / Ip[0] - 1.0), 0.0), 1.0)))
+    fw, fp = tumbling_rates(Ip[0], Ip[1], alpha)
+    if fw != fw:
+        return None
+    L_in = quaternion_frames(np.asarray(q0, dtype=np.float64)).T @ (V @ Lb)
+    L_in /= np.linalg.norm(L_in)
+    if frame == "ecliptic":
+        L_in = _rx3(np.radians(OBLIQUITY_DEG))[0] @ L_in
+    return {"i1": float(Ip[0]), "i2": float(Ip[1]), "f_omega_hz": L * fw, "f_phi_hz": L * fp, "alpha": alpha,
+            "L_lon_deg": math.degrees(math.atan2(L_in[1], L_in[0])), "L_lat_deg": math.degrees(math.asin(np.clip(L_in[2], -1, 1))),
+            "short_axis": bool(float(np.sum(Lb ** 2)) >= float(np.sum(Ip * wp ** 2)) * Ip[1])}
 
 
 def _alpha_roots(i1: float, i2: float, ratio: float, n: int = 72) -> list[float]:
@@ -264,21 +300,14 @@ class _TFit:
     """The EGI fit's χ² of a :class:`TumblingState` on a subset of samples and a grid of normals."""
 
     def __init__(self, t, y, w, S, O, normals, brdf):
-        from cssat.optics.brdf import Lambert
-
         self.t, self.y, self.w, self.S, self.O, self.N, self.brdf = t, y, w, S, O, normals, brdf
         self.yw = y * w
-        self.lambert = 1.0 / np.pi if brdf is None else brdf.albedo / np.pi if type(brdf) is Lambert else None
 
     def G(self, sb: np.ndarray, ob: np.ndarray) -> np.ndarray:
         """``(..., T, K)`` for body-frame ``sb``, ``ob (..., T, 3)``."""
-        if self.lambert is not None:
-            return self.lambert * np.clip(sb @ self.N.T, 0, None) * np.clip(ob @ self.N.T, 0, None)
-        from cssat.inversion.egi import egi_operator
+        from cssat.inversion.egi import geometry_matrix
 
-        return np.stack([egi_operator(s_, o_, self.N, self.brdf).matrix().numpy()
-                         for s_, o_ in zip(sb.reshape(-1, *sb.shape[-2:]), ob.reshape(-1, *ob.shape[-2:]))]).reshape(
-            *sb.shape[:-1], len(self.N))
+        return geometry_matrix(sb, ob, self.N, self.brdf)
 
     def matrix(self, state: TumblingState) -> np.ndarray:
         from cssat.scene.attitude import to_body
