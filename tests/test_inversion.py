@@ -285,3 +285,92 @@ def test_geometry_matrix_is_the_operator_s_matrix():
             assert np.allclose(G[b], egi_operator(S[b], O[b], N, brdf).matrix().numpy(), rtol=1e-12, atol=0)
     s, o, n = S[1, 3], O[1, 3], N[5]
     assert geometry_matrix(S, O, N, Lambert(0.7))[1, 3, 5] == pytest.approx(0.7 / np.pi * max(s @ n, 0) * max(o @ n, 0))
+
+
+def test_nonnegative_tv_on_the_sphere_against_a_qp_solver():
+    """``recover_egi(method="tv")`` minimises ½‖Ga − y‖² + λ Σ_edges |a_i − a_j| over a ≥ 0: its
+    objective equals scipy's SLSQP on the QP reformulation (variables a ≥ 0 and t ≥ |Da|) to 1e-6,
+    and the edges are each normal's nearest neighbours (brute force). The registry's ``nntv``
+    solver gives the same EGI from a Problem."""
+    from scipy.optimize import minimize
+
+    from cssat.inversion import egi_operator, fibonacci_sphere, recover_egi
+    from cssat.inversion.recover import sphere_differences
+    from cssat.recon import NNTV, Problem
+
+    rng = np.random.default_rng(5)
+    K, T = 24, 60
+    N = fibonacci_sphere(K).numpy()
+    s, o = (v / np.linalg.norm(v, axis=1, keepdims=True) for v in rng.normal(size=(2, T, 3)))
+    G = egi_operator(s, o, N)
+    truth = np.where(N[:, 2] > 0.5, 1.0, 0.0)  # a cap of constant density: piecewise constant on the sphere
+    y = G.matrix().numpy() @ truth + 0.01 * rng.normal(size=T)
+    D = sphere_differences(N, 3).toarray()
+    # the edges: each normal to its 3 nearest by angle, brute force
+    cos = N @ N.T
+    np.fill_diagonal(cos, -2)
+    want = {tuple(sorted((i, int(j)))) for i in range(K) for j in np.argsort(-cos[i])[:3]}
+    got_edges = {tuple(sorted(np.flatnonzero(r))) for r in D}
+    assert got_edges == want
+    lam_rel = 0.05
+    a, info = recover_egi(G, y, method="tv", lam=lam_rel, tv_neighbours=3, max_iter=200000)
+    Gm = G.matrix().numpy()
+    lam = info["solver_lam_abs"]
+    assert lam == pytest.approx(lam_rel * np.abs(Gm.T @ y).max())
+    f = lambda x: 0.5 * np.sum((Gm @ x - y) ** 2) + lam * np.abs(D @ x).sum()  # noqa: E731
+    E = D.shape[0]
+
+    def obj(v):
+        return 0.5 * np.sum((Gm @ v[:K] - y) ** 2) + lam * v[K:].sum()
+
+    def grad(v):
+        return np.concatenate([Gm.T @ (Gm @ v[:K] - y), np.full(E, lam)])
+
+    cons = [{"type": "ineq", "fun": lambda v: v[K:] - D @ v[:K], "jac": lambda v: np.hstack([-D, np.eye(E)])},
+            {"type": "ineq", "fun": lambda v: v[K:] + D @ v[:K], "jac": lambda v: np.hstack([D, np.eye(E)])}]
+    v0 = np.concatenate([np.full(K, 0.5), np.full(E, 1.0)])
+    ref = minimize(obj, v0, jac=grad, constraints=cons, bounds=[(0, None)] * K + [(None, None)] * E, method="SLSQP",
+                   options={"maxiter": 2000, "ftol": 1e-14})
+    assert ref.success, ref.message
+    assert f(a) == pytest.approx(ref.fun, rel=1e-6) and a.min() >= 0
+    assert np.allclose(a, ref.x[:K], atol=1e-3 * a.max())
+    x, _ = NNTV(lam=lam_rel, tv_neighbours=3, max_iter=200000)(Problem(G, (K,)), torch.as_tensor(y))
+    assert np.allclose(x.numpy(), a, atol=1e-9 * a.max())
+
+
+def test_nonnegative_tv_on_an_image_grid_against_numpy_diff_and_a_qp_solver():
+    """On a pixel problem ``nntv`` takes the image's grid: ``grid_differences`` is numpy's
+    ``diff`` along each axis, and the solve's objective equals SLSQP's on the QP reformulation."""
+    from scipy.optimize import minimize
+
+    from cssat._checks import FieldError
+    from cssat.inversion.recover import grid_differences
+    from cssat.recon import NNTV
+
+    rng = np.random.default_rng(2)
+    H, W = 4, 5
+    img = rng.normal(size=(H, W))
+    D = grid_differences((H, W))
+    assert np.allclose(D @ img.reshape(-1), np.concatenate([np.diff(img, axis=0).reshape(-1), np.diff(img, axis=1).reshape(-1)]))
+    K, T = H * W, 14  # fewer samples than pixels
+    truth = np.zeros((H, W))
+    truth[1:3, 1:4] = 1.0
+    A = rng.normal(size=(T, K))
+    y = A @ truth.reshape(-1) + 0.01 * rng.normal(size=T)
+    x, _ = NNTV(lam=0.02, max_iter=200000)(torch.as_tensor(A), torch.as_tensor(y), (H, W))
+    a = x.numpy().reshape(-1)
+    assert x.shape == (H, W) and a.min() >= 0
+    Dm = D.toarray()
+    E = Dm.shape[0]
+    lam = 0.02 * np.abs(A.T @ y).max()
+    obj = lambda v: 0.5 * np.sum((A @ v[:K] - y) ** 2) + lam * v[K:].sum()  # noqa: E731
+    cons = [{"type": "ineq", "fun": lambda v: v[K:] - Dm @ v[:K], "jac": lambda v: np.hstack([-Dm, np.eye(E)])},
+            {"type": "ineq", "fun": lambda v: v[K:] + Dm @ v[:K], "jac": lambda v: np.hstack([Dm, np.eye(E)])}]
+    ref = minimize(obj, np.concatenate([np.full(K, 0.5), np.ones(E)]),
+                   jac=lambda v: np.concatenate([A.T @ (A @ v[:K] - y), np.full(E, lam)]), constraints=cons,
+                   bounds=[(0, None)] * K + [(None, None)] * E, method="SLSQP", options={"maxiter": 2000, "ftol": 1e-14})
+    assert ref.success, ref.message
+    f = 0.5 * np.sum((A @ a - y) ** 2) + lam * np.abs(Dm @ a).sum()
+    assert f == pytest.approx(ref.fun, rel=1e-6)
+    with pytest.raises(FieldError, match="solver"):
+        NNTV()(torch.as_tensor(A), torch.as_tensor(y), (K,))

@@ -3,6 +3,7 @@ torque_free and the motion's own measured periods, and a blind recovery of a syn
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -183,3 +184,9 @@ def test_the_tumbling_options_are_checked_before_work(tmp_path):
 
     with pytest.raises(FieldError, match=r"inversion\.tumbling\.bogus"):
         run_experiment(_cfg("experiment=inversion_tumbling", "+inversion.tumbling.bogus=1"), tmp_path / "bad")
+    for bad, field in (("inversion.method=tvv", r"inversion\.method.*'nnls', 'nnomp', 'l1', 'tv'"),
+                       ("inversion.lam=-1", r"inversion\.lam"), ("inversion.tv_neighbours=0", r"inversion\.tv_neighbours")):
+        with pytest.raises(FieldError, match=field):
+            run_experiment(_cfg("experiment=inversion", bad), tmp_path / "bad2")
+        assert json.loads((tmp_path / "bad2" / "metrics.json").read_text())["status"] == "failed"
+        assert not (tmp_path / "bad2" / "arrays.npz").exists()

@@ -119,7 +119,14 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                 raise FieldError(f"inversion.tumbling.{k}", f"unknown option; allowed: {', '.join(allowed)}")
         n_normals = int_param(inv.get("n_normals", 2000), "inversion.n_normals", 16, 20000)
         search_normals = int_param(inv.get("search_normals", 1000), "inversion.search_normals", 16, 20000)
-        method = inv.get("method", "nnls")
+        from cssat.inversion.recover import METHODS
+
+        method = choice_param(inv.get("method", "nnls"), "inversion.method", METHODS)
+        recover_opts = {"lam": float_param(inv["lam"], "inversion.lam", 0.0) if inv.get("lam") is not None else None,
+                        "n_nonzero": int_param(inv["n_nonzero"], "inversion.n_nonzero", 1) if inv.get("n_nonzero") is not None else None,
+                        "tv_neighbours": int_param(inv["tv_neighbours"], "inversion.tv_neighbours", 1, 32)
+                        if inv.get("tv_neighbours") is not None else None}
+        recover_opts = {k: v for k, v in recover_opts.items() if v is not None}
         closure = float_param(inv.get("closure", 1.0), "inversion.closure", 0.0)
         search = {k: inv[k] for k in ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples",
                                       "min_period_s", "max_period_s") if inv.get(k) is not None}
@@ -230,7 +237,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
 
     with run_.stage("invert"):
         res = invert_convex(y_unit[fit], sun_b[fit], obs_b[fit], brdf=brdf or "lambert", n_normals=n_normals,
-                            sigma=None if sigma is None else sigma[fit], method=method, closure=closure)
+                            sigma=None if sigma is None else sigma[fit], method=method, closure=closure,
+                            **recover_opts)
         from cssat.inversion import egi_operator
 
         model_unit = egi_operator(sun_b, obs_b, res.normals, brdf).matrix().numpy() @ res.areas if res.areas.size else np.zeros_like(t)

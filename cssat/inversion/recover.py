@@ -9,21 +9,25 @@ does not impose. Methods:
 * ``nnomp`` — non-negative orthogonal matching pursuit: the atom most positively correlated with
   the residual joins the support, the support is refitted by NNLS; stops at ``n_nonzero`` atoms
   or when the weighted residual reaches the noise (``χ² ≤ T``, the discrepancy principle);
-* ``l1`` — ``min ½‖W(Ga − y)‖² + λ Σ a`` over ``a ≥ 0`` by FISTA (``λ = lam · ‖(WG)ᵀWy‖∞``).
+* ``l1`` — ``min ½‖W(Ga − y)‖² + λ Σ a`` over ``a ≥ 0`` by FISTA (``λ = lam · ‖(WG)ᵀWy‖∞``);
+* ``tv`` — ``min ½‖W(Ga − y)‖² + λ Σ_{(i,j)} |a_i − a_j|`` over ``a ≥ 0``: total variation on the
+  sphere, over the edges joining each normal to its ``tv_neighbours`` nearest (a curved surface's
+  EGI is a smooth density, a panel's a spike: TV keeps both sparse in their differences), by the
+  primal–dual splitting of Condat (2013) and Vũ (2013) (``λ = lam · ‖(WG)ᵀWy‖∞``).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 
-__all__ = ["recover_egi", "refine_egi", "METHODS"]
+__all__ = ["recover_egi", "refine_egi", "sphere_differences", "grid_differences", "METHODS"]
 
-METHODS = ("nnls", "nnomp", "l1")
+METHODS = ("nnls", "nnomp", "l1", "tv")
 
 
 def _system(G: np.ndarray, y: np.ndarray, sigma: Any, normals: np.ndarray | None, closure: float) -> tuple[np.ndarray, np.ndarray]:
@@ -43,11 +47,13 @@ def _system(G: np.ndarray, y: np.ndarray, sigma: Any, normals: np.ndarray | None
 
 def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, method: str = "nnls",
                 closure: float = 0.0, n_nonzero: int | None = None, lam: float = 1e-3,
-                max_iter: int = 5000) -> tuple[np.ndarray, dict[str, Any]]:
+                max_iter: int = 5000, tv_neighbours: int = 6, differences: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
     """The EGI ``a (K,) ≥ 0`` with ``G a ≈ y``: ``G (T, K)`` (an :class:`EGIOperator` — its
     normals are then used for the closure — or a matrix), ``y (T,)`` (the light curve per unit
     irradiance and range), ``sigma`` its 1σ (scalar or ``(T,)``), ``method`` of :data:`METHODS`,
-    ``closure`` the weight of ``Σ a_k n_k = 0`` relative to ``‖WG‖`` (0: none). Returns ``(a,
+    ``closure`` the weight of ``Σ a_k n_k = 0`` relative to ``‖WG‖`` (0: none); ``tv``'s edges are
+    the normals' ``tv_neighbours`` nearest unless ``differences (E, K)`` (sparse; e.g.
+    :func:`grid_differences` for an image) gives them. Returns ``(a,
     info)`` with ``chi2`` (the weighted residual's square norm, without the closure rows),
     ``n_nonzero`` and the method's own counts."""
     from scipy.optimize import nnls
@@ -71,8 +77,15 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
         info: dict[str, Any] = {}
     elif method == "nnomp":
         a, info = _nnomp(A, b, T, n_nonzero, sigma is not None)
-    else:
+    elif method == "l1":
         a, info = _nnl1(A, b, lam, int_param(max_iter, "max_iter", 1))
+    else:
+        if differences is None and normals is None:
+            raise FieldError("normals", "the TV needs its edges: the normals (an EGIOperator or normals=) or differences=")
+        D = differences if differences is not None else sphere_differences(normals, int_param(tv_neighbours, "tv_neighbours", 1, 32))
+        if D.shape[1] != G.shape[1]:
+            raise FieldError("differences", f"{D.shape[1]} columns for {G.shape[1]} unknowns")
+        a, info = _nntv(A, b, D, lam, int_param(max_iter, "max_iter", 1))
     r = (A[:T] @ a - b[:T])
     info.update(chi2=float(r @ r), n_nonzero=int((a > 1e-12 * max(float(a.max()), 1e-300)).sum()), method=method, closure_norm=float(
         np.linalg.norm(normals.T @ a)) if normals is not None else None)
@@ -123,6 +136,73 @@ def _nnl1(A: np.ndarray, b: np.ndarray, lam: float, max_iter: int) -> tuple[np.n
         if change < 1e-10:
             break
     return x, {"solver_iterations": it, "solver_lam_abs": lam_abs}
+
+
+def sphere_differences(normals: Any, k: int = 6) -> Any:
+    """``D (E, K)`` sparse: one row ``e_i − e_j`` per edge joining each of the ``normals (K, 3)`` to
+    its ``k`` nearest (by angle; each edge once) — the gradient of a function on the sphere's grid."""
+    import scipy.sparse as sp
+    from scipy.spatial import cKDTree
+
+    N = np.asarray(normals, dtype=np.float64)
+    k = min(int(k), len(N) - 1)
+    if k < 1:
+        return sp.csr_matrix((0, len(N)))
+    _, nb = cKDTree(N).query(N, k=k + 1)
+    i = np.repeat(np.arange(len(N)), k)
+    j = nb[:, 1:].reshape(-1)
+    edges = np.unique(np.sort(np.stack([i, j], 1), axis=1), axis=0)
+    E = len(edges)
+    rows = np.repeat(np.arange(E), 2)
+    return sp.csr_matrix((np.tile([1.0, -1.0], E), (rows, edges.reshape(-1))), shape=(E, len(N)))
+
+
+def grid_differences(shape: Sequence[int]) -> Any:
+    """``D (E, prod(shape))`` sparse: the forward differences along each axis of a grid of
+    ``shape`` (row-major, as ``x.reshape(-1)``), one row ``e_{i+1} − e_i`` per adjacent pair — the
+    anisotropic TV's gradient of an image."""
+    import scipy.sparse as sp
+
+    shape = tuple(int(s) for s in shape)
+    blocks = []
+    for ax, n in enumerate(shape):
+        d = sp.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
+        mats = [sp.identity(m) for m in shape]
+        mats[ax] = d
+        out = mats[0]
+        for m in mats[1:]:
+            out = sp.kron(out, m)
+        blocks.append(out)
+    return sp.vstack(blocks).tocsr()
+
+
+def _nntv(A: np.ndarray, b: np.ndarray, D: Any, lam: float, max_iter: int) -> tuple[np.ndarray, dict]:
+    """``min ½‖Aa − b‖² + λ‖Da‖₁`` over ``a ≥ 0`` (Condat–Vũ: a forward step on the smooth term,
+    the projection on ``a ≥ 0``, the dual of ``λ‖·‖₁`` clipped to ``[−λ, λ]``; steps ``τ = 1/L``,
+    ``σ = L/(2‖D‖²)`` so that ``1/τ − σ‖D‖² ≥ L/2``)."""
+    import scipy.sparse.linalg as spla
+
+    lam = float_param(lam, "lam", 0.0)
+    L = max(np.linalg.norm(A, 2) ** 2, 1e-300)
+    lam_abs = lam * float(np.abs(A.T @ b).max())
+    if D.shape[0]:
+        nD2 = float(spla.svds(D, k=1, return_singular_vectors=False)[0]) ** 2 if min(D.shape) > 2 else float(
+            np.linalg.norm(D.toarray(), 2)) ** 2
+    else:
+        nD2 = 1.0
+    tau, sig = 1.0 / L, L / (2 * nD2)
+    a = np.zeros(A.shape[1])
+    z = np.zeros(D.shape[0])
+    AtA, Atb = A.T @ A, A.T @ b
+    it = 0
+    for it in range(1, max_iter + 1):
+        a_new = np.maximum(a - tau * (AtA @ a - Atb + D.T @ z), 0.0)
+        z = np.clip(z + sig * (D @ (2 * a_new - a)), -lam_abs, lam_abs)
+        change = np.linalg.norm(a_new - a) / max(np.linalg.norm(a_new), 1e-300)
+        a = a_new
+        if change < 1e-10:
+            break
+    return a, {"solver_iterations": it, "solver_lam_abs": lam_abs, "tv_edges": int(D.shape[0])}
 
 
 def _merge_atoms(N: np.ndarray, a: np.ndarray, merge_deg: float) -> tuple[np.ndarray, np.ndarray]:

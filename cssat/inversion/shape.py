@@ -156,12 +156,14 @@ class ConvexInversion:
 
 
 def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambert", n_normals: int = 1000,
-                  sigma: Any = None, method: str = "nnls", closure: float = 1.0, refine: bool = True) -> ConvexInversion:
+                  sigma: Any = None, method: str = "nnls", closure: float = 1.0, refine: bool = True,
+                  **recover_options: Any) -> ConvexInversion:
     """The convex shape of a light curve: ``flux (T,)`` per unit irradiance and range (for
     ``brdf="lambert"``: ``Σ_f A_f (albedo/π) max(0, s·n_f) max(0, o·n_f)``, so the areas come
     back in the flux's units × albedo), ``sun_body``/``obs_body (T, 3)`` body-frame unit vectors;
     the EGI on a ``n_normals`` Fibonacci grid by :func:`~cssat.inversion.recover_egi` (``method``,
-    weights ``1/sigma``, ``closure``), with ``refine`` its atoms moved off the grid
+    weights ``1/sigma``, ``closure``; ``recover_options``: its ``lam``, ``n_nonzero``,
+    ``max_iter``, ``tv_neighbours``), with ``refine`` its atoms moved off the grid
     (:func:`~cssat.inversion.recover.refine_egi`: neighbours within 1.5 grid spacings merged,
     directions and areas fitted by least squares), then :func:`minkowski`. ``brdf``: a
     :mod:`cssat.optics.brdf` object or its name (default parameters, albedo 1 for Lambert)."""
@@ -176,7 +178,11 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     N = fibonacci_sphere(n_normals)
     G = egi_operator(sun_body, obs_body, N, brdf)
     y = np.asarray(flux, dtype=np.float64).reshape(-1)
-    a, info = recover_egi(G, y, sigma=sigma, method=method, closure=closure)
+    allowed = ("lam", "n_nonzero", "max_iter", "tv_neighbours")
+    for k in recover_options:
+        if k not in allowed:
+            raise FieldError(k, f"not an option of the EGI solve; allowed: {', '.join(allowed)}")
+    a, info = recover_egi(G, y, sigma=sigma, method=method, closure=closure, **recover_options)
     keep = a > 1e-9 * max(float(a.max()), 1e-300)
     normals, areas = N.numpy()[keep], a[keep]
     Gm = G.matrix().numpy()
