@@ -20,22 +20,47 @@ from cssat._checks import FieldError
 __all__ = ["minkowski", "polytope", "invert_convex", "ConvexInversion", "convex_iou"]
 
 
-def polytope(normals: np.ndarray, heights: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+def polytope(normals: np.ndarray, heights: np.ndarray, *, edges: bool = False) -> tuple:
     """``P(h) = {x : n_k·x ≤ h_k}`` (the origin inside): ``(vertices (V, 3), triangles (F, 3),
-    volume, facet areas (K,))`` — facet ``k``'s area is 0 when its plane does not touch ``P``."""
+    volume, facet areas (K,))`` — facet ``k``'s area is 0 when its plane does not touch ``P``;
+    with ``edges`` also ``(i, j, length)``: each ordered pair of adjacent facets and the length
+    of their common edge (the mixed-volume Hessian's entries, :func:`_volume_hessian`)."""
     from scipy.spatial import ConvexHull, HalfspaceIntersection
 
     hs = np.hstack([normals, -heights[:, None]])
     pts = HalfspaceIntersection(hs, np.zeros(3)).intersections
     hull = ConvexHull(pts)
-    tri = pts[hull.simplices]
+    S = hull.simplices
+    tri = pts[S]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     cross *= np.sign(np.einsum("ij,ij->i", cross, tri.mean(1)))[:, None]  # qhull's triangles are unoriented: outward
     tri_area = 0.5 * np.linalg.norm(cross, axis=1)
     # each hull triangle lies on the plane of the constraint its normal matches best
     owner = np.argmax((cross / np.maximum(2 * tri_area[:, None], 1e-300)) @ normals.T, axis=1)
     areas = np.bincount(owner, weights=tri_area, minlength=len(normals))
-    return pts, hull.simplices, float(hull.volume), areas
+    if not edges:
+        return pts, S, float(hull.volume), areas
+    # triangle s's edge opposite its vertex k borders triangle neighbors[s, k]: a facets' edge
+    # where the owners differ (each ordered pair once, from its own side)
+    s_i = np.repeat(np.arange(len(S)), 3)
+    k_i = np.tile(np.arange(3), len(S))
+    i, j = owner[s_i], owner[hull.neighbors.reshape(-1)]
+    length = np.linalg.norm(pts[S[s_i, (k_i + 1) % 3]] - pts[S[s_i, (k_i + 2) % 3]], axis=1)
+    d = i != j
+    return pts, S, float(hull.volume), areas, (i[d], j[d], length[d])
+
+
+def _volume_hessian(normals: np.ndarray, edges: tuple, K: int) -> Any:
+    """``∂²V/∂h_i∂h_j = ∂A_i/∂h_j`` (sparse ``(K, K)``): ``ℓ_ij / sin θ_ij`` for adjacent facets,
+    ``−Σ_j ℓ_ij cot θ_ij`` on the diagonal (so that ``H N = 0``: a translation changes no area)."""
+    import scipy.sparse as sp
+
+    i, j, length = edges
+    c = np.einsum("ij,ij->i", normals[i], normals[j]).clip(-1.0, 1.0)
+    sn = np.sqrt(1.0 - c * c).clip(1e-12)
+    rows = np.concatenate([i, i])
+    cols = np.concatenate([j, i])
+    return sp.csc_matrix((np.concatenate([length / sn, -length * c / sn]), (rows, cols)), shape=(K, K))
 
 
 def _centroid(pts: np.ndarray, simplices: np.ndarray) -> np.ndarray:
@@ -56,14 +81,17 @@ def _encloses(N: np.ndarray) -> bool:
     return bool((hull.equations[:, 3] < -1e-9).all())
 
 
-def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e-7) -> tuple[Any, dict[str, Any]]:
+def minkowski(normals: Any, areas: Any, *, max_iter: int = 200, tol: float = 1e-9) -> tuple[Any, dict[str, Any]]:
     """The convex polyhedron whose facets have ``normals (K, 3)`` and ``areas (K,) ≥ 0`` (zero
     areas are dropped), as a ``trimesh.Trimesh`` centred on its centroid, and ``info``
     (``iterations``, ``area_error``: the largest |facet area − a_k| over Σa, ``closure``: |Σ a n|
-    over Σa). Stops when every facet's share of the surface is within ``tol`` of ``a_k/Σa``, or at
-    a stationary point of the program (the gradient, less the plane's normal and the
-    translations, under ``tol`` of its norm: an EGI that is not exactly closed is met there). The
-    normals with area must not all lie in a closed hemisphere."""
+    over Σa, ``converged``). The EGI is closed first (the least change to ``Σ a n = 0``: a measured
+    one is not quite closed, and no body has it then); the heights are found by Newton's method
+    on the convex form of Little's program, ``min w·h − ⅓ log V(h)`` (Lachand-Robert & Oudet 2005
+    solve the same program by gradients; the exact Hessian, sparse over the facets' adjacency,
+    converges in ~10 steps: 0.03–0.05 s for 40–90 facets, 0.4 s for 600, 13 s for 6,000), until every facet's
+    share of the surface is within ``tol`` of ``a_k/Σa``. The normals with area must not all lie
+    in a closed hemisphere."""
     import trimesh
 
     N = np.asarray(normals, dtype=np.float64)
@@ -99,46 +127,65 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 3000, tol: float = 1e
             break
         w = np.clip(w - P @ (N.T @ w), 0.0, None)
     w /= w.sum()
-    h = np.full(len(N), 1.0)
-    h /= w @ h
+    live = w > 1e-14  # closing can empty a facet: no plane of the body then
+    N, w = N[live], w[live]
+    # Newton on the convex form of Little's program: F(h) = w·h − ⅓ log V(h) (V^⅓ is concave by
+    # Brunn–Minkowski), whose minimum has A(h) = 3V w; ∇F = w − A/3V, ∇²F = (AAᵀ/V² − H/V)/3 with
+    # H the mixed-volume Hessian (sparse: facet adjacency), translations (H N = 0) pinned. Damped
+    # as Kitagawa, Mérigot & Thibert's Newton for semi-discrete optimal transport (JEMS 2019), the
+    # same structure: a step is halved until every facet keeps a share ≥ ε₀ of the surface (so the
+    # Hessian stays non-singular) and |∇F| falls by (1 − t/2). Starts at h = 1, where every plane
+    # touches (each is tangent to the unit sphere at its own normal).
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    K = len(N)
+    h = np.ones(K)
     try:
-        pts, simp, V, A = polytope(N, h)
+        pts, simp, V, A, E = polytope(N, h, edges=True)
     except Exception as err:  # qhull: an unbounded intersection
         raise FieldError("normals", f"these normals do not enclose a body (they lie in a hemisphere?): {err}") from None
-    it = 0
-    step = 0.1
-    # the directions V does not see: the plane's normal w and the translations h → h + N c
-    Q, _ = np.linalg.qr(np.column_stack([w, N]))
+    Q, _ = np.linalg.qr(N)  # the translations h → h + N c
+    eps0 = 0.5 * min(float(w.min()), float((A / A.sum()).min()))
+    it, converged = 0, False
+
+    def grad(A_: np.ndarray, V_: float) -> np.ndarray:
+        g_ = w - A_ / (3.0 * V_)
+        return g_ - Q @ (Q.T @ g_)
+
+    g = grad(A, V)
     for it in range(1, max_iter + 1):
         if np.abs(A / A.sum() - w).max() < tol:  # the facets' areas ∝ a: the Lagrange condition
+            converged = True
             break
-        g = A / V
-        g -= Q @ (Q.T @ g)  # the tangent of Σ w h = 1, translations removed
-        gn = np.linalg.norm(g)
-        if gn <= tol * np.linalg.norm(A / V):  # stationary: an EGI that is not closed is matched up to N c
-            break
-        while True:
-            h_new = h + step * g / gn * np.mean(h)
-            if (h_new > 0).all():
-                try:
-                    p2, s2, V2, A2 = polytope(N, h_new)
-                except Exception:  # qhull on a degenerate step: a smaller one
-                    V2 = -np.inf
-                if V2 > V:
+        Hs = -_volume_hessian(N, E, K) / (3.0 * V)
+        scale = max(float(np.abs(Hs.diagonal()).mean()), 1e-300)
+        U = np.column_stack([A / (V * np.sqrt(3.0)), np.sqrt(scale) * Q])  # the rank-one term and the pin
+        lu = spla.splu((Hs + 1e-12 * scale * sp.identity(K, format="csc")).tocsc())
+        Sg, SU = lu.solve(g), lu.solve(U)  # Woodbury: (S + U Uᵀ)⁻¹ g
+        dh = -(Sg - SU @ np.linalg.solve(np.eye(U.shape[1]) + U.T @ SU, U.T @ Sg))
+        gn, t, step = float(np.linalg.norm(g)), 1.0, None
+        while t > 1e-12:
+            hn = h + t * dh
+            try:
+                out = polytope(N, hn, edges=True)
+            except Exception:  # qhull on a degenerate step: a shorter one
+                out = None
+            if out is not None and out[2] > 0:
+                gnew = grad(out[3], out[2])
+                if (out[3] / out[3].sum()).min() >= eps0 and np.linalg.norm(gnew) <= (1 - t / 2) * gn:
+                    step = (hn, out, gnew)
                     break
-            if step < 1e-14:
-                p2, s2, V2, A2, h_new = pts, simp, V, A, h
-                break
-            step *= 0.5
-        c = _centroid(p2, s2)
-        h, pts, simp, V, A = h_new - N @ c, p2 - c, s2, V2, A2  # re-centred: the origin stays inside
-        h /= w @ h
-        pts, simp, V, A = polytope(N, h)
-        step = min(step * 2, 1.0)
+            t *= 0.5
+        if step is None:  # no step decreases |∇F|: the program's round-off floor
+            break
+        h, (pts, simp, V, A, E), g = step
+        c = pts.mean(0)  # re-centred: the origin stays inside
+        h, pts = h - N @ c, pts - c
     scale = np.sqrt(total / A.sum())
-    mesh = trimesh.convex.convex_hull(pts * scale)  # outward, watertight
-    err = float(np.abs(A * scale ** 2 - a).max() / total)  # against the areas given, before closing
-    return mesh, {"iterations": it, "area_error": err, "closure": closure}
+    mesh = trimesh.convex.convex_hull((pts - _centroid(pts, simp)) * scale)  # outward, watertight, centred
+    err = float(np.abs(np.bincount(np.flatnonzero(live), A * scale ** 2, len(a)) - a).max() / total)  # against the areas given, before closing
+    return mesh, {"iterations": it, "area_error": err, "closure": closure, "converged": converged}
 
 
 class ConvexInversion:
@@ -156,7 +203,7 @@ class ConvexInversion:
 
 
 def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambert", n_normals: int = 1000,
-                  sigma: Any = None, method: str = "nnls", closure: float = 1.0, refine: bool = True,
+                  sigma: Any = None, method: str = "nnls", closure: float = 1.0, refine: bool | None = None,
                   **recover_options: Any) -> ConvexInversion:
     """The convex shape of a light curve: ``flux (T,)`` per unit irradiance and range (for
     ``brdf="lambert"``: ``Σ_f A_f (albedo/π) max(0, s·n_f) max(0, o·n_f)``, so the areas come
@@ -165,7 +212,8 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     weights ``1/sigma``, ``closure``; ``recover_options``: its ``lam``, ``n_nonzero``,
     ``max_iter``, ``tv_neighbours``), with ``refine`` its atoms moved off the grid
     (:func:`~cssat.inversion.recover.refine_egi`: neighbours within 1.5 grid spacings merged,
-    directions and areas fitted by least squares), then :func:`minkowski`. ``brdf``: a
+    directions and areas fitted by least squares; ``None``: for the sparse methods, not for
+    ``tv``, whose EGI is a density on the grid rather than a few facets), then :func:`minkowski`. ``brdf``: a
     :mod:`cssat.optics.brdf` object or its name (default parameters, albedo 1 for Lambert)."""
     from cssat.inversion.egi import egi_operator, fibonacci_sphere
     from cssat.inversion.recover import recover_egi
@@ -187,6 +235,8 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     normals, areas = N.numpy()[keep], a[keep]
     Gm = G.matrix().numpy()
     model = Gm @ a
+    if refine is None:
+        refine = method != "tv"
     if refine and keep.any():
         from cssat.inversion.recover import refine_egi
 
