@@ -122,7 +122,10 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         from cssat.inversion.recover import METHODS
 
         method = choice_param(inv.get("method", "nnls"), "inversion.method", METHODS)
-        recover_opts = {"lam": float_param(inv["lam"], "inversion.lam", 0.0) if inv.get("lam") is not None else None,
+        lam = inv.get("lam")
+        if lam is not None and lam != "discrepancy":
+            lam = float_param(lam, "inversion.lam", 0.0)
+        recover_opts = {"lam": lam,
                         "n_nonzero": int_param(inv["n_nonzero"], "inversion.n_nonzero", 1) if inv.get("n_nonzero") is not None else None,
                         "tv_neighbours": int_param(inv["tv_neighbours"], "inversion.tv_neighbours", 1, 32)
                         if inv.get("tv_neighbours") is not None else None}

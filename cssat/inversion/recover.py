@@ -46,14 +46,17 @@ def _system(G: np.ndarray, y: np.ndarray, sigma: Any, normals: np.ndarray | None
 
 
 def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, method: str = "nnls",
-                closure: float = 0.0, n_nonzero: int | None = None, lam: float = 1e-3,
+                closure: float = 0.0, n_nonzero: int | None = None, lam: float | str = 1e-3,
                 max_iter: int = 5000, tv_neighbours: int = 6, differences: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
     """The EGI ``a (K,) ≥ 0`` with ``G a ≈ y``: ``G (T, K)`` (an :class:`EGIOperator` — its
     normals are then used for the closure — or a matrix), ``y (T,)`` (the light curve per unit
     irradiance and range), ``sigma`` its 1σ (scalar or ``(T,)``), ``method`` of :data:`METHODS`,
     ``closure`` the weight of ``Σ a_k n_k = 0`` relative to ``‖WG‖`` (0: none); ``tv``'s edges are
     the normals' ``tv_neighbours`` nearest unless ``differences (E, K)`` (sparse; e.g.
-    :func:`grid_differences` for an image) gives them. Returns ``(a,
+    :func:`grid_differences` for an image) gives them. ``l1``'s and ``tv``'s ``lam`` is relative
+    to ``‖(WG)ᵀWy‖∞``, or ``"discrepancy"``: the largest λ whose fit reaches the noise, ``χ² ≤ T``
+    (Morozov's principle; bisection in log λ over [1e-9, 1], ~8 solves; needs ``sigma``).
+    Returns ``(a,
     info)`` with ``chi2`` (the weighted residual's square norm, without the closure rows),
     ``n_nonzero`` and the method's own counts."""
     from scipy.optimize import nnls
@@ -77,18 +80,61 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
         info: dict[str, Any] = {}
     elif method == "nnomp":
         a, info = _nnomp(A, b, T, n_nonzero, sigma is not None)
-    elif method == "l1":
-        a, info = _nnl1(A, b, lam, int_param(max_iter, "max_iter", 1))
     else:
-        if differences is None and normals is None:
-            raise FieldError("normals", "the TV needs its edges: the normals (an EGIOperator or normals=) or differences=")
-        D = differences if differences is not None else sphere_differences(normals, int_param(tv_neighbours, "tv_neighbours", 1, 32))
-        if D.shape[1] != G.shape[1]:
-            raise FieldError("differences", f"{D.shape[1]} columns for {G.shape[1]} unknowns")
-        a, info = _nntv(A, b, D, lam, int_param(max_iter, "max_iter", 1))
+        max_iter = int_param(max_iter, "max_iter", 1)
+        if method == "l1":
+            solve = lambda lam_: _nnl1(A, b, lam_, max_iter)  # noqa: E731
+        else:
+            if differences is None and normals is None:
+                raise FieldError("normals", "the TV needs its edges: the normals (an EGIOperator or normals=) or differences=")
+            D = differences if differences is not None else sphere_differences(normals, int_param(tv_neighbours, "tv_neighbours", 1, 32))
+            if D.shape[1] != G.shape[1]:
+                raise FieldError("differences", f"{D.shape[1]} columns for {G.shape[1]} unknowns")
+            solve = lambda lam_: _nntv(A, b, D, lam_, max_iter)  # noqa: E731
+        if isinstance(lam, str):
+            if lam != "discrepancy":
+                raise FieldError("lam", f"expected a number >= 0 or 'discrepancy', got {lam!r}")
+            if sigma is None:
+                raise FieldError("lam", "'discrepancy' needs the noise: give sigma")
+            a, info = _by_discrepancy(solve, A, b, T)
+        else:
+            a, info = solve(lam)
     r = (A[:T] @ a - b[:T])
     info.update(chi2=float(r @ r), n_nonzero=int((a > 1e-12 * max(float(a.max()), 1e-300)).sum()), method=method, closure_norm=float(
         np.linalg.norm(normals.T @ a)) if normals is not None else None)
+    return a, info
+
+
+def _by_discrepancy(solve: Any, A: np.ndarray, b: np.ndarray, T: int) -> tuple[np.ndarray, dict]:
+    """The largest relative λ in [1e-9, 1] whose solve has ``χ² ≤ T`` (χ² grows with λ):
+    bisection in log₁₀ λ to 0.05 decades, or to χ² within 2 % of ``T``. When even 1e-9
+    misfits (a model error, not noise) that solve is returned, ``discrepancy_met`` False."""
+    def chi2(x: np.ndarray) -> float:
+        r = A[:T] @ x - b[:T]
+        return float(r @ r)
+
+    lo, hi = -9.0, 0.0
+    a, info = solve(10.0 ** lo)
+    best, n = (a, info, 10.0 ** lo), 1
+    met = chi2(a) <= T
+    if met:
+        a, info = solve(1.0)
+        n += 1
+        if chi2(a) <= T:
+            best, lo = (a, info, 1.0), hi
+        while hi - lo > 0.05:
+            mid = 0.5 * (lo + hi)
+            a, info = solve(10.0 ** mid)
+            n += 1
+            c = chi2(a)
+            if c <= T:
+                lo, best = mid, (a, info, 10.0 ** mid)
+                if c >= 0.98 * T:
+                    break
+            else:
+                hi = mid
+    a, info, lam = best
+    info = dict(info, solver_lam=lam, discrepancy_met=met, discrepancy_solves=n)
     return a, info
 
 

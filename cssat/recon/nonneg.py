@@ -76,11 +76,14 @@ class NNTV(_NonNeg):
     """Non-negative total variation: on the sphere's grid of normals when the operator carries
     ``normals`` (an EGI operator; ``tv_neighbours`` edges per normal), else on the image's pixel
     grid (anisotropic: each pixel to its next along each axis); ``lam`` relative to
-    ``‖(WG)ᵀWy‖∞``, ``max_iter``; ``closure`` as :class:`NNLS`."""
+    ``‖(WG)ᵀWy‖∞`` or ``"discrepancy"`` (χ² = m, from the problem's noise), ``max_iter``;
+    ``closure`` as :class:`NNLS`."""
 
     name = "nntv"
     method = "tv"
 
-    def __init__(self, closure: float = 0.0, lam: float = 1e-3, tv_neighbours: int = 6, max_iter: int = 5000):
-        super().__init__(closure, None, lam=float_param(lam, "lam", 0.0), tv_neighbours=int_param(tv_neighbours, "tv_neighbours", 1, 32),
+    def __init__(self, closure: float = 0.0, lam: float | str = 1e-3, tv_neighbours: int = 6, max_iter: int = 5000):
+        if lam != "discrepancy":
+            lam = float_param(lam, "lam", 0.0)
+        super().__init__(closure, None, lam=lam, tv_neighbours=int_param(tv_neighbours, "tv_neighbours", 1, 32),
                          max_iter=int_param(max_iter, "max_iter", 1))
