@@ -126,8 +126,8 @@ class TumblingState:
     ``alpha`` (rad), ``f_omega_hz``, ``f_phi_hz``, ``t0_s``, ``lon_deg``, ``lat_deg``
     (the direction of ``L``), ``phi0_deg``, ``t_ref_s`` (the epoch of the phases), ``frame``."""
 
-    def __init__(self, i1, i2, alpha, f_omega_hz, f_phi_hz, t0_s, lon_deg, lat_deg, phi0_deg, t_ref_s=0.0,
-                 frame="ecliptic"):
+    def __init__(self, i1: float, i2: float, alpha: float, f_omega_hz: float, f_phi_hz: float, t0_s: float,
+                 lon_deg: float, lat_deg: float, phi0_deg: float, t_ref_s: float = 0.0, frame: str = "ecliptic"):
         self.i1, self.i2, self.alpha = float(i1), float(i2), float(alpha)
         self.f_omega_hz, self.f_phi_hz, self.t0_s = float(f_omega_hz), float(f_phi_hz), float(t0_s)
         self.lon_deg, self.lat_deg, self.phi0_deg = float(lon_deg), float(lat_deg), float(phi0_deg)
@@ -186,7 +186,7 @@ class TumblingState:
                          self.phi0_deg])
 
     @classmethod
-    def from_vector(cls, x, alpha_hint: float, t_ref_s: float, frame: str) -> TumblingState | None:
+    def from_vector(cls, x: Any, alpha_hint: float, t_ref_s: float, frame: str) -> TumblingState | None:
         """The state of ``x = (i₁, i₂, f_ω, f_φ, t₀, λ, β, φ₀)``, ``α`` the root of the ratio
         nearest ``alpha_hint``; ``None`` when no motion has those numbers."""
         i1, i2, fw, fp = (float(v) for v in x[:4])
