@@ -448,3 +448,29 @@ def test_tv_by_the_discrepancy_principle_recovers_a_smooth_egi_that_nnls_spikes(
         recover_egi(G, y, method="tv", lam="discrepancy")  # no noise given
     with pytest.raises(FieldError, match="lam"):
         recover_egi(G, y, method="l1", sigma=sig, lam="morozov")
+
+
+def test_nonnegative_l1_solver_against_l_bfgs_b():
+    """The registry's ``nnl1`` minimises ½‖Ga − y‖² + λ Σ a over a ≥ 0 (λ relative to ‖Gᵀy‖∞):
+    its objective equals scipy's L-BFGS-B with bounds on the same smooth program to 1e-6."""
+    from scipy.optimize import minimize
+
+    from cssat.inversion import egi_operator, fibonacci_sphere
+    from cssat.recon import NNL1, Problem
+
+    rng = np.random.default_rng(8)
+    K, T = 32, 80
+    N = fibonacci_sphere(K).numpy()
+    s, o = (v / np.linalg.norm(v, axis=1, keepdims=True) for v in rng.normal(size=(2, T, 3)))
+    G = egi_operator(s, o, N)
+    Gm = G.matrix().numpy()
+    truth = np.zeros(K)
+    truth[rng.choice(K, 5, replace=False)] = rng.uniform(1, 3, 5)
+    y = Gm @ truth + 0.01 * rng.normal(size=T)
+    x, _ = NNL1(lam=0.02, max_iter=100000)(Problem(G, (K,)), torch.as_tensor(y))
+    a = x.numpy()
+    lam = 0.02 * np.abs(Gm.T @ y).max()
+    f = lambda v: 0.5 * np.sum((Gm @ v - y) ** 2) + lam * v.sum()  # noqa: E731
+    ref = minimize(f, np.ones(K), jac=lambda v: Gm.T @ (Gm @ v - y) + lam, bounds=[(0, None)] * K, method="L-BFGS-B",
+                   options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10000})
+    assert a.min() >= 0 and f(a) == pytest.approx(ref.fun, rel=1e-6)

@@ -10,10 +10,10 @@ A class of your own with the same call plugs in anywhere: point the config's ``_
 
 from cssat.recon.denoisers import Denoiser, NLMDenoiser, NoDenoiser, SparseKSVD, TVDenoiser, WaveletDenoiser
 from cssat.recon.problem import Problem
-from cssat.recon.nonneg import NNLS, NNOMP, NNTV
+from cssat.recon.nonneg import NNL1, NNLS, NNOMP, NNTV
 from cssat.recon.solvers import L1, OMP, TV, FluxOnly, Landweber, PnP, Solver, default_sparsity, tv_default_lam
 
 __all__ = [
-    "Problem", "Solver", "OMP", "L1", "TV", "FluxOnly", "NNLS", "NNOMP", "NNTV", "PnP", "Landweber", "default_sparsity", "tv_default_lam",
+    "Problem", "Solver", "OMP", "L1", "TV", "FluxOnly", "NNLS", "NNOMP", "NNL1", "NNTV", "PnP", "Landweber", "default_sparsity", "tv_default_lam",
     "Denoiser", "SparseKSVD", "TVDenoiser", "WaveletDenoiser", "NLMDenoiser", "NoDenoiser",
 ]

@@ -1,5 +1,5 @@
 """Non-negative solvers in the unknown's own basis (the EGI of :mod:`cssat.inversion`; pixels):
-:class:`NNLS`, :class:`NNOMP` and :class:`NNTV`, the solver-registry face of
+:class:`NNLS`, :class:`NNOMP`, :class:`NNL1` and :class:`NNTV`, the solver-registry face of
 :func:`cssat.inversion.recover_egi` (weights from the problem's noise)."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from cssat.sparse._io import numpy_io
 if TYPE_CHECKING:
     from cssat._types import Array, ProblemLike
 
-__all__ = ["NNLS", "NNOMP", "NNTV"]
+__all__ = ["NNLS", "NNOMP", "NNL1", "NNTV"]
 
 
 class _NonNeg(Solver):
@@ -70,6 +70,20 @@ class NNOMP(_NonNeg):
 
     name = "nnomp"
     method = "nnomp"
+
+
+class NNL1(_NonNeg):
+    """Non-negative ℓ1 (FISTA on ``½‖W(Aa − y)‖² + λ Σ a``, ``a ≥ 0``): ``lam`` relative to
+    ``‖(WA)ᵀWy‖∞`` or ``"discrepancy"`` (χ² = m, from the problem's noise), ``max_iter``;
+    ``closure`` as :class:`NNLS`."""
+
+    name = "nnl1"
+    method = "l1"
+
+    def __init__(self, closure: float = 0.0, lam: float | str = 1e-3, max_iter: int = 5000):
+        if lam != "discrepancy":
+            lam = float_param(lam, "lam", 0.0)
+        super().__init__(closure, None, lam=lam, max_iter=int_param(max_iter, "max_iter", 1))
 
 
 class NNTV(_NonNeg):
