@@ -448,6 +448,8 @@ def test_tv_by_the_discrepancy_principle_recovers_a_smooth_egi_that_nnls_spikes(
         recover_egi(G, y, method="tv", lam="discrepancy")  # no noise given
     with pytest.raises(FieldError, match="lam"):
         recover_egi(G, y, method="l1", sigma=sig, lam="morozov")
+    with pytest.raises(FieldError, match="y: the light curve must be finite"):
+        recover_egi(G, np.where(np.arange(T) == 7, np.nan, y), method="tv", sigma=sig)
 
 
 def test_nonnegative_l1_solver_against_l_bfgs_b():

@@ -71,6 +71,8 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
     G, y = _np(G), _np(y).reshape(-1)
     if G.ndim != 2 or G.shape[0] != len(y):
         raise FieldError("y", f"{len(y)} samples for an operator of shape {G.shape}")
+    if not np.isfinite(y).all():
+        raise FieldError("y", f"the light curve must be finite: {int((~np.isfinite(y)).sum())} NaN/inf samples (drop them first)")
     if normals is not None:
         normals = _np(normals)
     A, b = _system(G, y, sigma, normals, closure)
