@@ -119,17 +119,11 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                 raise FieldError(f"inversion.tumbling.{k}", f"unknown option; allowed: {', '.join(allowed)}")
         n_normals = int_param(inv.get("n_normals", 2000), "inversion.n_normals", 16, 20000)
         search_normals = int_param(inv.get("search_normals", 1000), "inversion.search_normals", 16, 20000)
-        from cssat.inversion.recover import METHODS
+        from cssat.inversion.recover import METHODS, lam_param
 
         method = choice_param(inv.get("method", "nnls"), "inversion.method", METHODS)
-        lam = inv.get("lam")
-        if lam is not None and lam != "discrepancy":
-            lam = float_param(lam, "inversion.lam", 0.0)
-        recover_opts = {"lam": lam,
-                        "n_nonzero": int_param(inv["n_nonzero"], "inversion.n_nonzero", 1) if inv.get("n_nonzero") is not None else None,
-                        "tv_neighbours": int_param(inv["tv_neighbours"], "inversion.tv_neighbours", 1, 32)
-                        if inv.get("tv_neighbours") is not None else None}
-        recover_opts = {k: v for k, v in recover_opts.items() if v is not None}
+        checks = {"lam": lam_param, "n_nonzero": lambda v, f: int_param(v, f, 1), "tv_neighbours": lambda v, f: int_param(v, f, 1, 32)}
+        recover_opts = {k: check(inv[k], f"inversion.{k}") for k, check in checks.items() if inv.get(k) is not None}
         closure = float_param(inv.get("closure", 1.0), "inversion.closure", 0.0)
         search = {k: inv[k] for k in ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples",
                                       "min_period_s", "max_period_s") if inv.get(k) is not None}

@@ -45,6 +45,15 @@ def _system(G: np.ndarray, y: np.ndarray, sigma: Any, normals: np.ndarray | None
     return A, b
 
 
+def lam_param(lam: Any, field: str = "lam") -> float | str:
+    """``lam`` of the ``l1`` and ``tv`` solves: a number ``>= 0`` or ``"discrepancy"``."""
+    if isinstance(lam, str):
+        if lam != "discrepancy":
+            raise FieldError(field, f"expected a number >= 0 or 'discrepancy', got {lam!r}")
+        return lam
+    return float_param(lam, field, 0.0)
+
+
 def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, method: str = "nnls",
                 closure: float = 0.0, n_nonzero: int | None = None, lam: float | str = 1e-3,
                 max_iter: int = 5000, tv_neighbours: int = 6, differences: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
@@ -93,9 +102,7 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
             if D.shape[1] != G.shape[1]:
                 raise FieldError("differences", f"{D.shape[1]} columns for {G.shape[1]} unknowns")
             solve = lambda lam_: _nntv(A, b, D, lam_, max_iter)  # noqa: E731
-        if isinstance(lam, str):
-            if lam != "discrepancy":
-                raise FieldError("lam", f"expected a number >= 0 or 'discrepancy', got {lam!r}")
+        if lam_param(lam) == "discrepancy":
             if sigma is None:
                 raise FieldError("lam", "'discrepancy' needs the noise: give sigma")
             a, info = _by_discrepancy(solve, A, b, T)

@@ -261,6 +261,15 @@ def _check_light_curve(times_s, flux, sun, obs, sigma):
     return t, y, S, O, (np.ones(T) if sig is None else 1.0 / sig), sig
 
 
+def _weighted_nnls(G: np.ndarray, w: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, float]:
+    """The search loops' EGI: NNLS of ``diag(w) G a ≈ yw``, and its χ²."""
+    from scipy.optimize import nnls
+
+    A = G * w[:, None]
+    a, rnorm = nnls(A, yw, maxiter=max(30 * A.shape[1], 1000))
+    return a, float(rnorm) ** 2
+
+
 class _Fit:
     """The EGI fit's χ² as a function of the spin ``(λ, β, f)`` on a subset of samples and a
     grid of normals: NNLS in the EGI for each spin. The pole's fixed rotation is cached, so a
@@ -290,11 +299,7 @@ class _Fit:
         return geometry_matrix(turn(sp), turn(op), self.N, self.brdf)
 
     def solve(self, lon, lat, f):
-        from scipy.optimize import nnls
-
-        A = self.matrix(lon, lat, f) * self.w[:, None]
-        a, rnorm = nnls(A, self.yw, maxiter=max(30 * A.shape[1], 1000))
-        return a, float(rnorm) ** 2
+        return _weighted_nnls(self.matrix(lon, lat, f), self.w, self.yw)
 
     def chi2(self, lon, lat, f):
         if not -90.0 <= lat <= 90.0 or not f > 0:

@@ -99,26 +99,27 @@ def torque_free_invariants(inertia_kg_m2: Any, q0: Any, omega0_rad_s: Any, frame
             "short_axis": bool(float(np.sum(Lb ** 2)) >= float(np.sum(Ip * wp ** 2)) * Ip[1])}
 
 
-def _alpha_roots(i1: float, i2: float, ratio: float, n: int = 72) -> list[float]:
-    """Every ``α ∈ (0, π/2)`` with ``f_φ/f_ω = ratio`` for moments ``(i₁, i₂, 1)``."""
+def _ratio_roots(i1: float, i2: float, ratio: float, grid: np.ndarray, n_rates: int, xtol: float) -> list[float]:
+    """The ``α`` on ``grid``'s brackets where ``f_φ/f_ω = ratio`` for moments ``(i₁, i₂, 1)``
+    (``tumbling_rates`` on ``n_rates`` points; a jump of the ratio across a bracket is no root)."""
     from scipy.optimize import brentq
 
-    grid = np.linspace(0.2, 89.8, n) * math.pi / 180
-
     def g(a):
-        fw, fp = tumbling_rates(i1, i2, a)
+        fw, fp = tumbling_rates(i1, i2, a, n=n_rates)
         return fp / fw - ratio if fw == fw else math.nan
 
-    vals = np.array([g(a) for a in grid])
+    vals = [g(a) for a in grid]
     roots = []
-    for k in range(n - 1):
+    for k in range(len(grid) - 1):
         a, b = vals[k], vals[k + 1]
-        if np.isfinite(a) and np.isfinite(b) and a * b < 0 and abs(a - b) < 10 * max(abs(ratio), 1.0):
-            try:
-                roots.append(brentq(g, grid[k], grid[k + 1], xtol=1e-13))
-            except ValueError:  # pragma: no cover - a sign change is a bracket
-                pass
+        if np.isfinite(a) and np.isfinite(b) and a * b <= 0 and abs(a - b) < 10 * max(abs(ratio), 1.0):
+            roots.append(brentq(g, grid[k], grid[k + 1], xtol=xtol) if a * b < 0 else grid[k] if a == 0 else grid[k + 1])
     return roots
+
+
+def _alpha_roots(i1: float, i2: float, ratio: float, n: int = 72) -> list[float]:
+    """Every ``α ∈ (0, π/2)`` with ``f_φ/f_ω = ratio`` for moments ``(i₁, i₂, 1)``."""
+    return _ratio_roots(i1, i2, ratio, np.linspace(0.2, 89.8, n) * math.pi / 180, 256, 1e-13)
 
 
 class TumblingState:
@@ -145,9 +146,10 @@ class TumblingState:
     def frames(self, times_s: Any) -> np.ndarray:
         """Body (principal) frames ``(T, 3, 3)`` at ``times_s`` (``v_body = R v_inertial``)."""
         from cssat.inversion.spin import _pole_rotation
+        from cssat.scene.attitude import _rz
 
         tau = np.asarray(times_s, dtype=np.float64).reshape(-1) - self.t_ref_s + self.t0_s
-        return self.motion(tau) @ (_rz(math.radians(self.phi0_deg)) @ _pole_rotation(self.lon_deg, self.lat_deg, self.frame))
+        return self.motion(tau) @ (_rz(np.float64(math.radians(self.phi0_deg))) @ _pole_rotation(self.lon_deg, self.lat_deg, self.frame))
 
     def motion(self, tau: np.ndarray) -> np.ndarray:
         """``B(τ) (T, 3, 3)``: the L-frame (z along ``L``) to the body, from the x–z crossing at
@@ -155,8 +157,7 @@ class TumblingState:
         exact from the Jacobi solution), the precession ``φ`` by its mean rate plus its periodic
         part tabulated on ``n_table`` points of one period (Simpson, linear interpolation:
         1e-9 rad; the tests hold it to ``torque_free``)."""
-        from cssat.scene.attitude import _nutation, _omega_of, _rx3
-        from cssat.scene.attitude import _rz as rz_many
+        from cssat.scene.attitude import _nutation, _omega_of, _rx3, _ry, _rz
 
         Ip, _, mo = _solution(self.i1, self.i2, self.alpha)
         if mo is None:
@@ -165,9 +166,9 @@ class TumblingState:
         w = _omega_of(mo, s, mo["sign"])
         theta, psi = _nutation(Ip, w, 1.0)
         phi = _precession_table(mo, Ip)(s)
-        X = _rx3(self.alpha)[0].T @ rz_many(np.array([math.pi / 2]))[0].T @ _ry_neg(self.alpha)
+        X = _rx3(self.alpha)[0].T @ _rz(np.float64(math.pi / 2)).T @ _ry(-self.alpha)  # body +z of the L-frame to (sin α, 0, cos α)
         phi = phi + math.atan2(X[0, 1], X[0, 0])
-        return rz_many(psi) @ _rx3(theta) @ rz_many(phi)
+        return _rz(psi) @ _rx3(theta) @ _rz(phi)
 
     def describe(self) -> dict[str, float]:
         return {"tumble_i1": self.i1, "tumble_i2": self.i2, "tumble_alpha_deg": math.degrees(self.alpha),
@@ -199,35 +200,9 @@ class TumblingState:
 
 
 def _alpha_near(i1, i2, ratio, hint, width=math.radians(4.0)):
-    from scipy.optimize import brentq
-
-    def g(a):
-        fw, fp = tumbling_rates(i1, i2, a, n=128)
-        return fp / fw - ratio if fw == fw else math.nan
-
-    lo, hi = max(hint - width, 1e-4), min(hint + width, math.pi / 2 - 1e-4)
-    grid = np.linspace(lo, hi, 9)
-    vals = [g(a) for a in grid]
-    best = None
-    for k in range(8):
-        a, b = vals[k], vals[k + 1]
-        if np.isfinite(a) and np.isfinite(b) and a * b <= 0 and abs(a - b) < 10 * max(abs(ratio), 1.0):
-            r = brentq(g, grid[k], grid[k + 1], xtol=1e-14) if a * b < 0 else grid[k] if a == 0 else grid[k + 1]
-            if best is None or abs(r - hint) < abs(best - hint):
-                best = r
-    return best
-
-
-def _rz(a: float) -> np.ndarray:
-    c, s_ = math.cos(a), math.sin(a)
-    return np.array([[c, s_, 0.0], [-s_, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _ry_neg(alpha: float) -> np.ndarray:
-    """``R_y(−α)`` passive (body +z of the L-frame to ``(sin α, 0, cos α)``)."""
-    from cssat.scene.attitude import _ry
-
-    return _ry(-alpha)
+    """The root of :func:`_ratio_roots` nearest ``hint`` within ``width`` (``None``: none)."""
+    grid = np.linspace(max(hint - width, 1e-4), min(hint + width, math.pi / 2 - 1e-4), 9)
+    return min(_ratio_roots(i1, i2, ratio, grid, 128, 1e-14), key=lambda r: abs(r - hint), default=None)
 
 
 def _precession_table(mo: dict, Ip: np.ndarray, n_table: int = 2048):
@@ -316,11 +291,9 @@ class _TFit:
         return self.G(to_body(R, self.S), to_body(R, self.O))
 
     def nnls(self, G: np.ndarray) -> tuple[np.ndarray, float]:
-        from scipy.optimize import nnls
+        from cssat.inversion.spin import _weighted_nnls
 
-        A = G * self.w[:, None]
-        a, r = nnls(A, self.yw, maxiter=max(30 * A.shape[1], 1000))
-        return a, float(r) ** 2
+        return _weighted_nnls(G, self.w, self.yw)
 
     def solve(self, state: TumblingState) -> tuple[np.ndarray, float]:
         return self.nnls(self.matrix(state))
@@ -400,6 +373,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     from cssat._checks import choice_param
     from cssat.inversion.egi import fibonacci_sphere
     from cssat.inversion.spin import _check_light_curve, _pole_rotation, _separation_deg, estimate_tumbling_periods
+    from cssat.scene.attitude import _rz
 
     import logging
     import time
@@ -456,7 +430,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     coarse = _TFit(*subset(arc, int_param(coarse_samples, "coarse_samples", 16)),
                    fibonacci_sphere(int_param(coarse_normals, "coarse_normals", 8)).numpy(), brdf)
     phis = np.arange(n_phi) * (360.0 / n_phi)
-    Rphi = np.stack([_rz(math.radians(p)) for p in phis])  # (n_phi, 3, 3)
+    Rphi = _rz(np.radians(phis))  # (n_phi, 3, 3)
     def scan(moments, pairs_, n_dirs):
         """Each moment and direction of ``L``: its best ``(chi2, vector, alpha, moment index)``."""
         poles = fibonacci_sphere(n_dirs).numpy()

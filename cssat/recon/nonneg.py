@@ -81,9 +81,9 @@ class NNL1(_NonNeg):
     method = "l1"
 
     def __init__(self, closure: float = 0.0, lam: float | str = 1e-3, max_iter: int = 5000):
-        if lam != "discrepancy":
-            lam = float_param(lam, "lam", 0.0)
-        super().__init__(closure, None, lam=lam, max_iter=int_param(max_iter, "max_iter", 1))
+        from cssat.inversion.recover import lam_param
+
+        super().__init__(closure, None, lam=lam_param(lam), max_iter=int_param(max_iter, "max_iter", 1))
 
 
 class NNTV(_NonNeg):
@@ -97,7 +97,7 @@ class NNTV(_NonNeg):
     method = "tv"
 
     def __init__(self, closure: float = 0.0, lam: float | str = 1e-3, tv_neighbours: int = 6, max_iter: int = 5000):
-        if lam != "discrepancy":
-            lam = float_param(lam, "lam", 0.0)
-        super().__init__(closure, None, lam=lam, tv_neighbours=int_param(tv_neighbours, "tv_neighbours", 1, 32),
+        from cssat.inversion.recover import lam_param
+
+        super().__init__(closure, None, lam=lam_param(lam), tv_neighbours=int_param(tv_neighbours, "tv_neighbours", 1, 32),
                          max_iter=int_param(max_iter, "max_iter", 1))
