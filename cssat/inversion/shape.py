@@ -159,7 +159,10 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 200, tol: float = 1e-
             converged = True
             break
         Hs = -_volume_hessian(N, E, K) / (3.0 * V)
-        scale = max(float(np.abs(Hs.diagonal()).mean()), 1e-300)
+        # the Hessian's scale: its mean diagonal, or a share of its largest entry where the
+        # facets meet at right angles (a box: cos θ = 0 zeroes the diagonal, and a shift of
+        # 1e-12 × 0 left the translations' null space exactly singular)
+        scale = max(float(np.abs(Hs.diagonal()).mean()), 1e-3 * float(np.abs(Hs.data).max(initial=0.0)), 1e-300)
         U = np.column_stack([A / (V * np.sqrt(3.0)), np.sqrt(scale) * Q])  # the rank-one term and the pin
         lu = spla.splu((Hs + 1e-12 * scale * sp.identity(K, format="csc")).tocsc())
         Sg, SU = lu.solve(g), lu.solve(U)  # Woodbury: (S + U Uᵀ)⁻¹ g
