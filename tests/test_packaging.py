@@ -71,3 +71,26 @@ def test_every_public_function_has_type_hints():
         visit(ast.parse(f.read_text()))
     assert seen > 200
     assert not missing, "\n".join(missing)
+
+
+def test_every_package_directory_is_found_by_setuptools():
+    """setup.py finds the packages (``find_packages``: directories with an ``__init__.py``): every
+    directory of ``cssat/`` and ``conf/`` that holds code or configs must have one, or the wheel
+    leaves it out (``cssat.inversion`` and ``cssat.occultation`` once were). The CI runs every
+    experiment from the built wheel (``python -m cssat.smoke``)."""
+    root = Path(__file__).resolve().parents[1]
+    missing = []
+    for top, kinds in (("cssat", ("*.py",)), ("conf", ("*.py", "*.yaml"))):
+        for d in [root / top, *sorted(p for p in (root / top).rglob("*") if p.is_dir())]:
+            if d.name == "__pycache__" or d.relative_to(root).as_posix() == "cssat/_hydra_plugin":
+                continue  # the launcher ships as hydra_plugins.cssat_launcher (mapped in setup.py)
+            if any(next(d.glob(k), None) for k in kinds) and not (d / "__init__.py").is_file():
+                missing.append(d.relative_to(root).as_posix())
+    assert not missing, f"no __init__.py (setuptools would leave them out of the wheel): {missing}"
+
+
+def test_every_experiment_has_a_smoke_size():
+    from cssat.experiments import experiment_names
+    from cssat.smoke import TINY
+
+    assert sorted(TINY) == experiment_names()
