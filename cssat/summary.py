@@ -5,7 +5,8 @@ Written by a Hydra callback at the end of every multirun (:class:`SummaryCallbac
 interrupted or had failures. A job is a sub-directory with Hydra's ``.hydra/overrides.yaml``; its
 row holds the swept values, every scalar metric of its ``metrics.json``, ``seconds`` and
 ``status`` (``ok``, ``failed``, ``missing`` when the job left no metrics or its metrics are
-another sweep's, ``corrupt`` when they cannot be read or a result file no longer has its hash).
+another sweep's, ``corrupt`` when they cannot be read, were edited since the run — ``metrics.json`` carries the
+digest of itself — or a result file no longer has its hash).
 ``cssat-summarize`` exits 1 when a row is not ``ok``.
 """
 
@@ -108,13 +109,16 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
 def _verify(job: Path, metrics: dict, current: str | None) -> dict[str, Any]:
     """``{}`` when the job's ``metrics.json`` is this sweep's and its result files still hash as
     listed; else the ``status`` (``missing``: another sweep's results; ``corrupt``) and ``error``."""
-    from cssat.experiments.results import files_problem
+    from cssat.experiments.results import files_problem, seal_problem
 
     sid = metrics.get("sweep_id")
     if current is not None and sid is not None and sid != current:
         return {"status": "missing", "error": f"the job did not run in this sweep (its results are of sweep {sid})"}
     if metrics.get("status") != "ok":
         return {}
+    why = seal_problem(metrics)
+    if why is not None:
+        return {"status": "corrupt", "error": why}
     files = metrics.get("files")
     if not isinstance(files, dict):
         return {"status": "corrupt", "error": "metrics.json lists no result files"}

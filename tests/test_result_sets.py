@@ -177,6 +177,15 @@ def test_summarize_checks_every_jobs_hashes(tmp_path):
     rows = {r["job"]: r for r in _rows(sweep / "summary.csv")}
     assert rows["2"]["status"] == "corrupt" and "arrays.npz" in rows["2"]["error"]
     assert rows["0"]["status"] == rows["1"]["status"] == "ok"
+    # metrics.json covers itself: a value edited by hand (valid JSON) is corrupt, not an ok row of psnr 99
+    (sweep / "2" / "arrays.npz").write_bytes((sweep / "1" / "arrays.npz").read_bytes())  # mended
+    assert summarize_main([str(sweep)]) == 0
+    meta = json.loads((sweep / "0" / "metrics.json").read_text())
+    meta["psnr"] = 99.0
+    (sweep / "0" / "metrics.json").write_text(json.dumps(meta, indent=2))
+    assert summarize_main([str(sweep)]) == 1
+    rows = {r["job"]: r for r in _rows(sweep / "summary.csv")}
+    assert rows["0"]["status"] == "corrupt" and "metrics.json changed" in rows["0"]["error"]
     # another sweep's metrics in a job directory are not this sweep's row
     meta = json.loads((sweep / "1" / "metrics.json").read_text())
     meta["sweep_id"] = "someone-else"

@@ -113,7 +113,8 @@ def test_a_killed_writer_leaves_no_temporary_file(tmp_path, how):
     assert not target.exists()  # nothing half-written where the result is expected
 
 
-@pytest.mark.parametrize("damage", ["truncate arrays", "delete figure", "replace image", "zero arrays"])
+@pytest.mark.parametrize("damage", ["truncate arrays", "delete figure", "replace image", "zero arrays", "edit psnr",
+                                    "edit a file hash"])
 def test_resume_skips_only_a_complete_current_set_and_says_why(tmp_path, damage, caplog):
     from PIL import Image
 
@@ -135,15 +136,29 @@ def test_resume_skips_only_a_complete_current_set_and_says_why(tmp_path, damage,
         (d / "arrays.npz").write_bytes(bytes(data))
     elif damage == "delete figure":
         (d / "figures" / "fig9_sim1.png").unlink()
+    elif damage in ("edit psnr", "edit a file hash"):  # metrics.json itself, edited by hand (still valid JSON)
+        import json
+
+        saved = json.loads((d / "metrics.json").read_text())
+        if damage == "edit psnr":
+            saved["psnr"] = 99.0
+        else:  # the manifest made to agree with a replaced array file
+            (d / "arrays.npz").write_bytes(b"not the arrays")
+            from cssat.experiments.results import file_hash
+
+            saved["files"]["arrays.npz"] = file_hash(d / "arrays.npz")
+        (d / "metrics.json").write_text(json.dumps(saved, indent=2))
     else:  # the image behind target.image replaced at the same path
         Image.fromarray((255 - np.arange(256).reshape(16, 16) % 251).astype(np.uint8)).save(img)
     with caplog.at_level("INFO", logger="cssat"):
         met = run_experiment(cfg_of(*over), d)
     assert "skipped" not in caplog.text and "running again" in caplog.text
     reason = {"truncate arrays": "arrays.npz", "zero arrays": "arrays.npz", "delete figure": "fig9_sim1.png",
-              "replace image": "input file"}[damage]
+              "replace image": "input file", "edit psnr": "metrics.json changed",
+              "edit a file hash": "metrics.json changed"}[damage]
     assert reason in caplog.text
     assert met["status"] == "ok" and check_complete(d, load_saved(d), met["config_sha"], cfg_of(*over)) is None
+    assert load_saved(d)["psnr"] != 99.0
 
 
 def test_two_runs_into_one_directory_one_is_refused(tmp_path):

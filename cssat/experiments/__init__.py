@@ -55,7 +55,8 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
     and writes ``metrics.json`` last: the experiment's flat metrics plus ``status``, ``seconds``,
     ``experiment``, ``config_sha`` (a hash of the config without ``resume``, ``progress`` …),
     provenance, ``files`` (every result file with its content hash) and ``inputs`` (the hashes of
-    the input files read). On failure ``status: failed`` and ``error``, and the exception is
+    the input files read), sealed by ``metrics_digest`` (the hash of the rest of it, so an edit of
+    any value is seen). On failure ``status: failed`` and ``error``, and the exception is
     re-raised. ``finalize`` runs under the lock after that (the app re-writes Hydra's ``.hydra/``
     files there, which a refused second run may have overwritten). ``tags`` (e.g. the sweep's
     ``sweep_id``) are added to ``metrics.json``, also of a skipped run.
@@ -68,8 +69,8 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
     import torch
 
     from cssat._record import recording
-    from cssat.experiments.files import write_json
-    from cssat.experiments.results import check_complete, clear_results, load_saved, move_aside, result_files, run_lock
+    from cssat.experiments.results import (check_complete, clear_results, load_saved, move_aside, result_files, run_lock,
+                                           write_metrics)
 
     startup = _process_seconds()
     out_dir = Path(out_dir)
@@ -84,7 +85,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
                 log.info("%s: complete results already in %s, skipped (resume=false to redo)", name, out_dir)
                 if tags and any(saved.get(k) != v for k, v in tags.items()):
                     saved.update(tags)
-                    write_json(out_dir / "metrics.json", saved)
+                    saved = write_metrics(out_dir, saved)
                 if finalize is not None:
                     finalize()
                 return saved
@@ -112,7 +113,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
                 raise
         metrics["seconds"] = time.perf_counter() - t0
         metrics["files"] = result_files(out_dir, rec.outputs)
-        write_json(out_dir / "metrics.json", metrics)
+        write_metrics(out_dir, metrics)
         if finalize is not None:
             finalize()
     return metrics

@@ -8,6 +8,12 @@ first (:func:`move_aside`). Before a run starts, the old
 ``metrics.json`` is removed first, so a run killed at any moment leaves a directory without a
 complete set — never new arrays beside old metrics that say ``ok``. A reader (``resume``, the sweep
 summary) trusts a directory only when every listed file is there with its hash.
+
+``metrics.json`` covers itself: its key ``metrics_digest`` is the hash of the rest of it (canonical
+JSON: sorted keys, no spaces), so an edited value — a ``psnr`` typed over, a file's hash replaced
+in ``files`` — no longer matches, and the set is not complete (``resume`` runs again, the sweep
+summary says ``corrupt``). It guards against edits and damage, not forgery: whoever recomputes the
+digest can sign anything.
 """
 
 from __future__ import annotations
@@ -22,13 +28,51 @@ from typing import Any, Iterable, Iterator
 
 from cssat._checks import FieldError
 
-__all__ = ["run_lock", "file_hash", "result_files", "check_complete", "clear_results", "move_aside", "load_saved"]
+__all__ = ["run_lock", "file_hash", "result_files", "check_complete", "clear_results", "move_aside", "load_saved",
+           "write_metrics", "seal_problem", "SEAL"]
 
 log = logging.getLogger("cssat")
 
 LOCK = ".cssat.lock"
 #: files of a run directory that are not results: Hydra's own, the log, the lock, metrics.json
 _NOT_RESULTS = {"metrics.json", "app.log", LOCK, LOCK + ".pid", ".cssat-sweep"}
+
+
+#: the key of ``metrics.json`` that holds the digest of the rest of it
+SEAL = "metrics_digest"
+
+
+def _canonical(data: dict) -> bytes:
+    """``data`` without its seal as canonical JSON (sorted keys, no spaces, ASCII)."""
+    return json.dumps({k: v for k, v in data.items() if k != SEAL}, sort_keys=True, separators=(",", ":"),
+                      allow_nan=False).encode()
+
+
+def write_metrics(out_dir: Path, metrics: dict[str, Any]) -> dict[str, Any]:
+    """Write ``out_dir/metrics.json`` atomically with its seal (``metrics_digest``: the hash of
+    the rest, see the module's docstring) and return what was written: ``metrics`` as JSON reads
+    it back (numpy scalars as numbers, non-finite floats as null, other objects as strings)."""
+    from cssat._record import digest
+    from cssat.experiments.files import _finite, _jsonable, write_json
+
+    data = json.loads(json.dumps(_finite(dict(metrics)), default=_jsonable, allow_nan=False))
+    data[SEAL] = digest(_canonical(data))
+    write_json(Path(out_dir) / "metrics.json", data)
+    return data
+
+
+def seal_problem(saved: dict) -> str | None:
+    """Why ``saved`` (a ``metrics.json`` as read) is not as its run wrote it, or ``None``."""
+    from cssat._record import digest
+
+    seal = saved.get(SEAL)
+    if not isinstance(seal, str):
+        return "metrics.json has no digest of itself (written by an older cssat or by hand)"
+    try:
+        ok = seal == digest(_canonical(saved))
+    except (TypeError, ValueError):  # NaN or an object JSON does not write: not what cssat wrote
+        ok = False
+    return None if ok else "metrics.json changed since the run (its digest differs)"
 
 
 def file_hash(path: str | os.PathLike, chunk: int = 1 << 22) -> str:
@@ -58,6 +102,9 @@ def check_complete(out_dir: Path, saved: dict, sha: str, cfg: Any = None) -> str
     (``saved["inputs"]``: ``{path: hash of the bytes read}``) must still hash the same."""
     if saved.get("status") != "ok":
         return f"the last run ended {saved.get('status', 'without a status')}"
+    why = seal_problem(saved)
+    if why is not None:
+        return why
     if saved.get("config_sha") != sha:
         return "the config changed"
     files = saved.get("files")
