@@ -1,6 +1,9 @@
-"""The one pipeline: every experiment runs with every option of every group (not only composes),
-stage times add up, grids are cells of their own, solvers take the problem object."""
+"""The one pipeline: every experiment runs at its tiny size, every option of every group takes
+effect (its setting recorded, its stage's output changed), stage times add up, grids are cells of
+their own, solvers take the problem object."""
 
+import functools
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -12,39 +15,35 @@ from hydra import compose, initialize_config_module
 
 import cssat.conf
 from cssat.experiments import run_experiment
+from cssat.smoke import TINY
 
 CONF = Path(cssat.conf.__file__).parent
 EXPERIMENTS = sorted(p.stem for p in (CONF / "experiment").glob("*.yaml"))
 GROUPS = ("atmosphere", "noise", "solver", "denoiser")
 
-#: each experiment at a tiny size (seconds a run)
-TINY = {
-    "sim1": ["target.size=12", "cs.m=100"],
-    "sim2": ["target.size=12", "cs.m=80", "dtype=float64"],
-    "sim3": ["target.size=12", "cs.m=80", "reference.pool=150", "reference.n=80", "reference.repeats=2",
-             "reference.n_nonzero_coefs=10", "denoiser3d.n_iter=1"],
-    "solvers": ["target.size=12", "grid.axes.0.values=[0.5]", "grid_options.pnp.max_iter=2",
-                "grid_options.pnp.denoiser.n_iter=1", "grid_options.tv.max_iter=50", "grid_options.l1.max_iter=50"],
-    "realism": ["target.size=12", "grid.axes.0.values=[0.058,60]", "grid.axes.1.values=[8]", "grid_options.tv.max_iter=50",
-                "~grid.axes.0.cells.leo_pass"],  # its 160 samples need N >= 160
-    "lightcurve": ["scenario.n_steps=3", "render.size=8"],
-    "inversion": ["nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known", "inversion.n_normals=64"],
-    "inversion_tumbling": ["nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known",
-                           "inversion.n_normals=64"],
-    "occultation": ["silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5"],
-}
-#: the groups an experiment of its own module does not use (its matrix is the groups it uses)
-UNUSED = {"inversion": ("atmosphere", "solver", "denoiser"), "inversion_tumbling": ("atmosphere", "solver", "denoiser"),
-          "occultation": ("atmosphere", "noise", "solver", "denoiser")}
+#: the groups each experiment reads (measured: an option of any other group leaves every array
+#: and table it writes unchanged — the light curve reconstructs nothing, the inversions have no
+#: atmosphere or image solver, the occultation has its own forward model and solver)
+READS = {"sim1": GROUPS, "sim2": GROUPS, "sim3": GROUPS, "solvers": GROUPS, "realism": GROUPS,
+         "lightcurve": ("atmosphere", "noise"), "inversion": ("noise",), "inversion_tumbling": ("noise",),
+         "occultation": ()}
 #: options made quick (their numbers are not what these tests check)
 QUICK = {
     ("solver", "pnp"): ["solver.max_iter=2", "solver.denoiser.n_iter=1"],
     ("solver", "tv"): ["solver.max_iter=50"], ("solver", "l1"): ["solver.max_iter=50"],
     ("solver", "landweber"): ["solver.max_iter=50"],
-    ("denoiser", "sparse_ksvd"): ["denoiser.n_iter=1"], ("denoiser", "sparse_ksvd_pnp"): ["denoiser.n_iter=1"],
+    ("denoiser", "sparse_ksvd_pnp"): ["denoiser.n_iter=1"],
     ("atmosphere", "phase_screen"): ["atmosphere.n_radial=16", "atmosphere.n_angular=4", "atmosphere.n_layers=2"],
     ("atmosphere", "phase_screen_converged"): ["atmosphere.n_radial=16", "atmosphere.n_angular=4", "atmosphere.n_layers=2"],
 }
+#: the name metrics.json records for an option whose YAML is a variant of another's class
+RECORDED = {("atmosphere", "phase_screen_converged"): "phase_screen", ("noise", "photometric_object"): "photometric",
+            ("denoiser", "sparse_ksvd_pnp"): "sparse_ksvd"}
+#: which array of sim1 a group's option changes first
+CHANGES = {"atmosphere": "y", "noise": "y", "solver": "reconstruction", "denoiser": "denoised"}
+#: the option each other experiment is tried with, per group it reads (one that is not its default)
+OTHER = {"atmosphere": ("lognormal", "gaussian"), "noise": ("gaussian", "photometric"), "solver": ("landweber", "tv"),
+         "denoiser": ("wavelet", "none")}
 
 
 def options(group):
@@ -56,24 +55,104 @@ def cfg_of(*overrides):
         return compose(config_name="config", overrides=list(overrides))
 
 
-CASES = [(e, g, o) for e in EXPERIMENTS for g in GROUPS for o in options(g) if g not in UNUSED.get(e, ())]
-
-
-@pytest.mark.parametrize("experiment, group, option", CASES, ids=[f"{e}-{g}={o}" for e, g, o in CASES])
-def test_every_experiment_runs_with_every_option_of_every_group(tmp_path, experiment, group, option):
-    over = [f"experiment={experiment}", f"{group}={option}", "threads=1", f"cache_dir={tmp_path / 'cache'}",
-            *TINY[experiment], *QUICK.get((group, option), [])]
-    if experiment == "realism" and group != "atmosphere":  # realism's own atmosphere, made quick
+def tiny(experiment, group=None):
+    """The experiment's tiny overrides; realism's phase-screen atmosphere made quick unless the
+    atmosphere is what the case sets."""
+    over = [x for x in TINY[experiment] if not x.startswith("atmosphere.")]
+    if experiment == "realism" and group != "atmosphere":
         over += QUICK[("atmosphere", "phase_screen")]
-    met = run_experiment(cfg_of(*over), tmp_path / "run")
-    assert met["status"] == "ok"
-    saved = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    return [f"experiment={experiment}", "threads=1", *over]
+
+
+@functools.lru_cache(maxsize=None)
+def default_option(experiment, group):
+    """The option of ``group`` that ``experiment`` composes by default (Hydra's runtime choice)."""
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[f"experiment={experiment}"], return_hydra_config=True)
+    return cfg.hydra.runtime.choices[group]
+
+
+def fingerprint(run_dir):
+    """``{file: {array: hash}}`` of the run's arrays and tables (figures left out)."""
+    out = {}
+    for f in sorted(Path(run_dir).rglob("*")):
+        if f.suffix == ".npz":
+            with np.load(f) as a:
+                out[f.name] = {k: hashlib.blake2b(a[k].tobytes(), digest_size=16).hexdigest() for k in a.files}
+        elif f.suffix == ".csv":
+            out[f.name] = hashlib.blake2b(f.read_bytes(), digest_size=16).hexdigest()
+    return out
+
+
+@pytest.fixture(scope="module")
+def default_runs(tmp_path_factory):
+    """Each experiment's default run at its tiny size, run once for the module: ``{name: dir}``."""
+    root, done = tmp_path_factory.mktemp("defaults"), {}
+
+    def get(experiment):
+        if experiment not in done:
+            d = root / experiment
+            run_experiment(cfg_of(*tiny(experiment), f"cache_dir={root / 'cache'}"), d)
+            done[experiment] = d
+        return done[experiment]
+
+    return get
+
+
+@pytest.mark.parametrize("experiment", EXPERIMENTS)
+def test_every_experiment_runs_at_its_tiny_size(default_runs, experiment):
+    """A complete result set; every stage's time is a ``seconds_<stage>`` key, together the run's time."""
+    saved = json.loads((default_runs(experiment) / "metrics.json").read_text())
     assert saved["status"] == "ok" and saved["files"]
-    if experiment != "lightcurve" and not experiment.startswith("inversion"):
-        assert math.isfinite(met["psnr"])
-    # every stage's time is a seconds_<stage> key: together they are the run's time
+    if experiment in ("sim1", "sim2", "sim3", "solvers", "realism"):
+        assert any(k.startswith("psnr") and isinstance(v, float) and math.isfinite(v) for k, v in saved.items())
     stages = sum(v for k, v in saved.items() if k.startswith("seconds_") and k != "seconds_startup")
     assert 0.9 * saved["seconds"] - 0.05 <= stages <= saved["seconds"] + 1e-6, (stages, saved["seconds"])
+
+
+SIM1_CASES = [(g, o) for g in GROUPS for o in options(g)]
+
+
+@pytest.mark.parametrize("group, option", SIM1_CASES, ids=[f"{g}={o}" for g, o in SIM1_CASES])
+def test_every_option_takes_effect(tmp_path, default_runs, group, option):
+    """Each option of each group, once, on sim1 (which reads all four): its name is recorded in
+    metrics.json, and the array its stage makes differs from the default run's — or, for the
+    default option, equals it bit for bit (same config and seed, same numbers)."""
+    base = default_runs("sim1")
+    is_default = option == default_option("sim1", group)
+    over = [*tiny("sim1"), f"{group}={option}", f"cache_dir={tmp_path / 'cache'}",
+            *([] if is_default else QUICK.get((group, option), []))]
+    met = run_experiment(cfg_of(*over), tmp_path / "run")
+    assert met["status"] == "ok"
+    assert met[group] == RECORDED.get((group, option), option)
+    key = CHANGES[group]
+    with np.load(base / "arrays.npz") as a, np.load(tmp_path / "run" / "arrays.npz") as b:
+        same = np.array_equal(a[key], b[key])
+    assert same == is_default, f"{group}={option}: {key} {'equals' if same else 'differs from'} the default run's"
+
+
+OTHER_CASES = [(e, g) for e in EXPERIMENTS if e != "sim1" for g in READS[e]]
+
+
+@pytest.mark.parametrize("experiment, group", OTHER_CASES, ids=[f"{e}-{g}" for e, g in OTHER_CASES])
+def test_every_experiment_reads_its_groups(tmp_path, default_runs, experiment, group):
+    """Each other experiment honours each group it reads: one option that is not its default
+    changes what it writes (its arrays or tables) and is recorded where the experiment records it."""
+    option = next(o for o in OTHER[group] if o != default_option(experiment, group))
+    met = run_experiment(cfg_of(*tiny(experiment, group), f"{group}={option}", *QUICK.get((group, option), []),
+                                f"cache_dir={tmp_path / 'cache'}"), tmp_path / "run")
+    assert met["status"] == "ok"
+    if group in met:
+        assert met[group] == RECORDED.get((group, option), option)
+    assert fingerprint(tmp_path / "run") != fingerprint(default_runs(experiment)), f"{group}={option} changed nothing"
+
+
+def test_the_groups_an_experiment_does_not_read_change_nothing(tmp_path, default_runs):
+    """The other side of READS: the light curve with another solver and denoiser writes the same
+    table (so those cases are not in the option matrix)."""
+    met = run_experiment(cfg_of(*tiny("lightcurve"), "solver=tv", "denoiser=wavelet"), tmp_path / "run")
+    assert met["status"] == "ok"
+    assert fingerprint(tmp_path / "run") == fingerprint(default_runs("lightcurve"))
 
 
 def test_grid_cells_are_copies_with_their_own_settings():
