@@ -30,3 +30,35 @@ def dot_test(op, dtype=torch.float64, batch=3, seed=0):
     lhs = (op(x) * y).sum()
     rhs = (x * op.adjoint(y)).sum()
     return float((lhs - rhs).abs() / (lhs.abs() + rhs.abs()))
+
+
+def run_cli(args, cwd):
+    """The ``cssat`` console script run in this process: ``cssat.app.main()`` with ``sys.argv``
+    set, in ``cwd``; returns ``(exit code, the non-empty lines it printed or logged)``. An exception
+    escaping ``main()`` — a traceback, in a process of its own — fails the test. For what a run
+    refuses or writes; what needs a process of its own (the console script's exit status, kills,
+    signals, byte-reproducibility across processes) is tested with subprocesses."""
+    import contextlib
+    import io
+    import os
+    import sys
+
+    from hydra.core.global_hydra import GlobalHydra
+
+    from cssat import app, summary
+
+    out, old_argv, old_cwd = io.StringIO(), sys.argv, os.getcwd()
+    sys.argv, code = ["cssat", *map(str, args)], 0
+    summary.SWEEP_FAILED = False
+    try:
+        os.chdir(cwd)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+            app.main()
+    except SystemExit as err:
+        code = 0 if err.code is None else err.code if isinstance(err.code, int) else 1
+    finally:
+        sys.argv = old_argv
+        os.chdir(old_cwd)
+        GlobalHydra.instance().clear()
+        torch.set_num_threads(1)
+    return code, [ln for ln in out.getvalue().splitlines() if ln.strip()]

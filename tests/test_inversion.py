@@ -184,14 +184,12 @@ def test_minkowski_solves_a_many_faceted_body_quickly():
     p = np.random.default_rng(9).normal(size=(700, 3))
     truth = trimesh.convex.convex_hull(p / np.linalg.norm(p, axis=1, keepdims=True) * [2.0, 1.0, 0.6])
     N, a = egi(Mesh(truth.vertices, truth.faces, 1.0, 0.0))
-    t0 = time.perf_counter()
     mesh, info = minkowski(N, a)
-    elapsed = time.perf_counter() - t0
     assert len(N) > 1000 and info["converged"], (len(N), info)
     truth.apply_translation(-truth.center_mass)
     mesh.apply_translation(-mesh.center_mass)
     assert _support_hausdorff(mesh, truth) <= 1e-3 * truth.scale
-    assert info["iterations"] < 40 and elapsed < 60  # the gradient ascent it replaced: 3,000 steps, not converged
+    assert info["iterations"] < 40  # Newton's steps; the gradient ascent it replaced: 3,000 steps, not converged
 
 
 def test_minkowski_refuses_what_is_no_body():
