@@ -131,8 +131,11 @@ def test_3d_denoise_of_a_stack_uses_cubes_and_beats_the_noisy_slices():
     stack = np.stack([img + rng.normal(0, s, img.shape) for s in (10, 20, 30)])
     out, info = ksvd_denoise(stack, n_iter=2, n_atoms=200, n_train=4000, return_info=True)
     assert out.shape == stack.shape and info.block_size == (3, 8, 8)
-    for k in range(3):
-        assert np.mean((out[k] - img) ** 2) < np.mean((stack[k] - img) ** 2)
+    # each slice gains: ≥ 2 dB at σ = 10, ≥ 6 dB at σ = 20 and 30 (measured 3.1, 8.6, 9.8 dB); a
+    # denoiser that returns its input gains 0 dB and fails
+    for k, bar in enumerate((2.0, 6.0, 6.0)):
+        gain = 10 * np.log10(np.mean((stack[k] - img) ** 2) / np.mean((out[k] - img) ** 2))
+        assert gain >= bar, (k, gain)
 
 
 def test_estimate_sigma_of_white_noise():
