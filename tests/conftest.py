@@ -4,6 +4,8 @@ import torch
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "cuda: needs a CUDA device (skipped where torch.cuda.is_available() is false)")
+    config.addinivalue_line("markers", "slow: over ~10 s each (CI runs them; `pytest -m 'not slow'` leaves them out "
+                                       "while developing)")
 
 
 def pytest_collection_modifyitems(config, items):

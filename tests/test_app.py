@@ -89,6 +89,7 @@ def test_sim1_is_deterministic_and_recovers_a_compressible_image(tmp_path):
     assert full["psnr"] > 80
 
 
+@pytest.mark.slow
 def test_a_cold_numba_cache_gives_the_numbers_of_a_warm_one(tmp_path):
     """The first run (numba compiles every kernel) and the next (kernels from numba's on-disk
     cache) of one config and seed give identical arrays and metrics. sim1 at 64² (one signal, K =

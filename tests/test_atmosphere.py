@@ -54,6 +54,7 @@ def test_long_exposure_is_kornilovs_limit(exposure_s, diameter_m):
     assert atm.log_variance == pytest.approx(kornilov, rel=0.3)
 
 
+@pytest.mark.slow
 def test_sampled_weights_have_the_models_moments():
     atm = model(diameter_m=0.1, exposure_s=0.0)
     w = atm.operator(4000, 16, seed=1, dtype=torch.float64).matrix()

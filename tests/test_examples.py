@@ -45,6 +45,7 @@ def flat_psnr(size):
     return 10 * np.log10(1 / np.mean((t - t.mean()) ** 2))
 
 
+@pytest.mark.slow
 def test_reconstruction(tmp_path):
     out = run(tmp_path, "reconstruction.py", "--size", "32", "--ratio", "0.6", "--out", "rec.png")
     assert db(out, r"K = \d+") > flat_psnr(32) + 3  # 14.6 dB flat; OMP gives ~19

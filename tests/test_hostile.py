@@ -283,6 +283,7 @@ def test_batch_omp_refuses_bad_precomputed_inputs_and_complex_data():
         ksvd_denoise(torch.rand(16, 16).to(torch.complex64), 0.1)
 
 
+@pytest.mark.slow
 def test_vector_figures_are_byte_reproducible_across_processes(tmp_path):
     for fmt in ("svg", "pdf"):
         outs = []

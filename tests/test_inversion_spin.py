@@ -68,6 +68,7 @@ def spin_case():
     return sol, (ra, dec, period), t, y, sun, obs, fit
 
 
+@pytest.mark.slow
 def test_the_spin_search_finds_the_pole_and_the_sidereal_period(spin_case):
     """A convex asymmetric body over four nights of a GEO-like geometry (the synodic period
     differs from the sidereal by up to P²/sidereal day — the observer turns with the Earth — which

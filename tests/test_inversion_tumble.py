@@ -116,6 +116,7 @@ def tumbler():
     return truth, sol, t, y, sun, obs, sig, fit
 
 
+@pytest.mark.slow
 def test_blind_recovery_of_a_tumbler(tumbler):
     """From the light curve alone (the lattice's frequency pairs searched, no moment of the grid
     is the truth's): L within 1° and within 5 of its reported 1σ, both periods within 1e-4, the
@@ -163,6 +164,7 @@ SMALL = ["nights.n=2", "nights.fit=1", "threads=1", "inversion.n_normals=300", "
          "+inversion.tumbling.n_normals=200", "+inversion.tumbling.max_samples=300", "+inversion.tumbling.final_fev=20"]
 
 
+@pytest.mark.slow
 def test_the_tumbling_experiment_finds_the_true_state(tmp_path):
     """``experiment=inversion_tumbling`` (one night fitted, small grids, the periods given to within
     1e-4) scores its estimate against the attitude's own invariants: the direction of L within 3°,

@@ -120,6 +120,7 @@ def _sweep_env(tmp_path, body):
     return [f"hydra.searchpath=[file://{tmp_path / 'conf'}]", "experiment=slow"], env
 
 
+@pytest.mark.slow
 def test_two_sweeps_cannot_share_a_directory(tmp_path):
     over, env = _sweep_env(tmp_path, "import time\ndef run(cfg, out_dir):\n    time.sleep(4)\n"
                                      "    return {'psnr': float(cfg.cs.m)}\n")

@@ -33,6 +33,7 @@ def consistent(d: Path) -> bool:
     return len(arrays["y"]) == saved["m"] and check_complete(d, saved, saved["config_sha"], cfg_of(*SMALL, f"cs.m={saved['m']}")) is None
 
 
+@pytest.mark.slow
 def test_a_kill_while_writing_never_leaves_new_arrays_beside_old_metrics(tmp_path):
     d = tmp_path / "run"
     assert subprocess.run(APP + SMALL + ["cs.m=200", f"hydra.run.dir={d}"], capture_output=True, cwd=tmp_path).returncode == 0
@@ -163,6 +164,7 @@ def test_resume_skips_only_a_complete_current_set_and_says_why(tmp_path, damage,
     assert load_saved(d)["psnr"] != 99.0
 
 
+@pytest.mark.slow
 def test_two_runs_into_one_directory_one_is_refused(tmp_path):
     refused = 0
     for trial in range(3):

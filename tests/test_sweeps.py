@@ -78,6 +78,7 @@ def test_launcher_configs_compose():
     assert joblib.threads * joblib.hydra.launcher.n_jobs <= 2  # no oversubscription of 2 cores
 
 
+@pytest.mark.slow
 def test_joblib_sweep_2x2_summary_failed_job_and_resume(tmp_path):
     pytest.importorskip("hydra_plugins.hydra_joblib_launcher")
     sweep = tmp_path / "sweep"
@@ -168,6 +169,7 @@ def test_summarize_marks_a_corrupt_metrics_file_and_checks_the_metric(tmp_path, 
     assert "--metric" in err and "psnr_typo" in err and "psnr" in err
 
 
+@pytest.mark.slow
 def test_a_worker_killed_by_the_os_fails_its_job_only(tmp_path):
     """Under launcher=local, a job whose worker process is killed (as by the OOM killer) is a
     failed row; the other jobs finish — also the one that shared the batch with it when its
