@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import run_cli
 import torch
+from conftest import run_cli
 
 APP = [sys.executable, "-m", "cssat.app"]
 SMALL = ["target.size=16", "threads=1", "denoiser=none"]

@@ -33,9 +33,10 @@ QUICK = {
     ("solver", "tv"): ["solver.max_iter=50"], ("solver", "l1"): ["solver.max_iter=50"],
     ("solver", "landweber"): ["solver.max_iter=50"],
     ("denoiser", "sparse_ksvd_pnp"): ["denoiser.n_iter=1"],
-    ("atmosphere", "phase_screen"): ["atmosphere.n_radial=16", "atmosphere.n_angular=4", "atmosphere.n_layers=2"],
-    ("atmosphere", "phase_screen_converged"): ["atmosphere.n_radial=16", "atmosphere.n_angular=4", "atmosphere.n_layers=2"],
 }
+#: a phase-screen atmosphere made quick: the settings realism's tiny size gives its own
+QUICK[("atmosphere", "phase_screen")] = QUICK[("atmosphere", "phase_screen_converged")] = [
+    x for x in TINY["realism"] if x.startswith("atmosphere.")]
 #: the name metrics.json records for an option whose YAML is a variant of another's class
 RECORDED = {("atmosphere", "phase_screen_converged"): "phase_screen", ("noise", "photometric_object"): "photometric",
             ("denoiser", "sparse_ksvd_pnp"): "sparse_ksvd"}

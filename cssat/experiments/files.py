@@ -15,7 +15,7 @@ from cssat._tmpfiles import atomic_write
 if TYPE_CHECKING:
     from cssat._types import Array
 
-__all__ = ["write_json", "write_npz", "write_csv"]
+__all__ = ["as_json", "write_json", "write_npz", "write_csv"]
 
 
 def _finite(v):
@@ -36,6 +36,12 @@ def _jsonable(v):
     if isinstance(v, (np.floating, np.integer)):
         return v.item()
     return str(v)
+
+
+def as_json(data: Mapping[str, Any]) -> dict[str, Any]:
+    """``data`` as JSON reads it back from :func:`write_json`: numpy scalars as numbers,
+    non-finite floats as null, other objects as strings."""
+    return json.loads(json.dumps(_finite(dict(data)), default=_jsonable, allow_nan=False))
 
 
 def write_json(path: str | os.PathLike, data: Mapping[str, Any]) -> None:

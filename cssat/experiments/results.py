@@ -53,9 +53,9 @@ def write_metrics(out_dir: Path, metrics: dict[str, Any]) -> dict[str, Any]:
     the rest, see the module's docstring) and return what was written: ``metrics`` as JSON reads
     it back (numpy scalars as numbers, non-finite floats as null, other objects as strings)."""
     from cssat._record import digest
-    from cssat.experiments.files import _finite, _jsonable, write_json
+    from cssat.experiments.files import as_json, write_json
 
-    data = json.loads(json.dumps(_finite(dict(metrics)), default=_jsonable, allow_nan=False))
+    data = as_json(metrics)
     data[SEAL] = digest(_canonical(data))
     write_json(Path(out_dir) / "metrics.json", data)
     return data
