@@ -1,20 +1,22 @@
-"""Measured light curves in: a table of UTC time stamps, a magnitude or a flux, and its
-uncertainty (issue 23).
+"""Measured light curves in: a table of time stamps, a magnitude or a flux, and its uncertainty
+(issues 23 and 34).
 
-:func:`read_light_curve` reads a CSV (the format survey databases export and cssat's own
-``lightcurve.csv``), and an ECSV or FITS table where astropy is installed (``pip install
-cssat[astro]``). Column names default to cssat's format and can name any export's. Time stamps
-are ISO 8601 (UTC unless they carry an offset), or Julian dates, modified Julian dates or Unix
-seconds (``time_format``), at any cadence, with gaps; they must increase. A bad file gets a
-:class:`~cssat._checks.FieldError` that names the column and the row (the data row, from 1),
-which the command line turns into exit 2.
+:func:`read_light_curve` reads the files observers publish, chosen by ``format=`` or by the
+file's content (:mod:`cssat.data.formats`): Mini-MegaTORTORA (MMT-9) exports, SCORE/SatHub
+CSVs, ALCDEF, astropy tables (``Table``/``QTable``/``TimeSeries`` objects, ECSV and FITS files
+with ``Time`` columns in any scale) and cssat's own CSV (``lightcurve.csv``; any column names).
+Time stamps are ISO 8601 (UTC unless they carry an offset), or Julian dates, modified Julian
+dates or Unix seconds (``time_format``) in UTC, TT, TDB or TAI (``time_scale``), converted to
+UTC by astropy, at any cadence, with gaps. A bad file gets a :class:`~cssat._checks.FieldError`
+that names the column and the row (the data row, from 1), which the command line turns into
+exit 2; the file's size is checked against the memory available before it is read.
 """
 
 from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -22,23 +24,35 @@ import numpy as np
 
 from cssat._checks import FieldError, choice_param
 
-__all__ = ["ObservedLightCurve", "read_light_curve", "write_light_curve", "KINDS", "TIME_FORMATS"]
+__all__ = ["ObservedLightCurve", "read_light_curve", "write_light_curve", "KINDS", "TIME_FORMATS", "DUPLICATES"]
 
 KINDS = ("magnitude", "flux")
 TIME_FORMATS = ("iso", "jd", "mjd", "unix")
+DUPLICATES = ("refuse", "merge")
+#: the bytes of memory a text table's byte may take once parsed (rows of Python strings, then arrays)
+_BYTES_PER_BYTE = 40
 #: the value column of cssat's own ``lightcurve.csv`` by kind, and the error column it may carry
 DEFAULT_VALUE = {"magnitude": "magnitude", "flux": "flux_W_m2"}
 DEFAULT_ERROR = {"magnitude": "magnitude_err", "flux": "flux_W_m2_err"}
-_JD_UNIX = 2440587.5  # the Julian date of 1970-01-01 00:00 UTC
-_MJD_UNIX = 40587.0
+
+
+_ROW_FIELDS = ("times_utc", "values", "errors", "filters", "observers", "tracks", "channels", "sites", "ranges_km",
+               "phase_deg", "ra_deg", "dec_deg", "exposure_s", "penumbra")
 
 
 @dataclass
 class ObservedLightCurve:
-    """A measured light curve: ``times_utc (T,)`` ``datetime64[us]`` (increasing), ``values (T,)``
-    float64 (V magnitudes or flux in the file's unit, W/m² for cssat's), ``errors (T,)`` (1σ, same
-    unit; ``None`` when the file has none), ``kind`` (``"magnitude"`` or ``"flux"``), and
-    optional ``filters``/``observers`` ``(T,)`` strings; ``source`` is the file."""
+    """A measured light curve: ``times_utc (T,)`` ``datetime64[us]`` UTC (increasing), ``values
+    (T,)`` float64 (magnitudes, or flux in the file's unit — W/m² for cssat's), ``errors (T,)``
+    (1σ, same unit; ``None`` when the file has none), ``kind`` (``"magnitude"`` or ``"flux"``).
+
+    Per-sample metadata where the file gives it (else ``None``): ``filters``, ``observers``,
+    ``tracks`` (track or session ids), ``channels`` (camera channels) ``(T,)`` strings;
+    ``sites (T, 3)`` (observer latitude °, longitude ° east, altitude m); ``ranges_km``,
+    ``phase_deg``, ``ra_deg``, ``dec_deg``, ``exposure_s (T,)``; ``penumbra (T,)`` bool.
+    ``magnitude_system``: ``"apparent"`` or how the values are normalised (MMT's StdMag);
+    ``meta``: the file's own metadata (``format``, ``object_id`` — the NORAD number —,
+    ``name``, ``variability``, ``published_period_s``, the raw ``header``); ``source``."""
 
     times_utc: np.ndarray
     values: np.ndarray
@@ -47,6 +61,115 @@ class ObservedLightCurve:
     filters: np.ndarray | None = None
     observers: np.ndarray | None = None
     source: str = ""
+    tracks: np.ndarray | None = None
+    channels: np.ndarray | None = None
+    sites: np.ndarray | None = None
+    ranges_km: np.ndarray | None = None
+    phase_deg: np.ndarray | None = None
+    ra_deg: np.ndarray | None = None
+    dec_deg: np.ndarray | None = None
+    exposure_s: np.ndarray | None = None
+    penumbra: np.ndarray | None = None
+    magnitude_system: str = "apparent"
+    meta: dict = field(default_factory=dict)
+
+    def rows(self, index: Any) -> ObservedLightCurve:
+        """The light curve of the samples ``index`` (a mask or indices), metadata kept."""
+        kw = {k: (None if getattr(self, k) is None else getattr(self, k)[index]) for k in _ROW_FIELDS}
+        return replace(self, **kw)
+
+    def times_s(self, origin: Any = None) -> np.ndarray:
+        """``(T,)`` float seconds since ``origin`` (default: the first sample)."""
+        t0 = self.times_utc[0] if origin is None else np.datetime64(origin, "us")
+        return (self.times_utc - t0).astype("timedelta64[us]").astype(np.int64) / 1e6
+
+    def track_ids(self) -> np.ndarray:
+        """``(T,)`` the track of each sample: the file's ids, else contiguous stretches (a new
+        one after a gap: :func:`cssat.inversion.period.stretches`)."""
+        if self.tracks is not None:
+            return np.asarray(self.tracks).astype(str)
+        from cssat.inversion.period import stretches
+
+        return stretches(self.times_s()).astype(str)
+
+    def select(self, tracks: Any = None, *, start: Any = None, stop: Any = None) -> ObservedLightCurve:
+        """The samples of the given ``tracks`` (ids; default all) between ``start`` and ``stop``
+        (UTC, inclusive; default the whole curve). Unknown ids are a FieldError that lists the ids."""
+        keep = np.ones(len(self), bool)
+        if tracks is not None:
+            ids = self.track_ids()
+            want = [str(x) for x in (tracks if isinstance(tracks, (list, tuple, np.ndarray)) else [tracks])]
+            missing = sorted(set(want) - set(ids))
+            if missing:
+                raise FieldError("observations.tracks", f"no track {', '.join(missing)}; the tracks: {', '.join(dict.fromkeys(ids))}")
+            keep &= np.isin(ids, want)
+        if start is not None:
+            keep &= self.times_utc >= np.datetime64(start, "us")
+        if stop is not None:
+            keep &= self.times_utc <= np.datetime64(stop, "us")
+        if not keep.any():
+            raise FieldError("observations", "the selection holds no sample")
+        return self.rows(keep)
+
+    def split(self) -> list[ObservedLightCurve]:
+        """One light curve per track (in order of first appearance)."""
+        ids = self.track_ids()
+        return [self.rows(ids == k) for k in dict.fromkeys(ids)]
+
+    def nights(self, utc_offset_h: float = 0.0) -> np.ndarray:
+        """``(T,)`` the local night of each sample as ``YYYY-MM-DD`` of its evening (a night
+        runs from local noon to noon; ``utc_offset_h`` the site's offset, e.g. lon/15)."""
+        local = self.times_utc + np.timedelta64(int(round((utc_offset_h - 12.0) * 3600e6)), "us")
+        return np.datetime_as_string(local.astype("datetime64[D]"))
+
+    @staticmethod
+    def merge(curves: Sequence[ObservedLightCurve]) -> ObservedLightCurve:
+        """One light curve of several (of one kind), sorted by time, each sample keeping its
+        track (a curve without track ids gets ``"<k>"`` by position)."""
+        curves = list(curves)
+        if not curves or len({c.kind for c in curves}) != 1:
+            raise FieldError("observations", "merge needs light curves of one kind")
+        parts = {}
+        for k in _ROW_FIELDS:
+            vals = [getattr(c, k) for c in curves]
+            if k == "tracks":
+                vals = [c.track_ids() if c.tracks is not None else np.full(len(c), str(i)) for i, c in enumerate(curves)]
+            parts[k] = None if any(v is None for v in vals) else np.concatenate(vals)
+        order = np.argsort(parts["times_utc"], kind="stable")
+        kw = {k: (None if v is None else v[order]) for k, v in parts.items()}
+        return replace(curves[0], **kw, source=";".join(c.source for c in curves))
+
+    def light_time_corrected(self) -> ObservedLightCurve:
+        """The curve at the instants the light left the object: ``t − range/c`` (needs ``ranges_km``)."""
+        if self.ranges_km is None:
+            raise FieldError("observations.range", "the light-time correction needs the range of each sample")
+        shift = np.round(self.ranges_km / 299792.458 * 1e6).astype(np.int64).astype("timedelta64[us]")
+        return replace(self, times_utc=self.times_utc - shift)
+
+    def to_table(self) -> Any:
+        """The light curve as an astropy ``TimeSeries`` (``time`` in UTC; the value column
+        ``mag`` in mag or ``flux``; its error; every per-sample column; ``meta``)."""
+        from astropy import units as u
+        from astropy.time import Time
+        from astropy.timeseries import TimeSeries
+
+        ts = TimeSeries(time=Time(self.times_utc, scale="utc"))
+        unit = u.mag if self.kind == "magnitude" else None
+        name = "mag" if self.kind == "magnitude" else "flux"
+        ts[name] = self.values if unit is None else self.values * unit
+        if self.errors is not None:
+            ts[f"{name}_err"] = self.errors if unit is None else self.errors * unit
+        for k in _ROW_FIELDS[3:]:
+            v = getattr(self, k)
+            if v is None:
+                continue
+            if k == "sites":
+                ts["site_lat_deg"], ts["site_lon_deg"], ts["site_alt_m"] = v[:, 0], v[:, 1], v[:, 2]
+            else:
+                ts[k] = v
+        ts.meta.update({k: v for k, v in self.meta.items() if isinstance(v, (str, int, float)) or v is None})
+        ts.meta.update(kind=self.kind, magnitude_system=self.magnitude_system, source=self.source)
+        return ts
 
     def __len__(self) -> int:
         return len(self.times_utc)
@@ -81,130 +204,251 @@ class ObservedLightCurve:
         return 2.5 / math.log(10) * self.errors / np.abs(self.values)
 
 
-def _table(path: Path, fmt: str | None) -> tuple[list[str], list[list[Any]]]:
-    """``(column names, rows)`` of a CSV, ECSV or FITS table (read once, hashed as read)."""
-    import io
+def _check_size(p: Path) -> None:
+    """Refuse a file whose parsed table would not fit in the memory available now."""
+    import os
 
-    from cssat._record import read_input
-
-    suffix = (fmt or path.suffix.lstrip(".")).lower()
-    data = read_input(path, 1 << 30, "observations")
-    if suffix in ("ecsv", "fits", "fit", "fts"):
-        try:
-            from astropy.table import Table
-        except ImportError:
-            raise FieldError("observations", f"{path.name}: reading {suffix.upper()} needs astropy "
-                                             "(pip install 'cssat[astro]'), or give a CSV") from None
-        try:
-            src = data.decode("utf-8") if suffix == "ecsv" else io.BytesIO(data)  # ECSV: the text itself
-            t = Table.read(src, format="ascii.ecsv" if suffix == "ecsv" else "fits")
-        except Exception as err:  # astropy raises many kinds on a malformed file
-            raise FieldError("observations", f"{path.name}: not a readable {suffix.upper()} table ({err})") from None
-        cols = list(t.colnames)
-        return cols, [[t[c][i] for c in cols] for i in range(len(t))]
+    size = p.stat().st_size
     try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        raise FieldError("observations", f"{path.name}: not a UTF-8 text table (a CSV with a header row)") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    rows = list(csv.reader(lines))
-    if not rows:
-        raise FieldError("observations", f"{path.name}: no header row and no data")
-    return [c.strip() for c in rows[0]], [r for r in rows[1:]]
+        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):  # not Linux: the 1 GiB cap alone
+        avail = 1 << 62
+    need = size * _BYTES_PER_BYTE
+    if size > (1 << 30) or need > avail // 2:
+        raise FieldError("observations", f"{p.name} is {size / 2**20:.0f} MiB: reading it needs about "
+                                         f"{need / 2**30:.1f} GiB, {avail / 2**30:.1f} GiB are free; split it "
+                                         "(by track or night) and read the parts")
 
 
-def _times(raw: Sequence[Any], col: str, time_format: str) -> np.ndarray:
-    from cssat.scene.orbit import _start_datetime
-
-    out = np.empty(len(raw), dtype="datetime64[us]")
-    for i, v in enumerate(raw):
-        where = f"observations.{col}[row {i + 1}]"
-        if time_format == "iso":
-            text = v.decode() if isinstance(v, bytes) else str(v)
-            out[i] = np.datetime64(_start_datetime(text.strip(), where), "us")
+def _text_rows(text: str, name: str) -> tuple[list[str], list[list[str]]]:
+    """``(header, rows)`` of a comma- or whitespace-separated table; the header is the first
+    non-comment line, or the last comment line when the first line is data (MMT-like)."""
+    comments, body = [], []
+    for ln in text.splitlines():
+        if not ln.strip():
             continue
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            raise FieldError(where, f"not a number ({time_format}): {v!r}") from None
-        if not math.isfinite(x):
-            raise FieldError(where, f"not a finite time: {v!r}")
-        days = {"jd": x - _JD_UNIX, "mjd": x - _MJD_UNIX, "unix": x / 86400.0}[time_format]
-        out[i] = np.datetime64(0, "us") + np.timedelta64(int(round(days * 86400e6)), "us")
-    step = np.diff(out).astype(np.int64)
-    bad = np.flatnonzero(step <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise FieldError(f"observations.{col}[row {i + 1}]", f"times must increase: {out[i]} does not come after "
-                                                            f"{out[i - 1]} (sort the file, or drop the duplicate)")
-    return out
+        (comments if ln.lstrip().startswith("#") and not body else body).append(ln)
+    body = [ln for ln in body if not ln.lstrip().startswith("#")]
+    if not body:
+        raise FieldError("observations", f"{name}: no header row and no data")
+    comma = "," in body[0]
+    try:
+        if comma:
+            rows = list(csv.reader(body))
+        else:
+            rows = [ln.split() for ln in body]
+    except csv.Error as err:
+        raise FieldError("observations", f"{name}: not a readable CSV ({err})") from None
+    first = rows[0]
+    looks_data = all(_is_number(v) or v[:1].isdigit() for v in first if v.strip())
+    if looks_data and comments:
+        head = comments[-1].lstrip().lstrip("#").strip()
+        header = next(csv.reader([head])) if comma else head.split()
+        return [c.strip() for c in header], rows
+    return [c.strip() for c in first], rows[1:]
+
+
+def _is_number(v: str) -> bool:
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
+
+
+def _times(raw: Sequence[Any], col: str, time_format: str, time_scale: str) -> np.ndarray:
+    from cssat.data.formats import to_utc
+
+    if time_format == "iso":
+        from cssat.scene.orbit import _start_datetime
+
+        out = np.array([np.datetime64(_start_datetime((v.decode() if isinstance(v, bytes) else str(v)).strip(),
+                                                      f"observations.{col}[row {i + 1}]"), "us")
+                        for i, v in enumerate(raw)], dtype="datetime64[us]")
+        if time_scale == "utc":
+            return out
+        return to_utc(np.datetime_as_string(out), "isot", time_scale, f"observations.{col}")
+    x = _numbers(raw, col)
+    return to_utc(x, {"jd": "jd", "mjd": "mjd", "unix": "unix"}[time_format], time_scale if time_format != "unix" else "utc",
+                  f"observations.{col}")
 
 
 def _numbers(raw: Sequence[Any], col: str, *, positive: bool = False) -> np.ndarray:
-    out = np.empty(len(raw))
-    for i, v in enumerate(raw):
-        where = f"observations.{col}[row {i + 1}]"
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            raise FieldError(where, f"not a number: {v!r}") from None
-        if not math.isfinite(x):
-            raise FieldError(where, f"{v!r} is not a finite value (drop the row or give its value)")
-        if positive and not x > 0:
-            raise FieldError(where, f"an uncertainty must be > 0, got {v!r}")
-        out[i] = x
+    try:
+        out = np.array(raw, dtype=np.float64)
+    except (TypeError, ValueError):
+        out = None
+    if out is None or not np.isfinite(out).all() or (positive and not (out > 0).all()):
+        for i, v in enumerate(raw):
+            where = f"observations.{col}[row {i + 1}]"
+            try:
+                x = float(v)
+            except (TypeError, ValueError):
+                raise FieldError(where, f"not a number: {v!r}") from None
+            if not math.isfinite(x):
+                raise FieldError(where, f"{v!r} is not a finite value (drop the row or give its value)")
+            if positive and not x > 0:
+                raise FieldError(where, f"an uncertainty must be > 0, got {v!r}")
     return out
 
 
-def read_light_curve(path: str | Path, *, time_col: str = "time_utc", value_col: str | None = None,
-                     error_col: str | None = None, kind: str = "magnitude", time_format: str = "iso",
-                     filter_col: str | None = "filter", observer_col: str | None = "observer",
-                     format: str | None = None) -> ObservedLightCurve:
-    """Read a measured light curve: a table with a header of column names.
-
-    ``time_col`` (default ``time_utc``), in ``time_format`` (``iso``: ISO 8601, UTC unless an
-    offset is given; ``jd``/``mjd``: Julian / modified Julian dates in UTC; ``unix``: seconds since
-    1970). ``value_col`` (default: cssat's ``magnitude`` or ``flux_W_m2`` for ``kind``), a V
-    magnitude or a flux. ``error_col``: its 1σ (default: ``magnitude_err``/``flux_W_m2_err`` when
-    the file has it, else none). ``filter_col``/``observer_col``: read when the file has them.
-    ``format``: ``csv``, ``ecsv`` or ``fits`` (default: the file's suffix; ECSV and FITS need
-    astropy). Returns an :class:`ObservedLightCurve`.
-
-    Errors (:class:`~cssat._checks.FieldError`, exit 2 on the CLI) name the column and the data
-    row: a missing column (with the file's columns), an unparsable time, a NaN or infinite value,
-    an uncertainty ≤ 0, times that do not increase, an empty file.
-    """
-    kind = choice_param(kind, "kind", KINDS)
-    time_format = choice_param(time_format, "time_format", TIME_FORMATS)
-    p = Path(path)
-    if not p.is_file():
-        raise FieldError("observations", f"no such file: {p}")
-    cols, rows = _table(p, format)
+def _read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, error_col: str | None, kind: str,
+              time_format: str, time_scale: str, filter_col: str | None, observer_col: str | None,
+              track_col: str | None) -> dict[str, Any]:
+    cols, rows = _text_rows(text, name)
     value_col = value_col or DEFAULT_VALUE[kind]
     if error_col is None and DEFAULT_ERROR[kind] in cols:
         error_col = DEFAULT_ERROR[kind]
-    for name, col in (("time_col", time_col), ("value_col", value_col), ("error_col", error_col)):
-        if col is not None and col not in cols:
-            raise FieldError(f"observations.{name}", f"{p.name} has no column {col!r}; its columns: {', '.join(cols)}")
+    tcols = list(time_col) if isinstance(time_col, (list, tuple)) else [time_col or "time_utc"]
+    for fld, names in (("time_col", tcols), ("value_col", [value_col]), ("error_col", [error_col])):
+        for c in names:
+            if c is not None and c not in cols:
+                raise FieldError(f"observations.{fld}", f"{name} has no column {c!r}; its columns: {', '.join(cols)}")
     if not rows:
-        raise FieldError("observations", f"{p.name}: a header and no data rows")
-    short = [i for i, r in enumerate(rows) if len(r) != len(cols)]
-    if short:
-        raise FieldError(f"observations[row {short[0] + 1}]", f"{len(rows[short[0]])} fields, the header has {len(cols)}")
+        raise FieldError("observations", f"{name}: a header and no data rows")
+    bad = next((i for i, r in enumerate(rows) if len(r) != len(cols)), None)
+    if bad is not None:
+        raise FieldError(f"observations[row {bad + 1}]", f"{len(rows[bad])} fields, the header has {len(cols)}")
+    lower = value_col.lower()
+    if (kind == "magnitude" and "flux" in lower) or (kind == "flux" and "mag" in lower):
+        raise FieldError("observations.kind", f"the column {value_col!r} reads as a {'flux' if 'flux' in lower else 'magnitude'}, "
+                                              f"not a {kind}: give kind='{'flux' if 'flux' in lower else 'magnitude'}'")
 
-    def column(name: str) -> list[Any]:
-        j = cols.index(name)
-        return [r[j] for r in rows]
+    def column(c: str) -> list[str]:
+        j = cols.index(c)
+        return [r[j].strip() for r in rows]
 
-    times = _times(column(time_col), time_col, time_format)
-    values = _numbers(column(value_col), value_col, positive=False)
-    if kind == "flux" and (values < 0).any():
-        i = int(np.flatnonzero(values < 0)[0])
-        raise FieldError(f"observations.{value_col}[row {i + 1}]", f"a flux must be >= 0, got {values[i]}")
-    errors = _numbers(column(error_col), error_col, positive=True) if error_col else None
-    filters = np.array([str(v).strip() for v in column(filter_col)]) if filter_col in cols else None
-    observers = np.array([str(v).strip() for v in column(observer_col)]) if observer_col in cols else None
-    return ObservedLightCurve(times, values, errors, kind, filters, observers, str(p))
+    raw_t = column(tcols[0]) if len(tcols) == 1 else ["T".join(parts) for parts in zip(*(column(c) for c in tcols))]
+    out: dict[str, Any] = {"times_utc": _times(raw_t, "+".join(tcols), time_format, time_scale),
+                           "values": _numbers(column(value_col), value_col), "kind": kind,
+                           "errors": _numbers(column(error_col), error_col, positive=True) if error_col else None,
+                           "meta": {"format": "csv"}}
+    for key, c in (("filters", filter_col), ("observers", observer_col), ("tracks", track_col)):
+        if c in cols:
+            out[key] = np.array(column(c))
+    return out
+
+
+def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None = None, error_col: str | None = None,
+                     kind: str = "magnitude", time_format: str = "iso", time_scale: str = "utc",
+                     filter_col: str | None = "filter", observer_col: str | None = "observer",
+                     track_col: str | None = "track", format: str | None = None, object: Any = None,
+                     duplicates: str = "refuse") -> ObservedLightCurve:
+    """Read a measured light curve from a file (or an astropy ``Table``/``QTable``/``TimeSeries``).
+
+    ``format``: one of :data:`~cssat.data.formats.FORMATS` (default: by content — an ALCDEF
+    ``STARTMETADATA``, an MMT ``# satellite:`` header, SCORE's columns, ``.ecsv``/``.fits`` —
+    else cssat's CSV). For a CSV (comma or whitespace separated; the header the first line or,
+    when that is data, the last ``#`` line): ``time_col`` (default ``time_utc``; a pair of
+    columns — date and time — is joined), in ``time_format`` (``iso``, ``jd``, ``mjd``,
+    ``unix``) and ``time_scale`` (``utc``, ``tt``, ``tdb``, ``tai``: converted to UTC by
+    astropy); ``value_col`` (default cssat's ``magnitude``/``flux_W_m2`` for ``kind``; MMT's
+    ``Mag`` or ``StdMag``), ``error_col`` (its 1σ), ``filter_col``/``observer_col``/
+    ``track_col`` where present. ``object``: the NORAD id or name to keep from a file of
+    several (SCORE). ``duplicates``: equal time stamps are refused (``"refuse"``) or averaged
+    (``"merge"``: the mean value, the errors combined). MMT, SCORE and ALCDEF rows are sorted by
+    time; other files must increase.
+
+    Errors (:class:`~cssat._checks.FieldError`, exit 2 on the CLI) name the column and the data
+    row: a missing column (with the file's columns), an unparsable time, a NaN or infinite value,
+    a magnitude outside ±30 (a placeholder such as 99.999), a flux < 0, an uncertainty ≤ 0,
+    a unit or column name that contradicts ``kind``, times that do not increase, an empty file,
+    a file too large for the memory available.
+    """
+    from cssat.data import formats as F
+
+    kind = choice_param(kind, "kind", KINDS)
+    time_format = choice_param(time_format, "time_format", TIME_FORMATS)
+    time_scale = choice_param(time_scale, "time_scale", F.TIME_SCALES)
+    duplicates = choice_param(duplicates, "duplicates", DUPLICATES)
+    if format is not None:
+        format = choice_param(str(format).lower(), "format", F.FORMATS)
+    if hasattr(path, "colnames"):  # an astropy table in memory
+        d = F.read_astropy(path, "the table", time_col=time_col, value_col=value_col, error_col=error_col, kind=kind)
+        name, fmt = "the table", "astropy"
+    else:
+        p = Path(path)
+        if not p.is_file():
+            raise FieldError("observations", f"no such file: {p}")
+        _check_size(p)
+        from cssat._record import read_input
+
+        data = read_input(p, 1 << 30, "observations")
+        name = p.name
+        if format in ("fits",) or (format is None and p.suffix.lower() in (".fits", ".fit", ".fts")):
+            fmt, text = "fits", ""
+        else:
+            try:
+                text = data.decode("utf-8-sig")
+            except UnicodeDecodeError:
+                raise FieldError("observations", f"{name}: not a UTF-8 text table (nor FITS)") from None
+            fmt = format or F.sniff_format(text[:8192], p.suffix.lstrip("."))
+        if fmt == "mmt":
+            d = F.read_mmt(text, name, value_col)
+        elif fmt == "alcdef":
+            d = F.read_alcdef(text, name)
+        elif fmt == "score":
+            lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+            try:
+                rows = list(csv.reader(lines))
+            except csv.Error as err:
+                raise FieldError("observations", f"{name}: not a readable CSV ({err})") from None
+            d = F.read_score(rows[0], rows[1:], name, object)
+        elif fmt in ("ecsv", "fits", "astropy"):
+            d = F.read_astropy(F.read_astropy_file(data, "fits" if fmt == "fits" else "ecsv", name), name,
+                               time_col=time_col, value_col=value_col, error_col=error_col, kind=kind)
+        else:
+            d = _read_csv(text, name, time_col=time_col, value_col=value_col, error_col=error_col, kind=kind,
+                          time_format=time_format, time_scale=time_scale, filter_col=filter_col,
+                          observer_col=observer_col, track_col=track_col)
+    lc = ObservedLightCurve(**{k: v for k, v in d.items() if k != "meta"}, meta=d.get("meta", {}),
+                            source=str(path) if fmt != "astropy" else "")
+    tcol = "+".join(time_col) if isinstance(time_col, (list, tuple)) else (time_col or ("time_utc" if fmt == "csv" else "time"))
+    return _finish(lc, fmt, duplicates, value_col or ("value" if fmt != "csv" else DEFAULT_VALUE[kind]), tcol)
+
+
+def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: str) -> ObservedLightCurve:
+    """Check values, sort (MMT, SCORE, ALCDEF), refuse or merge duplicate stamps."""
+    from cssat.data.formats import check_magnitudes
+
+    if not len(lc):
+        raise FieldError("observations", "no data rows")
+    if not np.isfinite(lc.values).all():
+        i = int(np.flatnonzero(~np.isfinite(lc.values))[0])
+        raise FieldError(f"observations.{vcol}[row {i + 1}]", f"{lc.values[i]!r} is not a finite value (drop the row)")
+    if lc.kind == "magnitude":
+        check_magnitudes(lc.values, vcol)
+    elif (lc.values < 0).any():
+        i = int(np.flatnonzero(lc.values < 0)[0])
+        raise FieldError(f"observations.{vcol}[row {i + 1}]", f"a flux must be >= 0, got {lc.values[i]}")
+    if lc.errors is not None and not (np.isfinite(lc.errors) & (lc.errors > 0)).all():
+        i = int(np.flatnonzero(~(np.isfinite(lc.errors) & (lc.errors > 0)))[0])
+        raise FieldError(f"observations.error[row {i + 1}]", f"an uncertainty must be finite and > 0, got {lc.errors[i]}")
+    if fmt in ("mmt", "score", "alcdef"):
+        lc = lc.rows(np.argsort(lc.times_utc, kind="stable"))
+    step = np.diff(lc.times_utc).astype(np.int64)
+    back = np.flatnonzero(step < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise FieldError(f"observations.{tcol}[row {i + 1}]", f"times must increase: {lc.times_utc[i]} does not come after "
+                                                           f"{lc.times_utc[i - 1]} (sort the file)")
+    same = np.flatnonzero(step == 0)
+    if same.size and duplicates == "refuse":
+        i = int(same[0]) + 1
+        raise FieldError(f"observations.{tcol}[row {i + 1}]", f"a duplicate time stamp {lc.times_utc[i]} (drop the "
+                                                           "duplicate, or read with duplicates='merge' to average them)")
+    if same.size:
+        group = np.r_[0, np.cumsum(step != 0)]
+        first = np.r_[0, np.flatnonzero(step != 0) + 1]
+        n = np.bincount(group).astype(np.float64)
+        if lc.errors is not None:
+            wgt = 1.0 / lc.errors ** 2
+            vals = np.bincount(group, lc.values * wgt) / np.bincount(group, wgt)
+            errs = 1.0 / np.sqrt(np.bincount(group, wgt))
+        else:
+            vals, errs = np.bincount(group, lc.values) / n, None
+        lc = replace(lc.rows(first), values=vals, errors=errs)
+    return lc
 
 
 def write_light_curve(path: str | Path, lc: ObservedLightCurve) -> None:

@@ -1,0 +1,376 @@
+"""The period of a light curve, and whether it has one (issue 34, point 3).
+
+:func:`estimate_period` is built for real tracks (Mini-MegaTORTORA, SCORE, a telescope's own
+photometry) with its defaults:
+
+1. **Bounds from the data.** The search runs from the cadence's Nyquist period ``2 d`` (``d``
+   the mean step inside contiguous stretches, so two interleaved camera channels count as one
+   faster cadence) to half the span (two cycles), unless ``min_period_s``/``max_period_s`` are
+   given. A double of the best period may reach the whole span (flagged: < 2 cycles).
+2. **Periodogram.** astropy's Lomb–Scargle (``nterms=1``, its fast method, on a grid of
+   ``samples_per_peak`` points per peak width ``1/span``) gives the ``n_peaks`` strongest
+   distinct frequencies ``f``. A rotating body's light curve puts its power in harmonics of
+   the spin frequency: two maxima a turn put the peak at ``2/P``, four glints at ``4/P``.
+3. **Multi-harmonic models and aliases.** For each peak the frequency is refined by least
+   squares of an ``m``-harmonic Fourier series (``m`` by BIC), then the candidate periods
+   ``k/f`` (``k = 1…4``) are scored with ``k m`` harmonics (all reach the same highest
+   frequency, so the longer period's model nests the shorter one's) by the Bayesian information
+   criterion ``BIC = N ln(RSS/N) + p ln N`` (or ``χ² + p ln N`` when ``sigma`` is given): the
+   longer period wins only when its extra (odd) harmonics pay for themselves. The chosen
+   period's ``P/4, P/2, 2P`` and the other peaks' best periods are the ``alternatives``, each
+   with its χ², χ²/N and ΔBIC; ``why`` says in words why the chosen one won.
+4. **A verdict.** ``fap``: the false-alarm probability of the chosen model against a constant
+   — the F-test's tail over the ``N_eff = span·Δf`` independent frequencies searched (Horne &
+   Baliunas 1986). ``repeat``: the model fitted to one half of the track predicts the other
+   (R² of the prediction, each half with its own mean, over the in-sample R²; the worse of the
+   two directions): a periodic light curve repeats, red noise and trends do not. ``periodic``
+   is ``fap < fap_max`` and ``repeat >= min_repeat``; when it is false ``period_s`` is NaN
+   (``best_period_s`` keeps the best candidate): no significant period is an answer.
+5. **Uncertainties.** ``period_err_s`` from the curvature of χ² in frequency (Δχ² = 1),
+   with ``sigma`` scaled by √(χ²/ν) when the model does not fit to the noise, else with the
+   residual's own scatter. ``chi2_per_sample`` is χ²/ν against ``sigma``, or, without it,
+   against the point-to-point scatter of the track (``1.4826 MAD(Δy)/√2``); > 3 sets
+   ``model_fits`` false and warns (a glinting or changing curve the Fourier series misses).
+
+The period found is the *synodic* one, that of the light curve (see :mod:`cssat.inversion.spin`).
+Assumptions: a strictly periodic signal plus noise that is white on the scale of the cadence;
+magnitudes and fluxes both work (the series fits either).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import FieldError, float_param, int_param
+
+__all__ = ["estimate_period", "light_curve_scatter"]
+
+MIN_SAMPLES = 12
+
+
+def _design(t: np.ndarray, f: float, m: int) -> np.ndarray:
+    """``(T, 2m)``: cos 2πkft, sin 2πkft for k = 1…m."""
+    W = (2 * np.pi * f) * t[:, None] * np.arange(1, m + 1)[None, :]
+    return np.concatenate([np.cos(W), np.sin(W)], 1)
+
+
+def light_curve_scatter(times_s: Any, values: Any) -> float:
+    """The white-noise 1σ of a densely sampled light curve from its second differences:
+    ``1.4826 · median|Δ²y − median Δ²y| / √6`` over triples inside contiguous stretches (steps
+    under 10× the median step): blind to a signal smooth on the cadence's scale, robust to glints."""
+    t = np.asarray(times_s, dtype=np.float64)
+    y = np.asarray(values, dtype=np.float64)
+    dt = np.diff(t)
+    if len(dt) < 4:
+        return float(np.std(y))
+    ok = dt <= 10 * np.median(dt)
+    d2 = (y[2:] - 2 * y[1:-1] + y[:-2])[ok[1:] & ok[:-1]]
+    if d2.size < 3:
+        return float(np.std(y))
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6))
+
+
+def stretches(times_s: Any, gap_factor: float = 10.0, min_gap_s: float = 1800.0) -> np.ndarray:
+    """``(T,)`` int: the contiguous stretch (a track, a night) of each sorted sample: a new one
+    starts after a step over ``gap_factor`` × the median step, over twice the 95th percentile
+    step and over ``min_gap_s`` (an irregular cadence's pauses, a meridian flip, are not gaps)."""
+    t = np.asarray(times_s, dtype=np.float64)
+    dt = np.diff(t)
+    if not len(dt):
+        return np.zeros(len(t), dtype=np.int64)
+    pos = dt[dt > 0]
+    gap = max(gap_factor * np.median(pos), 2 * np.percentile(pos, 95), min_gap_s) if len(pos) else 0.0
+    return np.r_[0, np.cumsum(dt > gap)].astype(np.int64)
+
+
+def _cadence(t: np.ndarray, seg: np.ndarray) -> float:
+    """The mean step inside contiguous stretches."""
+    dt = np.diff(t)
+    inside = dt[(np.diff(seg) == 0) & (dt > 0)]
+    return float(inside.mean()) if len(inside) else float(t[-1] - t[0])
+
+
+class _Curve:
+    """A light curve with its nuisance model removed: each stretch's own mean and (``detrend``
+    ≥ 1) slope, ... up to that polynomial order, projected out in the weighted space. ``rss(f,
+    m)`` is then the residual of the Fourier series plus the nuisance model."""
+
+    def __init__(self, t, y, w, seg, detrend: int, known_sigma: bool):
+        self.t, self.y, self.w, self.seg, self.known = t, y, w, seg, known_sigma
+        self.N = len(t)
+        cols = []
+        for s in np.unique(seg):
+            on = seg == s
+            tc = np.where(on, t - t[on].mean(), 0.0)
+            scale = max(np.abs(tc).max(), 1e-300)
+            for k in range(detrend + 1 if on.sum() > 2 * (detrend + 1) else 1):
+                cols.append(np.where(on, (tc / scale) ** k, 0.0))
+        self.Q, _ = np.linalg.qr(np.stack(cols, 1) * w[:, None])
+        self.q = self.Q.shape[1]
+        yw = y * w
+        self.yp = yw - self.Q @ (self.Q.T @ yw)
+        self.rss0 = float(self.yp @ self.yp)
+        self.floor = max(self.rss0, float(yw @ yw)) * 1e-12 + 1e-300  # round-off ties, not random picks
+
+    def _xp(self, f: float, m: int, idx=slice(None)) -> np.ndarray:
+        X = _design(self.t, f, m) * self.w[:, None]
+        return X - self.Q @ (self.Q.T @ X)
+
+    def rss(self, f: float, m: int) -> float:
+        Xp = self._xp(f, m)
+        coef, *_ = np.linalg.lstsq(Xp, self.yp, rcond=None)
+        r = Xp @ coef - self.yp
+        return float(r @ r)
+
+    def bic(self, rss: float, m: int) -> float:
+        p = 2 * m + self.q
+        r = rss + self.floor
+        return (r if self.known else self.N * math.log(r / self.N)) + p * math.log(self.N)
+
+    def score(self, f: float, m: int) -> dict[str, Any]:
+        rss = self.rss(f, m)
+        return {"period_s": 1.0 / f, "n_harmonics": m, "rss": rss, "bic": self.bic(rss, m)}
+
+    def refine(self, f: float, m: int, step: float) -> tuple[float, float]:
+        """The frequency minimising the RSS within ``f ± step``, and that RSS."""
+        from scipy.optimize import minimize_scalar
+
+        res = minimize_scalar(lambda x: self.rss(x, m), bounds=(f - step, f + step), method="bounded",
+                              options={"xatol": step * 1e-5})
+        c0 = self.rss(f, m)
+        return (float(res.x), float(res.fun)) if res.fun <= c0 else (f, c0)
+
+    def best_m(self, f: float, m_max: int) -> int:
+        """The number of harmonics (1…``m_max``) of least BIC at ``f``."""
+        return int(np.argmin([self.score(f, m)["bic"] for m in range(1, m_max + 1)])) + 1
+
+    def fap(self, rss: float, m: int, n_eff: float) -> float:
+        """The F-test's tail of the ``m``-harmonic model against the nuisance model alone, over
+        ``n_eff`` independent trials."""
+        from scipy.stats import f as fdist
+
+        p, dof = 2 * m, self.N - 2 * m - self.q
+        if dof <= 0:
+            return 1.0
+        rss = max(rss, self.floor)
+        F = max((self.rss0 - rss) / p, 0.0) / (rss / dof)
+        single = float(fdist.sf(F, p, dof))
+        return float(-math.expm1(max(n_eff, 1.0) * math.log1p(-min(single, 1.0 - 1e-16)))) if single > 0 else 0.0
+
+    def repeat(self, f: float, m: int) -> float:
+        """Does the curve repeat? The series fitted to the even cycles (``⌊f t⌋`` even) predicts
+        the odd ones and vice versa (the nuisance model refitted on each): the worse of the two
+        ratios R²_pred / R²_in, ≤ 1, clipped at −1. Neighbouring cycles share their geometry,
+        so a slowly changing periodic curve repeats; red noise does not."""
+        parity = np.floor(self.t * f).astype(np.int64) % 2
+        X = _design(self.t, f, m) * self.w[:, None]
+        out = []
+        for a in (0, 1):
+            A, B = parity == a, parity != a
+            if A.sum() < 2 * m + self.q + 2 or B.sum() < 2 * m + self.q + 2:
+                return float("nan")
+            QA, _ = np.linalg.qr(self.Q[A])
+            QB, _ = np.linalg.qr(self.Q[B])
+            proj = lambda Q, v: v - Q @ (Q.T @ v)  # noqa: E731
+            coef, *_ = np.linalg.lstsq(proj(QA, X[A]), proj(QA, self.y[A] * self.w[A]), rcond=None)
+            yb = proj(QB, self.y[B] * self.w[B])
+            Xb = proj(QB, X[B])
+            tot = float(yb @ yb)
+            if not tot > 0:
+                return float("nan")
+            r_pred = yb - Xb @ coef
+            cb, *_ = np.linalg.lstsq(Xb, yb, rcond=None)
+            r_in = yb - Xb @ cb
+            r2_pred, r2_in = 1 - float(r_pred @ r_pred) / tot, 1 - float(r_in @ r_in) / tot
+            out.append(r2_pred / r2_in if r2_in > 0 else 0.0)
+        return float(max(min(out), -1.0))
+
+
+def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float | None = None,
+                    max_period_s: float | None = None, n_harmonics: int | None = None, max_harmonics: int = 8,
+                    n_peaks: int = 3, samples_per_peak: int = 10, detrend: int = 1, fap_max: float = 1e-3,
+                    min_repeat: float = 0.5) -> dict[str, Any]:
+    """The period of the light curve ``flux (T,)`` (a flux or a magnitude) at ``times_s (T,)``
+    (seconds, any cadence, any order), and whether it is periodic at all: the method of the
+    module's docstring. ``sigma``: the 1σ of ``flux`` (scalar or ``(T,)``; default: none, the
+    track's own scatter). ``min_period_s``/``max_period_s``: the search range (default: from
+    the data: twice the cadence to half the longest contiguous stretch). ``n_harmonics``: fix
+    the base model's harmonics (default: BIC up to ``max_harmonics``). ``detrend``: the order of
+    the polynomial fitted to each contiguous stretch alongside the series (0: an offset per
+    stretch — per-track magnitude offsets —, 1: and a slope, the default).
+
+    Returns a dict: ``period_s`` and ``period_err_s`` (1σ; both NaN when not periodic),
+    ``periodic`` (bool), ``fap``, ``repeat``, ``best_period_s``/``best_period_err_s`` (the best
+    candidate, periodic or not), ``alternatives`` (list of dicts: ``relation`` — ``"P/4"``,
+    ``"P/2"``, ``"2P"`` or ``"peak"`` —, ``period_s``, ``n_harmonics``, ``chi2``,
+    ``chi2_per_sample``, ``delta_bic`` over the chosen), ``why``, ``n_harmonics``, ``chi2``,
+    ``chi2_per_sample``, ``model_fits``, ``n_cycles``, ``min_period_s``/``max_period_s`` (the
+    range searched), ``f0_period_s`` (the periodogram's peak), ``doubled`` (the chosen period is
+    a multiple of the peak's), ``warnings`` (list of str), ``noise_sigma`` (the scatter used
+    without ``sigma``) and ``periodogram`` (``frequency_hz``, ``power`` arrays)."""
+    from astropy.timeseries import LombScargle
+
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    if t.shape != y.shape:
+        raise FieldError("flux", f"expected times and values of one length, got {t.shape} and {y.shape}")
+    if not (np.isfinite(t).all() and np.isfinite(y).all()):
+        raise FieldError("flux", "the times and values must be finite (drop the rows that are not)")
+    if len(t) < MIN_SAMPLES:
+        raise FieldError("flux", f"a period needs at least {MIN_SAMPLES} samples, got {len(t)}")
+    order = np.argsort(t, kind="stable")
+    t, y = t[order], y[order]
+    if sigma is None:
+        w = np.ones_like(y)
+    else:
+        s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (len(order),))[order]
+        if not (np.isfinite(s).all() and (s > 0).all()):
+            raise FieldError("sigma", "the uncertainties must be finite and > 0")
+        w = 1.0 / s
+    t = t - t[0]
+    span = float(t[-1])
+    if not span > 0:
+        raise FieldError("times_s", "the samples span no time (all stamps equal)")
+    if np.ptp(y) == 0:
+        return _constant(t)
+    seg = stretches(t)
+    longest = max(float(t[seg == k][-1] - t[seg == k][0]) for k in np.unique(seg))
+    d = _cadence(t, seg)
+    lo = 2 * d if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
+    hi = longest / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", 0.0, open_lo=True)
+    if not hi > lo:
+        raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s"
+                         + (" (by default half the longest stretch: the track is too short for its cadence)"
+                            if max_period_s is None else ""))
+    hi_alias = max(hi, longest) if max_period_s is None else hi
+    max_harmonics = int_param(max_harmonics, "max_harmonics", 1, 50)
+    m_fixed = None if n_harmonics is None else int_param(n_harmonics, "n_harmonics", 1, 50)
+    n_peaks = int_param(n_peaks, "n_peaks", 1, 20)
+    spp = int_param(samples_per_peak, "samples_per_peak", 1, 1000)
+    detrend = int_param(detrend, "detrend", 0, 3)
+    fap_max = float_param(fap_max, "fap_max", 0.0, 1.0)
+    min_repeat = float_param(min_repeat, "min_repeat", -1.0, 1.0)
+    cv = _Curve(t, y, w, seg, detrend, sigma is not None)
+    dts = np.diff(t)
+    f_harm = 0.5 / max(float(np.percentile(dts[dts > 0], 10)), 1e-300)  # the harmonics' ceiling: the finer steps' Nyquist
+    f_lo, f_hi = 1.0 / hi, max(min(4.0 / lo, 0.5 / d), 1.0 / lo)
+    resid = cv.yp / w  # the periodogram sees the curve less its nuisance model
+    freq, power = LombScargle(t, resid, None if sigma is None else 1.0 / w).autopower(
+        minimum_frequency=f_lo, maximum_frequency=f_hi, samples_per_peak=spp)
+    step = 1.0 / (spp * span)
+    is_max = np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True]
+    peaks: list[float] = []
+    for i in np.flatnonzero(is_max)[np.argsort(power[is_max])[::-1]]:
+        if all(abs(freq[i] - p) > 1.5 / span for p in peaks):
+            peaks.append(float(freq[i]))
+        if len(peaks) == n_peaks:
+            break
+    cap = 24  # harmonics of the longest candidate (49 columns)
+
+    def harmonics_at(f: float) -> int:  # the highest harmonic under the finer steps' Nyquist
+        return max(1, min(cap, int(f_harm / f)))
+
+    cands = []  # one dict per (peak, k)
+    for j, f in enumerate(peaks):
+        m0 = m_fixed or cv.best_m(f, min(max_harmonics, harmonics_at(f)))
+        f_ref, _ = cv.refine(f, m0, step)
+        for k in (1, 2, 3, 4):
+            P = k / f_ref
+            if not lo <= P <= hi_alias:
+                continue
+            c = cv.score(f_ref / k, min(k * m0, cap))
+            c.update(peak=j, k=k)
+            cands.append(c)
+    if not cands:
+        raise FieldError("min_period_s", f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
+    best = min(cands, key=lambda c: c["bic"])
+    for _ in range(3):  # the best's own double and half compete too (a peak's refinement may miss them)
+        more = []
+        for k in (0.5, 2.0):
+            P = best["period_s"] * k
+            mk = max(1, min(cap, int(round(best["n_harmonics"] * k))))
+            if lo <= P <= hi_alias:
+                c = cv.score(1 / P, mk)
+                c.update(peak=best["peak"], k=best["k"] * k)
+                more.append(c)
+        win = min(more, key=lambda c: c["bic"], default=None)
+        if win is None or win["bic"] >= best["bic"]:
+            break
+        cands.append(win)
+        best = win
+    m = best["n_harmonics"]
+    fb, rss = cv.refine(1.0 / best["period_s"], m, step / max(best["k"], 1))
+    N = len(t)
+    nu = max(N - 2 * m - cv.q, 1)
+    scat = max(light_curve_scatter(t, y), 1e-9 * float(np.std(y)), 1e-150)
+    chi2 = rss if sigma is not None else rss / scat ** 2
+    chi2_n = chi2 / nu
+    h = step / (50 * max(best["k"], 1))
+    curv = (cv.rss(fb + h, m) - 2 * rss + cv.rss(fb - h, m)) / h ** 2
+    noise2 = max(chi2_n, 1.0) if sigma is not None else max(rss, cv.floor) / nu  # σ² per unit of RSS
+    sig_f = max(math.sqrt(2.0 * noise2 / curv) if curv > 0 else float("inf"), step * 1e-5)  # ≥ the refinement's tolerance
+    period = 1.0 / fb
+    period_err = sig_f * period ** 2
+    fap = cv.fap(rss, m, span * (f_hi - f_lo))
+    rep = cv.repeat(fb, m)
+    periodic = bool(fap < fap_max and (rep >= min_repeat if math.isfinite(rep) else True))
+    alts = []
+    for rel, k in (("P/4", 0.25), ("P/2", 0.5), ("2P", 2.0)):
+        Pa = period * k
+        if lo <= Pa <= hi_alias:
+            alts.append({"relation": rel, **cv.score(1 / Pa, max(1, min(cap, int(round(m * k)), harmonics_at(1 / Pa))))})
+    for j in range(len(peaks)):
+        cj = [c for c in cands if c["peak"] == j]
+        if j != best["peak"] and cj:
+            alts.append({"relation": "peak", **min(cj, key=lambda c: c["bic"])})
+    for a in alts:
+        c2 = a["rss"] if sigma is not None else a["rss"] / scat ** 2
+        a.update(chi2=float(c2), chi2_per_sample=float(c2 / max(N - 2 * a["n_harmonics"] - cv.q, 1)),
+                 delta_bic=float(a["bic"] - cv.bic(rss, m)))
+        for key in ("rss", "bic", "peak", "k"):
+            a.pop(key, None)
+    warns = []
+    n_cycles = longest / period
+    if n_cycles < 2:
+        warns.append(f"the longest stretch holds {n_cycles:.2g} cycles of {period:.6g} s (< 2): weakly constrained")
+    if min(abs(period - lo), abs(period - hi_alias)) < 2 * period ** 2 * step:
+        warns.append(f"the period {period:.6g} s sits on an edge of the search [{lo:.6g}, {hi_alias:.6g}] s")
+    model_fits = bool(chi2_n <= 3.0)
+    if not model_fits:
+        warns.append(f"χ²/N = {chi2_n:.3g}: the {m}-harmonic series does not fit to the noise (glints, a changing "
+                     "curve, or underestimated errors); the period may be an alias")
+    nan = float("nan")
+    return {"period_s": period if periodic else nan, "period_err_s": period_err if periodic else nan,
+            "periodic": periodic, "fap": fap, "repeat": rep, "best_period_s": period, "best_period_err_s": period_err,
+            "alternatives": alts, "why": _why(best, alts), "n_harmonics": m, "chi2": float(chi2),
+            "chi2_per_sample": float(chi2_n), "model_fits": model_fits, "n_cycles": float(n_cycles),
+            "min_period_s": float(lo), "max_period_s": float(hi_alias), "f0_period_s": 1.0 / peaks[0],
+            "doubled": bool(best["peak"] == 0 and best["k"] > 1), "warnings": warns,
+            "noise_sigma": float(scat) if sigma is None else None, "n_samples": int(N),
+            "periodogram": {"frequency_hz": freq, "power": power}}
+
+
+def _why(best: dict[str, Any], alts: list[dict[str, Any]]) -> str:
+    """One sentence: why the chosen period beat its aliases."""
+    parts = []
+    for a in alts:
+        if a["relation"] == "peak":
+            continue
+        verdict = "worse" if a["delta_bic"] > 0 else "better"
+        parts.append(f"{a['relation']} ({a['period_s']:.6g} s) {verdict} by ΔBIC {abs(a['delta_bic']):.3g}")
+    head = (f"{best['k']:g}× the periodogram's peak period with {best['n_harmonics']} harmonics (its odd harmonics pay for "
+            "their parameters)" if best["k"] > 1 else f"the periodogram's peak period with {best['n_harmonics']} harmonics")
+    return head + ("; " + ", ".join(parts) if parts else "")
+
+
+def _constant(t: np.ndarray) -> dict[str, Any]:
+    """The verdict on a light curve without any variation."""
+    nan = float("nan")
+    return {"period_s": nan, "period_err_s": nan, "periodic": False, "fap": 1.0, "repeat": nan, "best_period_s": nan,
+            "best_period_err_s": nan, "alternatives": [], "why": "the values do not vary", "n_harmonics": 0, "chi2": 0.0,
+            "chi2_per_sample": 0.0, "model_fits": True, "n_cycles": 0.0, "min_period_s": nan, "max_period_s": nan,
+            "f0_period_s": nan, "doubled": False, "warnings": ["constant light curve"], "noise_sigma": 0.0,
+            "n_samples": int(len(t)), "periodogram": {"frequency_hz": np.zeros(0), "power": np.zeros(0)}}
