@@ -46,7 +46,12 @@ def _values(o: Any) -> list[Any] | None:
     if not o.is_sweep_override():
         return [o.value()]
     if o.is_discrete_sweep():
-        return list(o.sweep_iterator())
+        from hydra.errors import HydraException
+
+        try:
+            return list(o.sweep_iterator())
+        except HydraException:  # glob(...): its values need Hydra's config loader; Hydra expands them
+            return None
     return None
 
 

@@ -148,7 +148,7 @@ def read_mmt(text: str, name: str, value_col: str | None = None) -> dict[str, An
         out["penumbra"] = np.array([v not in ("0", "0.0") for v in col["Penumbra"]])
     info: dict[str, Any] = {"format": "mmt"}
     sat = meta.get("satellite", "")
-    m = re.match(r"(\d+)\s+(.*?)(?:\s*/\s*(.*))?$", sat)
+    m = re.match(r"(\d+)\s+(.*?)(?:\s+/\s+(.*))?$", sat)
     if m:
         info.update(object_id=m.group(1), name=m.group(2).strip(), country=(m.group(3) or "").strip() or None)
     if "variability" in meta:

@@ -132,6 +132,10 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         noise = build(cfg.get("noise"), "noise")
         observed = read_observations(cfg)
+        if observed is not None:
+            from cssat.experiments.scene import check_elements
+
+            check_elements(cfg, observed)
     metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": mesh.name, "seed": run_.seed}
 
     with run_.stage("scene"):

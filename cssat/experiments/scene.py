@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cssat._checks import float_param, int_param
+from cssat._checks import FieldError, float_param, int_param
 from cssat.experiments.context import Run
 
 if TYPE_CHECKING:
@@ -67,6 +67,33 @@ def read_observations(cfg: Any) -> Any:
     opts = cfg.get("observed")
     opts = OmegaConf.to_container(opts, resolve=True) if OmegaConf.is_config(opts) else dict(opts or {})
     return read_light_curve(str(path), **opts)
+
+
+def check_elements(cfg: Any, lc: Any, max_epoch_days: float = 14.0) -> None:
+    """Refuse an element set that is not the observed object's: ``scenario.tle`` (null: the
+    synthetic Astra 1KR set) must carry the file's NORAD number when the file names one, and its
+    epoch must lie within ``max_epoch_days`` of the observations (SGP4's error grows by
+    kilometres a day). A FieldError naming ``scenario.tle``."""
+    from omegaconf import OmegaConf
+
+    from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, _satellite, _skyfield
+
+    tle = cfg.scenario.get("tle")
+    given = tle is not None
+    tle = ASTRA_1KR_SYNTHETIC_TLE if tle is None else OmegaConf.to_container(tle) if OmegaConf.is_config(tle) else tle
+    ts, _ = _skyfield()
+    sat, _ = _satellite(tle, ts)
+    obj = str(lc.meta.get("object_id") or "").strip()
+    satnum = int(sat.model.satnum)
+    what = "scenario.tle" if given else "scenario.tle is null: the synthetic Astra 1KR set"
+    if obj.isdigit() and int(obj) != satnum:
+        raise FieldError("scenario.tle", f"the element set is of NORAD {satnum} ({what}), the observations of NORAD {obj}"
+                                         f"{' ' + lc.meta['name'] if lc.meta.get('name') else ''}: give the object's own TLE")
+    epoch = np.datetime64(sat.epoch.utc_datetime().replace(tzinfo=None), "us")
+    days = float(np.abs((lc.times_utc[[0, -1]] - epoch) / np.timedelta64(1, "D")).max())
+    if given and days > max_epoch_days:
+        raise FieldError("scenario.tle", f"its epoch {epoch} is {days:.1f} days from the observations; SGP4 drifts by "
+                                         f"kilometres a day: give an element set within {max_epoch_days:g} days")
 
 
 def build_scenario(cfg: Any, times: Any = None) -> Scenario:

@@ -4,9 +4,10 @@
 photometry) with its defaults:
 
 1. **Bounds from the data.** The search runs from the cadence's Nyquist period ``2 d`` (``d``
-   the mean step inside contiguous stretches, so two interleaved camera channels count as one
-   faster cadence) to half the span (two cycles), unless ``min_period_s``/``max_period_s`` are
-   given. A double of the best period may reach the whole span (flagged: < 2 cycles).
+   the frame step: the 75th percentile of the steps inside contiguous stretches, so two camera
+   channels interleaved milliseconds apart do not fake a faster cadence) to half the longest
+   contiguous stretch (two cycles), unless ``min_period_s``/``max_period_s`` are given; the
+   aliases stay in that range (a "period" as long as the track would absorb its drifts).
 2. **Periodogram.** astropy's Lomb–Scargle (``nterms=1``, its fast method, on a grid of
    ``samples_per_peak`` points per peak width ``1/span``) gives the ``n_peaks`` strongest
    distinct frequencies ``f``. A rotating body's light curve puts its power in harmonics of
@@ -22,9 +23,10 @@ photometry) with its defaults:
 4. **A verdict.** ``fap``: the false-alarm probability of the chosen model against a constant
    — the F-test's tail over the ``N_eff = span·Δf`` independent frequencies searched (Horne &
    Baliunas 1986). ``repeat``: the model fitted to one half of the track predicts the other
-   (R² of the prediction, each half with its own mean, over the in-sample R²; the worse of the
-   two directions): a periodic light curve repeats, red noise and trends do not. ``periodic``
-   is ``fap < fap_max`` and ``repeat >= min_repeat``; when it is false ``period_s`` is NaN
+   (the even cycles predict the odd ones and back: R² of the prediction over the in-sample R²,
+   the worse of the two): a periodic light curve repeats, red noise and trends do not. ``periodic``
+   is ``fap < fap_max`` and ``repeat >= min_repeat`` (0.7; a track too short to compare cycles
+   is not called periodic); when it is false ``period_s`` is NaN
    (``best_period_s`` keeps the best candidate): no significant period is an answer.
 5. **Uncertainties.** ``period_err_s`` from the curvature of χ² in frequency (Δχ² = 1),
    with ``sigma`` scaled by √(χ²/ν) when the model does not fit to the noise, else with the
@@ -59,15 +61,15 @@ def _design(t: np.ndarray, f: float, m: int) -> np.ndarray:
 
 def light_curve_scatter(times_s: Any, values: Any) -> float:
     """The white-noise 1σ of a densely sampled light curve from its second differences:
-    ``1.4826 · median|Δ²y − median Δ²y| / √6`` over triples inside contiguous stretches (steps
-    under 10× the median step): blind to a signal smooth on the cadence's scale, robust to glints."""
+    ``1.4826 · median|Δ²y − median Δ²y| / √6`` over triples inside one contiguous stretch
+    (:func:`stretches`): blind to a signal smooth on the cadence's scale, robust to glints."""
     t = np.asarray(times_s, dtype=np.float64)
     y = np.asarray(values, dtype=np.float64)
-    dt = np.diff(t)
-    if len(dt) < 4:
+    if len(t) < 5:
         return float(np.std(y))
-    ok = dt <= 10 * np.median(dt)
-    d2 = (y[2:] - 2 * y[1:-1] + y[:-2])[ok[1:] & ok[:-1]]
+    seg = stretches(t)
+    same = (seg[2:] == seg[:-2])
+    d2 = (y[2:] - 2 * y[1:-1] + y[:-2])[same]
     if d2.size < 3:
         return float(np.std(y))
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6))
@@ -147,6 +149,19 @@ class _Curve:
         """The number of harmonics (1…``m_max``) of least BIC at ``f``."""
         return int(np.argmin([self.score(f, m)["bic"] for m in range(1, m_max + 1)])) + 1
 
+    def best_near(self, f: float, m0: int, m_max: int) -> dict[str, Any]:
+        """The least-BIC model at ``f`` by a local search in the harmonics from ``m0`` (up,
+        then down, each while the BIC falls; ``1…m_max``)."""
+        best = self.score(f, max(1, min(m0, m_max)))
+        for step in (1, -1):
+            m = best["n_harmonics"] + step
+            while 1 <= m <= m_max:
+                c = self.score(f, m)
+                if c["bic"] >= best["bic"]:
+                    break
+                best, m = c, m + step
+        return best
+
     def fap(self, rss: float, m: int, n_eff: float) -> float:
         """The F-test's tail of the ``m``-harmonic model against the nuisance model alone, over
         ``n_eff`` independent trials."""
@@ -192,7 +207,7 @@ class _Curve:
 def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float | None = None,
                     max_period_s: float | None = None, n_harmonics: int | None = None, max_harmonics: int = 8,
                     n_peaks: int = 3, samples_per_peak: int = 10, detrend: int = 1, fap_max: float = 1e-3,
-                    min_repeat: float = 0.5) -> dict[str, Any]:
+                    min_repeat: float = 0.7) -> dict[str, Any]:
     """The period of the light curve ``flux (T,)`` (a flux or a magnitude) at ``times_s (T,)``
     (seconds, any cadence, any order), and whether it is periodic at all: the method of the
     module's docstring. ``sigma``: the 1σ of ``flux`` (scalar or ``(T,)``; default: none, the
@@ -239,13 +254,15 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     seg = stretches(t)
     longest = max(float(t[seg == k][-1] - t[seg == k][0]) for k in np.unique(seg))
     d = _cadence(t, seg)
-    lo = 2 * d if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
+    inside = np.diff(t)[(np.diff(seg) == 0) & (np.diff(t) > 0)]
+    d_frame = float(np.percentile(inside, 75)) if len(inside) else d  # the frame step (interleaved channels: not their offset)
+    lo = 2 * d_frame if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
     hi = longest / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", 0.0, open_lo=True)
     if not hi > lo:
         raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s"
                          + (" (by default half the longest stretch: the track is too short for its cadence)"
                             if max_period_s is None else ""))
-    hi_alias = max(hi, longest) if max_period_s is None else hi
+    hi_alias = hi  # multiples stay within the range: a "period" as long as the track absorbs drifts
     max_harmonics = int_param(max_harmonics, "max_harmonics", 1, 50)
     m_fixed = None if n_harmonics is None else int_param(n_harmonics, "n_harmonics", 1, 50)
     n_peaks = int_param(n_peaks, "n_peaks", 1, 20)
@@ -256,7 +273,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     cv = _Curve(t, y, w, seg, detrend, sigma is not None)
     dts = np.diff(t)
     f_harm = 0.5 / max(float(np.percentile(dts[dts > 0], 10)), 1e-300)  # the harmonics' ceiling: the finer steps' Nyquist
-    f_lo, f_hi = 1.0 / hi, max(min(4.0 / lo, 0.5 / d), 1.0 / lo)
+    f_lo, f_hi = 1.0 / hi, max(min(4.0 / lo, 0.5 / d_frame), 1.0 / lo)
     resid = cv.yp / w  # the periodogram sees the curve less its nuisance model
     freq, power = LombScargle(t, resid, None if sigma is None else 1.0 / w).autopower(
         minimum_frequency=f_lo, maximum_frequency=f_hi, samples_per_peak=spp)
@@ -281,7 +298,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
             P = k / f_ref
             if not lo <= P <= hi_alias:
                 continue
-            c = cv.score(f_ref / k, min(k * m0, cap))
+            c = cv.best_near(f_ref / k, k * m0, min(k * max_harmonics, harmonics_at(f_ref / k)))
             c.update(peak=j, k=k)
             cands.append(c)
     if not cands:
@@ -316,7 +333,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     period_err = sig_f * period ** 2
     fap = cv.fap(rss, m, span * (f_hi - f_lo))
     rep = cv.repeat(fb, m)
-    periodic = bool(fap < fap_max and (rep >= min_repeat if math.isfinite(rep) else True))
+    periodic = bool(fap < fap_max and math.isfinite(rep) and rep >= min_repeat)  # no repeat to test: no verdict of periodic
     alts = []
     for rel, k in (("P/4", 0.25), ("P/2", 0.5), ("2P", 2.0)):
         Pa = period * k
@@ -349,7 +366,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
             "chi2_per_sample": float(chi2_n), "model_fits": model_fits, "n_cycles": float(n_cycles),
             "min_period_s": float(lo), "max_period_s": float(hi_alias), "f0_period_s": 1.0 / peaks[0],
             "doubled": bool(best["peak"] == 0 and best["k"] > 1), "warnings": warns,
-            "noise_sigma": float(scat) if sigma is None else None, "n_samples": int(N),
+            "noise_sigma": float(scat) if sigma is None else None, "n_samples": int(N), "rss": float(rss),
+            "n_nuisance": int(cv.q),
             "periodogram": {"frequency_hz": freq, "power": power}}
 
 
@@ -373,4 +391,4 @@ def _constant(t: np.ndarray) -> dict[str, Any]:
             "best_period_err_s": nan, "alternatives": [], "why": "the values do not vary", "n_harmonics": 0, "chi2": 0.0,
             "chi2_per_sample": 0.0, "model_fits": True, "n_cycles": 0.0, "min_period_s": nan, "max_period_s": nan,
             "f0_period_s": nan, "doubled": False, "warnings": ["constant light curve"], "noise_sigma": 0.0,
-            "n_samples": int(len(t)), "periodogram": {"frequency_hz": np.zeros(0), "power": np.zeros(0)}}
+            "n_samples": int(len(t)), "rss": 0.0, "n_nuisance": 1, "periodogram": {"frequency_hz": np.zeros(0), "power": np.zeros(0)}}

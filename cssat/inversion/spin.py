@@ -59,8 +59,8 @@ def _chi2_2d(t, y, w, f1, f2, jk) -> float:
     return _wls_chi2(np.concatenate([np.ones((len(t), 1)), np.cos(ph), np.sin(ph)], 1), y, w)
 
 
-def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float = 60.0,
-                              max_period_s: float = 86400.0, order: int = 3, n_peaks: int = 8,
+def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float | None = None,
+                              max_period_s: float | None = None, order: int = 3, n_peaks: int = 8,
                               samples_per_peak: int = 10) -> dict[str, Any]:
     """The two fundamental frequencies of a tumbling (non-principal-axis) rotator's light curve,
     ``flux (T,)`` at ``times_s (T,)``: the 2-D Fourier series of Pravec et al. (2005),
@@ -76,7 +76,10 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     lattice: any unimodular integer change of it fits equally — for a short-axis-mode tumbler it
     is the precession frequency and the angular velocity's own), ``chi2``, ``chi2_single``,
     ``single_period_s``, ``delta_bic`` (the single-period BIC less the two-period one: > 10 is
-    strong evidence of tumbling) and ``tumbling`` (``delta_bic > 10``).
+    strong evidence of tumbling), ``tumbling`` (``delta_bic > 10``) and ``why``. A curve without
+    two independent frequencies (one period, or none) is an answer, ``tumbling: False``, not an
+    error. ``min_period_s``/``max_period_s`` default to the data's: twice the cadence, half the
+    span.
 
     Assumptions: torque-free motion, whose attitude relative to the fixed angular momentum is
     periodic up to a uniform precession, so the light curve is quasi-periodic in two frequencies;
@@ -93,12 +96,19 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     n_par = 2 * len(jk) + 1
     if len(t) < 2 * n_par:
         raise FieldError("flux", f"a 2-D Fourier series of order {order} needs at least {2 * n_par} samples, got {len(t)}")
-    lo = float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
-    hi = float_param(max_period_s, "max_period_s", lo, open_lo=True)
-    dy = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape)
+    order_ = np.argsort(t, kind="stable")
+    t, y = t[order_], y[order_]
+    dy = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), order_.shape)[order_]
     w = np.ones_like(y) if dy is None else 1.0 / dy
     t = t - t[0]
     span = float(t[-1])
+    if not span > 0 or np.ptp(y) == 0:
+        return _not_tumbling("the curve does not vary" if span > 0 else "the samples span no time")
+    steps = np.diff(t)
+    lo = 2 * float(np.median(steps[steps > 0])) if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
+    hi = span / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", lo, open_lo=True)
+    if not hi > lo:
+        raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s")
     freq, power = LombScargle(t, y, dy).autopower(minimum_frequency=1 / hi, maximum_frequency=2 / lo,
                                                   samples_per_peak=int_param(samples_per_peak, "samples_per_peak", 1))
     peaks: list[float] = []
@@ -115,7 +125,7 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     scored = sorted((_chi2_2d(t, y, w, a, b, jk), a, b) for i, a in enumerate(cands) for b in cands[i + 1:]
                     if not degenerate(a, b))
     if not scored:
-        raise FieldError("flux", "no two independent frequencies in the periodogram's peaks")
+        return _not_tumbling("no two independent frequencies among the periodogram's peaks")
     best = None
     for c0, a, b in scored[:3]:
         scale = 1.0 / (360.0 * span)  # a frequency step of 1° of phase over the span
@@ -125,13 +135,21 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
         if best is None or cand[0] < best[0]:
             best = cand
     chi2, f1, f2 = best
-    single = estimate_period(t, y, sigma=dy, min_period_s=lo, max_period_s=hi, n_harmonics=min(len(jk), 50))
+    single = estimate_period(t, y, sigma=dy, min_period_s=lo, max_period_s=hi, n_harmonics=min(len(jk), 50), detrend=0)
     T = len(t)
     bic = lambda c, k: (c if dy is not None else T * np.log(max(c, 1e-300) / T)) + k * np.log(T)  # noqa: E731
-    delta = float(bic(single["chi2"], 2 * min(len(jk), 50) + 2) - bic(chi2, n_par + 2))
+    delta = float(bic(single["rss"], 2 * single["n_harmonics"] + single["n_nuisance"] + 1) - bic(chi2, n_par + 2))
     fs = np.array(sorted((abs(f1), abs(f2)), reverse=True))
-    return {"frequencies_hz": fs, "periods_s": 1.0 / fs, "chi2": chi2, "chi2_single": float(single["chi2"]),
-            "single_period_s": float(single["period_s"]), "delta_bic": delta, "tumbling": bool(delta > 10.0)}
+    return {"frequencies_hz": fs, "periods_s": 1.0 / fs, "chi2": chi2, "chi2_single": float(single["rss"]),
+            "single_period_s": float(single["best_period_s"]), "delta_bic": delta, "tumbling": bool(delta > 10.0),
+            "why": (f"two periods fit better than one by ΔBIC {delta:.3g} (> 10)" if delta > 10.0
+                    else f"one period fits as well (ΔBIC {delta:.3g} ≤ 10): not tumbling")}
+
+
+def _not_tumbling(why: str) -> dict[str, Any]:
+    nan = float("nan")
+    return {"frequencies_hz": np.full(2, nan), "periods_s": np.full(2, nan), "chi2": nan, "chi2_single": nan,
+            "single_period_s": nan, "delta_bic": 0.0, "tumbling": False, "why": why}
 
 
 # --- the pole and the sidereal period (issue 24, point 4, second part) ---------------------------

@@ -1,0 +1,211 @@
+"""Issue 34: real light curves end to end — the files observers publish, periods with the
+defaults, "not periodic" as an answer, refusals, the characterise experiment and a catalogue.
+
+Real files (tests/data/real/, sources and licences in SOURCES.md): two MMT-9 exports of
+satellites the MMT database labels "Not variable", an ALCDEF file of (1) Ceres, SCORE's own test
+upload. Synthetic files in published formats (tests/data/formats/make_examples.py)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cssat._checks import FieldError
+
+DATA = Path(__file__).parent / "data"
+REAL = DATA / "real"
+MMT_REAL = [REAL / "mmt_sat10288_starlink3535_track20416355.txt", REAL / "mmt_sat8843_oneweb0208_excerpt.txt"]
+MMT_RB = DATA / "formats" / "mmt_rocket_body_synthetic.txt"
+
+
+def test_mmt_exports_read_as_published_with_their_metadata():
+    from cssat.data import read_light_curve
+
+    lc = read_light_curve(MMT_REAL[0])
+    assert len(lc) == 200 and lc.kind == "magnitude" and lc.magnitude_system == "apparent"
+    assert lc.meta["object_id"] == "51722" and lc.meta["name"] == "STARLINK-3535" and lc.meta["variability"] == "nonvariable"
+    assert "published_period_s" not in lc.meta
+    assert lc.times_utc[0] == np.datetime64("2022-05-21T19:22:07.790")  # the first row's two fields, as written
+    assert lc.values[0] == 4.84617 and lc.ranges_km[0] == 597.555 and lc.phase_deg[0] == 94.476
+    assert set(lc.tracks) == {"20416355"} and set(lc.filters) == {"Clear"} and lc.channels is not None
+    std = read_light_curve(MMT_REAL[0], value_col="StdMag")
+    assert std.values[0] == 5.873 and std.magnitude_system.startswith("normalised")
+    rb = read_light_curve(MMT_RB)
+    assert rb.meta["published_period_s"] == 18.888 and rb.meta["name"] == "SYNTHETIC R/B"
+    assert [len(x) for x in rb.split()] == [600, 600]  # two tracks, two channels interleaved 7 ms apart
+    assert np.all(np.diff(rb.times_utc).astype(np.int64) > 0)
+
+
+def test_alcdef_score_and_astropy_tables():
+    from astropy.table import QTable, Table
+    from astropy.time import Time
+    import astropy.units as u
+
+    from cssat.data import read_light_curve
+
+    ceres = read_light_curve(REAL / "alcdef_ceres_stephens_2011.txt")
+    assert len(ceres) == 1210 and ceres.meta["name"] == "Ceres" and len(set(ceres.tracks)) == 5
+    jd0 = 2455817.735937  # the first DATA line; 1970-01-01 is JD 2440587.5 (an independent conversion)
+    expect = np.datetime64("1970-01-01T00:00:00", "us") + np.timedelta64(int(round((jd0 - 2440587.5) * 86400e6)), "us")
+    assert abs((ceres.times_utc[0] - expect).astype(np.int64)) <= 1 and set(ceres.filters) == {"R", "V"}  # the blocks' MAGBAND
+    with pytest.raises(FieldError, match=r"observations\.object.*18 objects"):
+        read_light_curve(REAL / "score_test_data.csv")
+    pel = read_light_curve(REAL / "score_test_data.csv", object=58296)
+    assert len(pel) == 2 and pel.sites[0].tolist() == [52.15399, 4.49085, 8.0] and pel.ranges_km[0] == 571.894
+    assert len(read_light_curve(REAL / "score_test_data.csv", object="Kuiper-P1")) == 2
+    # an ECSV file whose Time column is in TT: 69.184 s from UTC in 2020
+    tt = read_light_curve(DATA / "formats" / "lightcurve_tt.ecsv")
+    assert tt.times_utc[0] == np.datetime64("2020-04-01T20:58:50.816") and tt.meta["object_id"] == "99002"
+    # an astropy Table object and a FITS file with TIMESYS TT
+    t = Time("2020-04-01T21:00:00", scale="tt") + np.arange(20) * u.s
+    tab = Table({"time": t, "mag": np.linspace(9, 10, 20) * u.mag})
+    assert read_light_curve(tab).times_utc[0] == np.datetime64("2020-04-01T20:58:50.816")
+    q = QTable({"time": t, "flux": np.linspace(1, 2, 20) * u.W / u.m ** 2})
+    with pytest.raises(FieldError, match="not a magnitude"):
+        read_light_curve(q, value_col="flux")
+    assert read_light_curve(q, value_col="flux", kind="flux").values[-1] == 2.0
+    ts = ceres.to_table()
+    assert len(ts) == 1210 and ts["mag"].unit == u.mag and ts.meta["name"] == "Ceres"
+
+
+def test_a_fits_table_honours_timesys(tmp_path):
+    from astropy.table import Table
+    from astropy.time import Time
+    import astropy.units as u
+
+    from cssat.data import read_light_curve
+
+    t = Time("2020-04-01T21:00:00", scale="tt") + np.arange(20) * u.s
+    Table({"time": t, "mag": np.linspace(9, 10, 20) * u.mag}).write(tmp_path / "lc.fits")
+    lc = read_light_curve(tmp_path / "lc.fits")
+    assert lc.times_utc[0] == np.datetime64("2020-04-01T20:58:50.816") and lc.values[-1] == 10.0
+
+
+@pytest.mark.parametrize("text, kwargs, field, words", [
+    ("time_utc,magnitude\n2020-01-01T00:00:00,9.1\n2020-01-01T00:00:01,99.999\n", {}, r"magnitude\[row 2\]", "not a magnitude"),
+    ("time_utc,magnitude\n2020-01-01T00:00:00,9.1\n2020-01-01T00:00:01,-1000\n", {}, r"magnitude\[row 2\]", "not a magnitude"),
+    ("time_utc,flux\n2020-01-01T00:00:00,9.1\n", {"value_col": "flux"}, r"observations\.kind", "flux"),
+    ("time_utc,magnitude\n2020-01-01T00:00:00,9.1\n2020-01-01T00:00:00,9.2\n", {}, r"time_utc\[row 2\]", "duplicate"),
+])
+def test_bad_files_name_the_field(tmp_path, text, kwargs, field, words):
+    from cssat.data import read_light_curve
+
+    f = tmp_path / "bad.csv"
+    f.write_text(text)
+    with pytest.raises(FieldError, match=words) as err:
+        read_light_curve(f, **kwargs)
+    assert pytest.importorskip("re").search(field, err.value.field), err.value.field
+
+
+def test_duplicates_merge_whitespace_columns_and_a_huge_file(tmp_path, monkeypatch):
+    from cssat.data import observations, read_light_curve
+
+    f = tmp_path / "lc.txt"
+    f.write_text("# date time mag err\n2020-01-01 00:00:00 9.0 0.1\n2020-01-01 00:00:00 9.2 0.1\n2020-01-01 00:00:01 9.4 0.2\n")
+    lc = read_light_curve(f, time_col=["date", "time"], value_col="mag", error_col="err", duplicates="merge")
+    assert len(lc) == 2 and lc.values[0] == pytest.approx(9.1) and lc.errors[0] == pytest.approx(0.1 / np.sqrt(2))
+    long = tmp_path / "long.csv"
+    long.write_text("time_utc,magnitude,note\n2020-01-01T00:00:00,9.0,\"" + "x" * 140_000 + "\"\n")
+    with pytest.raises(FieldError, match="observations"):
+        read_light_curve(long)
+    monkeypatch.setattr(observations, "_BYTES_PER_BYTE", 10 ** 9)  # as if the file were ~10 GB per byte
+    with pytest.raises(FieldError, match="split it"):
+        read_light_curve(f, time_col=["date", "time"], value_col="mag")
+
+
+def _sinusoid(P=628.3, T=3000, span=6000.0):
+    t = np.linspace(0, span, T)
+    return t, 2 + np.sin(2 * np.pi * t / P)
+
+
+def test_periods_with_the_defaults_and_no_period_as_an_answer():
+    from astropy.timeseries import LombScargle
+
+    from cssat.inversion import estimate_period
+
+    t, y = _sinusoid()
+    out = estimate_period(t, y)  # noise free: not doubled (was 1256.6 s)
+    assert out["periodic"] and abs(out["period_s"] - 628.3) < max(3 * out["period_err_s"], 1e-6 * 628.3), out["period_s"]
+    flat = estimate_period(t, np.full_like(t, 3.0))  # a constant: no period (was 275,812 s)
+    assert not flat["periodic"] and np.isnan(flat["period_s"])
+    rng = np.random.default_rng(5)
+    assert not estimate_period(t, rng.normal(size=t.size))["periodic"]
+    walk = np.cumsum(rng.normal(size=2000)) * 0.05  # red noise: aperiodic
+    assert not estimate_period(np.arange(2000) * 0.1, walk)["periodic"]
+    # the MMT-format rocket body: double-peaked, two channels, two tracks; a plain periodogram gives half
+    from cssat.data import read_light_curve
+
+    rb = read_light_curve(MMT_RB)
+    for track in rb.split():
+        ts, mag = track.times_s(), track.values
+        res = estimate_period(ts, mag)
+        assert res["periodic"] and abs(res["period_s"] / 18.888 - 1) < 0.01, res["period_s"]
+        assert "P/2" in {a["relation"] for a in res["alternatives"]} and res["fap"] < 1e-3  # 2P: past half the track
+        f, p = LombScargle(ts, mag).autopower(minimum_frequency=2 / ts[-1], maximum_frequency=5.0, samples_per_peak=10)
+        assert abs(1 / f[np.argmax(p)] / (18.888 / 2) - 1) < 0.02  # astropy's peak: the half period
+    for path in MMT_REAL:  # MMT: "Not variable"
+        lc = read_light_curve(path)
+        assert not estimate_period(lc.times_s(), lc.values)["periodic"], path.name
+
+
+def test_one_period_is_not_tumbling():
+    from cssat.inversion import estimate_tumbling_periods
+
+    t, y = _sinusoid(T=800)
+    out = estimate_tumbling_periods(t, y + np.random.default_rng(1).normal(0, 0.01, t.size))
+    assert out["tumbling"] is False and out["why"]
+
+
+def test_characterise_a_real_track_and_a_periodic_one(tmp_path):
+    from conftest import run_cli
+
+    code, lines = run_cli(["experiment=characterise", f"observations={MMT_REAL[1]}", f"hydra.run.dir={tmp_path / 'a'}"], tmp_path)
+    assert code == 0, lines
+    m = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert m["status"] == "ok" and m["periodic"] is False and m["object_id"] == "48243"
+    assert m["stage_spin"].startswith("skipped: needs") and "scenario.tle" in m["stage_spin"]
+    assert (tmp_path / "a" / "figures" / "characterise.png").is_file()
+    code, lines = run_cli(["experiment=characterise", f"observations={MMT_RB}", "characterise.tracks=[101]",
+                           f"hydra.run.dir={tmp_path / 'b'}"], tmp_path)
+    m = json.loads((tmp_path / "b" / "metrics.json").read_text())
+    assert code == 0 and m["periodic"] and abs(m["period_vs_published"]) < 0.01 and m["n_samples"] == 600
+
+
+@pytest.mark.parametrize("args, field", [
+    (["experiment=characterise"], "observations"),
+    (["experiment=characterise", f"observations={MMT_RB}", "stages.spin=maybe"], "stages.spin"),
+    (["experiment=characterise", f"observations={MMT_RB}", "period.min_periods=3"], "period.min_periods"),
+    (["experiment=characterise", f"observations={MMT_RB}", "stages.spin=on"], "stages.spin"),
+    (["experiment=inversion", f"observations={MMT_RB}", "nights.n=1"], "scenario.tle"),  # NORAD 99001, not Astra's
+])
+def test_refusals_exit_2_naming_the_field(tmp_path, args, field):
+    from conftest import run_cli
+
+    code, lines = run_cli([*args, f"hydra.run.dir={tmp_path / 'r'}"], tmp_path)
+    assert code == 2 and any(field in ln for ln in lines), lines
+    assert not (tmp_path / "r" / "metrics.json").is_file() or json.loads((tmp_path / "r" / "metrics.json").read_text())["status"] == "failed"
+
+
+def test_a_catalogue_through_hydra_s_launcher(tmp_path):
+    """Three files in one multirun: two characterised, a broken one costs its row, not the run."""
+    cat = tmp_path / "tracks"
+    cat.mkdir()
+    for p in (MMT_REAL[0], MMT_RB):
+        (cat / p.name).write_bytes(p.read_bytes())
+    (cat / "broken.txt").write_text("# satellite: 1 X\n# Date Time Mag\n2020-01-01 00:00:00 99.999\n")
+    import csv
+    import subprocess
+    import sys
+
+    subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise", "observations=" + ",".join(str(p) for p in sorted(cat.glob("*.txt"))),
+                    "characterise.figures=false", f"hydra.sweep.dir={tmp_path / 'sweep'}"], cwd=tmp_path, capture_output=True,
+                   text=True, timeout=600)
+
+    rows = list(csv.DictReader(open(tmp_path / "sweep" / "summary.csv")))
+    status = {Path(r["observations"]).name: r["status"] for r in rows}
+    assert status == {"broken.txt": "failed", MMT_REAL[0].name: "ok", MMT_RB.name: "ok"}, status
+    ok = {Path(r["observations"]).name: r for r in rows if r["status"] == "ok"}
+    assert ok[MMT_RB.name]["periodic"] == "True" and ok[MMT_REAL[0].name]["periodic"] == "False"
