@@ -25,6 +25,9 @@ from typing import Sequence
 __all__ = ["TINY", "run_one", "main"]
 
 #: each experiment at a tiny size: the overrides of a run of a few seconds
+#: the example MMT-format track shipped in the package (synthetic: tests/data/formats/make_examples.py)
+EXAMPLE_TRACK = Path(__file__).parent / "data" / "examples" / "mmt_rocket_body_synthetic.txt"
+
 TINY: dict[str, list[str]] = {
     "sim1": ["target.size=12", "cs.m=100"],
     "sim2": ["target.size=12", "cs.m=80", "dtype=float64"],
@@ -40,6 +43,7 @@ TINY: dict[str, list[str]] = {
     "inversion_tumbling": ["nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known",
                            "inversion.n_normals=64"],
     "occultation": ["silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5"],
+    "characterise": [f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]"],
 }
 
 

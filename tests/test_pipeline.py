@@ -26,7 +26,7 @@ GROUPS = ("atmosphere", "noise", "solver", "denoiser")
 #: atmosphere or image solver, the occultation has its own forward model and solver)
 READS = {"sim1": GROUPS, "sim2": GROUPS, "sim3": GROUPS, "solvers": GROUPS, "realism": GROUPS,
          "lightcurve": ("atmosphere", "noise"), "inversion": ("noise",), "inversion_tumbling": ("noise",),
-         "occultation": ()}
+         "occultation": (), "characterise": ()}
 #: options made quick (their numbers are not what these tests check)
 QUICK = {
     ("solver", "pnp"): ["solver.max_iter=2", "solver.denoiser.n_iter=1"],
