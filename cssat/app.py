@@ -142,6 +142,33 @@ def _register_launcher() -> None:
         Plugins.instance().register(RobustJoblibLauncher)
 
 
+#: the keys whose value a sweep may give as a directory or a glob of files (a catalogue)
+FILE_SWEEP_KEYS = ("observations",)
+
+
+def expand_file_sweeps(argv: list[str]) -> list[str]:
+    """A multirun's ``observations=<directory>`` or ``observations=<glob>`` (``*``, ``?``, ``[``)
+    as Hydra's sweep of those files, sorted and quoted: one job per file (a catalogue of
+    thousands of tracks through Hydra's launchers). A pattern that matches nothing is a
+    ``ValueError`` naming the key."""
+    import glob
+    import os
+
+    out = []
+    for a in argv:
+        key, eq, value = a.partition("=")
+        if eq and key.lstrip("+") in FILE_SWEEP_KEYS and "(" not in value and "," not in value and (
+                os.path.isdir(value) or any(c in value for c in "*?[")):
+            pattern = os.path.join(value, "*") if os.path.isdir(value) else value
+            files = sorted(f for f in glob.glob(pattern) if os.path.isfile(f) and not os.path.basename(f).startswith("."))
+            if not files:
+                raise ValueError(f"{key}: no file matches {pattern!r}")
+            quote = lambda f: "'" + f.replace("\\", "\\\\").replace("'", "\\'") + "'"  # noqa: E731
+            a = f"{key}=" + ",".join(quote(os.path.abspath(f)) for f in files)
+        out.append(a)
+    return out
+
+
 def main() -> None:
     """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
     after every job has run and the summary is written."""
@@ -152,6 +179,12 @@ def main() -> None:
         print(f"cssat {__version__}")
         return
     _register_launcher()
+    if any(a in ("-m", "--multirun") for a in sys.argv[1:]):
+        try:
+            sys.argv[1:] = expand_file_sweeps(sys.argv[1:])
+        except ValueError as err:
+            print(f"bad input: {err}", file=sys.stderr)
+            sys.exit(2)
     overrides = _cli_check.overrides_of(sys.argv[1:])
     if overrides:  # a mistake on the command line: one line naming the key, exit 2 (not Hydra's text)
         why = _cli_check.check(overrides)

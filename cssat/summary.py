@@ -32,6 +32,8 @@ def _parse_overrides(path: Path) -> dict[str, str]:
     out: dict[str, str] = {}
     for item in yaml.safe_load(path.read_text()) or []:
         key, _, value = str(item).partition("=")
+        if len(value) >= 2 and value[0] == value[-1] and value[0] in "'\"":  # a quoted value (a file path)
+            value = value[1:-1]
         out[key.lstrip("+~")] = value
     return out
 

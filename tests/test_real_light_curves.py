@@ -200,7 +200,7 @@ def test_a_catalogue_through_hydra_s_launcher(tmp_path):
     import subprocess
     import sys
 
-    subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise", "observations=" + ",".join(str(p) for p in sorted(cat.glob("*.txt"))),
+    subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise", f"observations={cat}",
                     "characterise.figures=false", f"hydra.sweep.dir={tmp_path / 'sweep'}"], cwd=tmp_path, capture_output=True,
                    text=True, timeout=600)
 
@@ -209,3 +209,33 @@ def test_a_catalogue_through_hydra_s_launcher(tmp_path):
     assert status == {"broken.txt": "failed", MMT_REAL[0].name: "ok", MMT_RB.name: "ok"}, status
     ok = {Path(r["observations"]).name: r for r in rows if r["status"] == "ok"}
     assert ok[MMT_RB.name]["periodic"] == "True" and ok[MMT_REAL[0].name]["periodic"] == "False"
+    assert "observations.Mag[row 1]" in next(r["error"] for r in rows if r["status"] == "failed")
+    from astropy.table import Table
+
+    assert len(Table.read(tmp_path / "sweep" / "summary.csv", format="ascii.csv")) == 3  # astropy reads the summary
+
+
+def test_a_glob_that_matches_nothing_is_refused(tmp_path):
+    import subprocess
+    import sys
+
+    res = subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise",
+                          f"observations={tmp_path}/*.txt"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2 and "observations: no file matches" in res.stderr
+
+
+@pytest.mark.parametrize("scale, offset_s", [("utc", 0.0), ("tai", 37.0), ("tt", 69.184)])
+def test_csv_time_scales_through_astropy(tmp_path, scale, offset_s):
+    """2020: TAI − UTC = 37 s, TT − TAI = 32.184 s (IERS Bulletin C): a stamp in TAI or TT is
+    that much later than the same instant in UTC; Julian dates alike."""
+    from cssat.data import read_light_curve
+
+    f = tmp_path / "lc.csv"
+    f.write_text("time,mag\n2020-04-01T21:00:00,9.0\n2020-04-01T21:00:10,9.1\n")
+    lc = read_light_curve(f, time_col="time", value_col="mag", time_scale=scale)
+    expect = np.datetime64("2020-04-01T21:00:00", "us") - np.timedelta64(int(round(offset_s * 1e6)), "us")
+    assert lc.times_utc[0] == expect
+    g = tmp_path / "jd.csv"
+    g.write_text("jd,mag\n2458941.375,9.0\n2458941.5,9.1\n")  # 2020-04-01 21:00 and 2020-04-02 00:00
+    jd = read_light_curve(g, time_col="jd", value_col="mag", time_format="jd", time_scale=scale)
+    assert jd.times_utc[0] == expect

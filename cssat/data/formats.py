@@ -133,6 +133,7 @@ def read_mmt(text: str, name: str, value_col: str | None = None) -> dict[str, An
     out: dict[str, Any] = {"times_utc": times, "values": _floats(col[vcol], "observations", vcol), "errors": None,
                            "kind": "magnitude"}
     out["magnitude_system"] = "normalised: 1000 km, phase 90°" if vcol == "StdMag" else "apparent"
+    info_col = vcol
     if "Filter" in col:
         out["filters"] = np.array(col["Filter"])
     for key, c in (("ranges_km", "Distance"), ("phase_deg", "Phase")):
@@ -146,7 +147,7 @@ def read_mmt(text: str, name: str, value_col: str | None = None) -> dict[str, An
         out["tracks"] = np.full(len(rows), meta["track"].split()[0])
     if "Penumbra" in col:
         out["penumbra"] = np.array([v not in ("0", "0.0") for v in col["Penumbra"]])
-    info: dict[str, Any] = {"format": "mmt"}
+    info: dict[str, Any] = {"format": "mmt", "value_col": info_col}
     sat = meta.get("satellite", "")
     m = re.match(r"(\d+)\s+(.*?)(?:\s+/\s+(.*))?$", sat)
     if m:
@@ -236,7 +237,7 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
     f = get("filter")
     if any(f):
         out["filters"] = np.array(f)
-    out["meta"] = {"format": "score", "object_id": norad[0], "name": names[0]}
+    out["meta"] = {"format": "score", "object_id": norad[0], "name": names[0], "value_col": SCORE_COLUMNS["value"]}
     return out
 
 
@@ -280,7 +281,7 @@ def read_alcdef(text: str, name: str) -> dict[str, Any]:
         raise FieldError("observations", f"{name}: an ALCDEF file without DATA lines")
     e = np.array(errs)
     first = blocks[0] if blocks else {}
-    info = {"format": "alcdef", "object_id": first.get("OBJECTNUMBER") or first.get("MPCDESIG") or None,
+    info = {"format": "alcdef", "value_col": "MAG", "object_id": first.get("OBJECTNUMBER") or first.get("MPCDESIG") or None,
             "name": first.get("OBJECTNAME") or None, "observers": sorted({b.get("OBSERVERS", "") for b in blocks} - {""}),
             "blocks": blocks}
     reduced = first.get("REDUCEDMAGS", "NONE").upper()
@@ -344,7 +345,7 @@ def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str 
             out[key] = np.array([str(v).strip() for v in table[c]])
     meta = {str(k).lower(): v for k, v in dict(table.meta or {}).items() if isinstance(v, (str, int, float))}
     obj = meta.get("norad") or meta.get("object_id") or meta.get("norad_cat_id")
-    out["meta"] = {"format": "astropy", "object_id": None if obj is None else str(obj),
+    out["meta"] = {"format": "astropy", "value_col": value_col, "object_id": None if obj is None else str(obj),
                    "name": meta.get("object") or meta.get("name"), "header": meta}
     if "period" in meta or "period_s" in meta:
         out["meta"]["published_period_s"] = float(meta.get("period_s", meta.get("period")))
@@ -371,6 +372,6 @@ def check_magnitudes(values: np.ndarray, col: str) -> None:
     bad = np.flatnonzero((values < MAG_RANGE[0]) | (values > MAG_RANGE[1]))
     if bad.size:
         i = int(bad[0])
-        raise FieldError(f"observations.{col}[row {i + 1}]", f"{values[i]!r} is not a magnitude (allowed {MAG_RANGE[0]:g} "
+        raise FieldError(f"observations.{col}[row {i + 1}]", f"{float(values[i])!r} is not a magnitude (allowed {MAG_RANGE[0]:g} "
                          f"to {MAG_RANGE[1]:g}): a placeholder for a missing value? Drop the row, or read a flux "
                          "column with kind='flux'")

@@ -404,7 +404,8 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     lc = ObservedLightCurve(**{k: v for k, v in d.items() if k != "meta"}, meta=d.get("meta", {}),
                             source=str(path) if fmt != "astropy" else "")
     tcol = "+".join(time_col) if isinstance(time_col, (list, tuple)) else (time_col or ("time_utc" if fmt == "csv" else "time"))
-    return _finish(lc, fmt, duplicates, value_col or ("value" if fmt != "csv" else DEFAULT_VALUE[kind]), tcol)
+    vcol = value_col or lc.meta.get("value_col") or DEFAULT_VALUE[kind]
+    return _finish(lc, fmt, duplicates, vcol, tcol)
 
 
 def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: str) -> ObservedLightCurve:
@@ -415,7 +416,7 @@ def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: 
         raise FieldError("observations", "no data rows")
     if not np.isfinite(lc.values).all():
         i = int(np.flatnonzero(~np.isfinite(lc.values))[0])
-        raise FieldError(f"observations.{vcol}[row {i + 1}]", f"{lc.values[i]!r} is not a finite value (drop the row)")
+        raise FieldError(f"observations.{vcol}[row {i + 1}]", f"{float(lc.values[i])!r} is not a finite value (drop the row)")
     if lc.kind == "magnitude":
         check_magnitudes(lc.values, vcol)
     elif (lc.values < 0).any():

@@ -60,7 +60,7 @@ def check(cfg: Any) -> dict[str, Any]:
             raise FieldError(f"stages.{k}", f"not a stage; the stages: {', '.join(STAGES)}")
     modes = {k: choice_param(stages.get(k, "auto"), f"stages.{k}", STAGE_MODES) for k in STAGES}
     for node, fn in (("period", estimate_period), ("tumbling", estimate_tumbling_periods)):
-        allowed = [p for p in inspect.signature(fn).parameters if p not in ("times_s", "flux", "sigma")]
+        allowed = [p for p in inspect.signature(fn).parameters if p not in ("times_s", "flux", "sigma", "segments")]
         for k in _opts(cfg.get(node)):
             if k not in allowed:
                 raise FieldError(f"{node}.{k}", f"not an option of {fn.__name__}; its options: {', '.join(allowed)}")
@@ -106,7 +106,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         sig = lc.magnitude_errors() if lc.kind == "magnitude" else lc.errors
         tracks = lc.track_ids()
         m.update(n_samples=len(lc), n_tracks=len(set(tracks)), span_s=float(t[-1]), start_utc=str(lc.times_utc[0]))
-    res = _period(run_, opt, t, y, sig, m)
+    res = _period(run_, opt, t, y, sig, tracks, m)
     _tumbling(run_, opt, t, y, sig, res, m)
     _spin(run_, cfg, opt, lc, t, res, m)
     with run_.stage("files"):
@@ -115,14 +115,16 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     return m
 
 
-def _period(run_, opt, t, y, sig, m) -> dict[str, Any] | None:
+def _period(run_, opt, t, y, sig, tracks, m) -> dict[str, Any] | None:
     from cssat.inversion import estimate_period
 
     if opt["modes"]["period"] == "off":
         m["stage_period"] = "off"
         return None
     with run_.stage("period"):
-        res = estimate_period(t, y, sigma=sig, **opt["period"])
+        kw = dict(opt["period"])
+        kw.setdefault("segments", tracks)  # the file's own tracks: one offset (and slope) each
+        res = estimate_period(t, y, sigma=sig, **kw)
     keys = ("periodic", "period_s", "period_err_s", "fap", "repeat", "best_period_s", "best_period_err_s", "chi2_per_sample",
             "model_fits", "n_harmonics", "n_cycles", "min_period_s", "max_period_s", "why")
     m.update({k: res[k] for k in keys})
@@ -220,7 +222,7 @@ def _write(run_, opt, lc, t, y, res, m) -> None:
 
     arrays: dict[str, Any] = {"times_s": t, "values": y}
     if res is not None:
-        model = _model(t, y, res, int(opt["period"].get("detrend", 1)))
+        model = _model(t, y, res, int(opt["period"].get("detrend", 1)), lc.track_ids())
         arrays.update(model=model, frequency_hz=res["periodogram"]["frequency_hz"], power=res["periodogram"]["power"])
         write_csv(run_.out_dir / "alternatives.csv", res["alternatives"] or [{"relation": "none"}])
     write_npz(run_.out_dir / "arrays.npz", **arrays)
@@ -232,13 +234,13 @@ def _write(run_, opt, lc, t, y, res, m) -> None:
                                         arrays.get("model"), lc.kind), run_.figure("characterise"))
 
 
-def _model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int) -> np.ndarray:
+def _model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int, tracks: np.ndarray) -> np.ndarray:
     """The chosen Fourier series (with one offset and slope per stretch) at ``t``."""
-    from cssat.inversion.period import _Curve, _design, stretches
+    from cssat.inversion.period import _Curve, _design
 
     if not np.isfinite(res["best_period_s"]):
         return np.full_like(y, np.mean(y))
-    cv = _Curve(t, y, np.ones_like(y), stretches(t), detrend, False)
+    cv = _Curve(t, y, np.ones_like(y), np.unique(tracks, return_inverse=True)[1].reshape(-1), detrend, False)
     X = np.concatenate([cv.Q, _design(t, 1.0 / res["best_period_s"], res["n_harmonics"])], 1)
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     return X @ coef

@@ -206,7 +206,8 @@ class _Curve:
 
 def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float | None = None,
                     max_period_s: float | None = None, n_harmonics: int | None = None, max_harmonics: int = 8,
-                    n_peaks: int = 3, samples_per_peak: int = 10, detrend: int = 1, fap_max: float = 1e-3,
+                    n_peaks: int = 3, samples_per_peak: int = 10, detrend: int = 1, segments: Any = None,
+                    fap_max: float = 1e-3,
                     min_repeat: float = 0.7) -> dict[str, Any]:
     """The period of the light curve ``flux (T,)`` (a flux or a magnitude) at ``times_s (T,)``
     (seconds, any cadence, any order), and whether it is periodic at all: the method of the
@@ -215,7 +216,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     the data: twice the cadence to half the longest contiguous stretch). ``n_harmonics``: fix
     the base model's harmonics (default: BIC up to ``max_harmonics``). ``detrend``: the order of
     the polynomial fitted to each contiguous stretch alongside the series (0: an offset per
-    stretch — per-track magnitude offsets —, 1: and a slope, the default).
+    stretch — per-track magnitude offsets —, 1: and a slope, the default). ``segments``: ``(T,)``
+    the track of each sample (e.g. a file's track ids; default: contiguous stretches split at gaps).
 
     Returns a dict: ``period_s`` and ``period_err_s`` (1σ; both NaN when not periodic),
     ``periodic`` (bool), ``fap``, ``repeat``, ``best_period_s``/``best_period_err_s`` (the best
@@ -238,6 +240,11 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         raise FieldError("flux", f"a period needs at least {MIN_SAMPLES} samples, got {len(t)}")
     order = np.argsort(t, kind="stable")
     t, y = t[order], y[order]
+    if segments is not None:
+        labels = np.asarray(segments).reshape(-1)
+        if labels.shape != order.shape:
+            raise FieldError("segments", f"expected one track label per sample ({len(order)}), got {labels.shape}")
+        seg_given = np.unique(labels[order], return_inverse=True)[1].reshape(-1)
     if sigma is None:
         w = np.ones_like(y)
     else:
@@ -251,7 +258,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         raise FieldError("times_s", "the samples span no time (all stamps equal)")
     if np.ptp(y) == 0:
         return _constant(t)
-    seg = stretches(t)
+    seg = stretches(t) if segments is None else seg_given
     longest = max(float(t[seg == k][-1] - t[seg == k][0]) for k in np.unique(seg))
     d = _cadence(t, seg)
     inside = np.diff(t)[(np.diff(seg) == 0) & (np.diff(t) > 0)]
@@ -304,22 +311,26 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     if not cands:
         raise FieldError("min_period_s", f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
     best = min(cands, key=lambda c: c["bic"])
-    for _ in range(3):  # the best's own double and half compete too (a peak's refinement may miss them)
-        more = []
-        for k in (0.5, 2.0):
-            P = best["period_s"] * k
-            mk = max(1, min(cap, int(round(best["n_harmonics"] * k))))
-            if lo <= P <= hi_alias:
-                c = cv.score(1 / P, mk)
-                c.update(peak=best["peak"], k=best["k"] * k)
-                more.append(c)
-        win = min(more, key=lambda c: c["bic"], default=None)
+
+    def own(P: float, k: float, peak: int) -> dict[str, Any] | None:
+        """The period ``P`` with its own least-BIC harmonics, refined (None outside the range)."""
+        if not lo <= P <= hi_alias:
+            return None
+        c = cv.best_near(1 / P, max(1, int(round(best["n_harmonics"] * P / best["period_s"]))),
+                         min(max(1, int(round(k)) if k >= 1 else 1) * max_harmonics, harmonics_at(1 / P)))
+        f, r = cv.refine(1 / P, c["n_harmonics"], step / max(k, 1))
+        return {**c, "period_s": 1 / f, "rss": r, "bic": cv.bic(r, c["n_harmonics"]), "peak": peak, "k": k}
+
+    best = own(best["period_s"], best["k"], best["peak"]) or best
+    for _ in range(4):  # the chosen period's double and half compete, each with its own harmonics, refined
+        rivals = [c for c in (own(best["period_s"] * x, best["k"] * x, best["peak"]) for x in (0.5, 2.0)) if c]
+        win = min(rivals, key=lambda c: c["bic"], default=None)
         if win is None or win["bic"] >= best["bic"]:
             break
         cands.append(win)
         best = win
     m = best["n_harmonics"]
-    fb, rss = cv.refine(1.0 / best["period_s"], m, step / max(best["k"], 1))
+    fb, rss = 1.0 / best["period_s"], best["rss"]
     N = len(t)
     nu = max(N - 2 * m - cv.q, 1)
     scat = max(light_curve_scatter(t, y), 1e-9 * float(np.std(y)), 1e-150)
@@ -337,8 +348,9 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     alts = []
     for rel, k in (("P/4", 0.25), ("P/2", 0.5), ("2P", 2.0)):
         Pa = period * k
-        if lo <= Pa <= hi_alias:
-            alts.append({"relation": rel, **cv.score(1 / Pa, max(1, min(cap, int(round(m * k)), harmonics_at(1 / Pa))))})
+        a = own(Pa, best["k"] * k, best["peak"])
+        if a is not None:
+            alts.append({"relation": rel, **a})
     for j in range(len(peaks)):
         cj = [c for c in cands if c["peak"] == j]
         if j != best["peak"] and cj:
@@ -355,6 +367,10 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         warns.append(f"the longest stretch holds {n_cycles:.2g} cycles of {period:.6g} s (< 2): weakly constrained")
     if min(abs(period - lo), abs(period - hi_alias)) < 2 * period ** 2 * step:
         warns.append(f"the period {period:.6g} s sits on an edge of the search [{lo:.6g}, {hi_alias:.6g}] s")
+    close = [a for a in alts if a["relation"] != "peak" and a["delta_bic"] < 6.0]
+    if close:
+        warns.append("a close call: " + ", ".join(f"{a['relation']} ({a['period_s']:.6g} s) is within ΔBIC "
+                                                  f"{a['delta_bic']:.2g} of the chosen period" for a in close))
     model_fits = bool(chi2_n <= 3.0)
     if not model_fits:
         warns.append(f"χ²/N = {chi2_n:.3g}: the {m}-harmonic series does not fit to the noise (glints, a changing "
