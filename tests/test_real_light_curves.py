@@ -239,3 +239,40 @@ def test_csv_time_scales_through_astropy(tmp_path, scale, offset_s):
     g.write_text("jd,mag\n2458941.375,9.0\n2458941.5,9.1\n")  # 2020-04-01 21:00 and 2020-04-02 00:00
     jd = read_light_curve(g, time_col="jd", value_col="mag", time_format="jd", time_scale=scale)
     assert jd.times_utc[0] == expect
+
+
+def test_one_observer_per_sample():
+    """A SCORE-like mix of two sites: each sample's observer is its own site — the rows of the
+    two single-site scenarios (make_scenario), put back in time order."""
+    from hydra import compose, initialize_config_module
+
+    from cssat.experiments.scene import build_scenario
+    from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario
+
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=["experiment=characterise"])
+    times = np.array(["2020-04-01T21:00:00", "2020-04-01T21:01:00", "2020-04-01T21:02:30", "2020-04-01T21:04:00"],
+                     dtype="datetime64[us]")
+    sites = np.array([[51.17, 10.45, 0.0], [-30.2, -70.7, 2200.0], [51.17, 10.45, 0.0], [-30.2, -70.7, 2200.0]])
+    mixed = build_scenario(cfg, times, sites)
+    for rows, (lat, lon, alt) in (([0, 2], sites[0]), ([1, 3], sites[1])):
+        one = make_scenario(tle=ASTRA_1KR_SYNTHETIC_TLE, times=times[rows], lat_deg=lat, lon_deg=lon, alt_m=alt)
+        for k in ("r_obs", "range_km", "elevation_deg", "r_sat"):
+            assert np.allclose(getattr(mixed, k)[rows], getattr(one, k), rtol=0, atol=1e-9), k
+    assert np.array_equal(mixed.times, times)
+
+
+@pytest.mark.parametrize("n, hours", [(2, 0.1), (60, 2.0)])
+def test_an_inversion_the_data_cannot_constrain_is_refused(tmp_path, n, hours):
+    """A 2-row file, and one pass of 60 samples: exit 2 naming ``observations`` and what is
+    missing, no shape written (was: an EGI and a shape.obj with status ok)."""
+    from conftest import run_cli
+
+    from cssat.data import ObservedLightCurve, write_light_curve
+
+    t = np.datetime64("2020-04-01T21:00:00", "us") + (np.linspace(0, hours * 3600, n) * 1e6).astype("timedelta64[us]")
+    write_light_curve(tmp_path / "obs.csv", ObservedLightCurve(t, np.full(n, 9.0), np.full(n, 0.05), "magnitude"))
+    code, lines = run_cli(["experiment=inversion", f"observations={tmp_path / 'obs.csv'}", "nights.n=1",
+                           "inversion.n_normals=64", f"hydra.run.dir={tmp_path / 'r'}"], tmp_path)
+    assert code == 2 and any("observations" in ln and "nights" in ln for ln in lines), lines
+    assert not (tmp_path / "r" / "shape.obj").exists()

@@ -194,7 +194,7 @@ def _spin(run_, cfg, opt, lc, t, res, m) -> None:
 
     with run_.stage("spin"):
         check_elements(cfg, lc, opt["max_epoch_days"])
-        sc = build_scenario(cfg, lc.times_utc)
+        sc = build_scenario(cfg, lc.times_utc, lc.sites)  # the file's observer of each sample, where it gives them
         _compare_geometry(sc, lc, m)
         unit = (sc.range_km * 1e3) ** 2 / SOLAR_IRRADIANCE_W_M2
         flux = lc.fluxes() * unit

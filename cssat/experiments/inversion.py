@@ -83,6 +83,28 @@ def egi_recovered_share(true_normals: np.ndarray, true_areas: np.ndarray, normal
     return float(true_areas[near].sum() / true_areas.sum())
 
 
+#: a measured light curve's least for an inversion: samples, nights (one pass holds one geometry)
+MIN_OBSERVED_SAMPLES = 50
+MIN_OBSERVED_NIGHTS = 2
+
+
+def _check_constrained(observed: Any, t: np.ndarray, night: np.ndarray) -> None:
+    """Refuse a measured light curve the inversion cannot constrain: too few usable samples, or
+    one night (a pass holds one Sun–observer geometry: the pole and the shape are then not
+    determined), naming what is missing."""
+    n_nights = int(night.max() + 1) if len(night) else 0
+    missing = []
+    if len(t) < MIN_OBSERVED_SAMPLES:
+        missing.append(f"at least {MIN_OBSERVED_SAMPLES} sunlit samples (the file gives {len(t)})")
+    if n_nights < MIN_OBSERVED_NIGHTS:
+        missing.append(f"at least {MIN_OBSERVED_NIGHTS} nights (the file holds {n_nights}: one pass does not constrain a "
+                       "pole or a shape)")
+    if missing:
+        raise FieldError("observations", f"{Path(observed.source).name or 'the light curve'} cannot constrain an "
+                                         f"inversion: it needs {' and '.join(missing)}; experiment=characterise "
+                                         "gives what it does hold")
+
+
 def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     """Run the inversion experiment ``cfg`` into ``out_dir`` and return its metrics."""
     import torch
@@ -159,6 +181,10 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         t = seconds_all[keep]
         night = night_index(t)
         metrics.update(n_samples=int(keep.sum()), n_nights_observed=int(night.max() + 1))
+        if observed is not None:
+            _check_constrained(observed, t, night)
+            if observed.ranges_km is not None:  # the file's own range against the element set's
+                metrics["range_diff_km_median"] = float(np.median(np.abs(scenario.range_km - observed.ranges_km)[keep]))
 
     with run_.stage("light_curve"):
         unit = ((scenario.range_km * 1e3) ** 2 / SOLAR_IRRADIANCE_W_M2)[keep]  # W/m² → per unit irradiance and range

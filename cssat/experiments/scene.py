@@ -96,11 +96,46 @@ def check_elements(cfg: Any, lc: Any, max_epoch_days: float = 14.0) -> None:
                                          f"kilometres a day: give an element set within {max_epoch_days:g} days")
 
 
-def build_scenario(cfg: Any, times: Any = None) -> Scenario:
+def build_scenario(cfg: Any, times: Any = None, sites: Any = None) -> Scenario:
     """The :class:`cssat.scene.Scenario` of the ``scenario`` config (the synthetic Astra 1KR TLE
     when ``scenario.tle`` is null), on ``times`` (UTC) or ``scenario.times`` when given, else on
-    its regular grid."""
+    its regular grid. ``sites (T, 3)`` (latitude °, longitude °, altitude m of each sample's
+    observer, e.g. a SCORE file's): one observer per sample — each site's samples computed with
+    its own observer, then put back in time order — instead of ``scenario.observer``."""
     from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario
+
+    if sites is not None and times is not None:
+        import dataclasses
+
+        sites = np.asarray(sites, dtype=np.float64)
+        uniq, which = np.unique(sites, axis=0, return_inverse=True)
+        which = which.reshape(-1)
+        if len(uniq) > 1:
+            stamps = np.asarray(times, dtype="datetime64[us]")
+            parts = []
+            for k, (lat, lon, alt) in enumerate(uniq):
+                from omegaconf import OmegaConf, open_dict
+
+                sub = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+                with open_dict(sub):
+                    sub.scenario.observer = {"lat_deg": float(lat), "lon_deg": float(lon), "alt_m": float(alt)}
+                parts.append((np.flatnonzero(which == k), build_scenario(sub, stamps[which == k])))
+            arrays = {}
+            for f in dataclasses.fields(parts[0][1]):
+                if f.name == "name":
+                    continue
+                first = getattr(parts[0][1], f.name)
+                out = np.empty((len(stamps),) + first.shape[1:], dtype=first.dtype)
+                for idx, sc_k in parts:
+                    out[idx] = getattr(sc_k, f.name)
+                arrays[f.name] = out
+            return dataclasses.replace(parts[0][1], **arrays)
+        lat, lon, alt = uniq[0]
+        from omegaconf import OmegaConf, open_dict
+
+        cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+        with open_dict(cfg):
+            cfg.scenario.observer = {"lat_deg": float(lat), "lon_deg": float(lon), "alt_m": float(alt)}
 
     from omegaconf import OmegaConf
 
