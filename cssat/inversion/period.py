@@ -51,6 +51,9 @@ from cssat._checks import FieldError, float_param, int_param
 __all__ = ["estimate_period", "light_curve_scatter"]
 
 MIN_SAMPLES = 12
+#: the ΔBIC by which a period must beat its half to be chosen over it (Occam: the simpler model
+#: wins a near tie; "strong evidence" on Kass & Raftery's scale is ΔBIC 6-10)
+ALIAS_MARGIN = 6.0
 
 
 def _design(t: np.ndarray, f: float, m: int) -> np.ndarray:
@@ -179,14 +182,19 @@ class _Curve:
         """Does the curve repeat? The series fitted to the even cycles (``⌊f t⌋`` even) predicts
         the odd ones and vice versa (the nuisance model refitted on each): the worse of the two
         ratios R²_pred / R²_in, ≤ 1, clipped at −1. Neighbouring cycles share their geometry,
-        so a slowly changing periodic curve repeats; red noise does not."""
+        so a slowly changing periodic curve repeats; red noise does not. A direction whose
+        training cycles do not cover the phase (< 2 cycles in all) is left out."""
         parity = np.floor(self.t * f).astype(np.int64) % 2
         X = _design(self.t, f, m) * self.w[:, None]
         out = []
+        phase_bin = np.floor((self.t * f % 1.0) * 20).astype(np.int64)
+        covered = len(np.unique(phase_bin))
         for a in (0, 1):
             A, B = parity == a, parity != a
             if A.sum() < 2 * m + self.q + 2 or B.sum() < 2 * m + self.q + 2:
                 return float("nan")
+            if len(np.unique(phase_bin[A])) < 0.9 * covered:  # A does not hold a whole cycle: nothing to predict from
+                continue
             QA, _ = np.linalg.qr(self.Q[A])
             QB, _ = np.linalg.qr(self.Q[B])
             proj = lambda Q, v: v - Q @ (Q.T @ v)  # noqa: E731
@@ -201,7 +209,7 @@ class _Curve:
             r_in = yb - Xb @ cb
             r2_pred, r2_in = 1 - float(r_pred @ r_pred) / tot, 1 - float(r_in @ r_in) / tot
             out.append(r2_pred / r2_in if r2_in > 0 else 0.0)
-        return float(max(min(out), -1.0))
+        return float(max(min(out), -1.0)) if out else float("nan")
 
 
 def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float | None = None,
@@ -269,7 +277,10 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s"
                          + (" (by default half the longest stretch: the track is too short for its cadence)"
                             if max_period_s is None else ""))
-    hi_alias = hi  # multiples stay within the range: a "period" as long as the track absorbs drifts
+    # the aliases stay in the range too: a "period" as long as the track absorbs its drifts (on
+    # MMT-like tracks, allowing 1-2 cycles costs more periodic tracks than it gains)
+    hi_alias = hi
+    penalty = (lambda c: 0.0)  # noqa: E731
     max_harmonics = int_param(max_harmonics, "max_harmonics", 1, 50)
     m_fixed = None if n_harmonics is None else int_param(n_harmonics, "n_harmonics", 1, 50)
     n_peaks = int_param(n_peaks, "n_peaks", 1, 20)
@@ -310,7 +321,15 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
             cands.append(c)
     if not cands:
         raise FieldError("min_period_s", f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
-    best = min(cands, key=lambda c: c["bic"])
+    family = []  # per peak, its multiples k = 1…4 in turn: a longer one wins only by ALIAS_MARGIN
+    for j in range(len(peaks)):
+        pick = None
+        for c in sorted((c for c in cands if c["peak"] == j), key=lambda c: c["k"]):
+            if pick is None or c["bic"] + penalty(c) + ALIAS_MARGIN < pick["bic"] + penalty(pick):
+                pick = c
+        if pick is not None:
+            family.append(pick)
+    best = min(family, key=lambda c: c["bic"] + penalty(c))
 
     def own(P: float, k: float, peak: int) -> dict[str, Any] | None:
         """The period ``P`` with its own least-BIC harmonics, refined (None outside the range)."""
@@ -322,10 +341,15 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         return {**c, "period_s": 1 / f, "rss": r, "bic": cv.bic(r, c["n_harmonics"]), "peak": peak, "k": k}
 
     best = own(best["period_s"], best["k"], best["peak"]) or best
-    for _ in range(4):  # the chosen period's double and half compete, each with its own harmonics, refined
-        rivals = [c for c in (own(best["period_s"] * x, best["k"] * x, best["peak"]) for x in (0.5, 2.0)) if c]
-        win = min(rivals, key=lambda c: c["bic"], default=None)
-        if win is None or win["bic"] >= best["bic"]:
+    for _ in range(4):  # the chosen period's half and double compete, each with its own harmonics, refined:
+        # the half wins unless the chosen one is better by ALIAS_MARGIN, the double only when better by it
+        key = lambda c: c["bic"] + penalty(c)  # noqa: E731
+        half, double = (own(best["period_s"] * x, best["k"] * x, best["peak"]) for x in (0.5, 2.0))
+        if half is not None and key(half) < key(best) + ALIAS_MARGIN:
+            win = half
+        elif double is not None and key(double) + ALIAS_MARGIN < key(best):
+            win = double
+        else:
             break
         cands.append(win)
         best = win
