@@ -101,7 +101,7 @@ def test_bad_files_name_the_field(tmp_path, text, kwargs, field, words):
 
 
 def test_duplicates_merge_whitespace_columns_and_a_huge_file(tmp_path, monkeypatch):
-    from cssat.data import observations, read_light_curve
+    from cssat.data import read_light_curve, text
 
     f = tmp_path / "lc.txt"
     f.write_text("# date time mag err\n2020-01-01 00:00:00 9.0 0.1\n2020-01-01 00:00:00 9.2 0.1\n2020-01-01 00:00:01 9.4 0.2\n")
@@ -111,7 +111,7 @@ def test_duplicates_merge_whitespace_columns_and_a_huge_file(tmp_path, monkeypat
     long.write_text("time_utc,magnitude,note\n2020-01-01T00:00:00,9.0,\"" + "x" * 140_000 + "\"\n")
     with pytest.raises(FieldError, match="observations"):
         read_light_curve(long)
-    monkeypatch.setattr(observations, "_BYTES_PER_BYTE", 10 ** 9)  # as if the file were ~10 GB per byte
+    monkeypatch.setattr(text, "BYTES_PER_BYTE", 10 ** 9)  # as if the file were ~10 GB per byte
     with pytest.raises(FieldError, match="split it"):
         read_light_curve(f, time_col=["date", "time"], value_col="mag")
 
@@ -276,3 +276,91 @@ def test_an_inversion_the_data_cannot_constrain_is_refused(tmp_path, n, hours):
                            "inversion.n_normals=64", f"hydra.run.dir={tmp_path / 'r'}"], tmp_path)
     assert code == 2 and any("observations" in ln and "nights" in ln for ln in lines), lines
     assert not (tmp_path / "r" / "shape.obj").exists()
+
+
+MMT_HEAD = "# satellite: 51722 STARLINK-3535 / US\n# variability: 0 Not variable\n# Date Time StdMag Mag Filter Penumbra Distance Phase Channel Track\n"
+MMT_ROW = "2022-05-21 19:22:{:06.3f} 5.873 4.84617 Clear 0 597.555 94.476 8 20416355\n"
+
+
+@pytest.mark.parametrize("name, text, kwargs, field", [
+    ("novar.txt", "# satellite: 1 X\n# variability:\n# Date Time Mag\n2020-01-01 00:00:00 9.0\n", {}, None),
+    ("score.csv", "satellite_name,norad_cat_id,observation_time_utc,apparent_magnitude\n", {}, "observations"),
+    ("period.txt", MMT_HEAD.replace("# Date", "# variability_period: -5\n# Date") + MMT_ROW.format(7.79), {},
+     "observations.variability_period"),
+    ("dist.txt", MMT_HEAD + MMT_ROW.format(7.79).replace("597.555", "-500"), {}, r"observations.Distance[row 1]"),
+    ("phase.txt", MMT_HEAD + MMT_ROW.format(7.79).replace("94.476", "400"), {}, r"observations.Phase[row 1]"),
+    ("jd0.txt", "STARTMETADATA\nOBJECTNAME=X\nDELIMITER=PIPE\nENDMETADATA\nDATA=0|7.3|0.004\n", {}, "observations.JD[row 1]"),
+    ("open.txt", "STARTMETADATA\nOBJECTNAME=X\nDATA=2455817.7|7.3|0.004\n", {}, "observations"),
+    ("year.csv", "time_utc,magnitude\n2020-01-01T00:00:00,9\n9999-12-31T23:59:59,8\n", {}, r"observations.time_utc[row 2]"),
+    ("dup.csv", "time_utc,magnitude,magnitude\n2020-01-01T00:00:00,9,8\n", {}, "observations"),
+    ("mmtflux.txt", MMT_HEAD + MMT_ROW.format(7.79), {"kind": "flux"}, "observations.kind"),
+    ("mmtobj.txt", MMT_HEAD + MMT_ROW.format(7.79), {"object": 25544}, "observations.object"),
+    ("unixtt.csv", "t,magnitude\n1585774800,9\n", {"time_col": "t", "time_format": "unix", "time_scale": "tt"},
+     "observations.time_scale"),
+])
+def test_hostile_files_are_field_errors(tmp_path, name, text, kwargs, field):
+    """Each a FieldError naming its field (found by a hostile-input pass: IndexErrors, a year-0
+    JD, a flux option silently ignored, a negative distance accepted)."""
+    from cssat.data import read_light_curve
+
+    f = tmp_path / name
+    f.write_text(text)
+    if field is None:  # a header key without its value is no value, not a crash
+        assert "variability" not in read_light_curve(f).meta
+        return
+    with pytest.raises(FieldError) as err:
+        read_light_curve(f, **kwargs)
+    assert err.value.field == field, (err.value.field, str(err.value))
+
+
+def test_hostile_tables_and_arrays():
+    from astropy.table import MaskedColumn, QTable, Table
+    from astropy.time import Time
+    import astropy.units as u
+
+    from cssat.data import read_light_curve
+    from cssat.inversion import estimate_period
+
+    t = Time("2020-04-01T21:00:00") + np.arange(30) * u.s
+    masked = Table({"time": t, "mag": MaskedColumn(np.full(30, 9.0), mask=[False] * 5 + [True] + [False] * 24)})
+    with pytest.raises(FieldError, match=r"row 6"):
+        read_light_curve(masked)
+    with pytest.raises(FieldError, match="one value per row"):
+        read_light_curve(Table({"time": t, "mag": np.ones((30, 2))}))
+    with pytest.raises(FieldError, match="not a flux"):
+        read_light_curve(QTable({"time": t, "flux": np.ones(30) * u.m}), value_col="flux", kind="flux")
+    jy = read_light_curve(QTable({"time": t, "flux": np.ones(30) * u.Jy, "flux_err": np.full(30, 10.0) * u.mJy}),
+                          value_col="flux", kind="flux")
+    assert jy.values[0] == 1.0 and jy.errors[0] == pytest.approx(0.01)  # the error in the value's unit
+    with pytest.raises(FieldError, match="error_col"):
+        read_light_curve(Table({"time": t, "mag": np.ones(30)}), error_col="nope")
+    with pytest.raises(FieldError):
+        read_light_curve(5)
+    ts = np.linspace(0, 100, 500)
+    ys = np.sin(2 * np.pi * ts / 7.3)
+    stamps = np.datetime64("2020-01-01", "us") + (ts * 1e6).astype("timedelta64[us]")
+    assert abs(estimate_period(stamps, ys)["period_s"] / 7.3 - 1) < 1e-6  # datetime64 times: seconds
+    assert abs(estimate_period(ts, 1e8 + 0.3 * ys)["period_s"] / 7.3 - 1) < 1e-6  # a large offset is no obstacle
+    for bad in ({"sigma": np.full(5, 0.02)}, {"min_period_s": 1e-9}):
+        with pytest.raises(FieldError):
+            estimate_period(ts, ys, **bad)
+    for a, b in ((np.array(["a"] * 500), ys), (ts.reshape(50, 10), ys), (ts, ys + 0j)):
+        with pytest.raises(FieldError):
+            estimate_period(a, b)
+    far = np.r_[ts, ts + 7 * 86400]  # two tracks a week apart: refused before any memory is spent
+    with pytest.raises(FieldError, match="trial frequencies"):
+        estimate_period(far, np.r_[ys, ys])
+
+
+def test_a_file_of_tracks_a_week_apart_is_characterised_track_by_track(tmp_path):
+    from conftest import run_cli
+
+    lines = MMT_RB.read_text().splitlines()
+    far = [ln.replace("2021-03-04", "2021-03-11", 1) if ln.endswith(" 102") else ln for ln in lines]
+    (tmp_path / "far.txt").write_text("\n".join(far) + "\n")
+    code, out = run_cli(["experiment=characterise", f"observations={tmp_path / 'far.txt'}", "characterise.figures=false",
+                         f"hydra.run.dir={tmp_path / 'r'}"], tmp_path)
+    m = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert code == 0 and m["stage_period"].startswith("skipped (whole curve)") and m["n_tracks_periodic"] == 2
+    assert all(abs(p / 18.888 - 1) < 0.01 for p in m["track_periods_s"])
+    assert (tmp_path / "r" / "tracks.csv").read_text().count("\n") == 3

@@ -24,14 +24,13 @@ from __future__ import annotations
 
 import math
 import re
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cssat._checks import FieldError
 
-__all__ = ["FORMATS", "sniff_format", "read_mmt", "read_score", "read_alcdef", "read_astropy", "to_utc"]
+__all__ = ["FORMATS", "sniff_format", "read_mmt", "read_score", "read_alcdef", "to_utc", "check_dates", "check_magnitudes"]
 
 FORMATS = ("csv", "mmt", "score", "alcdef", "ecsv", "fits", "astropy")
 TIME_SCALES = ("utc", "tt", "tdb", "tai")
@@ -39,24 +38,45 @@ MMT_VARIABILITY = {0: "nonvariable", 1: "aperiodic", 2: "periodic"}
 MAG_RANGE = (-30.0, 30.0)  # apparent magnitudes of anything a telescope sees (the Sun is -26.7)
 
 
+#: the dates a light curve may carry: the ephemeris and the survey era, with room (UTC)
+DATE_RANGE = (np.datetime64("1900-01-01", "us"), np.datetime64("2100-01-01", "us"))
+_NUMERIC_RANGE = {"jd": (2415020.5, 2488069.5), "mjd": (15020.0, 88069.0), "unix": (-2208988800.0, 4102444800.0)}
+
+
 def to_utc(values: Any, fmt: str, scale: str, field: str) -> np.ndarray:
     """``(T,)`` ``datetime64[us]`` UTC of times in astropy's ``fmt`` (``jd``, ``mjd``, ``unix``,
-    ``isot``…) and ``scale`` (``utc``, ``tt``, ``tdb``, ``tai``), converted by astropy."""
+    ``isot``…) and ``scale`` (``utc``, ``tt``, ``tdb``, ``tai``), converted by astropy; a number
+    outside 1900–2100 (a JD of 0, a placeholder) is refused naming its row."""
     from astropy.time import Time
 
+    if fmt in _NUMERIC_RANGE:
+        x = np.asarray(values, dtype=np.float64)
+        lo, hi = _NUMERIC_RANGE[fmt]
+        bad = np.flatnonzero(~((x >= lo) & (x <= hi)))
+        if bad.size:
+            i = int(bad[0])
+            raise FieldError(f"{field}[row {i + 1}]", f"{float(x[i])!r} is not a {fmt} time between 1900 and 2100")
     try:
-        tm = Time(values, format=fmt, scale=scale)
-        return _datetime64(tm)
-    except (ValueError, TypeError) as err:
-        raise FieldError(field, f"not {fmt} times in {scale.upper()}: {err}") from None
+        return _datetime64(Time(values, format=fmt, scale=scale))
+    except Exception as err:  # astropy's many kinds (ValueError, ScaleValueError, erfa warnings as errors)
+        raise FieldError(field, f"not {fmt} times in {scale.upper()}: {' '.join(str(err).split())}") from None
 
 
 def _datetime64(tm: Any) -> np.ndarray:
     """An astropy ``Time`` as UTC ``datetime64[us]`` (microseconds rounded, not truncated)."""
-    jd1, jd2 = tm.utc.jd1, tm.utc.jd2
-    days = (np.asarray(jd1) - 2440587.5) + np.asarray(jd2)  # astropy's own two-part JD, split exactly
+    utc = tm.utc
+    days = (np.asarray(utc.jd1) - 2440587.5) + np.asarray(utc.jd2)  # astropy's own two-part JD, split exactly
     us = np.round(days * 86400e6).astype(np.int64)
     return np.asarray(us, dtype="datetime64[us]").reshape(-1)
+
+
+def check_dates(times: np.ndarray, field: str, rows: np.ndarray | None = None) -> None:
+    """Refuse a time stamp outside :data:`DATE_RANGE` (``rows``: each sample's file row)."""
+    bad = np.flatnonzero(np.isnat(times) | (times < DATE_RANGE[0]) | (times > DATE_RANGE[1]))
+    if bad.size:
+        i = int(bad[0])
+        row = int(rows[i]) + 1 if rows is not None else i + 1
+        raise FieldError(f"{field}[row {row}]", f"{times[i]} is not a time between 1900 and 2100 (a placeholder?)")
 
 
 def sniff_format(head: str, suffix: str) -> str:
@@ -136,14 +156,14 @@ def read_mmt(text: str, name: str, value_col: str | None = None) -> dict[str, An
     info_col = vcol
     if "Filter" in col:
         out["filters"] = np.array(col["Filter"])
-    for key, c in (("ranges_km", "Distance"), ("phase_deg", "Phase")):
+    for key, c, lo, hi in (("ranges_km", "Distance", 0.0, 1e7), ("phase_deg", "Phase", 0.0, 180.0)):
         if c in col:
-            out[key] = _floats(col[c], "observations", c)
+            out[key] = _checked(_floats(col[c], "observations", c), f"observations.{c}", lo, hi)
     if "Channel" in col:
         out["channels"] = np.array(col["Channel"])
     if "Track" in col:
         out["tracks"] = np.array(col["Track"])
-    elif "track" in meta:
+    elif meta.get("track", "").split():
         out["tracks"] = np.full(len(rows), meta["track"].split()[0])
     if "Penumbra" in col:
         out["penumbra"] = np.array([v not in ("0", "0.0") for v in col["Penumbra"]])
@@ -152,18 +172,37 @@ def read_mmt(text: str, name: str, value_col: str | None = None) -> dict[str, An
     m = re.match(r"(\d+)\s+(.*?)(?:\s+/\s+(.*))?$", sat)
     if m:
         info.update(object_id=m.group(1), name=m.group(2).strip(), country=(m.group(3) or "").strip() or None)
-    if "variability" in meta:
+    if meta.get("variability", "").split():
         code = meta["variability"].split()[0]
         info["variability"] = MMT_VARIABILITY.get(int(code), meta["variability"]) if code.isdigit() else meta["variability"]
     per = meta.get("variability_period", meta.get("period"))
     if per not in (None, "", "None", "none"):
-        try:
-            info["published_period_s"] = float(per.split()[0])
-        except ValueError:
-            raise FieldError("observations.variability_period", f"not a period in seconds: {per!r}") from None
+        info["published_period_s"] = _period(per.split()[0] if per.split() else per, "observations.variability_period")
     info["header"] = meta
     out["meta"] = info
     return out
+
+
+def _period(value: Any, field: str) -> float:
+    """A published period in seconds: a finite number > 0."""
+    try:
+        p = float(value)
+    except (TypeError, ValueError):
+        raise FieldError(field, f"not a period in seconds: {value!r}") from None
+    if not (math.isfinite(p) and p > 0):
+        raise FieldError(field, f"a period must be a finite number of seconds > 0, got {value!r}")
+    return p
+
+
+def _checked(x: np.ndarray, field: str, lo: float, hi: float) -> np.ndarray:
+    """``x`` when every value is finite and in ``[lo, hi]``, else a FieldError naming the row
+    (a range of 0 km is refused: ``lo`` is open for ranges)."""
+    ok = np.isfinite(x) & (x >= lo) & (x <= hi) & ((x > 0) if lo == 0.0 and hi == 1e7 else True)
+    bad = np.flatnonzero(~ok)
+    if bad.size:
+        i = int(bad[0])
+        raise FieldError(f"{field}[row {i + 1}]", f"{float(x[i])!r} is outside [{lo:g}, {hi:g}]")
+    return x
 
 
 def _bad_iso(v: str) -> bool:
@@ -184,6 +223,8 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
     """The columns of a SCORE CSV (``header``, ``rows`` as the CSV reader split them). A row
     shorter than the header has its missing trailing fields empty (SCORE's optional columns)."""
     h = [c.strip() for c in header]
+    if not rows:
+        raise FieldError("observations", f"{name}: a SCORE header and no data rows")
     idx = {c: h.index(c) for c in h}
     for key in ("time", "value", "norad"):
         if SCORE_COLUMNS[key] not in idx:
@@ -228,16 +269,22 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
     err = numbers("error")
     out["errors"] = err
     lat, lon, alt = numbers("lat"), numbers("lon"), numbers("alt")
+    for v, key, lo, hi in ((lat, "lat", -90.0, 90.0), (lon, "lon", -360.0, 360.0), (alt, "alt", -1000.0, 1e5)):
+        if v is not None:
+            _checked(v, f"observations.{SCORE_COLUMNS[key]}", lo, hi)
     if lat is not None and lon is not None:
         out["sites"] = np.stack([lat, lon, np.zeros_like(lat) if alt is None else alt], 1)
     for key, col in (("ra_deg", "ra"), ("dec_deg", "dec"), ("ranges_km", "range")):
         v = numbers(col)
         if v is not None:
             out[key] = v
+    if "ranges_km" in out and np.isfinite(out["ranges_km"]).all():
+        _checked(out["ranges_km"], f"observations.{SCORE_COLUMNS['range']}", 0.0, 1e7)
     f = get("filter")
     if any(f):
         out["filters"] = np.array(f)
-    out["meta"] = {"format": "score", "object_id": norad[0], "name": names[0], "value_col": SCORE_COLUMNS["value"]}
+    out["meta"] = {"format": "score", "object_id": norad[0], "name": names[0], "value_col": SCORE_COLUMNS["value"],
+                   "error_col": SCORE_COLUMNS["error"]}
     return out
 
 
@@ -258,6 +305,8 @@ def read_alcdef(text: str, name: str) -> dict[str, Any]:
         key, _, val = s.partition("=")
         key = key.strip().upper()
         if key == "STARTMETADATA":
+            if in_meta:
+                raise FieldError(f"observations[line {n}]", "STARTMETADATA inside a metadata block (its ENDMETADATA is missing)")
             meta, in_meta = {}, True
         elif key == "ENDMETADATA":
             in_meta = False
@@ -268,20 +317,28 @@ def read_alcdef(text: str, name: str) -> dict[str, Any]:
             sep = {"PIPE": "|", "TAB": "\t", "COMMA": ","}.get(meta.get("DELIMITER", "PIPE").upper(), "|")
             f = val.split(sep)
             try:
-                times.append(float(f[0]))
-                mags.append(float(f[1]))
-                errs.append(float(f[2]) if len(f) > 2 and f[2].strip() else math.nan)
+                vals = (float(f[0]), float(f[1]), float(f[2]) if len(f) > 2 and f[2].strip() else math.nan)
+                if not (math.isfinite(vals[0]) and math.isfinite(vals[1])):
+                    raise ValueError
+                times.append(vals[0])
+                mags.append(vals[1])
+                errs.append(vals[2])
             except (ValueError, IndexError):
                 raise FieldError(f"observations[line {n}]", f"not an ALCDEF data line JD{sep}MAG{sep}MAGERR: {s!r}") from None
             tracks.append(meta.get("LCBLOCKID", str(len(blocks))))
             filters.append(meta.get("MAGBAND", ""))
         elif key not in ("ENDDATA",):
             raise FieldError(f"observations[line {n}]", f"not ALCDEF: {s[:60]!r} outside a metadata block")
+    if in_meta:
+        raise FieldError("observations", f"{name}: a metadata block without its ENDMETADATA")
     if not times:
         raise FieldError("observations", f"{name}: an ALCDEF file without DATA lines")
     e = np.array(errs)
+    if np.isnan(e).any() and not np.isnan(e).all():
+        i = int(np.flatnonzero(np.isnan(e))[0])
+        raise FieldError(f"observations.MAGERR[row {i + 1}]", "a missing error where the other rows give theirs")
     first = blocks[0] if blocks else {}
-    info = {"format": "alcdef", "value_col": "MAG", "object_id": first.get("OBJECTNUMBER") or first.get("MPCDESIG") or None,
+    info = {"format": "alcdef", "value_col": "MAG", "error_col": "MAGERR", "object_id": first.get("OBJECTNUMBER") or first.get("MPCDESIG") or None,
             "name": first.get("OBJECTNAME") or None, "observers": sorted({b.get("OBSERVERS", "") for b in blocks} - {""}),
             "blocks": blocks}
     reduced = first.get("REDUCEDMAGS", "NONE").upper()
@@ -289,81 +346,6 @@ def read_alcdef(text: str, name: str) -> dict[str, Any]:
             "errors": None if np.isnan(e).any() else e, "kind": "magnitude", "tracks": np.array(tracks),
             "filters": np.array(filters), "magnitude_system": "apparent" if reduced == "NONE" else f"reduced ({reduced})",
             "meta": info}
-
-
-def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str | None, error_col: str | None,
-                 kind: str) -> dict[str, Any]:
-    """The columns of an astropy table: its time column (a ``Time`` column in any scale, made
-    UTC by astropy; or cssat's ISO ``time_utc``), its value column checked against its unit."""
-    from astropy import units as u
-    from astropy.time import Time
-
-    cols = list(table.colnames)
-    if time_col is None:
-        tcols = [c for c in cols if isinstance(table[c], Time)]
-        time_col = tcols[0] if tcols else ("time_utc" if "time_utc" in cols else ("time" if "time" in cols else None))
-    if time_col not in cols:
-        raise FieldError("observations.time_col", f"{name} has no time column {time_col!r}; its columns: {', '.join(cols)}")
-    tc = table[time_col]
-    if isinstance(tc, Time):
-        times = _datetime64(tc)
-    else:
-        from cssat.scene.orbit import _start_datetime
-
-        times = np.array([np.datetime64(_start_datetime(str(v).strip(), f"observations.{time_col}[row {i + 1}]"), "us")
-                          for i, v in enumerate(tc)], dtype="datetime64[us]")
-    from cssat.data.observations import DEFAULT_ERROR, DEFAULT_VALUE
-
-    value_col = value_col or next((c for c in (DEFAULT_VALUE[kind], "mag", "magnitude", "flux") if c in cols), None)
-    if value_col not in cols:
-        raise FieldError("observations.value_col", f"{name} has no column {value_col!r}; its columns: {', '.join(cols)}")
-    if error_col is None:
-        error_col = next((c for c in (DEFAULT_ERROR[kind], f"{value_col}_err", "mag_err", "flux_err") if c in cols), None)
-
-    def values(c: str) -> np.ndarray:
-        col = table[c]
-        unit = getattr(col, "unit", None)
-        if unit is not None and unit != u.dimensionless_unscaled:
-            is_mag = unit.physical_type == "dimensionless" or "mag" in str(unit)
-            if kind == "magnitude" and not is_mag:
-                raise FieldError(f"observations.{c}", f"the unit {unit} is not a magnitude (kind='magnitude'); "
-                                                       "read it with kind='flux'")
-            if kind == "flux" and is_mag:
-                raise FieldError(f"observations.{c}", f"the unit {unit} is a magnitude (kind='flux'); read it with "
-                                                       "kind='magnitude'")
-            if kind == "flux":
-                try:
-                    return np.asarray(u.Quantity(col).to_value(u.W / u.m ** 2), dtype=np.float64)
-                except u.UnitConversionError:
-                    pass  # a spectral flux density: kept in the file's unit
-        return np.asarray(getattr(col, "value", col), dtype=np.float64).reshape(-1)
-
-    out = {"times_utc": times, "values": values(value_col), "errors": values(error_col) if error_col else None,
-           "kind": kind, "magnitude_system": "apparent"}
-    for key, c in (("filters", "filter"), ("observers", "observer"), ("tracks", "track")):
-        if c in cols:
-            out[key] = np.array([str(v).strip() for v in table[c]])
-    meta = {str(k).lower(): v for k, v in dict(table.meta or {}).items() if isinstance(v, (str, int, float))}
-    obj = meta.get("norad") or meta.get("object_id") or meta.get("norad_cat_id")
-    out["meta"] = {"format": "astropy", "value_col": value_col, "object_id": None if obj is None else str(obj),
-                   "name": meta.get("object") or meta.get("name"), "header": meta}
-    if "period" in meta or "period_s" in meta:
-        out["meta"]["published_period_s"] = float(meta.get("period_s", meta.get("period")))
-    return out
-
-
-def read_astropy_file(data: bytes, fmt: str, name: str) -> Any:
-    """An ECSV or FITS file's bytes as an astropy Table (FITS time columns as ``Time``)."""
-    import io
-
-    from astropy.table import Table
-
-    try:
-        if fmt == "ecsv":
-            return Table.read(data.decode("utf-8"), format="ascii.ecsv")
-        return Table.read(io.BytesIO(data), format="fits", astropy_native=True)
-    except Exception as err:  # astropy raises many kinds on a malformed file
-        raise FieldError("observations", f"{name}: not a readable {fmt.upper()} table ({err})") from None
 
 
 def check_magnitudes(values: np.ndarray, col: str) -> None:

@@ -14,7 +14,6 @@ exit 2; the file's size is checked against the memory available before it is rea
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -29,8 +28,7 @@ __all__ = ["ObservedLightCurve", "read_light_curve", "write_light_curve", "KINDS
 KINDS = ("magnitude", "flux")
 TIME_FORMATS = ("iso", "jd", "mjd", "unix")
 DUPLICATES = ("refuse", "merge")
-#: the bytes of memory a text table's byte may take once parsed (rows of Python strings, then arrays)
-_BYTES_PER_BYTE = 40
+
 #: the value column of cssat's own ``lightcurve.csv`` by kind, and the error column it may carry
 DEFAULT_VALUE = {"magnitude": "magnitude", "flux": "flux_W_m2"}
 DEFAULT_ERROR = {"magnitude": "magnitude_err", "flux": "flux_W_m2_err"}
@@ -204,131 +202,6 @@ class ObservedLightCurve:
         return 2.5 / math.log(10) * self.errors / np.abs(self.values)
 
 
-def _check_size(p: Path) -> None:
-    """Refuse a file whose parsed table would not fit in the memory available now."""
-    import os
-
-    size = p.stat().st_size
-    try:
-        avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):  # not Linux: the 1 GiB cap alone
-        avail = 1 << 62
-    need = size * _BYTES_PER_BYTE
-    if size > (1 << 30) or need > avail // 2:
-        raise FieldError("observations", f"{p.name} is {size / 2**20:.0f} MiB: reading it needs about "
-                                         f"{need / 2**30:.1f} GiB, {avail / 2**30:.1f} GiB are free; split it "
-                                         "(by track or night) and read the parts")
-
-
-def _text_rows(text: str, name: str) -> tuple[list[str], list[list[str]]]:
-    """``(header, rows)`` of a comma- or whitespace-separated table; the header is the first
-    non-comment line, or the last comment line when the first line is data (MMT-like)."""
-    comments, body = [], []
-    for ln in text.splitlines():
-        if not ln.strip():
-            continue
-        (comments if ln.lstrip().startswith("#") and not body else body).append(ln)
-    body = [ln for ln in body if not ln.lstrip().startswith("#")]
-    if not body:
-        raise FieldError("observations", f"{name}: no header row and no data")
-    comma = "," in body[0]
-    try:
-        if comma:
-            rows = list(csv.reader(body))
-        else:
-            rows = [ln.split() for ln in body]
-    except csv.Error as err:
-        raise FieldError("observations", f"{name}: not a readable CSV ({err})") from None
-    first = rows[0]
-    looks_data = all(_is_number(v) or v[:1].isdigit() for v in first if v.strip())
-    if looks_data and comments:
-        head = comments[-1].lstrip().lstrip("#").strip()
-        header = next(csv.reader([head])) if comma else head.split()
-        return [c.strip() for c in header], rows
-    return [c.strip() for c in first], rows[1:]
-
-
-def _is_number(v: str) -> bool:
-    try:
-        float(v)
-        return True
-    except ValueError:
-        return False
-
-
-def _times(raw: Sequence[Any], col: str, time_format: str, time_scale: str) -> np.ndarray:
-    from cssat.data.formats import to_utc
-
-    if time_format == "iso":
-        from cssat.scene.orbit import _start_datetime
-
-        out = np.array([np.datetime64(_start_datetime((v.decode() if isinstance(v, bytes) else str(v)).strip(),
-                                                      f"observations.{col}[row {i + 1}]"), "us")
-                        for i, v in enumerate(raw)], dtype="datetime64[us]")
-        if time_scale == "utc":
-            return out
-        return to_utc(np.datetime_as_string(out), "isot", time_scale, f"observations.{col}")
-    x = _numbers(raw, col)
-    return to_utc(x, {"jd": "jd", "mjd": "mjd", "unix": "unix"}[time_format], time_scale if time_format != "unix" else "utc",
-                  f"observations.{col}")
-
-
-def _numbers(raw: Sequence[Any], col: str, *, positive: bool = False) -> np.ndarray:
-    try:
-        out = np.array(raw, dtype=np.float64)
-    except (TypeError, ValueError):
-        out = None
-    if out is None or not np.isfinite(out).all() or (positive and not (out > 0).all()):
-        for i, v in enumerate(raw):
-            where = f"observations.{col}[row {i + 1}]"
-            try:
-                x = float(v)
-            except (TypeError, ValueError):
-                raise FieldError(where, f"not a number: {v!r}") from None
-            if not math.isfinite(x):
-                raise FieldError(where, f"{v!r} is not a finite value (drop the row or give its value)")
-            if positive and not x > 0:
-                raise FieldError(where, f"an uncertainty must be > 0, got {v!r}")
-    return out
-
-
-def _read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, error_col: str | None, kind: str,
-              time_format: str, time_scale: str, filter_col: str | None, observer_col: str | None,
-              track_col: str | None) -> dict[str, Any]:
-    cols, rows = _text_rows(text, name)
-    value_col = value_col or DEFAULT_VALUE[kind]
-    if error_col is None and DEFAULT_ERROR[kind] in cols:
-        error_col = DEFAULT_ERROR[kind]
-    tcols = list(time_col) if isinstance(time_col, (list, tuple)) else [time_col or "time_utc"]
-    for fld, names in (("time_col", tcols), ("value_col", [value_col]), ("error_col", [error_col])):
-        for c in names:
-            if c is not None and c not in cols:
-                raise FieldError(f"observations.{fld}", f"{name} has no column {c!r}; its columns: {', '.join(cols)}")
-    if not rows:
-        raise FieldError("observations", f"{name}: a header and no data rows")
-    bad = next((i for i, r in enumerate(rows) if len(r) != len(cols)), None)
-    if bad is not None:
-        raise FieldError(f"observations[row {bad + 1}]", f"{len(rows[bad])} fields, the header has {len(cols)}")
-    lower = value_col.lower()
-    if (kind == "magnitude" and "flux" in lower) or (kind == "flux" and "mag" in lower):
-        raise FieldError("observations.kind", f"the column {value_col!r} reads as a {'flux' if 'flux' in lower else 'magnitude'}, "
-                                              f"not a {kind}: give kind='{'flux' if 'flux' in lower else 'magnitude'}'")
-
-    def column(c: str) -> list[str]:
-        j = cols.index(c)
-        return [r[j].strip() for r in rows]
-
-    raw_t = column(tcols[0]) if len(tcols) == 1 else ["T".join(parts) for parts in zip(*(column(c) for c in tcols))]
-    out: dict[str, Any] = {"times_utc": _times(raw_t, "+".join(tcols), time_format, time_scale),
-                           "values": _numbers(column(value_col), value_col), "kind": kind,
-                           "errors": _numbers(column(error_col), error_col, positive=True) if error_col else None,
-                           "meta": {"format": "csv"}}
-    for key, c in (("filters", filter_col), ("observers", observer_col), ("tracks", track_col)):
-        if c in cols:
-            out[key] = np.array(column(c))
-    return out
-
-
 def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None = None, error_col: str | None = None,
                      kind: str = "magnitude", time_format: str = "iso", time_scale: str = "utc",
                      filter_col: str | None = "filter", observer_col: str | None = "observer",
@@ -364,13 +237,24 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     if format is not None:
         format = choice_param(str(format).lower(), "format", F.FORMATS)
     if hasattr(path, "colnames"):  # an astropy table in memory
-        d = F.read_astropy(path, "the table", time_col=time_col, value_col=value_col, error_col=error_col, kind=kind)
+        from cssat.data.astro import read_astropy
+
+        d = read_astropy(path, "the table", time_col=time_col, value_col=value_col, error_col=error_col, kind=kind)
         name, fmt = "the table", "astropy"
     else:
+        if not isinstance(path, (str, Path)):
+            from cssat._checks import FieldTypeError
+
+            raise FieldTypeError("observations", f"expected a file path or an astropy table, got {type(path).__name__}")
         p = Path(path)
+        if p.is_dir():
+            raise FieldError("observations", f"{p} is a directory: a catalogue of its files runs with cssat -m "
+                                             f"experiment=characterise observations={p}")
         if not p.is_file():
             raise FieldError("observations", f"no such file: {p}")
-        _check_size(p)
+        from cssat.data.text import check_size, read_csv
+
+        check_size(p)
         from cssat._record import read_input
 
         data = read_input(p, 1 << 30, "observations")
@@ -383,37 +267,63 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
             except UnicodeDecodeError:
                 raise FieldError("observations", f"{name}: not a UTF-8 text table (nor FITS)") from None
             fmt = format or F.sniff_format(text[:8192], p.suffix.lstrip("."))
+        _fixed_format(fmt, kind=kind, time_col=time_col, error_col=error_col, time_format=time_format,
+                      time_scale=time_scale, value_col=value_col)
         if fmt == "mmt":
             d = F.read_mmt(text, name, value_col)
         elif fmt == "alcdef":
             d = F.read_alcdef(text, name)
         elif fmt == "score":
-            lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-            try:
-                rows = list(csv.reader(lines))
-            except csv.Error as err:
-                raise FieldError("observations", f"{name}: not a readable CSV ({err})") from None
-            d = F.read_score(rows[0], rows[1:], name, object)
+            from cssat.data.text import text_rows
+
+            header, rows = text_rows(text, name)
+            d = F.read_score(header, rows, name, object)
         elif fmt in ("ecsv", "fits", "astropy"):
-            d = F.read_astropy(F.read_astropy_file(data, "fits" if fmt == "fits" else "ecsv", name), name,
+            from cssat.data.astro import read_astropy, read_astropy_file
+
+            d = read_astropy(read_astropy_file(data, "fits" if fmt == "fits" else "ecsv", name), name,
                                time_col=time_col, value_col=value_col, error_col=error_col, kind=kind)
         else:
-            d = _read_csv(text, name, time_col=time_col, value_col=value_col, error_col=error_col, kind=kind,
+            d = read_csv(text, name, time_col=time_col, value_col=value_col, error_col=error_col, kind=kind,
                           time_format=time_format, time_scale=time_scale, filter_col=filter_col,
                           observer_col=observer_col, track_col=track_col)
     lc = ObservedLightCurve(**{k: v for k, v in d.items() if k != "meta"}, meta=d.get("meta", {}),
                             source=str(path) if fmt != "astropy" else "")
+    if object is not None and fmt != "score":  # the file names its object: it must be the one asked for
+        want, have = str(object).strip().upper(), {str(lc.meta.get(k) or "").strip().upper() for k in ("object_id", "name")}
+        if not (have - {""}):
+            raise FieldError("observations.object", f"{name} names no object to compare with {object!r}")
+        if want not in have:
+            raise FieldError("observations.object", f"{name} is of {lc.meta.get('object_id')} {lc.meta.get('name') or ''}"
+                                                    f", not {object!r}")
     tcol = "+".join(time_col) if isinstance(time_col, (list, tuple)) else (time_col or ("time_utc" if fmt == "csv" else "time"))
     vcol = value_col or lc.meta.get("value_col") or DEFAULT_VALUE[kind]
-    return _finish(lc, fmt, duplicates, vcol, tcol)
+    ecol = error_col or lc.meta.get("error_col") or DEFAULT_ERROR[kind]
+    return _finish(lc, fmt, duplicates, vcol, tcol, ecol)
 
 
-def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: str) -> ObservedLightCurve:
-    """Check values, sort (MMT, SCORE, ALCDEF), refuse or merge duplicate stamps."""
-    from cssat.data.formats import check_magnitudes
+def _fixed_format(fmt: str, **given: Any) -> None:
+    """Refuse a reading option a fixed format does not use (MMT, SCORE, ALCDEF say themselves
+    what their columns, times and kind are)."""
+    if fmt not in ("mmt", "score", "alcdef"):
+        return
+    defaults = {"kind": "magnitude", "time_col": None, "error_col": None, "time_format": "iso", "time_scale": "utc",
+                "value_col": None}
+    allowed = {"mmt": {"value_col"}}.get(fmt, set())
+    for key, value in given.items():
+        if key not in allowed and value != defaults[key] and not (key == "time_col" and value == "time_utc"):
+            raise FieldError(f"observations.{key}", f"a {fmt.upper()} file sets its own ({key}={value!r} does not apply; "
+                             f"{'value_col=StdMag or Mag is its one choice' if fmt == 'mmt' else 'leave it unset'})")
+
+
+def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: str, ecol: str) -> ObservedLightCurve:
+    """Check values and dates, sort (MMT, SCORE, ALCDEF), refuse or merge duplicate stamps;
+    every error names the file's own row."""
+    from cssat.data.formats import check_dates, check_magnitudes
 
     if not len(lc):
         raise FieldError("observations", "no data rows")
+    check_dates(lc.times_utc, f"observations.{tcol}")
     if not np.isfinite(lc.values).all():
         i = int(np.flatnonzero(~np.isfinite(lc.values))[0])
         raise FieldError(f"observations.{vcol}[row {i + 1}]", f"{float(lc.values[i])!r} is not a finite value (drop the row)")
@@ -421,23 +331,27 @@ def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: 
         check_magnitudes(lc.values, vcol)
     elif (lc.values < 0).any():
         i = int(np.flatnonzero(lc.values < 0)[0])
-        raise FieldError(f"observations.{vcol}[row {i + 1}]", f"a flux must be >= 0, got {lc.values[i]}")
+        raise FieldError(f"observations.{vcol}[row {i + 1}]", f"a flux must be >= 0, got {float(lc.values[i])!r}")
     if lc.errors is not None and not (np.isfinite(lc.errors) & (lc.errors > 0)).all():
         i = int(np.flatnonzero(~(np.isfinite(lc.errors) & (lc.errors > 0)))[0])
-        raise FieldError(f"observations.error[row {i + 1}]", f"an uncertainty must be finite and > 0, got {lc.errors[i]}")
+        raise FieldError(f"observations.{ecol}[row {i + 1}]", f"an uncertainty must be finite and > 0, got "
+                                                             f"{float(lc.errors[i])!r}")
+    rows = np.arange(len(lc))  # each sample's data row in the file
     if fmt in ("mmt", "score", "alcdef"):
-        lc = lc.rows(np.argsort(lc.times_utc, kind="stable"))
+        rows = np.argsort(lc.times_utc, kind="stable")
+        lc = lc.rows(rows)
     step = np.diff(lc.times_utc).astype(np.int64)
     back = np.flatnonzero(step < 0)
     if back.size:
         i = int(back[0]) + 1
-        raise FieldError(f"observations.{tcol}[row {i + 1}]", f"times must increase: {lc.times_utc[i]} does not come after "
-                                                           f"{lc.times_utc[i - 1]} (sort the file)")
+        raise FieldError(f"observations.{tcol}[row {rows[i] + 1}]", f"times must increase: {lc.times_utc[i]} does not "
+                                                                   f"come after {lc.times_utc[i - 1]} (sort the file)")
     same = np.flatnonzero(step == 0)
     if same.size and duplicates == "refuse":
         i = int(same[0]) + 1
-        raise FieldError(f"observations.{tcol}[row {i + 1}]", f"a duplicate time stamp {lc.times_utc[i]} (drop the "
-                                                           "duplicate, or read with duplicates='merge' to average them)")
+        raise FieldError(f"observations.{tcol}[row {rows[i] + 1}]", f"a duplicate time stamp {lc.times_utc[i]} (of row "
+                                                                   f"{rows[i - 1] + 1}; drop it, or read with "
+                                                                   "duplicates='merge' to average them)")
     if same.size:
         group = np.r_[0, np.cumsum(step != 0)]
         first = np.r_[0, np.flatnonzero(step != 0) + 1]

@@ -21,7 +21,8 @@ otherwise; ``on`` requires it — the run stops with exit 2 naming what is missi
 
 Outputs: ``metrics.json`` (every stage's verdict ``stage_<name>``: ``ok``, ``skipped: <why>``
 or ``off``), ``arrays.npz`` (times, values, the fitted model and the periodogram),
-``alternatives.csv``, ``shape.obj`` when the spin stage ran, and the figure
+``alternatives.csv``, ``tracks.csv`` (a file of several tracks: each one's own period and
+verdict), ``shape.obj`` when the spin stage ran, and the figure
 ``characterise`` (the light curve with its gaps, the periodogram with the alternatives marked,
 the phase-folded curve with the model, the residuals).
 """
@@ -111,20 +112,37 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     _spin(run_, cfg, opt, lc, t, res, m)
     with run_.stage("files"):
         _write(run_, opt, lc, t, y, res, m)
+    m.pop("_tracks", None)
     m.update(run_.timings())
     return m
 
 
 def _period(run_, opt, t, y, sig, tracks, m) -> dict[str, Any] | None:
+    """The period stage: the whole selection (its tracks' offsets and slopes fitted), and, when
+    it holds several tracks, each track apart (``tracks.csv``); the whole may be out of reach
+    (tracks days apart: too many trial frequencies), the tracks then answer alone."""
     from cssat.inversion import estimate_period
 
     if opt["modes"]["period"] == "off":
         m["stage_period"] = "off"
         return None
+    kw = dict(opt["period"])
+    res, why_not = None, None
     with run_.stage("period"):
-        kw = dict(opt["period"])
-        kw.setdefault("segments", tracks)  # the file's own tracks: one offset (and slope) each
-        res = estimate_period(t, y, sigma=sig, **kw)
+        try:
+            res = estimate_period(t, y, sigma=sig, segments=tracks, **kw)
+        except FieldError as err:
+            if "trial frequencies" not in err.detail or len(set(tracks)) < 2:
+                raise
+            why_not = err.detail
+        per_track = _per_track(t, y, sig, tracks, kw, opt["min_samples"]) if len(set(tracks)) > 1 else []
+    if per_track:
+        m["n_tracks_periodic"] = sum(bool(r["periodic"]) for r in per_track)
+        m["track_periods_s"] = [r["period_s"] for r in per_track if r["periodic"]]
+        m["_tracks"] = per_track  # tracks.csv, written with the other files
+    if res is None:
+        m.update(periodic=False, period_s=None, stage_period=f"skipped (whole curve): {why_not}; see tracks.csv")
+        return None
     keys = ("periodic", "period_s", "period_err_s", "fap", "repeat", "best_period_s", "best_period_err_s", "chi2_per_sample",
             "model_fits", "n_harmonics", "n_cycles", "min_period_s", "max_period_s", "why")
     m.update({k: res[k] for k in keys})
@@ -140,6 +158,29 @@ def _period(run_, opt, t, y, sig, tracks, m) -> dict[str, Any] | None:
     return res
 
 
+def _per_track(t, y, sig, tracks, kw, min_samples) -> list[dict[str, Any]]:
+    """One row per track: its own period analysis (or why none: too few samples)."""
+    from cssat.inversion import estimate_period
+
+    rows = []
+    for k in dict.fromkeys(tracks):
+        on = tracks == k
+        row: dict[str, Any] = {"track": k, "n_samples": int(on.sum()), "span_s": float(np.ptp(t[on]))}
+        if on.sum() < min_samples:
+            row.update(status="skipped: too few samples", periodic=False, period_s=None)
+        else:
+            try:
+                r = estimate_period(t[on], y[on], sigma=None if sig is None else sig[on], **kw)
+            except FieldError as err:
+                row.update(status=f"failed: {err}", periodic=False, period_s=None)
+            else:
+                row.update(status="ok", periodic=r["periodic"], period_s=r["period_s"], period_err_s=r["period_err_s"],
+                           best_period_s=r["best_period_s"], fap=r["fap"], repeat=r["repeat"],
+                           chi2_per_sample=r["chi2_per_sample"])
+        rows.append(row)
+    return rows
+
+
 def _tumbling(run_, opt, t, y, sig, res, m) -> None:
     from cssat.inversion import estimate_tumbling_periods
 
@@ -150,7 +191,9 @@ def _tumbling(run_, opt, t, y, sig, res, m) -> None:
     order = int(opt["tumbling"].get("order", 3))
     need = 2 * (2 * len([1 for j in range(order + 1) for k in range(-order, order + 1) if 0 < j + abs(k) <= order]) + 1)
     why = None
-    if len(t) < need:
+    if str(m.get("stage_period", "")).startswith("skipped (whole curve)"):
+        why = "the whole curve is out of the period search's reach (its tracks are analysed apart: tracks.csv)"
+    elif len(t) < need:
         why = f"{len(t)} samples, the 2-D series of order {order} needs {need}"
     elif res is not None and res["n_cycles"] < 4:
         why = f"the track holds {res['n_cycles']:.2g} cycles; two periods need several of each"
@@ -221,6 +264,9 @@ def _write(run_, opt, lc, t, y, res, m) -> None:
     from cssat.experiments.files import write_csv, write_npz
 
     arrays: dict[str, Any] = {"times_s": t, "values": y}
+    per_track = m.pop("_tracks", None)
+    if per_track:
+        write_csv(run_.out_dir / "tracks.csv", per_track)
     if res is not None:
         model = _model(t, y, res, int(opt["period"].get("detrend", 1)), lc.track_ids())
         arrays.update(model=model, frequency_hz=res["periodogram"]["frequency_hz"], power=res["periodogram"]["power"])

@@ -51,9 +51,29 @@ from cssat._checks import FieldError, float_param, int_param
 __all__ = ["estimate_period", "light_curve_scatter"]
 
 MIN_SAMPLES = 12
+#: the periodogram's largest grid (a few tens of MB in astropy's fast method)
+MAX_FREQUENCIES = 2_000_000
 #: the ΔBIC by which a period must beat its half to be chosen over it (Occam: the simpler model
 #: wins a near tie; "strong evidence" on Kass & Raftery's scale is ΔBIC 6-10)
 ALIAS_MARGIN = 6.0
+
+
+def _vector(x: Any, field: str, *, times: bool = False, scalar_ok: bool = False) -> np.ndarray:
+    """``x`` as a 1-D float64 array (a list, numpy, a torch tensor; datetime64 times as seconds
+    from the first), else a FieldError naming ``field``."""
+    if hasattr(x, "detach") and hasattr(x, "cpu"):  # a torch tensor
+        x = x.detach().cpu().numpy()
+    try:
+        a = np.asarray(x)
+    except Exception:  # noqa: BLE001 - ragged lists and the like
+        raise FieldError(field, "expected a 1-D array of numbers") from None
+    if times and np.issubdtype(a.dtype, np.datetime64):
+        a = (a.astype("datetime64[us]") - a.astype("datetime64[us]").min()).astype(np.int64) / 1e6
+    if a.dtype.kind not in "biuf" or a.dtype.kind == "b":
+        raise FieldError(field, f"expected real numbers, got {a.dtype} (complex, text or objects)")
+    if a.ndim > 1 or (a.ndim == 0 and not scalar_ok):
+        raise FieldError(field, f"expected a 1-D array, got shape {a.shape}")
+    return a.astype(np.float64).reshape(-1)
 
 
 def _design(t: np.ndarray, f: float, m: int) -> np.ndarray:
@@ -118,7 +138,7 @@ class _Curve:
         yw = y * w
         self.yp = yw - self.Q @ (self.Q.T @ yw)
         self.rss0 = float(self.yp @ self.yp)
-        self.floor = max(self.rss0, float(yw @ yw)) * 1e-12 + 1e-300  # round-off ties, not random picks
+        self.floor = self.rss0 * 1e-12 + 1e-300  # round-off ties, not random picks
 
     def _xp(self, f: float, m: int, idx=slice(None)) -> np.ndarray:
         X = _design(self.t, f, m) * self.w[:, None]
@@ -238,8 +258,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     without ``sigma``) and ``periodogram`` (``frequency_hz``, ``power`` arrays)."""
     from astropy.timeseries import LombScargle
 
-    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
-    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    t = _vector(times_s, "times_s", times=True)
+    y = _vector(flux, "flux")
     if t.shape != y.shape:
         raise FieldError("flux", f"expected times and values of one length, got {t.shape} and {y.shape}")
     if not (np.isfinite(t).all() and np.isfinite(y).all()):
@@ -249,14 +269,20 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     order = np.argsort(t, kind="stable")
     t, y = t[order], y[order]
     if segments is not None:
-        labels = np.asarray(segments).reshape(-1)
+        labels = np.asarray(segments)
         if labels.shape != order.shape:
             raise FieldError("segments", f"expected one track label per sample ({len(order)}), got {labels.shape}")
-        seg_given = np.unique(labels[order], return_inverse=True)[1].reshape(-1)
+        try:
+            seg_given = np.unique(labels.astype(str)[order], return_inverse=True)[1].reshape(-1)
+        except (TypeError, ValueError):
+            raise FieldError("segments", "track labels must be strings or numbers") from None
     if sigma is None:
         w = np.ones_like(y)
     else:
-        s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (len(order),))[order]
+        s = _vector(sigma, "sigma", scalar_ok=True)
+        if s.size not in (1, len(order)):
+            raise FieldError("sigma", f"expected a scalar or one value per sample ({len(order)}), got {s.size}")
+        s = np.broadcast_to(s, (len(order),))[order]
         if not (np.isfinite(s).all() and (s > 0).all()):
             raise FieldError("sigma", "the uncertainties must be finite and > 0")
         w = 1.0 / s
@@ -293,9 +319,15 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     f_harm = 0.5 / max(float(np.percentile(dts[dts > 0], 10)), 1e-300)  # the harmonics' ceiling: the finer steps' Nyquist
     f_lo, f_hi = 1.0 / hi, max(min(4.0 / lo, 0.5 / d_frame), 1.0 / lo)
     resid = cv.yp / w  # the periodogram sees the curve less its nuisance model
+    step = 1.0 / (spp * span)
+    n_freq = int((f_hi - f_lo) / step) + 1
+    if n_freq > MAX_FREQUENCIES:  # tracks days apart: no grid resolves every cycle count between them
+        raise FieldError("max_period_s" if min_period_s is None else "min_period_s",
+                         f"the search needs {n_freq:.3g} trial frequencies (span {span:.6g} s, periods from {lo:.6g} s); "
+                         f"the most is {MAX_FREQUENCIES:.0e}: give a narrower [min_period_s, max_period_s], or "
+                         "analyse the tracks (nights) apart")
     freq, power = LombScargle(t, resid, None if sigma is None else 1.0 / w).autopower(
         minimum_frequency=f_lo, maximum_frequency=f_hi, samples_per_peak=spp)
-    step = 1.0 / (spp * span)
     is_max = np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True]
     peaks: list[float] = []
     for i in np.flatnonzero(is_max)[np.argsort(power[is_max])[::-1]]:
@@ -320,7 +352,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
             c.update(peak=j, k=k)
             cands.append(c)
     if not cands:
-        raise FieldError("min_period_s", f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
+        raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
+                         f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
     family = []  # per peak, its multiples k = 1…4 in turn: a longer one wins only by ALIAS_MARGIN
     for j in range(len(peaks)):
         pick = None

@@ -109,8 +109,15 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     hi = span / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", lo, open_lo=True)
     if not hi > lo:
         raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s")
-    freq, power = LombScargle(t, y, dy).autopower(minimum_frequency=1 / hi, maximum_frequency=2 / lo,
-                                                  samples_per_peak=int_param(samples_per_peak, "samples_per_peak", 1))
+    spp = int_param(samples_per_peak, "samples_per_peak", 1)
+    from cssat.inversion.period import MAX_FREQUENCIES
+
+    n_freq = int((2 / lo - 1 / hi) * spp * span) + 1
+    if n_freq > MAX_FREQUENCIES:
+        raise FieldError("max_period_s" if min_period_s is None else "min_period_s",
+                         f"the search needs {n_freq:.3g} trial frequencies (span {span:.6g} s); the most is "
+                         f"{MAX_FREQUENCIES:.0e}: give a narrower [min_period_s, max_period_s], or analyse the tracks apart")
+    freq, power = LombScargle(t, y, dy).autopower(minimum_frequency=1 / hi, maximum_frequency=2 / lo, samples_per_peak=spp)
     peaks: list[float] = []
     for i in np.argsort(power)[::-1]:
         if all(abs(freq[i] - p) > 2 / span for p in peaks):
