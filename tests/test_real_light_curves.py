@@ -56,6 +56,9 @@ def test_alcdef_score_and_astropy_tables():
     pel = read_light_curve(REAL / "score_test_data.csv", object=58296)
     assert len(pel) == 2 and pel.sites[0].tolist() == [52.15399, 4.49085, 8.0] and pel.ranges_km[0] == 571.894
     assert len(read_light_curve(REAL / "score_test_data.csv", object="Kuiper-P1")) == 2
+    with pytest.raises(FieldError, match=r"observation_time\[row 2\].*must increase"):  # Pomenis: reports, not a series
+        read_light_curve(REAL / "pomenis_starlink_v1p5_observations.csv", time_col="observation_time",
+                         value_col="ab_magnitude")
     # an ECSV file whose Time column is in TT: 69.184 s from UTC in 2020
     tt = read_light_curve(DATA / "formats" / "lightcurve_tt.ecsv")
     assert tt.times_utc[0] == np.datetime64("2020-04-01T20:58:50.816") and tt.meta["object_id"] == "99002"
