@@ -367,3 +367,25 @@ def test_a_file_of_tracks_a_week_apart_is_characterised_track_by_track(tmp_path)
     assert code == 0 and m["stage_period"].startswith("skipped (whole curve)") and m["n_tracks_periodic"] == 2
     assert all(abs(p / 18.888 - 1) < 0.01 for p in m["track_periods_s"])
     assert (tmp_path / "r" / "tracks.csv").read_text().count("\n") == 3
+
+
+def test_tracks_nights_merge_and_light_time():
+    from cssat.data import ObservedLightCurve, read_light_curve
+
+    rb = read_light_curve(MMT_RB)
+    a, b = rb.split()
+    assert set(a.tracks) == {"101"} and set(b.tracks) == {"102"}
+    with pytest.raises(FieldError, match="no track 7; the tracks: 101, 102"):
+        rb.select(tracks=[7])
+    both = ObservedLightCurve.merge([b, a])
+    assert np.array_equal(both.times_utc, rb.times_utc) and np.array_equal(both.values, rb.values)
+    assert len(rb.select(stop="2021-03-04T21:11:10")) == 600  # the first track: 21:10:05 to 21:11:04.807
+    # a night runs local noon to noon: 21:10 UTC at 10.45° E (UTC+0.7 h) is the evening of the 4th
+    assert set(rb.nights(utc_offset_h=10.45 / 15)) == {"2021-03-04"}
+    shifted = rb.light_time_corrected()
+    delay = (rb.times_utc - shifted.times_utc).astype(np.int64) / 1e6
+    assert np.allclose(delay, rb.ranges_km / 299792.458, atol=1e-6)  # c exactly, km/s
+    ts = a.to_table()
+    assert ts["time"].scale == "utc" and len(ts) == 600 and ts.meta["name"] == "SYNTHETIC R/B"
+    back = read_light_curve(ts)
+    assert np.array_equal(back.times_utc, a.times_utc) and np.array_equal(back.values, a.values)

@@ -7,7 +7,9 @@ otherwise; ``on`` requires it — the run stops with exit 2 naming what is missi
 1. ``read``: :func:`cssat.data.read_light_curve` with the ``observed`` settings (format by
    content: MMT-9, SCORE, ALCDEF, ECSV/FITS, CSV); ``characterise.tracks`` keeps those tracks.
 2. ``clean``: drops the samples flagged in penumbra (MMT's ``Penumbra``), refuses fewer than
-   ``characterise.min_samples``.
+   ``characterise.min_samples``; where the file gives each sample's range, apparent magnitudes
+   are reduced to 1000 km (``characterise.normalise_range``: the pass's range trend is not
+   the object's light curve).
 3. ``period``: :func:`cssat.inversion.estimate_period` on the magnitudes (options under
    ``period``: its keyword arguments) — ``periodic``, ``period_s``, ``period_err_s``, ``fap``,
    ``alternatives``, ``chi2_per_sample``; compared with the file's published period if any.
@@ -66,7 +68,7 @@ def check(cfg: Any) -> dict[str, Any]:
             if k not in allowed:
                 raise FieldError(f"{node}.{k}", f"not an option of {fn.__name__}; its options: {', '.join(allowed)}")
     ch = _opts(cfg.get("characterise"))
-    known = {"tracks", "min_samples", "drop_penumbra", "min_nights", "max_epoch_days", "figures"}
+    known = {"tracks", "min_samples", "drop_penumbra", "min_nights", "max_epoch_days", "figures", "normalise_range"}
     for k in ch:
         if k not in known:
             raise FieldError(f"characterise.{k}", f"not a setting; the settings: {', '.join(sorted(known))}")
@@ -75,6 +77,7 @@ def check(cfg: Any) -> dict[str, Any]:
             "min_nights": int_param(ch.get("min_nights", 2), "characterise.min_nights", 1),
             "max_epoch_days": float(ch.get("max_epoch_days", 14.0)), "tracks": ch.get("tracks"),
             "figures": bool_param(ch.get("figures", True), "characterise.figures"),
+            "normalise_range": bool_param(ch.get("normalise_range", True), "characterise.normalise_range"),
             "period": _opts(cfg.get("period")), "tumbling": _opts(cfg.get("tumbling"))}
 
 
@@ -106,6 +109,9 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         y = lc.magnitudes() if lc.kind == "magnitude" else lc.values
         sig = lc.magnitude_errors() if lc.kind == "magnitude" else lc.errors
         tracks = lc.track_ids()
+        if opt["normalise_range"] and lc.kind == "magnitude" and lc.ranges_km is not None and lc.magnitude_system == "apparent":
+            y = y - 5.0 * np.log10(lc.ranges_km / 1000.0)  # the range's inverse square out, to 1000 km (MMT's StdMag's)
+            m["period_magnitudes"] = "apparent, reduced to a range of 1000 km"
         m.update(n_samples=len(lc), n_tracks=len(set(tracks)), span_s=float(t[-1]), start_utc=str(lc.times_utc[0]))
     res = _period(run_, opt, t, y, sig, tracks, m)
     _tumbling(run_, opt, t, y, sig, res, m)
@@ -215,7 +221,7 @@ def _spin(run_, cfg, opt, lc, t, res, m) -> None:
     if mode == "off":
         m["stage_spin"] = "off"
         return
-    from cssat.inversion.period import stretches
+    from cssat.inversion.fourier import stretches
 
     nights = len(np.unique(stretches(t, min_gap_s=6 * 3600.0)))
     missing = []
@@ -282,7 +288,7 @@ def _write(run_, opt, lc, t, y, res, m) -> None:
 
 def _model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int, tracks: np.ndarray) -> np.ndarray:
     """The chosen Fourier series (with one offset and slope per stretch) at ``t``."""
-    from cssat.inversion.period import _Curve, _design
+    from cssat.inversion.fourier import _Curve, _design
 
     if not np.isfinite(res["best_period_s"]):
         return np.full_like(y, np.mean(y))

@@ -1,0 +1,190 @@
+"""Fourier-series models of light curves, for :mod:`cssat.inversion.period`: the design matrix,
+the contiguous stretches (tracks, nights) of a time series, the white-noise scatter from second
+differences, and :class:`_Curve` — a light curve with each stretch's offset and polynomial
+trend projected out, scored by BIC, refined in frequency, tested for significance (F-test) and
+repetition (even cycles against odd ones)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import FieldError
+
+__all__ = ["light_curve_scatter", "stretches"]
+
+
+def _vector(x: Any, field: str, *, times: bool = False, scalar_ok: bool = False) -> np.ndarray:
+    """``x`` as a 1-D float64 array (a list, numpy, a torch tensor; datetime64 times as seconds
+    from the first), else a FieldError naming ``field``."""
+    if hasattr(x, "detach") and hasattr(x, "cpu"):  # a torch tensor
+        x = x.detach().cpu().numpy()
+    try:
+        a = np.asarray(x)
+    except Exception:  # noqa: BLE001 - ragged lists and the like
+        raise FieldError(field, "expected a 1-D array of numbers") from None
+    if times and np.issubdtype(a.dtype, np.datetime64):
+        a = (a.astype("datetime64[us]") - a.astype("datetime64[us]").min()).astype(np.int64) / 1e6
+    if a.dtype.kind not in "biuf" or a.dtype.kind == "b":
+        raise FieldError(field, f"expected real numbers, got {a.dtype} (complex, text or objects)")
+    if a.ndim > 1 or (a.ndim == 0 and not scalar_ok):
+        raise FieldError(field, f"expected a 1-D array, got shape {a.shape}")
+    return a.astype(np.float64).reshape(-1)
+
+
+def _design(t: np.ndarray, f: float, m: int) -> np.ndarray:
+    """``(T, 2m)``: cos 2πkft, sin 2πkft for k = 1…m."""
+    W = (2 * np.pi * f) * t[:, None] * np.arange(1, m + 1)[None, :]
+    return np.concatenate([np.cos(W), np.sin(W)], 1)
+
+
+def light_curve_scatter(times_s: Any, values: Any) -> float:
+    """The white-noise 1σ of a densely sampled light curve from its second differences:
+    ``1.4826 · median|Δ²y − median Δ²y| / √6`` over triples inside one contiguous stretch
+    (:func:`stretches`): blind to a signal smooth on the cadence's scale, robust to glints."""
+    t = np.asarray(times_s, dtype=np.float64)
+    y = np.asarray(values, dtype=np.float64)
+    if len(t) < 5:
+        return float(np.std(y))
+    seg = stretches(t)
+    same = (seg[2:] == seg[:-2])
+    d2 = (y[2:] - 2 * y[1:-1] + y[:-2])[same]
+    if d2.size < 3:
+        return float(np.std(y))
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6))
+
+
+def stretches(times_s: Any, gap_factor: float = 10.0, min_gap_s: float = 1800.0) -> np.ndarray:
+    """``(T,)`` int: the contiguous stretch (a track, a night) of each sorted sample: a new one
+    starts after a step over ``gap_factor`` × the median step, over twice the 95th percentile
+    step and over ``min_gap_s`` (an irregular cadence's pauses, a meridian flip, are not gaps)."""
+    t = np.asarray(times_s, dtype=np.float64)
+    dt = np.diff(t)
+    if not len(dt):
+        return np.zeros(len(t), dtype=np.int64)
+    pos = dt[dt > 0]
+    gap = max(gap_factor * np.median(pos), 2 * np.percentile(pos, 95), min_gap_s) if len(pos) else 0.0
+    return np.r_[0, np.cumsum(dt > gap)].astype(np.int64)
+
+
+def _cadence(t: np.ndarray, seg: np.ndarray) -> float:
+    """The mean step inside contiguous stretches."""
+    dt = np.diff(t)
+    inside = dt[(np.diff(seg) == 0) & (dt > 0)]
+    return float(inside.mean()) if len(inside) else float(t[-1] - t[0])
+
+
+class _Curve:
+    """A light curve with its nuisance model removed: each stretch's own mean and (``detrend``
+    ≥ 1) slope, ... up to that polynomial order, projected out in the weighted space. ``rss(f,
+    m)`` is then the residual of the Fourier series plus the nuisance model."""
+
+    def __init__(self, t, y, w, seg, detrend: int, known_sigma: bool):
+        self.t, self.y, self.w, self.seg, self.known = t, y, w, seg, known_sigma
+        self.N = len(t)
+        cols = []
+        for s in np.unique(seg):
+            on = seg == s
+            tc = np.where(on, t - t[on].mean(), 0.0)
+            scale = max(np.abs(tc).max(), 1e-300)
+            for k in range(detrend + 1 if on.sum() > 2 * (detrend + 1) else 1):
+                cols.append(np.where(on, (tc / scale) ** k, 0.0))
+        self.Q, _ = np.linalg.qr(np.stack(cols, 1) * w[:, None])
+        self.q = self.Q.shape[1]
+        yw = y * w
+        self.yp = yw - self.Q @ (self.Q.T @ yw)
+        self.rss0 = float(self.yp @ self.yp)
+        self.floor = self.rss0 * 1e-12 + 1e-300  # round-off ties, not random picks
+
+    def _xp(self, f: float, m: int, idx=slice(None)) -> np.ndarray:
+        X = _design(self.t, f, m) * self.w[:, None]
+        return X - self.Q @ (self.Q.T @ X)
+
+    def rss(self, f: float, m: int) -> float:
+        Xp = self._xp(f, m)
+        coef, *_ = np.linalg.lstsq(Xp, self.yp, rcond=None)
+        r = Xp @ coef - self.yp
+        return float(r @ r)
+
+    def bic(self, rss: float, m: int) -> float:
+        p = 2 * m + self.q
+        r = rss + self.floor
+        return (r if self.known else self.N * math.log(r / self.N)) + p * math.log(self.N)
+
+    def score(self, f: float, m: int) -> dict[str, Any]:
+        rss = self.rss(f, m)
+        return {"period_s": 1.0 / f, "n_harmonics": m, "rss": rss, "bic": self.bic(rss, m)}
+
+    def refine(self, f: float, m: int, step: float) -> tuple[float, float]:
+        """The frequency minimising the RSS within ``f ± step``, and that RSS."""
+        from scipy.optimize import minimize_scalar
+
+        res = minimize_scalar(lambda x: self.rss(x, m), bounds=(f - step, f + step), method="bounded",
+                              options={"xatol": step * 1e-5})
+        c0 = self.rss(f, m)
+        return (float(res.x), float(res.fun)) if res.fun <= c0 else (f, c0)
+
+    def best_m(self, f: float, m_max: int) -> int:
+        """The number of harmonics (1…``m_max``) of least BIC at ``f``."""
+        return int(np.argmin([self.score(f, m)["bic"] for m in range(1, m_max + 1)])) + 1
+
+    def best_near(self, f: float, m0: int, m_max: int) -> dict[str, Any]:
+        """The least-BIC model at ``f`` by a local search in the harmonics from ``m0`` (up,
+        then down, each while the BIC falls; ``1…m_max``)."""
+        best = self.score(f, max(1, min(m0, m_max)))
+        for step in (1, -1):
+            m = best["n_harmonics"] + step
+            while 1 <= m <= m_max:
+                c = self.score(f, m)
+                if c["bic"] >= best["bic"]:
+                    break
+                best, m = c, m + step
+        return best
+
+    def fap(self, rss: float, m: int, n_eff: float) -> float:
+        """The F-test's tail of the ``m``-harmonic model against the nuisance model alone, over
+        ``n_eff`` independent trials."""
+        from scipy.stats import f as fdist
+
+        p, dof = 2 * m, self.N - 2 * m - self.q
+        if dof <= 0:
+            return 1.0
+        rss = max(rss, self.floor)
+        F = max((self.rss0 - rss) / p, 0.0) / (rss / dof)
+        single = float(fdist.sf(F, p, dof))
+        return float(-math.expm1(max(n_eff, 1.0) * math.log1p(-min(single, 1.0 - 1e-16)))) if single > 0 else 0.0
+
+    def repeat(self, f: float, m: int) -> float:
+        """Does the curve repeat? The series fitted to the even cycles (``⌊f t⌋`` even) predicts
+        the odd ones and vice versa (the nuisance model refitted on each): the worse of the two
+        ratios R²_pred / R²_in, ≤ 1, clipped at −1. Neighbouring cycles share their geometry,
+        so a slowly changing periodic curve repeats; red noise does not. A direction whose
+        training cycles do not cover the phase (< 2 cycles in all) is left out."""
+        parity = np.floor(self.t * f).astype(np.int64) % 2
+        X = _design(self.t, f, m) * self.w[:, None]
+        out = []
+        phase_bin = np.floor((self.t * f % 1.0) * 20).astype(np.int64)
+        covered = len(np.unique(phase_bin))
+        for a in (0, 1):
+            A, B = parity == a, parity != a
+            if A.sum() < 2 * m + self.q + 2 or B.sum() < 2 * m + self.q + 2:
+                return float("nan")
+            if len(np.unique(phase_bin[A])) < 0.9 * covered:  # A does not hold a whole cycle: nothing to predict from
+                continue
+            QA, _ = np.linalg.qr(self.Q[A])
+            QB, _ = np.linalg.qr(self.Q[B])
+            proj = lambda Q, v: v - Q @ (Q.T @ v)  # noqa: E731
+            coef, *_ = np.linalg.lstsq(proj(QA, X[A]), proj(QA, self.y[A] * self.w[A]), rcond=None)
+            yb = proj(QB, self.y[B] * self.w[B])
+            Xb = proj(QB, X[B])
+            tot = float(yb @ yb)
+            if not tot > 0:
+                return float("nan")
+            r_pred = yb - Xb @ coef
+            cb, *_ = np.linalg.lstsq(Xb, yb, rcond=None)
+            r_in = yb - Xb @ cb
+            r2_pred, r2_in = 1 - float(r_pred @ r_pred) / tot, 1 - float(r_in @ r_in) / tot
+            out.append(r2_pred / r2_in if r2_in > 0 else 0.0)
+        return float(max(min(out), -1.0)) if out else float("nan")
