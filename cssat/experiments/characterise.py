@@ -120,7 +120,24 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         _write(run_, opt, lc, t, y, res, m)
     m.pop("_tracks", None)
     m.update(run_.timings())
+    log.info("characterise: %s", _headline(m))
     return m
+
+
+def _headline(m: dict[str, Any]) -> str:
+    """One line: the verdict and the period, or why there is none, and the skipped stages."""
+    name = " ".join(str(x) for x in (m.get("object_id"), m.get("object_name")) if x) or "the light curve"
+    if m.get("periodic"):
+        head = (f"{name}: periodic, P = {m['period_s']:.6g} ± {m['period_err_s']:.2g} s (FAP {m['fap']:.2g}, "
+                f"χ²/N {m['chi2_per_sample']:.3g})")
+    elif m.get("stage_period") == "ok":
+        head = f"{name}: not periodic (FAP {m['fap']:.2g}, repeat {m['repeat']:.2g})"
+    else:
+        head = f"{name}: {m.get('stage_period')}"
+    if m.get("n_tracks_periodic") is not None:
+        head += f"; {m['n_tracks_periodic']} of {m['n_tracks']} tracks periodic on their own (tracks.csv)"
+    skipped = [k for k in STAGES if str(m.get(f"stage_{k}", "")).startswith("skipped")]
+    return head + (f"; skipped: {', '.join(skipped)} (why: metrics.json)" if skipped else "")
 
 
 def _period(run_, opt, t, y, sig, tracks, m) -> dict[str, Any] | None:
