@@ -291,8 +291,8 @@ def _write(run_, opt, lc, t, y, res, m) -> None:
     if per_track:
         write_csv(run_.out_dir / "tracks.csv", per_track)
     if res is not None:
-        model = _model(t, y, res, int(opt["period"].get("detrend", 1)), lc.track_ids())
-        arrays.update(model=model, frequency_hz=res["periodogram"]["frequency_hz"], power=res["periodogram"]["power"])
+        model, trend = _model(t, y, res, int(opt["period"].get("detrend", 1)), lc.track_ids())
+        arrays.update(model=model, trend=trend, frequency_hz=res["periodogram"]["frequency_hz"], power=res["periodogram"]["power"])
         write_csv(run_.out_dir / "alternatives.csv", res["alternatives"] or [{"relation": "none"}])
     write_npz(run_.out_dir / "arrays.npz", **arrays)
     if opt["figures"]:
@@ -300,16 +300,19 @@ def _write(run_, opt, lc, t, y, res, m) -> None:
         from cssat.plots.characterise import characterise_figure
 
         save_figure(characterise_figure(t, y, lc.magnitude_errors() if lc.kind == "magnitude" else lc.errors, res,
-                                        arrays.get("model"), lc.kind), run_.figure("characterise"))
+                                        arrays.get("model"), lc.kind, trend=arrays.get("trend")), run_.figure("characterise"))
 
 
-def _model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int, tracks: np.ndarray) -> np.ndarray:
-    """The chosen Fourier series (with one offset and slope per stretch) at ``t``."""
+def _model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int,
+           tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The chosen Fourier series with each track's offset and trend at ``t``, and that offset
+    and trend alone (the fold shows the curve less it)."""
     from cssat.inversion.fourier import _Curve, _design
 
     if not np.isfinite(res["best_period_s"]):
-        return np.full_like(y, np.mean(y))
+        flat = np.full_like(y, np.mean(y))
+        return flat, flat
     cv = _Curve(t, y, np.ones_like(y), np.unique(tracks, return_inverse=True)[1].reshape(-1), detrend, False)
     X = np.concatenate([cv.Q, _design(t, 1.0 / res["best_period_s"], res["n_harmonics"])], 1)
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-    return X @ coef
+    return X @ coef, cv.Q @ coef[:cv.q]

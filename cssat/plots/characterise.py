@@ -21,10 +21,11 @@ def _with_gaps(t: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def characterise_figure(t: np.ndarray, y: np.ndarray, sigma: np.ndarray | None, res: dict[str, Any] | None,
-                        model: np.ndarray | None, kind: str = "magnitude") -> Figure:
+                        model: np.ndarray | None, kind: str = "magnitude", trend: np.ndarray | None = None) -> Figure:
     """Four panels: ``y (T,)`` against ``t (T,)`` s (the model over it), the periodogram (the
-    chosen period and its alternatives marked), the curve folded at the best period with the
-    model, and the residuals ``y − model`` in units of ``sigma`` (or the rms)."""
+    chosen period and its alternatives marked), the curve less each track's offset and trend
+    (``trend (T,)``) folded at the best period with the model, and the residuals ``y − model``
+    in units of ``sigma`` (or the rms)."""
     fig = Figure(figsize=(11, 7.5))
     (a, b), (c, d) = fig.subplots(2, 2)
     ylab = "magnitude" if kind == "magnitude" else "flux"
@@ -57,12 +58,13 @@ def characterise_figure(t: np.ndarray, y: np.ndarray, sigma: np.ndarray | None, 
     b.set_title(f"periodogram: {verdict}, FAP {res['fap']:.2g}", fontsize=10)
     b.legend(fontsize=8)
     phase = (t / P) % 1.0
-    c.plot(phase, y, ".", ms=1.5, color="k")
+    base = trend if trend is not None else np.zeros_like(y)
+    c.plot(phase, y - base, ".", ms=1.5, color="k")
     if model is not None:
         order = np.argsort(phase)
-        c.plot(phase[order], model[order], ".", ms=1, color="tab:orange")
+        c.plot(phase[order], (model - base)[order], ".", ms=1, color="tab:orange")
     c.set_xlabel(f"phase at {P:.6g} s")
-    c.set_ylabel(ylab)
+    c.set_ylabel(ylab + (" less each track's trend" if trend is not None else ""))
     c.set_title(f"folded; χ²/N {res['chi2_per_sample']:.3g}, {res['n_harmonics']} harmonics", fontsize=10)
     if model is not None:
         scale = sigma if sigma is not None else np.full_like(y, np.sqrt(np.mean((y - model) ** 2)) or 1.0)
