@@ -355,7 +355,7 @@ def test_hostile_tables_and_arrays():
         estimate_period(far, np.r_[ys, ys])
 
 
-def test_a_file_of_tracks_a_week_apart_is_characterised_track_by_track(tmp_path):
+def test_a_file_of_tracks_a_week_apart_is_characterised_track_by_track_then_whole(tmp_path):
     from conftest import run_cli
 
     lines = MMT_RB.read_text().splitlines()
@@ -364,8 +364,9 @@ def test_a_file_of_tracks_a_week_apart_is_characterised_track_by_track(tmp_path)
     code, out = run_cli(["experiment=characterise", f"observations={tmp_path / 'far.txt'}", "characterise.figures=false",
                          f"hydra.run.dir={tmp_path / 'r'}"], tmp_path)
     m = json.loads((tmp_path / "r" / "metrics.json").read_text())
-    assert code == 0 and m["stage_period"].startswith("skipped (whole curve)") and m["n_tracks_periodic"] == 2
-    assert all(abs(p / 18.888 - 1) < 0.01 for p in m["track_periods_s"])
+    # the full grid would need 1.5e7 frequencies: each track apart, then the whole about their median
+    assert code == 0 and m["n_tracks_periodic"] == 2 and m["period_search"].startswith("about the tracks' median")
+    assert all(abs(p / 18.888 - 1) < 0.01 for p in m["track_periods_s"]) and abs(m["period_s"] / 18.888 - 1) < 0.01
     assert (tmp_path / "r" / "tracks.csv").read_text().count("\n") == 3
 
 
@@ -389,3 +390,23 @@ def test_tracks_nights_merge_and_light_time():
     assert ts["time"].scale == "utc" and len(ts) == 600 and ts.meta["name"] == "SYNTHETIC R/B"
     back = read_light_curve(ts)
     assert np.array_equal(back.times_utc, a.times_utc) and np.array_equal(back.values, a.values)
+
+
+def test_a_drift_is_not_tumbling_and_a_half_integer_period_repeats():
+    """Found by review: a steady rotator with a 0.3-mag drift was called tumbling (a 'period' at
+    the cadence); a period of 13.5 frames had no cycle parity covering the phase (repeat NaN)."""
+    from cssat.inversion import estimate_period, estimate_tumbling_periods
+
+    rng = np.random.default_rng(0)
+    t = np.arange(2000) * 0.1
+    w = 2 * np.pi * t / 13.37
+    for slope in (0.0, 0.3):
+        y = 6 + 0.3 * np.cos(w) + 0.6 * np.cos(2 * w + 1) + slope * t / t[-1] + rng.normal(0, 0.05, t.size)
+        out = estimate_tumbling_periods(t, y)
+        assert out["tumbling"] is False, (slope, out["periods_s"], out["delta_bic"])
+    y = 6 + 0.3 * np.cos(2 * np.pi * t / 1.35) + rng.normal(0, 0.05, t.size)
+    res = estimate_period(t, y)
+    assert res["periodic"] and abs(res["period_s"] / 1.35 - 1) < 1e-3
+    sparse = np.arange(120) * 2.0  # a 2 s cadence, 6.5 samples a cycle
+    res = estimate_period(sparse, 6 + 0.5 * np.cos(2 * np.pi * sparse / 13.0) + rng.normal(0, 0.05, sparse.size))
+    assert res["periodic"] and abs(res["period_s"] / 13.0 - 1) < 0.01

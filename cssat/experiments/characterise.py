@@ -42,6 +42,9 @@ from cssat._checks import FieldError, bool_param, choice_param, int_param
 log = logging.getLogger("cssat")
 
 STAGES = ("period", "tumbling", "spin")
+#: the spin stage's geometry must agree with the file's: median |Δrange| / range and |Δphase|
+MAX_RANGE_MISMATCH = 0.05
+MAX_PHASE_MISMATCH_DEG = 5.0
 STAGE_MODES = ("auto", "on", "off")
 
 
@@ -78,7 +81,8 @@ def check(cfg: Any) -> dict[str, Any]:
             "max_epoch_days": float(ch.get("max_epoch_days", 14.0)), "tracks": ch.get("tracks"),
             "figures": bool_param(ch.get("figures", True), "characterise.figures"),
             "normalise_range": bool_param(ch.get("normalise_range", True), "characterise.normalise_range"),
-            "period": _opts(cfg.get("period")), "tumbling": _opts(cfg.get("tumbling"))}
+            "period": {k: v for k, v in _opts(cfg.get("period")).items() if v is not None},
+            "tumbling": {k: v for k, v in _opts(cfg.get("tumbling")).items() if v is not None}}
 
 
 def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
@@ -93,7 +97,14 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     with run_.stage("read"):
         lc = read_observations(cfg)
         if opt["tracks"] is not None:
-            lc = lc.select(list(opt["tracks"]) if not isinstance(opt["tracks"], (str, int)) else [opt["tracks"]])
+            try:
+                lc = lc.select(list(opt["tracks"]) if not isinstance(opt["tracks"], (str, int)) else [opt["tracks"]])
+            except FieldError as err:
+                raise FieldError("characterise.tracks", err.detail) from None
+        if cfg.scenario.get("tle") is not None:  # an element set given is the file's object's, near its dates
+            from cssat.experiments.scene import check_elements
+
+            check_elements(cfg, lc, opt["max_epoch_days"])
         meta = lc.meta
         m.update(object_id=meta.get("object_id"), object_name=meta.get("name"), file_format=meta.get("format"),
                  file_variability=meta.get("variability"), published_period_s=meta.get("published_period_s"),
@@ -163,8 +174,23 @@ def _period(run_, opt, t, y, sig, tracks, m) -> dict[str, Any] | None:
         m["n_tracks_periodic"] = sum(bool(r["periodic"]) for r in per_track)
         m["track_periods_s"] = [r["period_s"] for r in per_track if r["periodic"]]
         m["_tracks"] = per_track  # tracks.csv, written with the other files
+    found = [r["period_s"] for r in per_track if r["periodic"]]
+    p0 = float(np.median(found)) if found else None
+    if p0 is not None and not {"min_period_s", "max_period_s"} & set(kw) and (
+            res is None or not res["model_fits"] or abs(res["best_period_s"] / p0 - 1) > 0.02):
+        # the tracks have a period the whole curve missed (tracks hours or days apart: the cycle count
+        # between them is ambiguous on a full grid): the whole curve searched about it, kept if it fits better
+        with run_.stage("period"):
+            try:
+                near = estimate_period(t, y, sigma=sig, segments=tracks, min_period_s=0.7 * p0, max_period_s=1.45 * p0, **kw)
+            except FieldError as err:
+                near, why_not = None, err.detail
+        if near is not None and (res is None or near["chi2_per_sample"] < res["chi2_per_sample"]):
+            res = near
+            m["period_search"] = f"about the tracks' median period {p0:.6g} s (0.7x to 1.45x)"
     if res is None:
-        m.update(periodic=False, period_s=None, stage_period=f"skipped (whole curve): {why_not}; see tracks.csv")
+        m.update(periodic=False, period_s=None, stage_period=f"skipped (whole curve): {why_not} (set period.min_period_s "
+                                                             "and period.max_period_s); see tracks.csv")
         return None
     keys = ("periodic", "period_s", "period_err_s", "fap", "repeat", "best_period_s", "best_period_err_s", "chi2_per_sample",
             "model_fits", "n_harmonics", "n_cycles", "min_period_s", "max_period_s", "why")
@@ -226,7 +252,13 @@ def _tumbling(run_, opt, t, y, sig, res, m) -> None:
         m["stage_tumbling"] = f"skipped: {why}"
         return
     with run_.stage("tumbling"):
-        tp = estimate_tumbling_periods(t, y, sigma=sig, **opt["tumbling"])
+        try:
+            tp = estimate_tumbling_periods(t, y, sigma=sig, **opt["tumbling"])
+        except FieldError as err:
+            if "trial frequencies" not in err.detail or mode == "on":
+                raise err.within("tumbling") from None
+            m["stage_tumbling"] = f"skipped: {err.detail}"
+            return
     m.update(tumbling=bool(tp["tumbling"]), tumbling_delta_bic=tp["delta_bic"], tumbling_why=tp.get("why"))
     if tp["tumbling"]:
         m["tumbling_periods_s"] = [float(p) for p in tp["periods_s"]]
@@ -262,6 +294,11 @@ def _spin(run_, cfg, opt, lc, t, res, m) -> None:
         check_elements(cfg, lc, opt["max_epoch_days"])
         sc = build_scenario(cfg, lc.times_utc, lc.sites)  # the file's observer of each sample, where it gives them
         _compare_geometry(sc, lc, m)
+        rel = m.get("range_diff_km_median", 0.0) / float(np.median(lc.ranges_km)) if lc.ranges_km is not None else 0.0
+        if rel > MAX_RANGE_MISMATCH or m.get("phase_diff_deg_median", 0.0) > MAX_PHASE_MISMATCH_DEG:
+            raise FieldError("scenario.tle", f"the element set and observer put the object {m.get('range_diff_km_median', 0):.0f} "
+                                             f"km and {m.get('phase_diff_deg_median', 0):.1f}° of phase from the file's own "
+                                             "range and phase angle (median): check scenario.tle and scenario.observer")
         unit = (sc.range_km * 1e3) ** 2 / SOLAR_IRRADIANCE_W_M2
         flux = lc.fluxes() * unit
         err = lc.flux_errors()

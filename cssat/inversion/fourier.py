@@ -165,7 +165,10 @@ class _Curve:
         parity = np.floor(self.t * f).astype(np.int64) % 2
         X = _design(self.t, f, m) * self.w[:, None]
         out = []
-        phase_bin = np.floor((self.t * f % 1.0) * 20).astype(np.int64)
+        dt = np.diff(self.t)[(np.diff(self.seg) == 0) & (np.diff(self.t) > 0)]
+        per_cycle = 1.0 / (f * float(np.median(dt))) if len(dt) else 20.0  # samples a cycle
+        n_bins = int(np.clip(per_cycle / 2, 2, 20))  # half-integer periods: each parity sees every other phase
+        phase_bin = np.floor((self.t * f % 1.0) * n_bins).astype(np.int64)
         covered = len(np.unique(phase_bin))
         for a in (0, 1):
             A, B = parity == a, parity != a

@@ -83,7 +83,8 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
 
     Assumptions: torque-free motion, whose attitude relative to the fixed angular momentum is
     periodic up to a uniform precession, so the light curve is quasi-periodic in two frequencies;
-    the samples span many cycles of both."""
+    the samples span many cycles of both. Each contiguous stretch's offset and slope are fitted
+    first (a drift is not a second period)."""
     from astropy.timeseries import LombScargle
     from scipy.optimize import minimize
 
@@ -104,8 +105,14 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     span = float(t[-1])
     if not span > 0 or np.ptp(y) == 0:
         return _not_tumbling("the curve does not vary" if span > 0 else "the samples span no time")
-    steps = np.diff(t)
-    lo = 2 * float(np.median(steps[steps > 0])) if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
+    from cssat.inversion.fourier import _Curve, stretches
+
+    seg = stretches(t)
+    nuisance = _Curve(t, y, w, seg, 1, dy is not None)  # each stretch's offset and slope: a drift is not a period
+    y = nuisance.yp / w
+    steps = np.diff(t)[(np.diff(seg) == 0) & (np.diff(t) > 0)]
+    frame = float(np.percentile(steps, 75)) if len(steps) else span
+    lo = 4 * frame if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)  # 2/lo: Nyquist
     hi = span / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", lo, open_lo=True)
     if not hi > lo:
         raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s")
@@ -142,10 +149,11 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
         if best is None or cand[0] < best[0]:
             best = cand
     chi2, f1, f2 = best
-    single = estimate_period(t, y, sigma=dy, min_period_s=lo, max_period_s=hi, n_harmonics=min(len(jk), 50), detrend=0)
+    single = estimate_period(t, y, sigma=dy, min_period_s=lo, max_period_s=hi, n_harmonics=min(len(jk), 50), detrend=1,
+                             segments=seg)
     T = len(t)
     bic = lambda c, k: (c if dy is not None else T * np.log(max(c, 1e-300) / T)) + k * np.log(T)  # noqa: E731
-    delta = float(bic(single["rss"], 2 * single["n_harmonics"] + single["n_nuisance"] + 1) - bic(chi2, n_par + 2))
+    delta = float(bic(single["rss"], 2 * single["n_harmonics"] + single["n_nuisance"] + 1) - bic(chi2, n_par + 1 + nuisance.q))
     fs = np.array(sorted((abs(f1), abs(f2)), reverse=True))
     return {"frequencies_hz": fs, "periods_s": 1.0 / fs, "chi2": chi2, "chi2_single": float(single["rss"]),
             "single_period_s": float(single["best_period_s"]), "delta_bic": delta, "tumbling": bool(delta > 10.0),
