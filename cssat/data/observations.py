@@ -22,16 +22,14 @@ from typing import Any, Sequence
 import numpy as np
 
 from cssat._checks import FieldError, choice_param
+from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE, write_light_curve  # noqa: F401  (cssat's own CSV)
 
-__all__ = ["ObservedLightCurve", "read_light_curve", "write_light_curve", "KINDS", "TIME_FORMATS", "DUPLICATES"]
+__all__ = ["ObservedLightCurve", "read_light_curve", "write_light_curve", "stretches", "KINDS", "TIME_FORMATS", "DUPLICATES"]
 
 KINDS = ("magnitude", "flux")
 TIME_FORMATS = ("iso", "jd", "mjd", "unix")
 DUPLICATES = ("refuse", "merge")
 
-#: the value column of cssat's own ``lightcurve.csv`` by kind, and the error column it may carry
-DEFAULT_VALUE = {"magnitude": "magnitude", "flux": "flux_W_m2"}
-DEFAULT_ERROR = {"magnitude": "magnitude_err", "flux": "flux_W_m2_err"}
 
 
 _ROW_FIELDS = ("times_utc", "values", "errors", "filters", "observers", "tracks", "channels", "sites", "ranges_km",
@@ -86,8 +84,6 @@ class ObservedLightCurve:
         one after a gap: :func:`cssat.inversion.period.stretches`)."""
         if self.tracks is not None:
             return np.asarray(self.tracks).astype(str)
-        from cssat.inversion.period import stretches
-
         return stretches(self.times_s()).astype(str)
 
     def select(self, tracks: Any = None, *, start: Any = None, stop: Any = None) -> ObservedLightCurve:
@@ -200,6 +196,19 @@ class ObservedLightCurve:
         if self.errors is None or self.kind == "magnitude":
             return self.errors
         return 2.5 / math.log(10) * self.errors / np.abs(self.values)
+
+
+def stretches(times_s: Any, gap_factor: float = 10.0, min_gap_s: float = 1800.0) -> np.ndarray:
+    """``(T,)`` int: the contiguous stretch (a track, a night) of each sorted sample: a new one
+    starts after a step over ``gap_factor`` × the median step, over twice the 95th percentile
+    step and over ``min_gap_s`` (an irregular cadence's pauses, a meridian flip, are not gaps)."""
+    t = np.asarray(times_s, dtype=np.float64)
+    dt = np.diff(t)
+    if not len(dt):
+        return np.zeros(len(t), dtype=np.int64)
+    pos = dt[dt > 0]
+    gap = max(gap_factor * np.median(pos), 2 * np.percentile(pos, 95), min_gap_s) if len(pos) else 0.0
+    return np.r_[0, np.cumsum(dt > gap)].astype(np.int64)
 
 
 def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None = None, error_col: str | None = None,
@@ -364,21 +373,3 @@ def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: 
             vals, errs = np.bincount(group, lc.values) / n, None
         lc = replace(lc.rows(first), values=vals, errors=errs)
     return lc
-
-
-def write_light_curve(path: str | Path, lc: ObservedLightCurve) -> None:
-    """Write ``lc`` as a CSV that :func:`read_light_curve` reads back with its defaults (ISO
-    times to the microsecond, ``Z``; the value and error columns of its kind)."""
-    from cssat.experiments.files import write_csv
-
-    rows = []
-    for i, t in enumerate(lc.times_utc):
-        row = {"time_utc": f"{np.datetime_as_string(t, unit='us')}Z", DEFAULT_VALUE[lc.kind]: repr(float(lc.values[i]))}
-        if lc.errors is not None:
-            row[DEFAULT_ERROR[lc.kind]] = repr(float(lc.errors[i]))
-        if lc.filters is not None:
-            row["filter"] = lc.filters[i]
-        if lc.observers is not None:
-            row["observer"] = lc.observers[i]
-        rows.append(row)
-    write_csv(Path(path), rows)

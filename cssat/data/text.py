@@ -15,7 +15,12 @@ import numpy as np
 
 from cssat._checks import FieldError
 
-__all__ = ["check_size", "read_csv", "text_rows"]
+__all__ = ["check_size", "read_csv", "text_rows", "write_light_curve", "DEFAULT_VALUE", "DEFAULT_ERROR"]
+
+#: the value column of cssat's own ``lightcurve.csv`` by kind, and the error column it may carry
+DEFAULT_VALUE = {"magnitude": "magnitude", "flux": "flux_W_m2"}
+DEFAULT_ERROR = {"magnitude": "magnitude_err", "flux": "flux_W_m2_err"}
+
 
 #: the bytes of memory a text table's byte may take once parsed (rows of Python strings, then arrays)
 BYTES_PER_BYTE = 40
@@ -118,8 +123,6 @@ def read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, erro
               time_format: str, time_scale: str, filter_col: str | None, observer_col: str | None,
               track_col: str | None) -> dict[str, Any]:
     cols, rows = text_rows(text, name)
-    from cssat.data.observations import DEFAULT_ERROR, DEFAULT_VALUE
-
     value_col = value_col or DEFAULT_VALUE[kind]
     if error_col is None and DEFAULT_ERROR[kind] in cols:
         error_col = DEFAULT_ERROR[kind]
@@ -155,3 +158,38 @@ def read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, erro
         if c in cols:
             out[key] = np.array(column(c))
     return out
+
+
+def write_light_curve(path: str | Path, lc: Any) -> None:
+    """Write ``lc`` as a CSV that :func:`read_light_curve` reads back with its defaults (ISO
+    times to the microsecond, ``Z``; the value and error columns of its kind)."""
+    rows = []
+    for i, t in enumerate(lc.times_utc):
+        row = {"time_utc": f"{np.datetime_as_string(t, unit='us')}Z", DEFAULT_VALUE[lc.kind]: repr(float(lc.values[i]))}
+        if lc.errors is not None:
+            row[DEFAULT_ERROR[lc.kind]] = repr(float(lc.errors[i]))
+        if lc.filters is not None:
+            row["filter"] = lc.filters[i]
+        if lc.observers is not None:
+            row["observer"] = lc.observers[i]
+        if lc.tracks is not None:
+            row["track"] = lc.tracks[i]
+        rows.append(row)
+    _write_rows(Path(path), rows)
+
+
+def _write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
+    """``rows`` as a CSV with a header, written atomically (temporary file + rename)."""
+    import csv
+
+    from cssat._tmpfiles import atomic_write
+
+    cols = list(dict.fromkeys(k for r in rows for k in r))
+
+    def w(tmp):
+        with open(tmp, "w", newline="") as f:
+            wr = csv.DictWriter(f, fieldnames=cols, restval="")
+            wr.writeheader()
+            wr.writerows(rows)
+
+    atomic_write(path, w)

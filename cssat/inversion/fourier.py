@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat.data.observations import stretches
 
 __all__ = ["light_curve_scatter", "stretches"]
 
@@ -54,19 +55,6 @@ def light_curve_scatter(times_s: Any, values: Any) -> float:
     if d2.size < 3:
         return float(np.std(y))
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6))
-
-
-def stretches(times_s: Any, gap_factor: float = 10.0, min_gap_s: float = 1800.0) -> np.ndarray:
-    """``(T,)`` int: the contiguous stretch (a track, a night) of each sorted sample: a new one
-    starts after a step over ``gap_factor`` × the median step, over twice the 95th percentile
-    step and over ``min_gap_s`` (an irregular cadence's pauses, a meridian flip, are not gaps)."""
-    t = np.asarray(times_s, dtype=np.float64)
-    dt = np.diff(t)
-    if not len(dt):
-        return np.zeros(len(t), dtype=np.int64)
-    pos = dt[dt > 0]
-    gap = max(gap_factor * np.median(pos), 2 * np.percentile(pos, 95), min_gap_s) if len(pos) else 0.0
-    return np.r_[0, np.cumsum(dt > gap)].astype(np.int64)
 
 
 def _cadence(t: np.ndarray, seg: np.ndarray) -> float:

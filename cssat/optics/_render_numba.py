@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cssat.sparse._numba import available, kernel
+from cssat._numba import available, kernel
 
 __all__ = ["available"]
 
