@@ -83,6 +83,37 @@ def egi_recovered_share(true_normals: np.ndarray, true_areas: np.ndarray, normal
     return float(true_areas[near].sum() / true_areas.sum())
 
 
+def _check_search(search: dict[str, Any]) -> None:
+    """The spin search's settings (``inversion.*``), each in its range."""
+    for key, lo in (("n_poles", 1), ("n_starts", 1), ("n_refine", 1), ("coarse_normals", 16), ("coarse_samples", 16),
+                    ("max_samples", 16)):
+        if key in search:
+            int_param(search[key], f"inversion.{key}", lo, 10**6)
+    lo = float_param(search.get("min_period_s", 60.0), "inversion.min_period_s", 0.0, open_lo=True)
+    float_param(search.get("max_period_s", 86400.0), "inversion.max_period_s", lo, open_lo=True)
+
+
+#: the most time steps a simulated scenario may hold (nights.n × 86400 / scenario.step_s)
+MAX_STEPS = 2_000_000
+
+
+def _check_size(cfg: Any, n_nights: int, n_faces: int) -> None:
+    """The simulated scenario's steps and the memory of its light curve (facet brightness and
+    visibility per step), before any is computed."""
+    from cssat.experiments.resources import check_memory
+
+    if cfg.get("observations"):
+        return
+    step = float_param(cfg.scenario.step_s, "scenario.step_s", 0.0, open_lo=True)
+    n_steps = int(n_nights * 86400.0 / step) + 1
+    if n_steps > MAX_STEPS:
+        raise FieldError("scenario.step_s", f"{step:g} s over {n_nights} nights is {n_steps:.3g} steps, more than "
+                                            f"{MAX_STEPS:.0e}: lengthen the cadence")
+    parts = {"scenario (T, ~20 values)": n_steps * 20 * 8, "facet brightness and visibility (T, F)": n_steps * max(n_faces, 1) * 8 * 4}
+    check_memory(parts, None if cfg.get("memory_limit_gb") is None else float(cfg.memory_limit_gb),
+                 "lengthen scenario.step_s or lower nights.n")
+
+
 #: a measured light curve's least for an inversion: samples, nights (one pass holds one geometry)
 MIN_OBSERVED_SAMPLES = 50
 MIN_OBSERVED_NIGHTS = 2
@@ -149,7 +180,9 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         closure = float_param(inv.get("closure", 1.0), "inversion.closure", 0.0)
         search = {k: inv[k] for k in ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples",
                                       "min_period_s", "max_period_s") if inv.get(k) is not None}
+        _check_search(search)  # the spin search's settings, before any work, with their full keys
         mesh = build_model(cfg.model)
+        _check_size(cfg, n_nights, len(mesh.faces) if hasattr(mesh, "faces") else 0)
         attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         noise = build(cfg.get("noise"), "noise")

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 
 log = logging.getLogger("cssat")
 
@@ -64,10 +64,30 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         spacing = float_param(array.get("spacing_m", D), "array.spacing_m", 0.0, open_lo=True)
         fill = float_param(array.get("fill", 0.25), "array.fill", 0.0, 1.0, open_lo=True)
         t_exp = float_param(array.get("exposure_s", 1e-4), "array.exposure_s", 0.0, open_lo=True)
-        # every choice checked before any work
+        # every choice checked before any work, with its full key and the range its physics implies
+        _known_keys(star, optics, array, sil, inv)
         target = choice_param(sil.get("target", "model"), "silhouette.target", ("model", "bars"))
         init = choice_param(inv.get("init", "linear"), "invert.init", ("linear", "empty"))
         prior = choice_param(inv.get("prior", "auto"), "invert.prior", ("auto", "pixels", "shapes"))
+        throughput = float_param(array.get("throughput", 0.5), "array.throughput", 0.0, 1.0, open_lo=True)
+        read_noise = float_param(array.get("read_noise_e", 1.0), "array.read_noise_e", 0.0, 1e6)
+        scint = bool_param(array.get("scintillation", True), "array.scintillation")
+        n_slots_set = None if array.get("n_slots") is None else int_param(array.get("n_slots"), "array.n_slots", 1, 100000)
+        ground = float_param(sil.get("ground", 1.0), "silhouette.ground", 1.0, 8.0)
+        bar_m = float_param(sil.get("bar_m", 0.5), "silhouette.bar_m", 0.0, open_lo=True)
+        linear_tv = float_param(inv.get("linear_tv", 1e-2), "invert.linear_tv", 0.0)
+        linear_iters = int_param(inv.get("linear_iters", 500), "invert.linear_iters", 1, 10**6)
+        tv_weight = float_param(inv.get("tv", 0.3), "invert.tv", 0.0)
+        iters = int_param(inv.get("iters", 300), "invert.iters", 1, 10**6)
+        n_starts = int_param(inv.get("n_starts", 1), "invert.n_starts", 1, 1000)
+        shape_iters = int_param(inv.get("shape_iters", 200), "invert.shape_iters", 1, 10**6)
+        feat = inv.get("feature_m")  # null: the bar width for a bar target, else 0.5 m
+        feat = float_param(feat if feat is not None else (bar_m if target == "bars" else 0.5), "invert.feature_m", 0.0,
+                           open_lo=True)
+        grid_m = size * pixel * ground  # the ground grid's side
+        if D > grid_m:
+            raise FieldError("array.aperture_m", f"{D:g} m is wider than the ground grid ({grid_m:g} m: silhouette.size × "
+                                                 "pixel_m × ground): the aperture would average the whole shadow away")
         mesh = build_model(cfg.model)
         attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
     metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": mesh.name, "seed": run_.seed}
@@ -91,6 +111,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         view = frames[1] @ d  # the line of sight in the body frame
         metrics.update(distance_km=z / 1e3, shadow_speed_km_s=float(np.linalg.norm(v)) / 1e3,
                        miss_km=float(tr["miss_km"][1]), fresnel_scale_m=math.sqrt(lam * z))
+        _check_sampling(float(np.linalg.norm(v)), t_exp, pixel, size, ground, D, n_lam, fill, n_slots_set, spacing,
+                        cfg.get("memory_limit_gb"))
         if float(tr["miss_km"][1]) * 1e3 > size * pixel:
             log.info("occultation: the shadow's centre passes %.3g km from the station; the array is placed on the track",
                      tr["miss_km"][1])
@@ -99,7 +121,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         if target == "bars":
             from cssat.occultation import bar_target
 
-            truth = bar_target(size, pixel, float_param(sil.get("bar_m", 0.5), "silhouette.bar_m", 0.0, open_lo=True))
+            truth = bar_target(size, pixel, bar_m)
         else:
             truth = silhouette(mesh, view, pixel, size)
         metrics["target"] = target
@@ -111,7 +133,6 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         k = pattern_kernel(pixel, aperture_m=D, star_diameter_m=theta * z, limb_darkening=limb, smear_m=speed * t_exp,
                            smear_dir=v / speed)
         dtype = torch.float64
-        ground = float_param(sil.get("ground", 1.0), "silhouette.ground", 1.0, 8.0)
         I = shadow(torch.as_tensor(truth, dtype=dtype), pixel, lams, z, ground=ground)
         Is = smooth(I, k)
 
@@ -119,7 +140,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         u = v / speed
         across = np.array([-u[1], u[0]])
         span = size * pixel
-        n_slots = int_param(array.get("n_slots") or int(span // spacing), "array.n_slots", 1, 100000)
+        n_slots = n_slots_set or int_param(int(span // spacing), "array.n_slots", 1, 100000)
         offsets = (np.arange(n_slots) - (n_slots - 1) / 2) * spacing
         rng = np.random.default_rng(run_.seed)
         n_on = max(1, int(round(fill * n_slots)))
@@ -129,8 +150,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         times = np.arange(-t_half, t_half, t_exp)
         clean = record(Is, pixel, pos, v, times)
         gen = torch.Generator().manual_seed(run_.seed + 1)
-        y, sig = noisy(clean, mag, D, t_exp, throughput=float(array.get("throughput", 0.5)),
-                       read_noise_e=float(array.get("read_noise_e", 1.0)), scintillation=bool(array.get("scintillation", True)),
+        y, sig = noisy(clean, mag, D, t_exp, throughput=throughput, read_noise_e=read_noise, scintillation=scint,
                        generator=gen)
         metrics.update(n_telescopes=int(n_on), n_slots=n_slots, fill=n_on / n_slots, n_samples=int(y.numel()),
                        photons_per_exposure=photons(mag, D, t_exp), star_magnitude=mag, aperture_m=D)
@@ -141,15 +161,12 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         if init == "linear":
             from cssat.recon import TV
 
-            solver = TV(lam=float_param(inv.get("linear_tv", 1e-2), "invert.linear_tv", 0.0), method="pdhg",
-                        max_iter=int_param(inv.get("linear_iters", 500), "invert.linear_iters", 1))
+            solver = TV(lam=linear_tv, method="pdhg", max_iter=linear_iters)
             linear, linfo = invert_linear(*geo, kernel=k, solver=solver, ground=ground)
             metrics.update(iou_linear=iou(linear, truth), chi2_per_sample_linear=linfo["chi2_per_sample"])
 
     with run_.stage("invert"):
-        m, info = invert_silhouette(*geo, kernel=k, tv=float_param(inv.get("tv", 0.3), "invert.tv", 0.0),
-                                    iters=int_param(inv.get("iters", 300), "invert.iters", 1),
-                                    n_starts=int_param(inv.get("n_starts", 1), "invert.n_starts", 1), seed=run_.seed, init=linear,
+        m, info = invert_silhouette(*geo, kernel=k, tv=tv_weight, iters=iters, n_starts=n_starts, seed=run_.seed, init=linear,
                                     ground=ground)
         gy, gx = (I.shape[-2] - size) // 2, (I.shape[-1] - size) // 2
         metrics.update(iou_pixels=iou(m, truth), chi2_per_sample_pixels=info["chi2_per_sample"])
@@ -158,8 +175,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
             from cssat.occultation import fit_shapes
 
             try:
-                ms, params, sinfo = fit_shapes(*geo, init_mask=m, kernel=k, ground=ground,
-                                               iters=int_param(inv.get("shape_iters", 200), "invert.shape_iters", 1))
+                ms, params, sinfo = fit_shapes(*geo, init_mask=m, kernel=k, ground=ground, iters=shape_iters)
                 n_y = int(y.numel())
                 # the sparse model is kept when it explains the data to the noise (χ² per sample within
                 # 3σ of 1: 1 + 3√(2/n)), or always with prior: shapes
@@ -173,9 +189,6 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                 log.info("occultation: no shapes fitted (%s)", e)
         metrics["prior_used"] = used
         geometric = np.clip(1 - Is.numpy()[gy:gy + size, gx:gx + size], 0, 1)  # on the silhouette's grid
-        feat = inv.get("feature_m")  # null: the bar width for a bar target, else 0.5 m
-        feat = float_param(feat if feat is not None else (sil.get("bar_m", 0.5) if target == "bars" else 0.5), "invert.feature_m",
-                           0.0, open_lo=True)
         fc = feature_contrast(m, truth, pixel, feat)
         metrics.update(iou=iou(m, truth), iou_geometric=iou(geometric, truth), chi2_per_sample=info["chi2_per_sample"],
                        silhouette_area_m2=float(truth.sum() * pixel ** 2), edge_width_m=edge_width(m, truth, pixel),
@@ -194,6 +207,47 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
              "(the shadow's dark region: %.3f)", mesh.name, z / 1e3, speed / 1e3, math.sqrt(lam * z), n_on, n_slots,
              metrics["iou"], metrics["iou_geometric"])
     return metrics
+
+
+#: the settings of each group of the occultation experiment (conf/experiment/occultation.yaml)
+_KEYS = {"star": ("ra_deg", "dec_deg", "magnitude", "diameter_mas", "limb_darkening"),
+         "optics": ("wavelength_m", "bandwidth_m", "n_wavelengths"),
+         "array": ("aperture_m", "spacing_m", "n_slots", "fill", "exposure_s", "throughput", "read_noise_e", "scintillation"),
+         "silhouette": ("target", "bar_m", "size", "pixel_m", "ground"),
+         "invert": ("init", "linear_tv", "linear_iters", "tv", "iters", "n_starts", "prior", "shape_iters", "feature_m")}
+#: the most exposures a telescope's series may hold
+MAX_EXPOSURES = 1_000_000
+
+
+def _known_keys(*nodes: Any) -> None:
+    """Refuse a setting the experiment does not read (a typo would otherwise be ignored)."""
+    for group, node in zip(_KEYS, nodes):
+        for key in node:
+            if key not in _KEYS[group]:
+                raise FieldError(f"{group}.{key}", f"not a setting of the occultation; {group} has: {', '.join(_KEYS[group])}")
+
+
+def _check_sampling(speed: float, t_exp: float, pixel: float, size: int, ground: float, D: float, n_lam: int,
+                    fill: float, n_slots: int | None, spacing: float, limit_gb: Any) -> None:
+    """Before the shadow is computed: an exposure that smears over the whole grid, or so short that
+    a series would hold more than ``MAX_EXPOSURES``; and the memory of the shadow and the series."""
+    from cssat.experiments.resources import check_memory
+
+    grid_m = size * pixel * ground
+    if speed * t_exp > grid_m:
+        raise FieldError("array.exposure_s", f"{t_exp:g} s smears the shadow over {speed * t_exp:.3g} m, more than the "
+                                             f"ground grid ({grid_m:g} m): shorten it")
+    n_exp = int(grid_m / max(speed * t_exp, 1e-300)) + 1
+    if n_exp > MAX_EXPOSURES:
+        raise FieldError("array.exposure_s", f"{t_exp:g} s cuts the shadow's {grid_m / speed:.3g} s passage into {n_exp:.3g} "
+                                             f"exposures, more than {MAX_EXPOSURES:.0e}: lengthen it")
+    side = int(size * ground)
+    n_tel = max(1, int(round(fill * (n_slots or max(1, int(size * pixel // spacing))))))
+    kernel_px = int((D + speed * t_exp) / pixel) + 1
+    parts = {"shadow fields (complex, per wavelength)": 16 * side * side * n_lam * 4,
+             "smoothing kernel": 8 * kernel_px * kernel_px * 4, "series": 8 * n_tel * n_exp * 6}
+    check_memory(parts, None if limit_gb is None else float(limit_gb),
+                 "lower silhouette.size or ground, or lengthen array.exposure_s")
 
 
 def _figures(run_, truth, pattern, series, recon, geometric, pixel, times, metrics) -> None:

@@ -1,0 +1,36 @@
+"""Issue 35, point 5 (in part): the occultation's and the inversion's settings refused before any
+work, in one line naming the full key — values a sign check let through (a throughput of 2 and a
+negative read noise raised the score; exposures and apertures that ended in a MemoryError; a
+cadence that grew past 4 GB)."""
+
+from __future__ import annotations
+
+import pytest
+
+OCC = ["experiment=occultation", "silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5"]
+INV = ["experiment=inversion", "nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known",
+       "inversion.n_normals=64"]
+
+
+@pytest.mark.parametrize("base, bad, field", [
+    (OCC, "array.throughput=2", "array.throughput"),
+    (OCC, "array.read_noise_e=-1", "array.read_noise_e"),
+    (OCC, "invert.shape_iters=-1", "invert.shape_iters"),
+    (OCC, "array.exposure_s=1e-12", "array.exposure_s"),
+    (OCC, "array.exposure_s=100", "array.exposure_s"),
+    (OCC, "array.aperture_m=1000", "array.aperture_m"),
+    (OCC, "array.n_slots=0", "array.n_slots"),
+    (OCC, "silhouette.ground=9", "silhouette.ground"),
+    (INV, "inversion.n_poles=0", "inversion.n_poles"),
+    (INV, "inversion.max_period_s=10", "inversion.max_period_s"),
+    (INV, "scenario.step_s=0.001", "scenario.step_s"),
+    (INV, "scenario.step_s=0.1", "memory"),
+])
+def test_refused_before_work_naming_the_full_key(tmp_path, base, bad, field):
+    from conftest import run_cli
+
+    code, lines = run_cli([*base, bad, f"hydra.run.dir={tmp_path / 'r'}"], tmp_path)
+    assert code == 2, lines
+    refusal = [ln for ln in lines if "bad input:" in ln]
+    assert len(refusal) == 1 and f"bad input: {field}:" in refusal[0], lines
+    assert not list(tmp_path.glob("r/*.npz"))  # nothing computed, nothing written but the failed status
