@@ -14,7 +14,9 @@ from cssat.inversion.egi import EGIOperator, egi, egi_operator, fibonacci_sphere
 from cssat.inversion.observability import observability
 from cssat.inversion.recover import recover_egi
 from cssat.inversion.shape import ConvexInversion, convex_iou, invert_convex, minkowski
-from cssat.inversion.spin import SpinSolution, estimate_period, estimate_spin, estimate_tumbling_periods
+from cssat.inversion.frequencies import estimate_tumbling_periods
+from cssat.inversion.period import estimate_period
+from cssat.inversion.spin import SpinSolution, estimate_spin
 from cssat.inversion.tumble import TumblingSolution, TumblingState, estimate_tumbling, tumbling_rates
 
 __all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "recover_egi", "minkowski", "invert_convex",

@@ -372,7 +372,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     """
     from cssat._checks import choice_param
     from cssat.inversion.egi import fibonacci_sphere
-    from cssat.inversion.spin import _check_light_curve, _pole_rotation, _separation_deg, estimate_tumbling_periods
+    from cssat.inversion.frequencies import estimate_tumbling_periods
+    from cssat.inversion.spin import _check_light_curve, _pole_rotation, _separation_deg
     from cssat.scene.attitude import _rz
 
     import logging
@@ -420,7 +421,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
         if not pairs:
             raise FieldError("periods_s", f"no pair of the light curve's frequencies {lattice} is a torque-free motion of the inertia grid")
         if len(pairs) > n_prerank:  # the light curve's power at low orders of each basis: the physical one is compact
-            from cssat.inversion.spin import _chi2_2d, _lattice
+            from cssat.inversion.frequencies import _chi2_2d, _lattice
 
             jk = _lattice(3)
             ta = t[arc] - t_ref

@@ -1,0 +1,145 @@
+"""The two fundamental frequencies of a tumbling (non-principal-axis) rotator's light curve, by
+the 2-D Fourier series of Pravec et al. (2005) (issue 24, point 4): the verdict "tumbling" against
+the one-period series of :func:`cssat.inversion.estimate_period`, by BIC."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import FieldError, float_param, int_param
+from cssat.inversion.period import estimate_period
+
+__all__ = ["estimate_tumbling_periods"]
+
+
+def _wls_chi2(X: np.ndarray, y: np.ndarray, w: np.ndarray) -> float:
+    """χ² of the weighted least-squares fit of the design ``X (T, p)`` to ``y`` (weights ``w = 1/σ``)."""
+    Xw = X * w[:, None]
+    coef, *_ = np.linalg.lstsq(Xw, y * w, rcond=None)
+    r = Xw @ coef - y * w
+    return float(r @ r)
+
+
+def _lattice(order: int) -> np.ndarray:
+    """The integer pairs ``(j, k) ≠ 0`` with ``|j| + |k| ≤ order``, one of each ``±`` pair."""
+    out = [(j, k) for j in range(0, order + 1) for k in range(-order, order + 1)
+           if 0 < abs(j) + abs(k) <= order and (j > 0 or k > 0)]
+    return np.array(out, dtype=np.float64)
+
+
+def _chi2_2d(t, y, w, f1, f2, jk) -> float:
+    ph = 2 * np.pi * t[:, None] * (jk[:, 0] * f1 + jk[:, 1] * f2)[None, :]
+    return _wls_chi2(np.concatenate([np.ones((len(t), 1)), np.cos(ph), np.sin(ph)], 1), y, w)
+
+
+def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float | None = None,
+                              max_period_s: float | None = None, order: int = 3, n_peaks: int = 8,
+                              samples_per_peak: int = 10) -> dict[str, Any]:
+    """The two fundamental frequencies of a tumbling (non-principal-axis) rotator's light curve,
+    ``flux (T,)`` at ``times_s (T,)``: the 2-D Fourier series of Pravec et al. (2005),
+
+        ``y(t) = c₀ + Σ_{(j,k)} [a_jk cos 2π(j f₁ + k f₂)t + b_jk sin 2π(j f₁ + k f₂)t]``,
+        ``0 < |j| + |k| ≤ order``,
+
+    fitted by least squares for candidate pairs ``(f₁, f₂)`` built from the ``n_peaks``
+    strongest Lomb–Scargle peaks and their halves (a peak may be a harmonic or a combination),
+    the best pairs refined by Nelder–Mead; the single-period series of the same number of terms
+    (:func:`estimate_period`'s model, ``order² + order`` harmonics) is the alternative. Returns
+    ``frequencies_hz (2,)`` and ``periods_s (2,)`` (a basis of the light curve's frequency
+    lattice: any unimodular integer change of it fits equally — for a short-axis-mode tumbler it
+    is the precession frequency and the angular velocity's own), ``chi2``, ``chi2_single``,
+    ``single_period_s``, ``delta_bic`` (the single-period BIC less the two-period one: > 10 is
+    strong evidence of tumbling), ``tumbling`` (``delta_bic > 10``) and ``why``. A curve without
+    two independent frequencies (one period, or none) is an answer, ``tumbling: False``, not an
+    error. ``min_period_s``/``max_period_s`` default to the data's: twice the cadence, half the
+    span.
+
+    Assumptions: torque-free motion, whose attitude relative to the fixed angular momentum is
+    periodic up to a uniform precession, so the light curve is quasi-periodic in two frequencies;
+    the samples span many cycles of both. Each contiguous stretch's offset and slope are fitted
+    first (a drift is not a second period)."""
+    from astropy.timeseries import LombScargle
+    from scipy.optimize import minimize
+
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    if t.shape != y.shape or not (np.isfinite(t).all() and np.isfinite(y).all()):
+        raise FieldError("flux", "expected finite times and values of one length")
+    order = int_param(order, "order", 1, 10)
+    jk = _lattice(order)
+    n_par = 2 * len(jk) + 1
+    if len(t) < 2 * n_par:
+        raise FieldError("flux", f"a 2-D Fourier series of order {order} needs at least {2 * n_par} samples, got {len(t)}")
+    order_ = np.argsort(t, kind="stable")
+    t, y = t[order_], y[order_]
+    dy = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), order_.shape)[order_]
+    w = np.ones_like(y) if dy is None else 1.0 / dy
+    t = t - t[0]
+    span = float(t[-1])
+    if not span > 0 or np.ptp(y) == 0:
+        return _not_tumbling("the curve does not vary" if span > 0 else "the samples span no time")
+    from cssat.inversion.fourier import _Curve, stretches
+
+    seg = stretches(t)
+    nuisance = _Curve(t, y, w, seg, 1, dy is not None)  # each stretch's offset and slope: a drift is not a period
+    y = nuisance.yp / w
+    steps = np.diff(t)[(np.diff(seg) == 0) & (np.diff(t) > 0)]
+    frame = float(np.percentile(steps, 75)) if len(steps) else span
+    lo = 4 * frame if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)  # 2/lo: Nyquist
+    hi = span / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", lo, open_lo=True)
+    if not hi > lo:
+        raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s")
+    spp = int_param(samples_per_peak, "samples_per_peak", 1)
+    from cssat.inversion.period import MAX_FREQUENCIES
+
+    n_freq = int((2 / lo - 1 / hi) * spp * span) + 1
+    if n_freq > MAX_FREQUENCIES:
+        raise FieldError("max_period_s" if min_period_s is None else "min_period_s",
+                         f"the search needs {n_freq:.3g} trial frequencies (span {span:.6g} s); the most is "
+                         f"{MAX_FREQUENCIES:.0e}: give a narrower [min_period_s, max_period_s], or analyse the tracks apart")
+    freq, power = LombScargle(t, y, dy).autopower(minimum_frequency=1 / hi, maximum_frequency=2 / lo, samples_per_peak=spp)
+    peaks: list[float] = []
+    for i in np.argsort(power)[::-1]:
+        if all(abs(freq[i] - p) > 2 / span for p in peaks):
+            peaks.append(float(freq[i]))
+        if len(peaks) == int_param(n_peaks, "n_peaks", 2, 50):
+            break
+    cands = sorted(set(peaks + [p / 2 for p in peaks if p / 2 >= 1 / hi]))
+
+    def degenerate(f1, f2):  # a small integer combination vanishes: the pair spans one frequency
+        return any(abs(j * f1 + k * f2) < 2 / span for j, k in jk)
+
+    scored = sorted((_chi2_2d(t, y, w, a, b, jk), a, b) for i, a in enumerate(cands) for b in cands[i + 1:]
+                    if not degenerate(a, b))
+    if not scored:
+        return _not_tumbling("no two independent frequencies among the periodogram's peaks")
+    best = None
+    for c0, a, b in scored[:3]:
+        scale = 1.0 / (360.0 * span)  # a frequency step of 1° of phase over the span
+        res = minimize(lambda z: _chi2_2d(t, y, w, a + z[0] * scale, b + z[1] * scale, jk), np.zeros(2), method="Nelder-Mead",
+                       options={"initial_simplex": [[0, 0], [30, 0], [0, 30]], "xatol": 1e-3, "fatol": 1e-12 * max(c0, 1e-300)})
+        cand = (float(res.fun), a + res.x[0] * scale, b + res.x[1] * scale)
+        if best is None or cand[0] < best[0]:
+            best = cand
+    chi2, f1, f2 = best
+    single = estimate_period(t, y, sigma=dy, min_period_s=lo, max_period_s=hi, n_harmonics=min(len(jk), 50), detrend=1,
+                             segments=seg)
+    T = len(t)
+    bic = lambda c, k: (c if dy is not None else T * np.log(max(c, 1e-300) / T)) + k * np.log(T)  # noqa: E731
+    delta = float(bic(single["rss"], 2 * single["n_harmonics"] + single["n_nuisance"] + 1) - bic(chi2, n_par + 1 + nuisance.q))
+    fs = np.array(sorted((abs(f1), abs(f2)), reverse=True))
+    return {"frequencies_hz": fs, "periods_s": 1.0 / fs, "chi2": chi2, "chi2_single": float(single["rss"]),
+            "single_period_s": float(single["best_period_s"]), "delta_bic": delta, "tumbling": bool(delta > 10.0),
+            "why": (f"two periods fit better than one by ΔBIC {delta:.3g} (> 10)" if delta > 10.0
+                    else f"one period fits as well (ΔBIC {delta:.3g} ≤ 10): not tumbling")}
+
+
+def _not_tumbling(why: str) -> dict[str, Any]:
+    nan = float("nan")
+    return {"frequencies_hz": np.full(2, nan), "periods_s": np.full(2, nan), "chi2": nan, "chi2_single": nan,
+            "single_period_s": nan, "delta_bic": 0.0, "tumbling": False, "why": why}
+
+
+# --- the pole and the sidereal period (issue 24, point 4, second part) ---------------------------
