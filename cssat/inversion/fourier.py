@@ -57,11 +57,30 @@ def light_curve_scatter(times_s: Any, values: Any) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6))
 
 
-def _cadence(t: np.ndarray, seg: np.ndarray) -> float:
-    """The mean step inside contiguous stretches."""
+def inner_steps(t: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """The positive time steps inside one contiguous stretch (``seg`` from :func:`stretches`)."""
     dt = np.diff(t)
-    inside = dt[(np.diff(seg) == 0) & (dt > 0)]
-    return float(inside.mean()) if len(inside) else float(t[-1] - t[0])
+    return dt[(np.diff(seg) == 0) & (dt > 0)]
+
+
+def frame_step(t: np.ndarray, seg: np.ndarray) -> float:
+    """The frame step: the 75th percentile of :func:`inner_steps` (two camera channels
+    interleaved milliseconds apart do not fake a faster cadence); the span without any."""
+    inside = inner_steps(t, seg)
+    return float(np.percentile(inside, 75)) if len(inside) else float(t[-1] - t[0])
+
+
+#: the periodogram's largest grid (a few tens of MB in astropy's fast method)
+MAX_FREQUENCIES = 2_000_000
+
+
+def check_grid(n_freq: int, span: float, lo: float, field: str) -> None:
+    """Refuse a periodogram of more than :data:`MAX_FREQUENCIES` trial frequencies before it is
+    allocated (tracks days apart: no grid resolves every cycle count between them)."""
+    if n_freq > MAX_FREQUENCIES:
+        raise FieldError(field, f"the search needs {n_freq:.3g} trial frequencies (span {span:.6g} s, periods from "
+                                f"{lo:.6g} s); the most is {MAX_FREQUENCIES:.0e}: give a narrower [min_period_s, "
+                                "max_period_s], or analyse the tracks (nights) apart")
 
 
 class _Curve:
@@ -86,7 +105,7 @@ class _Curve:
         self.rss0 = float(self.yp @ self.yp)
         self.floor = self.rss0 * 1e-12 + 1e-300  # round-off ties, not random picks
 
-    def _xp(self, f: float, m: int, idx=slice(None)) -> np.ndarray:
+    def _xp(self, f: float, m: int) -> np.ndarray:
         X = _design(self.t, f, m) * self.w[:, None]
         return X - self.Q @ (self.Q.T @ X)
 
@@ -153,7 +172,7 @@ class _Curve:
         parity = np.floor(self.t * f).astype(np.int64) % 2
         X = _design(self.t, f, m) * self.w[:, None]
         out = []
-        dt = np.diff(self.t)[(np.diff(self.seg) == 0) & (np.diff(self.t) > 0)]
+        dt = inner_steps(self.t, self.seg)
         per_cycle = 1.0 / (f * float(np.median(dt))) if len(dt) else 20.0  # samples a cycle
         n_bins = int(np.clip(per_cycle / 2, 2, 20))  # half-integer periods: each parity sees every other phase
         phase_bin = np.floor((self.t * f % 1.0) * n_bins).astype(np.int64)

@@ -80,25 +80,18 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     span = float(t[-1])
     if not span > 0 or np.ptp(y) == 0:
         return _not_tumbling("the curve does not vary" if span > 0 else "the samples span no time")
-    from cssat.inversion.fourier import _Curve, stretches
+    from cssat.inversion.fourier import _Curve, check_grid, frame_step, stretches
 
     seg = stretches(t)
     nuisance = _Curve(t, y, w, seg, 1, dy is not None)  # each stretch's offset and slope: a drift is not a period
     y = nuisance.yp / w
-    steps = np.diff(t)[(np.diff(seg) == 0) & (np.diff(t) > 0)]
-    frame = float(np.percentile(steps, 75)) if len(steps) else span
+    frame = frame_step(t, seg)
     lo = 4 * frame if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)  # 2/lo: Nyquist
     hi = span / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", lo, open_lo=True)
     if not hi > lo:
         raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s")
     spp = int_param(samples_per_peak, "samples_per_peak", 1)
-    from cssat.inversion.period import MAX_FREQUENCIES
-
-    n_freq = int((2 / lo - 1 / hi) * spp * span) + 1
-    if n_freq > MAX_FREQUENCIES:
-        raise FieldError("max_period_s" if min_period_s is None else "min_period_s",
-                         f"the search needs {n_freq:.3g} trial frequencies (span {span:.6g} s); the most is "
-                         f"{MAX_FREQUENCIES:.0e}: give a narrower [min_period_s, max_period_s], or analyse the tracks apart")
+    check_grid(int((2 / lo - 1 / hi) * spp * span) + 1, span, lo, "max_period_s" if min_period_s is None else "min_period_s")
     freq, power = LombScargle(t, y, dy).autopower(minimum_frequency=1 / hi, maximum_frequency=2 / lo, samples_per_peak=spp)
     peaks: list[float] = []
     for i in np.argsort(power)[::-1]:
