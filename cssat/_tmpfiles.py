@@ -111,3 +111,19 @@ def atomic_write(path: str | os.PathLike, write, result: bool = True) -> None:
         raise
     finally:
         release(tmp)
+
+
+def atomic_csv(path: str | os.PathLike, rows: list, fieldnames: list | None = None) -> None:
+    """Write ``rows`` (dicts) as a CSV with a header through :func:`atomic_write`; columns
+    ``fieldnames`` (default: every key in the order first seen), missing values empty."""
+    import csv
+
+    cols = fieldnames or list(dict.fromkeys(k for r in rows for k in r))
+
+    def write(tmp):
+        with open(tmp, "w", newline="") as f:
+            wr = csv.DictWriter(f, fieldnames=cols, restval="")
+            wr.writeheader()
+            wr.writerows(rows)
+
+    atomic_write(path, write)

@@ -156,9 +156,9 @@ def read_mmt(text: str, name: str, value_col: str | None = None) -> dict[str, An
     info_col = vcol
     if "Filter" in col:
         out["filters"] = np.array(col["Filter"])
-    for key, c, lo, hi in (("ranges_km", "Distance", 0.0, 1e7), ("phase_deg", "Phase", 0.0, 180.0)):
+    for key, c, lo, hi, open_lo in (("ranges_km", "Distance", 0.0, 1e7, True), ("phase_deg", "Phase", 0.0, 180.0, False)):
         if c in col:
-            out[key] = _checked(_floats(col[c], "observations", c), f"observations.{c}", lo, hi)
+            out[key] = _checked(_floats(col[c], "observations", c), f"observations.{c}", lo, hi, open_lo=open_lo)
     if "Channel" in col:
         out["channels"] = np.array(col["Channel"])
     if "Track" in col:
@@ -194,14 +194,14 @@ def _period(value: Any, field: str) -> float:
     return p
 
 
-def _checked(x: np.ndarray, field: str, lo: float, hi: float) -> np.ndarray:
-    """``x`` when every value is finite and in ``[lo, hi]``, else a FieldError naming the row
-    (a range of 0 km is refused: ``lo`` is open for ranges)."""
-    ok = np.isfinite(x) & (x >= lo) & (x <= hi) & ((x > 0) if lo == 0.0 and hi == 1e7 else True)
+def _checked(x: np.ndarray, field: str, lo: float, hi: float, *, open_lo: bool = False) -> np.ndarray:
+    """``x`` when every value is finite and in ``[lo, hi]`` (``(lo, hi]`` with ``open_lo``), else a
+    FieldError naming the row."""
+    ok = np.isfinite(x) & ((x > lo) if open_lo else (x >= lo)) & (x <= hi)
     bad = np.flatnonzero(~ok)
     if bad.size:
         i = int(bad[0])
-        raise FieldError(f"{field}[row {i + 1}]", f"{float(x[i])!r} is outside [{lo:g}, {hi:g}]")
+        raise FieldError(f"{field}[row {i + 1}]", f"{float(x[i])!r} is outside {'(' if open_lo else '['}{lo:g}, {hi:g}]")
     return x
 
 
@@ -279,7 +279,7 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
         if v is not None:
             out[key] = v
     if "ranges_km" in out and np.isfinite(out["ranges_km"]).all():
-        _checked(out["ranges_km"], f"observations.{SCORE_COLUMNS['range']}", 0.0, 1e7)
+        _checked(out["ranges_km"], f"observations.{SCORE_COLUMNS['range']}", 0.0, 1e7, open_lo=True)
     f = get("filter")
     if any(f):
         out["filters"] = np.array(f)

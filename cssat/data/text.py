@@ -175,21 +175,6 @@ def write_light_curve(path: str | Path, lc: Any) -> None:
         if lc.tracks is not None:
             row["track"] = lc.tracks[i]
         rows.append(row)
-    _write_rows(Path(path), rows)
+    from cssat._tmpfiles import atomic_csv
 
-
-def _write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
-    """``rows`` as a CSV with a header, written atomically (temporary file + rename)."""
-    import csv
-
-    from cssat._tmpfiles import atomic_write
-
-    cols = list(dict.fromkeys(k for r in rows for k in r))
-
-    def w(tmp):
-        with open(tmp, "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=cols, restval="")
-            wr.writeheader()
-            wr.writerows(rows)
-
-    atomic_write(path, w)
+    atomic_csv(Path(path), rows)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
-from cssat._tmpfiles import atomic_write
+from cssat._tmpfiles import atomic_csv, atomic_write
 
 if TYPE_CHECKING:
     from cssat._types import Array
@@ -68,15 +68,5 @@ def write_npz(path: str | os.PathLike, **arrays: Array) -> None:
 
 def write_csv(path: str | os.PathLike, rows: list[dict[str, Any]], fieldnames: list[str] | None = None) -> None:
     """Write ``rows`` (dicts) as a CSV with a header, atomically; columns ``fieldnames`` (default:
-    every key in the order first seen), missing values empty."""
-    import csv
-
-    cols = fieldnames or list(dict.fromkeys(k for r in rows for k in r))
-
-    def w(tmp):
-        with open(tmp, "w", newline="") as f:
-            wr = csv.DictWriter(f, fieldnames=cols, restval="")
-            wr.writeheader()
-            wr.writerows(rows)
-
-    atomic_write(Path(path), w)
+    every key in the order first seen), missing values empty (:func:`cssat._tmpfiles.atomic_csv`)."""
+    atomic_csv(path, rows, fieldnames)
