@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 from cssat._checks import FieldError
+from cssat.smoke import EXAMPLE_TRACK
 
 DATA = Path(__file__).parent / "data"
 REAL = DATA / "real"
 MMT_REAL = [REAL / "mmt_sat10288_starlink3535_track20416355.txt", REAL / "mmt_sat8843_oneweb0208_excerpt.txt"]
-MMT_RB = DATA / "formats" / "mmt_rocket_body_synthetic.txt"
+MMT_RB = EXAMPLE_TRACK  # the synthetic MMT-format rocket body shipped in the package
 
 
 def test_mmt_exports_read_as_published_with_their_metadata():

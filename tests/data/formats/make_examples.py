@@ -1,8 +1,9 @@
-"""Make the synthetic example files of this folder (run from the repository root:
+"""Make the synthetic example files (run from the repository root:
 ``python tests/data/formats/make_examples.py``). They are in the published formats; their values
 are simulated (stated in their headers), so their truth is known:
 
-- ``mmt_rocket_body_synthetic.txt``: an MMT-9 whole-object export (format of the MMT database:
+- ``cssat/data/examples/mmt_rocket_body_synthetic.txt`` (shipped in the package: the README's and
+  the smoke run's example, and the tests'): an MMT-9 whole-object export (format of the MMT database:
   ``# key: value`` header, column names in a comment line, date and time as two fields, two
   camera channels interleaved 7 ms apart) of a double-peaked rocket-body curve with a 18.888 s
   rotation (two unequal maxima a turn), 0.05 mag noise and a slow drift, two tracks.
@@ -32,7 +33,7 @@ for track, start in ((101, 0.0), (102, 900.0)):
             std = mag - 5 * np.log10(dist / 1000.0)
             stamp = str(t0 + np.timedelta64(int(round(t * 1000)), "ms")).replace("T", " ")
             lines.append(f"{stamp}000 {std:.3f} {mag:.5f} Clear 0 {dist:.3f} 61.5 {ch} {track}")
-open("tests/data/formats/mmt_rocket_body_synthetic.txt", "w").write("\n".join(lines) + "\n")
+open("cssat/data/examples/mmt_rocket_body_synthetic.txt", "w").write("\n".join(lines) + "\n")
 
 from astropy.table import Table  # noqa: E402
 from astropy.time import Time  # noqa: E402
