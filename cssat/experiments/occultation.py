@@ -72,7 +72,6 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         throughput = float_param(array.get("throughput", 0.5), "array.throughput", 0.0, 1.0, open_lo=True)
         read_noise = float_param(array.get("read_noise_e", 1.0), "array.read_noise_e", 0.0, 1e6)
         scint = bool_param(array.get("scintillation", True), "array.scintillation")
-        n_slots_set = None if array.get("n_slots") is None else int_param(array.get("n_slots"), "array.n_slots", 1, 100000)
         ground = float_param(sil.get("ground", 1.0), "silhouette.ground", 1.0, 8.0)
         bar_m = float_param(sil.get("bar_m", 0.5), "silhouette.bar_m", 0.0, open_lo=True)
         linear_tv = float_param(inv.get("linear_tv", 1e-2), "invert.linear_tv", 0.0)
@@ -88,6 +87,8 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         if D > grid_m:
             raise FieldError("array.aperture_m", f"{D:g} m is wider than the ground grid ({grid_m:g} m: silhouette.size × "
                                                  "pixel_m × ground): the aperture would average the whole shadow away")
+        n_slots = int_param(int(size * pixel // spacing) if array.get("n_slots") is None else array.get("n_slots"),
+                            "array.n_slots", 1, 100000)  # null: as many as span the grid
         mesh = build_model(cfg.model)
         attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
     metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": mesh.name, "seed": run_.seed}
@@ -111,7 +112,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         view = frames[1] @ d  # the line of sight in the body frame
         metrics.update(distance_km=z / 1e3, shadow_speed_km_s=float(np.linalg.norm(v)) / 1e3,
                        miss_km=float(tr["miss_km"][1]), fresnel_scale_m=math.sqrt(lam * z))
-        _check_sampling(float(np.linalg.norm(v)), t_exp, pixel, size, ground, D, n_lam, fill, n_slots_set, spacing,
+        _check_sampling(float(np.linalg.norm(v)), t_exp, pixel, size, ground, D, n_lam, fill, n_slots,
                         cfg.get("memory_limit_gb"))
         if float(tr["miss_km"][1]) * 1e3 > size * pixel:
             log.info("occultation: the shadow's centre passes %.3g km from the station; the array is placed on the track",
@@ -139,8 +140,6 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     with run_.stage("record"):
         u = v / speed
         across = np.array([-u[1], u[0]])
-        span = size * pixel
-        n_slots = n_slots_set or int_param(int(span // spacing), "array.n_slots", 1, 100000)
         offsets = (np.arange(n_slots) - (n_slots - 1) / 2) * spacing
         rng = np.random.default_rng(run_.seed)
         n_on = max(1, int(round(fill * n_slots)))
@@ -228,7 +227,7 @@ def _known_keys(*nodes: Any) -> None:
 
 
 def _check_sampling(speed: float, t_exp: float, pixel: float, size: int, ground: float, D: float, n_lam: int,
-                    fill: float, n_slots: int | None, spacing: float, limit_gb: Any) -> None:
+                    fill: float, n_slots: int, limit_gb: Any) -> None:
     """Before the shadow is computed: an exposure that smears over the whole grid, or so short that
     a series would hold more than ``MAX_EXPOSURES``; and the memory of the shadow and the series."""
     from cssat.experiments.resources import check_memory
@@ -242,7 +241,7 @@ def _check_sampling(speed: float, t_exp: float, pixel: float, size: int, ground:
         raise FieldError("array.exposure_s", f"{t_exp:g} s cuts the shadow's {grid_m / speed:.3g} s passage into {n_exp:.3g} "
                                              f"exposures, more than {MAX_EXPOSURES:.0e}: lengthen it")
     side = int(size * ground)
-    n_tel = max(1, int(round(fill * (n_slots or max(1, int(size * pixel // spacing))))))
+    n_tel = max(1, int(round(fill * n_slots)))
     kernel_px = int((D + speed * t_exp) / pixel) + 1
     parts = {"shadow fields (complex, per wavelength)": 16 * side * side * n_lam * 4,
              "smoothing kernel": 8 * kernel_px * kernel_px * 4, "series": 8 * n_tel * n_exp * 6}
