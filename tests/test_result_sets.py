@@ -94,7 +94,6 @@ def test_an_image_overwritten_during_a_run_is_not_resumed(tmp_path):
     Image.fromarray((np.arange(256).reshape(16, 16) % 251).astype(np.uint8)).save(img)
     (tmp_path / "overwriter.py").write_text(
         "from PIL import Image\nimport numpy as np\n"
-        "from cssat.experiments.pipeline import run as pipeline_run\n"
         "from cssat.data.images import load_target\n"
         "def run(cfg, out_dir):\n"
         "    load_target(cfg.target.image, 16)\n"

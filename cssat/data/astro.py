@@ -42,7 +42,7 @@ def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str 
 
         times = np.array([np.datetime64(_start_datetime(str(v).strip(), f"observations.{time_col}[row {i + 1}]"), "us")
                           for i, v in enumerate(tc)], dtype="datetime64[us]")
-    from cssat.data.observations import DEFAULT_ERROR, DEFAULT_VALUE
+    from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE
 
     value_col = value_col or next((c for c in (DEFAULT_VALUE[kind], "mag", "magnitude", "flux") if c in cols), None)
     if value_col not in cols:

@@ -45,7 +45,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
                    tags: dict[str, Any] | None = None) -> dict[str, Any]:
     """Run the experiment ``cfg.experiment_name`` into ``out_dir`` and return its metrics.
 
-    The experiment is the pipeline (:func:`cssat.experiments.pipeline.run`) configured by ``cfg``,
+    The experiment is the pipeline (:func:`cssat.experiments.task.run`) configured by ``cfg``,
     or ``cfg.experiment_module``: a module of your own with ``run(cfg, out_dir) -> metrics``.
     ``seconds_startup`` is the process's time before the run (start-up, imports, composing the
     config), so the ``seconds_*`` keys add up to the wall time.
@@ -97,7 +97,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
         with recording(out_dir) as rec:
             try:
                 torch.set_num_threads(int_param(cfg.get("threads", 1), "threads", 1, 1024))
-                module_name = cfg.get("experiment_module") or "cssat.experiments.pipeline"
+                module_name = cfg.get("experiment_module") or "cssat.experiments.task"
                 try:
                     module = importlib.import_module(str(module_name))
                 except ImportError as err:

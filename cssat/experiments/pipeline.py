@@ -9,7 +9,8 @@ Each stage is a config group, built and checked by :func:`plan` before any work:
 ``figures``. An experiment is a YAML file in ``conf/experiment/`` that picks options of these
 groups; a grid of such runs (the solver comparison, the realism maps) is the ``grid`` stage
 (:mod:`cssat.experiments.grid`); the light-curve experiment's target is a mesh in a scenario
-(:mod:`cssat.experiments.scene`). Every stage's time is in ``metrics.json`` as ``seconds_<stage>``.
+(:mod:`cssat.experiments.scene`); :mod:`cssat.experiments.task` picks which of them a config
+is. Every stage's time is in ``metrics.json`` as ``seconds_<stage>``.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from cssat.experiments.context import Run, as_field
 
 log = logging.getLogger("cssat")
 
-__all__ = ["Plan", "plan", "execute", "run"]
+__all__ = ["Plan", "plan", "measure", "execute", "metrics_of"]
 
 
 @dataclass
@@ -214,24 +215,3 @@ def metrics_of(p: Plan, run: Run, res: dict[str, Any]) -> dict[str, Any]:
     out = {**rows[0], **common, **recs[0].metrics}
     out["psnr_gain_denoised"] = out["psnr_denoised"] - out["psnr"]
     return out
-
-
-def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
-    """Run the experiment ``cfg`` into ``out_dir``; return its metrics (timings included)."""
-    run_ = Run.from_config(cfg, out_dir)
-    with run_.stage("setup"):
-        from cssat.experiments import grid, report, scene
-    if cfg.get("grid") is not None:
-        return grid.run(cfg, run_)
-    if getattr(cfg.get("target"), "get", lambda k: None)("_target_") == scene.SCENE_TARGET:
-        return scene.run(cfg, run_)
-    with run_.stage("setup"):
-        p = plan(cfg, run_)
-    res = execute(p, run_)
-    with run_.stage("score"):
-        metrics = metrics_of(p, run_, res)
-    with run_.stage("write"):
-        report.write(p, run_, res, metrics)
-    metrics.update(run_.timings())
-    report.log_headline(p, metrics)
-    return metrics

@@ -46,6 +46,18 @@ class EGIOperator(MatrixOperator):
         super().__init__(matrix)
         self.register_buffer("normals", normals)
 
+    def equalities(self) -> Any:
+        """``C (3, K)``: the unknown's exact constraint ``C a = 0`` — a closed body's EGI sums to
+        the zero vector, ``Σ a_k n_k = 0`` (Minkowski) — as a float64 array (the non-negative
+        solvers' ``closure`` rows)."""
+        return self.normals.detach().cpu().double().numpy().T
+
+    def differences(self, k: int = 6) -> Any:
+        """``D (E, K)`` sparse: the unknown's neighbours for TV — each normal to its ``k`` nearest."""
+        from cssat.sparse.differences import knn_differences
+
+        return knn_differences(self.normals.detach().cpu().double().numpy(), k)
+
 
 def egi_operator(sun_body: Any, obs_body: Any, normals: Any, brdf: Any = None) -> EGIOperator:
     """The light curve's sensing operator in the EGI: ``G(t, k) = f(n_k, s_t, o_t)

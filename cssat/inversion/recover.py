@@ -3,55 +3,30 @@
 ``min ‖W (G a − y)‖²`` over ``a ≥ 0`` with ``W = diag(1/σ_t)`` (the photometric
 uncertainties; none: unweighted) and, with ``closure``, three more rows ``w_c Nᵀ a = 0``: a
 closed body's EGI has zero vector sum (``Σ a_k n_k = 0``, Minkowski), which its light curve alone
-does not impose. Methods:
-
-* ``nnls`` — Lawson–Hanson non-negative least squares (``scipy.optimize.nnls``);
-* ``nnomp`` — non-negative orthogonal matching pursuit: the atom most positively correlated with
-  the residual joins the support, the support is refitted by NNLS; stops at ``n_nonzero`` atoms
-  or when the weighted residual reaches the noise (``χ² ≤ T``, the discrepancy principle);
-* ``l1`` — ``min ½‖W(Ga − y)‖² + λ Σ a`` over ``a ≥ 0`` by FISTA (``λ = lam · ‖(WG)ᵀWy‖∞``);
-* ``tv`` — ``min ½‖W(Ga − y)‖² + λ Σ_{(i,j)} |a_i − a_j|`` over ``a ≥ 0``: total variation on the
-  sphere, over the edges joining each normal to its ``tv_neighbours`` nearest (a curved surface's
-  EGI is a smooth density, a panel's a spike: TV keeps both sparse in their differences), by ADMM
-  (``λ = lam · ‖(WG)ᵀWy‖∞``).
+does not impose. The solves are :mod:`cssat.sparse.nonneg`'s (``nnls``, ``nnomp``, ``l1`` by
+FISTA, ``tv`` by the one ADMM over the graph joining each normal to its ``tv_neighbours``
+nearest: a curved surface's EGI is a smooth density, a panel's a spike, and TV keeps both sparse
+in their differences); this module gives them the EGI's closure and its sphere, and refines the
+atoms off the grid (:func:`refine_egi`).
 """
 
 from __future__ import annotations
 
-import math
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.sparse.differences import grid_differences, knn_differences
+from cssat.sparse.nonneg import METHODS, lam_param, nonneg_solve, weighted_system
 
-__all__ = ["recover_egi", "refine_egi", "sphere_differences", "grid_differences", "METHODS"]
-
-METHODS = ("nnls", "nnomp", "l1", "tv")
-
-
-def _system(G: np.ndarray, y: np.ndarray, sigma: Any, normals: np.ndarray | None, closure: float) -> tuple[np.ndarray, np.ndarray]:
-    T = len(y)
-    w = np.ones(T) if sigma is None else 1.0 / np.broadcast_to(np.asarray(sigma, dtype=np.float64), (T,))
-    if not np.isfinite(w).all() or (w <= 0).any():
-        raise FieldError("sigma", "the uncertainties must be finite and > 0")
-    A, b = G * w[:, None], y * w
-    if closure > 0:
-        if normals is None:
-            raise FieldError("closure", "the closure constraint needs the normals")
-        scale = closure * np.linalg.norm(A, 2) / math.sqrt(max(len(normals), 1))
-        A = np.vstack([A, scale * np.asarray(normals, dtype=np.float64).T])
-        b = np.concatenate([b, np.zeros(3)])
-    return A, b
+__all__ = ["recover_egi", "refine_egi", "sphere_differences", "grid_differences", "METHODS", "lam_param"]
 
 
-def lam_param(lam: Any, field: str = "lam") -> float | str:
-    """``lam`` of the ``l1`` and ``tv`` solves: a number ``>= 0`` or ``"discrepancy"``."""
-    if isinstance(lam, str):
-        if lam != "discrepancy":
-            raise FieldError(field, f"expected a number >= 0 or 'discrepancy', got {lam!r}")
-        return lam
-    return float_param(lam, field, 0.0)
+def sphere_differences(normals: Any, k: int = 6) -> Any:
+    """``D (E, K)`` sparse: one row ``e_i − e_j`` per edge joining each of the ``normals (K, 3)`` to
+    its ``k`` nearest (by angle; each edge once) — the gradient of a function on the sphere's grid."""
+    return knn_differences(normals, k)
 
 
 def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, method: str = "nnls",
@@ -64,12 +39,9 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
     the normals' ``tv_neighbours`` nearest unless ``differences (E, K)`` (sparse; e.g.
     :func:`grid_differences` for an image) gives them. ``l1``'s and ``tv``'s ``lam`` is relative
     to ``‖(WG)ᵀWy‖∞``, or ``"discrepancy"``: the largest λ whose fit reaches the noise, ``χ² ≤ T``
-    (Morozov's principle; bisection in log λ over [1e-9, 1], ~8 solves; needs ``sigma``).
-    Returns ``(a,
-    info)`` with ``chi2`` (the weighted residual's square norm, without the closure rows),
-    ``n_nonzero`` and the method's own counts."""
-    from scipy.optimize import nnls
-
+    (Morozov's principle; needs ``sigma``). Returns ``(a, info)`` with ``chi2`` (the weighted
+    residual's square norm, without the closure rows), ``n_nonzero``, ``closure_norm`` and the
+    method's own counts."""
     from cssat.metrics import _np  # tensors or arrays as float64 arrays
 
     method = choice_param(method, "method", METHODS)
@@ -84,192 +56,17 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
         raise FieldError("y", f"the light curve must be finite: {int((~np.isfinite(y)).sum())} NaN/inf samples (drop them first)")
     if normals is not None:
         normals = _np(normals)
-    A, b = _system(G, y, sigma, normals, closure)
-    T = len(y)
-    if method == "nnls":
-        a, _ = nnls(A, b, maxiter=max(50 * A.shape[1], 1000))
-        info: dict[str, Any] = {}
-    elif method == "nnomp":
-        a, info = _nnomp(A, b, T, n_nonzero, sigma is not None)
-    else:
-        max_iter = int_param(max_iter, "max_iter", 1)
-        if method == "l1":
-            solve = lambda lam_: _nnl1(A, b, lam_, max_iter)  # noqa: E731
-        else:
-            if differences is None and normals is None:
-                raise FieldError("normals", "the TV needs its edges: the normals (an EGIOperator or normals=) or differences=")
-            D = differences if differences is not None else sphere_differences(normals, int_param(tv_neighbours, "tv_neighbours", 1, 32))
-            if D.shape[1] != G.shape[1]:
-                raise FieldError("differences", f"{D.shape[1]} columns for {G.shape[1]} unknowns")
-            solve = lambda lam_: _nntv(A, b, D, lam_, max_iter)  # noqa: E731
-        if lam_param(lam) == "discrepancy":
-            if sigma is None:
-                raise FieldError("lam", "'discrepancy' needs the noise: give sigma")
-            a, info = _by_discrepancy(solve, A, b, T)
-        else:
-            a, info = solve(lam)
-    r = (A[:T] @ a - b[:T])
-    info.update(chi2=float(r @ r), n_nonzero=int((a > 1e-12 * max(float(a.max()), 1e-300)).sum()), method=method, closure_norm=float(
-        np.linalg.norm(normals.T @ a)) if normals is not None else None)
+    if closure > 0 and normals is None:
+        raise FieldError("closure", "the closure constraint needs the normals")
+    A, b = weighted_system(G, y, sigma, None if normals is None else normals.T, closure)
+    if method == "tv" and differences is None:
+        if normals is None:
+            raise FieldError("normals", "the TV needs its edges: the normals (an EGIOperator or normals=) or differences=")
+        differences = sphere_differences(normals, int_param(tv_neighbours, "tv_neighbours", 1, 32))
+    a, info = nonneg_solve(A, b, len(y), method=method, weighted=sigma is not None, n_nonzero=n_nonzero, lam=lam,
+                           max_iter=max_iter, differences=differences)
+    info["closure_norm"] = float(np.linalg.norm(normals.T @ a)) if normals is not None else None
     return a, info
-
-
-def _by_discrepancy(solve: Any, A: np.ndarray, b: np.ndarray, T: int) -> tuple[np.ndarray, dict]:
-    """The largest relative λ in [1e-9, 1] whose solve has ``χ² ≤ T`` (χ² grows with λ):
-    bisection in log₁₀ λ to 0.05 decades, or to χ² within 2 % of ``T``. When even 1e-9
-    misfits (a model error, not noise) that solve is returned, ``discrepancy_met`` False."""
-    def chi2(x: np.ndarray) -> float:
-        r = A[:T] @ x - b[:T]
-        return float(r @ r)
-
-    lo, hi = -9.0, 0.0
-    a, info = solve(10.0 ** lo)
-    best, n = (a, info, 10.0 ** lo), 1
-    met = chi2(a) <= T
-    if met:
-        a, info = solve(1.0)
-        n += 1
-        if chi2(a) <= T:
-            best, lo = (a, info, 1.0), hi
-        while hi - lo > 0.05:
-            mid = 0.5 * (lo + hi)
-            a, info = solve(10.0 ** mid)
-            n += 1
-            c = chi2(a)
-            if c <= T:
-                lo, best = mid, (a, info, 10.0 ** mid)
-                if c >= 0.98 * T:
-                    break
-            else:
-                hi = mid
-    a, info, lam = best
-    info = dict(info, solver_lam=lam, discrepancy_met=met, discrepancy_solves=n)
-    return a, info
-
-
-def _nnomp(A: np.ndarray, b: np.ndarray, T: int, n_nonzero: int | None, weighted: bool) -> tuple[np.ndarray, dict]:
-    from scipy.optimize import nnls
-
-    K = A.shape[1]
-    cap = min(K, A.shape[0]) if n_nonzero is None else int_param(n_nonzero, "n_nonzero", 1, K)
-    norms = np.linalg.norm(A, axis=0)
-    norms[norms == 0] = np.inf
-    support: list[int] = []
-    a = np.zeros(K)
-    r = b.copy()
-    target = float(T) if weighted else 0.0  # χ² ≈ T at the noise when the rows are weighted by 1/σ
-    while len(support) < cap:
-        corr = (A.T @ r) / norms
-        corr[support] = -np.inf
-        k = int(np.argmax(corr))
-        if not corr[k] > 0:
-            break
-        support.append(k)
-        coef, _ = nnls(A[:, support], b, maxiter=max(50 * len(support), 1000))
-        a[:] = 0
-        a[support] = coef
-        r = b - A @ a
-        if float(r[:T] @ r[:T]) <= target * (1 + 1e-12) or float(r @ r) <= 1e-24 * float(b @ b):  # fitted to round-off
-            break
-    return a, {"omp_atoms": len(support)}
-
-
-def _nnl1(A: np.ndarray, b: np.ndarray, lam: float, max_iter: int) -> tuple[np.ndarray, dict]:
-    lam = float_param(lam, "lam", 0.0)
-    L = np.linalg.norm(A, 2) ** 2
-    lam_abs = lam * float(np.abs(A.T @ b).max())
-    x = z = np.zeros(A.shape[1])
-    t = 1.0
-    it = 0
-    for it in range(1, max_iter + 1):
-        g = A.T @ (A @ z - b)
-        x_new = np.maximum(z - (g + lam_abs) / L, 0.0)
-        t_new = (1 + math.sqrt(1 + 4 * t * t)) / 2
-        z = x_new + (t - 1) / t_new * (x_new - x)
-        change = np.linalg.norm(x_new - x) / max(np.linalg.norm(x_new), 1e-300)
-        x, t = x_new, t_new
-        if change < 1e-10:
-            break
-    return x, {"solver_iterations": it, "solver_lam_abs": lam_abs}
-
-
-def sphere_differences(normals: Any, k: int = 6) -> Any:
-    """``D (E, K)`` sparse: one row ``e_i − e_j`` per edge joining each of the ``normals (K, 3)`` to
-    its ``k`` nearest (by angle; each edge once) — the gradient of a function on the sphere's grid."""
-    import scipy.sparse as sp
-    from scipy.spatial import cKDTree
-
-    N = np.asarray(normals, dtype=np.float64)
-    k = min(int(k), len(N) - 1)
-    if k < 1:
-        return sp.csr_matrix((0, len(N)))
-    _, nb = cKDTree(N).query(N, k=k + 1)
-    i = np.repeat(np.arange(len(N)), k)
-    j = nb[:, 1:].reshape(-1)
-    edges = np.unique(np.sort(np.stack([i, j], 1), axis=1), axis=0)
-    E = len(edges)
-    rows = np.repeat(np.arange(E), 2)
-    return sp.csr_matrix((np.tile([1.0, -1.0], E), (rows, edges.reshape(-1))), shape=(E, len(N)))
-
-
-def grid_differences(shape: Sequence[int]) -> Any:
-    """``D (E, prod(shape))`` sparse: the forward differences along each axis of a grid of
-    ``shape`` (row-major, as ``x.reshape(-1)``), one row ``e_{i+1} − e_i`` per adjacent pair — the
-    anisotropic TV's gradient of an image."""
-    import scipy.sparse as sp
-
-    shape = tuple(int(s) for s in shape)
-    blocks = []
-    for ax, n in enumerate(shape):
-        d = sp.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
-        mats = [sp.identity(m) for m in shape]
-        mats[ax] = d
-        out = mats[0]
-        for m in mats[1:]:
-            out = sp.kron(out, m)
-        blocks.append(out)
-    return sp.vstack(blocks).tocsr()
-
-
-def _nntv(A: np.ndarray, b: np.ndarray, D: Any, lam: float, max_iter: int, tol: float = 1e-7) -> tuple[np.ndarray, dict]:
-    """``min ½‖Aa − b‖² + λ‖Da‖₁`` over ``a ≥ 0`` by ADMM (Boyd et al. 2011, §6): the splitting
-    ``Da = z``, ``a = u ≥ 0``; the ``a`` step is one Cholesky solve with ``AᵀA + ρ(DᵀD + I)``
-    (factored once per ρ), ``z`` a soft threshold, ``u`` a clip; ρ starts at ``10⁻³‖A‖²`` and is
-    balanced between the primal and dual residuals every 50 steps (×2 or ÷2 when one is 10×
-    the other); stops when both are under ``tol`` relative (Boyd's §3.3 criterion)."""
-    import scipy.linalg as sla
-
-    lam = float_param(lam, "lam", 0.0)
-    K = A.shape[1]
-    AtA, Atb = A.T @ A, A.T @ b
-    lam_abs = lam * float(np.abs(Atb).max())
-    DtD = (D.T @ D).toarray() if D.shape[0] else np.zeros((K, K))
-    rho = 1e-3 * max(float(np.linalg.eigvalsh(AtA)[-1]), 1e-300)
-    chol = sla.cho_factor(AtA + rho * (DtD + np.eye(K)))
-    z, p = np.zeros(D.shape[0]), np.zeros(D.shape[0])
-    u, q = np.zeros(K), np.zeros(K)
-    it, n_rho = 0, 1
-    for it in range(1, max_iter + 1):
-        a = sla.cho_solve(chol, Atb + rho * (D.T @ (z - p) + u - q))
-        Da = D @ a
-        z_old, u_old = z, u
-        v = Da + p
-        z = np.sign(v) * np.maximum(np.abs(v) - lam_abs / rho, 0.0)
-        u = np.maximum(a + q, 0.0)
-        p, q = p + Da - z, q + a - u
-        r = np.sqrt(np.sum((Da - z) ** 2) + np.sum((a - u) ** 2))
-        s_ = rho * np.sqrt(np.sum((D.T @ (z - z_old)) ** 2) + np.sum((u - u_old) ** 2))
-        scale_p = max(np.sqrt(np.sum(Da ** 2) + np.sum(a ** 2)), np.sqrt(np.sum(z ** 2) + np.sum(u ** 2)), 1e-300)
-        scale_d = max(rho * np.sqrt(np.sum((D.T @ p) ** 2) + np.sum(q ** 2)), 1e-300)
-        if r <= tol * scale_p and s_ <= tol * scale_d:
-            break
-        if it % 50 == 0 and (r > 10 * s_ * scale_p / scale_d or s_ > 10 * r * scale_d / scale_p):
-            f = 2.0 if r / scale_p > s_ / scale_d else 0.5
-            rho *= f
-            p, q = p / f, q / f  # the scaled duals follow ρ
-            chol = sla.cho_factor(AtA + rho * (DtD + np.eye(K)))
-            n_rho += 1
-    return u, {"solver_iterations": it, "solver_lam_abs": lam_abs, "tv_edges": int(D.shape[0]), "solver_rho_changes": n_rho - 1}
 
 
 def _merge_atoms(N: np.ndarray, a: np.ndarray, merge_deg: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,17 +1,22 @@
-"""Non-negative solvers in the unknown's own basis (the EGI of :mod:`cssat.inversion`; pixels):
-:class:`NNLS`, :class:`NNOMP`, :class:`NNL1` and :class:`NNTV`, the solver-registry face of
-:func:`cssat.inversion.recover_egi` (weights from the problem's noise)."""
+"""Non-negative solvers in the unknown's own basis (an EGI, pixels): :class:`NNLS`, :class:`NNOMP`,
+:class:`NNL1` and :class:`NNTV`, the solver-registry face of :func:`cssat.sparse.nonneg.nonneg_solve`
+(weights from the problem's noise). An operator may declare its unknown's structure:
+``equalities()`` — exact constraints ``C x = 0``, weighted by ``closure`` (an EGI's Minkowski
+closure) — and ``differences(k)`` — its neighbours for TV (an EGI's nearest normals); without
+them the TV runs on the unknown's grid (an image's pixels)."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Sequence
 
+import numpy as np
 import torch
 
 from cssat._checks import FieldError, float_param, int_param, opt
 from cssat.recon.problem import Problem
 from cssat.recon.solvers import Solver
 from cssat.sparse._io import numpy_io
+from cssat.sparse.nonneg import lam_param
 
 if TYPE_CHECKING:
     from cssat._types import Array, ProblemLike
@@ -29,7 +34,9 @@ class _NonNeg(Solver):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.inversion import recover_egi
+        from cssat.metrics import _np
+        from cssat.sparse.differences import grid_differences
+        from cssat.sparse.nonneg import nonneg_solve, weighted_system
 
         prob = Problem.of(problem, shape)
         prob.check(y)
@@ -38,19 +45,26 @@ class _NonNeg(Solver):
             v = prob.variance()
             sigma = v.clamp_min(float(v.max()) * 1e-12).sqrt().numpy() if float(v.max()) > 0 else None
         rows = y.reshape(-1, prob.m)
-        extra = dict(self.extra)
-        if self.method == "tv" and not hasattr(prob.operator, "normals"):
-            from cssat.inversion.recover import grid_differences
-
-            if len(prob.x_shape) < 2:
-                raise FieldError("solver", f"nntv needs the unknown's neighbours: an EGI operator (normals) or an image "
-                                           f"(x_shape of 2 axes or more), not x_shape {prob.x_shape}")
-            extra["differences"] = grid_differences(prob.x_shape)
+        op, extra = prob.operator, dict(self.extra)
+        if self.method == "tv":
+            neighbours = extra.pop("tv_neighbours", 6)
+            if hasattr(op, "differences"):
+                extra["differences"] = op.differences(neighbours)
+            elif len(prob.x_shape) < 2:
+                raise FieldError("solver", f"nntv needs the unknown's neighbours: an operator with differences() (an EGI) "
+                                           f"or an image (x_shape of 2 axes or more), not x_shape {prob.x_shape}")
+            else:
+                extra["differences"] = grid_differences(prob.x_shape)
+        C = op.equalities() if hasattr(op, "equalities") else None
+        A = _np(op.matrix() if hasattr(op, "matrix") else op)
         out, info = [], {}
         for yb in rows:
-            a, info = recover_egi(prob.operator, yb, sigma=sigma, normals=getattr(prob.operator, "normals", None),
-                                  method=self.method, closure=self.closure if hasattr(prob.operator, "normals") else 0.0,
-                                  n_nonzero=self.n_nonzero, **extra)
+            yv = _np(yb).reshape(-1)
+            if not np.isfinite(yv).all():
+                raise FieldError("y", f"must be finite: {int((~np.isfinite(yv)).sum())} NaN/inf samples")
+            Aw, b = weighted_system(A, yv, sigma, C, self.closure)
+            a, info = nonneg_solve(Aw, b, len(yv), method=self.method, weighted=sigma is not None, n_nonzero=self.n_nonzero,
+                                   **extra)
             out.append(torch.as_tensor(a, dtype=y.dtype, device=y.device))
         x = torch.stack(out).reshape(*y.shape[:-1], *prob.x_shape)
         return x, {"solver_chi2": info["chi2"], "solver_n_nonzero": info["n_nonzero"]}
@@ -81,8 +95,6 @@ class NNL1(_NonNeg):
     method = "l1"
 
     def __init__(self, closure: float = 0.0, lam: float | str = 1e-3, max_iter: int = 5000):
-        from cssat.inversion.recover import lam_param
-
         super().__init__(closure, None, lam=lam_param(lam), max_iter=int_param(max_iter, "max_iter", 1))
 
 
@@ -97,7 +109,5 @@ class NNTV(_NonNeg):
     method = "tv"
 
     def __init__(self, closure: float = 0.0, lam: float | str = 1e-3, tv_neighbours: int = 6, max_iter: int = 5000):
-        from cssat.inversion.recover import lam_param
-
         super().__init__(closure, None, lam=lam_param(lam), tv_neighbours=int_param(tv_neighbours, "tv_neighbours", 1, 32),
                          max_iter=int_param(max_iter, "max_iter", 1))

@@ -20,8 +20,10 @@ from torch import Tensor
 
 from cssat._checks import FieldError
 from cssat.sparse._io import numpy_io
+from cssat.sparse.differences import tv_divergence, tv_gradient
 from cssat.sparse.iterate import Iteration, relative_change, run_iterations
 from cssat.sparse.operators import LinearOperator, as_operator
+from cssat.sparse.tv_admm import relative_weight
 
 if TYPE_CHECKING:
     from typing import Callable
@@ -92,8 +94,8 @@ class _FISTA(Iteration):
 
     label = "FISTA (ℓ1)"
 
-    def __init__(self, op: LinearOperator, y: Tensor, lam_abs: Tensor, L: float):
-        self.op, self.y, self.lam_abs, self.L = op, y, lam_abs, L
+    def __init__(self, op: LinearOperator, y: Tensor, lam_abs: Tensor, L: float, nonneg: bool = False):
+        self.op, self.y, self.lam_abs, self.L, self.nonneg = op, y, lam_abs, L, nonneg
         self.thr = lam_abs / L
         self.x = torch.zeros(y.shape[0], op.n_in, dtype=y.dtype, device=y.device)
         self.z = self.x.clone()
@@ -102,7 +104,10 @@ class _FISTA(Iteration):
     def step(self, k: int) -> Tensor:
         grad = self.op.adjoint(self.op(self.z) - self.y)
         v = self.z - grad / self.L
-        x_new = torch.sign(v) * torch.clamp(v.abs() - self.thr, min=0)
+        if self.nonneg:  # the prox of λ Σ x + the indicator of x ≥ 0
+            x_new = torch.clamp(v - self.thr, min=0)
+        else:
+            x_new = torch.sign(v) * torch.clamp(v.abs() - self.thr, min=0)
         t_new = (1 + math.sqrt(1 + 4 * self.t * self.t)) / 2
         self.z = x_new + ((self.t - 1) / t_new) * (x_new - self.x)
         change = relative_change(x_new, self.x)
@@ -123,6 +128,7 @@ def fista_l1(
     max_iter: int = 500,
     rtol: float = 1e-6,
     lipschitz: float | None = None,
+    nonneg: bool = False,
     return_info: bool = False,
     progress: bool | None = None,
     callback: Callable | None = None,
@@ -133,7 +139,8 @@ def fista_l1(
     ``A`` is the CS dictionary ``ΦΨ (m, n)`` as an operator or matrix; ``y (B, m)`` or ``(m,)``.
     ``λ = lam · ‖Aᵀy‖_∞`` per signal. The step is ``1/L`` with ``L = ‖A‖²`` from a power
     iteration (or ``lipschitz``). Stops when ``‖γₖ − γₖ₋₁‖ ≤ rtol ‖γₖ‖`` for every signal or after
-    ``max_iter`` iterations. Returns ``γ (B, n)`` (and a :class:`SolverInfo`). ``progress``: a
+    ``max_iter`` iterations. ``nonneg``: over ``γ ≥ 0`` (the ℓ1 term is then ``λ Σ γ``).
+    Returns ``γ (B, n)`` (and a :class:`SolverInfo`). ``progress``: a
     tqdm bar of the iterations (``None``: on a terminal, after a second); ``callback(k, state)``
     after each iteration (``True`` stops).
     """
@@ -143,30 +150,12 @@ def fista_l1(
     if not L > 0:
         raise FieldError("A", "the operator is zero")
     lam_abs = lam * op.adjoint(y2).abs().amax(1, keepdim=True)
-    alg = _FISTA(op, y2, lam_abs, L)
+    alg = _FISTA(op, y2, lam_abs, L, bool(nonneg))
     info = run_iterations(alg, max_iter, rtol=rtol, progress=progress, callback=callback)
     out = alg.x[0] if squeeze else alg.x
     if return_info:
         return out, SolverInfo(info.n_iter, info.objective, info.converged, lam_abs[:, 0], 1.0 / L)
     return out
-
-
-def tv_gradient(x: Tensor) -> Tensor:
-    """Forward differences of images ``x (B, H, W)`` with Neumann boundary: ``(B, 2, H, W)``."""
-    g = torch.zeros(x.shape[0], 2, *x.shape[1:], dtype=x.dtype, device=x.device)
-    g[:, 0, :-1, :] = x[:, 1:, :] - x[:, :-1, :]
-    g[:, 1, :, :-1] = x[:, :, 1:] - x[:, :, :-1]
-    return g
-
-
-def tv_divergence(p: Tensor) -> Tensor:
-    """``div = −∇ᵀ``: the negative adjoint of :func:`tv_gradient`, ``(B, 2, H, W) → (B, H, W)``."""
-    d = torch.zeros(p.shape[0], *p.shape[2:], dtype=p.dtype, device=p.device)
-    d[:, :-1, :] += p[:, 0, :-1, :]
-    d[:, 1:, :] -= p[:, 0, :-1, :]
-    d[:, :, :-1] += p[:, 1, :, :-1]
-    d[:, :, 1:] -= p[:, 1, :, :-1]
-    return d
 
 
 class _ChambollePock(Iteration):
@@ -236,8 +225,6 @@ def tv_pdhg(
     Returns images ``(B, H, W)`` or ``(H, W)`` (and a :class:`SolverInfo`). ``progress`` and
     ``callback`` as in :func:`fista_l1`.
     """
-    from cssat.sparse.tv_admm import relative_weight
-
     op = as_operator(phi, "phi")
     H, W = _image_shape(op, shape)
     y2, squeeze = _check(y, op.n_out, lam, max_iter, rtol)

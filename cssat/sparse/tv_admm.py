@@ -1,10 +1,13 @@
 """Total variation by ADMM with an exact linear solve, and the discrepancy principle for its weight.
 
-``min_x ½‖Ax − y‖² + λ TV(x)`` (``x ≥ 0`` when ``nonneg``) split as ``z₁ = ∇x``, ``z₂ = x``
-(Boyd et al. 2011, §6.4.1; Goldstein & Osher's split Bregman): each iteration solves
-``(AᵀA + ρ(∇ᵀ∇ + I)) x = Aᵀy + ρ∇ᵀ(z₁ − u₁) + ρ(z₂ − u₂)`` exactly — with the inverse of that
-``N × N`` matrix formed once per operator and ``ρ`` and reused by every signal, weight and call —
-then shrinks ``∇x + u₁`` group-wise by ``λ/ρ`` and projects ``x + u₂`` on ``x ≥ 0``.
+``min_x ½‖Ax − y‖² + λ TV(x)`` (``x ≥ 0`` when ``nonneg``), ``TV(x) = Σ_g ‖(Dx)_g‖₂`` for any
+difference operator ``D`` (:mod:`cssat.sparse.differences`: the image gradient, grouped per pixel
+— the isotropic TV —, or a graph's edges, each its own group — e.g. the EGI's normals on the
+sphere), split as ``z₁ = Dx``, ``z₂ = x`` (Boyd et al. 2011, §6.4.1; Goldstein & Osher's split
+Bregman): each iteration solves ``(AᵀA + ρ(DᵀD + I)) x = Aᵀy + ρDᵀ(z₁ − u₁) + ρ(z₂ − u₂)``
+exactly — with the inverse of that ``N × N`` matrix formed once per operator, ``D`` and ``ρ`` and
+reused by every signal, weight and call — then shrinks ``Dx + u₁`` group-wise by ``λ/ρ`` and
+projects ``x + u₂`` on ``x ≥ 0``. One iteration on :mod:`cssat.sparse.iterate`'s runner.
 
 Why beside the primal–dual :func:`~cssat.sparse.solvers.tv_pdhg`: a positive sensing matrix
 centred on its common term (:class:`cssat.physics.Centered`) has ``‖A‖² ≈ 10⁴–10⁵`` in one
@@ -27,12 +30,13 @@ from torch import Tensor
 from cssat._checks import FieldError
 from cssat.sparse.iterate import Iteration, RunInfo, run_iterations
 from cssat.sparse.operators import LinearOperator, as_operator
-from cssat.sparse.solvers import tv_divergence, tv_gradient  # solvers imports this module only inside tv_pdhg
+from cssat.sparse.differences import Differences, ImageGradient
 
 if TYPE_CHECKING:
     from cssat._types import OperatorLike
 
-__all__ = ["tv_admm", "tv_discrepancy", "scale_rows", "ADMM_MAX_PIXELS", "DEFAULT_RHO"]
+__all__ = ["tv_admm", "tv_discrepancy", "scale_rows", "relative_weight", "flat_fit", "inverse_variance", "ADMM_MAX_PIXELS",
+           "DEFAULT_RHO"]
 
 #: the largest image (pixels) ADMM's ``N × N`` inverse is formed for (8192² float64: 512 MiB)
 ADMM_MAX_PIXELS = 8192
@@ -67,68 +71,63 @@ def relative_weight(op: LinearOperator, y: Tensor, lam: float) -> Tensor:
     return lam * g.abs().amax(-1)
 
 
-def _inverse(gram: Tensor, shape: tuple[int, int], rho: float) -> Tensor:
-    """``(AᵀA + ρ(∇ᵀ∇ + I))⁻¹ (N, N)`` by Cholesky from the Gram ``AᵀA``, in its dtype and device."""
-    H, W = shape
-    N = H * W
-    eye = torch.eye(N, dtype=gram.dtype, device=gram.device)
-    Q = -tv_divergence(tv_gradient(eye.reshape(N, H, W))).reshape(N, N)
-    Q += eye
-    del eye
+def _inverse(gram: Tensor, D: Differences, rho: float) -> Tensor:
+    """``(AᵀA + ρ(DᵀD + I))⁻¹ (N, N)`` by Cholesky from the Gram ``AᵀA``, in its dtype and device."""
+    Q = D.laplacian(gram.dtype, gram.device)
+    Q += torch.eye(D.n, dtype=gram.dtype, device=gram.device)
     Q *= rho
     Q += gram
     L, info = torch.linalg.cholesky_ex(Q)
     if int(info) != 0:
-        raise FieldError("rho", f"AᵀA + ρ(∇ᵀ∇ + I) is not positive definite in {gram.dtype} at ρ = {rho:.3g}: use float64")
+        raise FieldError("rho", f"AᵀA + ρ(DᵀD + I) is not positive definite in {gram.dtype} at ρ = {rho:.3g}: use float64")
     return torch.cholesky_inverse(L)
 
 
-def factor(op: LinearOperator, shape: tuple[int, int], rho: float) -> Tensor:
-    """``Q⁻¹`` of ``op`` for images of ``shape`` at ``rho``, cached on the operator (its Gram
-    ``AᵀA`` and the last few factors)."""
-    N = shape[0] * shape[1]
-    if N > ADMM_MAX_PIXELS:
-        raise FieldError("method", f"ADMM forms an N × N inverse; N = {N} > {ADMM_MAX_PIXELS}: use method=pdhg")
+def factor(op: LinearOperator, D: Differences, rho: float) -> Tensor:
+    """``Q⁻¹`` of ``op`` and ``D`` at ``rho``, cached on the operator (its Gram ``AᵀA`` and the
+    last few factors)."""
+    if D.n > ADMM_MAX_PIXELS:
+        raise FieldError("method", f"ADMM forms an N × N inverse; N = {D.n} > {ADMM_MAX_PIXELS}: use method=pdhg")
     cache = op.__dict__.setdefault("_tv_admm", {})
     if "gram" not in cache:
         A = op.matrix()
         cache["gram"] = A.T @ A
-    key = (float(rho), tuple(shape))
+    key = (float(rho), D.key)
     if key not in cache:
         for k in [k for k in cache if k != "gram"][:-2]:  # keep the Gram and the two latest factors
             del cache[k]
-        cache[key] = _inverse(cache["gram"], shape, float(rho))
+        cache[key] = _inverse(cache["gram"], D, float(rho))
     return cache[key]
 
 
 class _ADMM(Iteration):
-    """``x (B, N)``, the split variables ``z₁ (B, 2, H, W)``, ``z₂ (B, N)`` and their scaled duals."""
+    """``x (B, N)``, the split variables ``z₁ = Dx (B, G, *E)``, ``z₂ = x (B, N)`` and their scaled duals."""
 
     label = "TV (ADMM)"
 
-    def __init__(self, op, y, shape, lam_abs, rho, Qinv, nonneg, start=None):
+    def __init__(self, op, y, D, lam_abs, rho, Qinv, nonneg, start=None):
         """``start``: :meth:`state` of a run at another weight (its scaled duals rescaled to ``rho``)."""
-        B, (H, W) = y.shape[0], shape
-        self.op, self.y, self.shape, self.rho, self.Qinv, self.nonneg = op, y, (B, H, W), rho, Qinv, nonneg
-        self.thresh = (lam_abs / rho).reshape(B, 1, 1, 1)
+        B = y.shape[0]
+        self.op, self.y, self.D, self.rho, self.Qinv, self.nonneg = op, y, D, rho, Qinv, nonneg
         self.lam_abs = lam_abs
         self.Aty = op.adjoint(y)
         if start is None:
             z = torch.zeros(B, op.n_in, dtype=y.dtype, device=y.device)
-            p = torch.zeros(B, 2, H, W, dtype=y.dtype, device=y.device)
+            p = torch.zeros_like(D.forward(z))
             start = (z, p, p.clone(), z.clone(), z.clone(), rho)
         self.x, self.z1, self.u1, self.z2, self.u2, rho0 = start
+        self.thresh = (lam_abs / rho).reshape(B, *[1] * (self.z1.ndim - 1))
         self.u1, self.u2 = self.u1 * (rho0 / rho), self.u2 * (rho0 / rho)  # u = dual / ρ
 
     def state(self) -> tuple:
         return self.x, self.z1, self.u1, self.z2, self.u2, self.rho
 
     def step(self, k: int) -> Tensor:
-        rho, shp = self.rho, self.shape
-        rhs = self.Aty - rho * tv_divergence(self.z1 - self.u1).reshape(shp[0], -1) + rho * (self.z2 - self.u2)
+        rho = self.rho
+        rhs = self.Aty - rho * self.D.divergence(self.z1 - self.u1) + rho * (self.z2 - self.u2)
         x = rhs @ self.Qinv  # Q is symmetric
-        g = tv_gradient(x.reshape(shp))
-        a = RELAXATION  # over-relaxation (Boyd et al. §3.4.3): ∇x and x replaced by a·(them) + (1 − a)·z
+        g = self.D.forward(x)
+        a = RELAXATION  # over-relaxation (Boyd et al. §3.4.3): Dx and x replaced by a·(them) + (1 − a)·z
         gr, xr = a * g + (1 - a) * self.z1, a * x + (1 - a) * self.z2
         v = gr + self.u1
         norm = torch.sqrt((v * v).sum(1, keepdim=True))
@@ -143,40 +142,51 @@ class _ADMM(Iteration):
         return torch.maximum(primal, change)
 
     def image(self) -> Tensor:
-        """The iterate as images ``(B, H, W)`` (the projected one when ``nonneg``)."""
-        return (self.z2 if self.nonneg else self.x).reshape(self.shape)
+        """The iterate ``(B, N)`` (the projected one when ``nonneg``)."""
+        return self.z2 if self.nonneg else self.x
 
     def residual(self) -> Tensor:
         """``‖Ax − y‖²`` per signal ``(B,)`` of :meth:`image`."""
-        r = self.op(self.image().reshape(self.shape[0], -1)) - self.y
+        r = self.op(self.image()) - self.y
         return (r * r).sum(1)
 
     def objective(self) -> float:
-        x = self.image()
-        g = tv_gradient(x)
-        tv = torch.sqrt((g * g).sum(1)).flatten(1).sum(1)
-        return float((0.5 * self.residual() + self.lam_abs * tv).sum())
+        return float((0.5 * self.residual() + self.lam_abs * self.D.norm(self.image())).sum())
 
 
-def tv_admm(phi: OperatorLike, y: Tensor, shape: Sequence[int], *, lam: float = 1e-4, nonneg: bool = True,
+def _differences(op: LinearOperator, shape: Sequence[int] | Differences) -> tuple[Differences, tuple[int, ...]]:
+    """The difference operator and the unknown's shape: an image ``(H, W)``'s gradient, or ``D`` itself."""
+    if isinstance(shape, Differences):
+        D, out = shape, (shape.n,)
+    else:
+        out = tuple(int(s) for s in shape)
+        if len(out) != 2 or out[0] * out[1] != op.n_in:
+            raise FieldError("shape", f"{tuple(shape)} does not match the operator's {op.n_in} pixels")
+        D = ImageGradient(out)
+    if D.n != op.n_in:
+        raise FieldError("differences", f"{D.n} columns for the operator's {op.n_in} unknowns")
+    return D, out
+
+
+def tv_admm(phi: OperatorLike, y: Tensor, shape: Sequence[int] | Differences, *, lam: float = 1e-4, nonneg: bool = True,
             max_iter: int = 1000, rtol: float = 1e-5, rho: float | None = None, lam_abs: Tensor | None = None,
             start: tuple | None = None, progress: bool | None = None,
             callback: Callable | None = None) -> tuple[Tensor, RunInfo, Iteration]:
-    """Isotropic TV by ADMM with an exact solve: ``min ½‖Φx − y‖² + λ TV(x)`` (``x ≥ 0`` when
-    ``nonneg``), ``TV(x) = Σ ‖(∇x)ᵢ‖₂``; the same problem as :func:`~cssat.sparse.solvers.tv_pdhg`.
+    """TV by ADMM with an exact solve: ``min ½‖Φx − y‖² + λ Σ_g ‖(Dx)_g‖₂`` (``x ≥ 0`` when
+    ``nonneg``); on images (``shape (H, W)``: ``D = ∇``, the isotropic TV, the same problem as
+    :func:`~cssat.sparse.solvers.tv_pdhg`) or on any :class:`~cssat.sparse.differences.Differences`
+    given as ``shape`` (a graph's edges: the anisotropic TV).
 
     ``phi (m, N)`` an operator with a dense :meth:`matrix` (``N ≤`` :data:`ADMM_MAX_PIXELS`);
     ``y (B, m)``; ``λ = lam · ‖Φ_rᵀ y_r‖∞`` per signal on :func:`scale_rows`' rows (or
     ``lam_abs (B,)`` absolute). ``rho`` (default :data:`DEFAULT_RHO` × the mean absolute
     weight). Stops when the relative primal
-    residual and the relative change of ``x`` are both ``≤ rtol``. Returns ``(images (B, H, W),
-    run info, the algorithm)`` — the last carries the state to warm-start another weight
-    (``start=alg.state()``).
+    residual and the relative change of ``x`` are both ``≤ rtol``. Returns ``(images (B, H, W)``
+    — or ``(B, N)`` for a ``Differences`` —, ``run info, the algorithm)`` — the last carries the
+    state to warm-start another weight (``start=alg.state()``).
     """
     op = as_operator(phi, "phi")
-    H, W = (int(s) for s in shape)
-    if H * W != op.n_in:
-        raise FieldError("shape", f"{tuple(shape)} does not match the operator's {op.n_in} pixels")
+    D, out_shape = _differences(op, shape)
     y2 = y.reshape(-1, op.n_out)
     if lam_abs is None:
         lam_abs = relative_weight(op, y2, lam)
@@ -185,10 +195,10 @@ def tv_admm(phi: OperatorLike, y: Tensor, shape: Sequence[int], *, lam: float = 
         rho = DEFAULT_RHO * float(lam_abs.mean())
     if not (math.isfinite(rho) and rho > 0):
         raise FieldError("lam", f"ADMM needs a weight > 0 (ρ follows it), got λ = {lam_abs.tolist()}")
-    Qinv = factor(op, (H, W), rho)
-    alg = _ADMM(op, y2, (H, W), lam_abs, rho, Qinv.to(y2), nonneg, start)
+    Qinv = factor(op, D, rho)
+    alg = _ADMM(op, y2, D, lam_abs, rho, Qinv.to(y2), nonneg, start)
     info = run_iterations(alg, max_iter, rtol=rtol, progress=progress, callback=callback)
-    return alg.image(), info, alg
+    return alg.image().reshape(-1, *out_shape), info, alg
 
 
 def flat_fit(op: LinearOperator, y: Tensor, weights: Tensor | None = None, nonneg: bool = True) -> Tensor:
@@ -211,9 +221,10 @@ def inverse_variance(var: Tensor) -> Tensor | None:
     return None if not top > 0 else 1.0 / var.clamp_min(top * 1e-12)
 
 
-def tv_discrepancy(phi: OperatorLike, y: Tensor, shape: Sequence[int], noise_var: Tensor, *, nonneg: bool = True,
-                   max_iter: int = 1000, rtol: float = 1e-5, tau: float | None = None, lams: Sequence[float] | None = None,
-                   rho: float | None = None, progress: bool | None = None) -> tuple[Tensor, dict[str, Any]]:
+def tv_discrepancy(phi: OperatorLike, y: Tensor, shape: Sequence[int] | Differences, noise_var: Tensor, *,
+                   nonneg: bool = True, max_iter: int = 1000, rtol: float = 1e-5, tau: float | None = None,
+                   lams: Sequence[float] | None = None, rho: float | None = None, bisections: int = 3,
+                   close: float | None = None, progress: bool | None = None) -> tuple[Tensor, dict[str, Any]]:
     """TV with its weight chosen by Morozov's discrepancy principle: the largest ``λ`` whose
     solution fits the data to the noise, ``‖Φx_λ − y‖² ≤ τ Σᵢ σᵢ²`` (Engl, Hanke & Neubauer 1996,
     §4.3), ``τ`` (default ``1 + 2√(2/m)``: the noise's own χ² spread, two standard deviations,
@@ -221,17 +232,20 @@ def tv_discrepancy(phi: OperatorLike, y: Tensor, shape: Sequence[int], noise_var
     (:func:`flat_fit`) — is the first candidate: when it already fits to the noise, the data hold
     nothing beyond the flux and that is the answer; otherwise ``lams`` (relative, default
     ``10⁰, 10⁻¹, …, 10⁻⁶``) are walked down with warm starts (:data:`SEARCH_ITER` iterations at
-    ``10 rtol``) and the crossing is refined by three bisections in ``log λ``; the chosen weight is
-    then solved to ``rtol``. When a weaker weight stops lowering a misfit it had begun to lower
+    ``10 rtol``) and the crossing is refined by ``bisections`` bisections in ``log λ`` (stopping
+    early at a weight that fits with a misfit over ``(1 − close) τ Σσ²``, when ``close`` is given);
+    the chosen weight is then solved to ``rtol``. When a weaker weight stops lowering a misfit it had begun to lower
     (:data:`STALL`) the walk stops there, unmet (``solver_discrepancy_met`` false): the model cannot fit the data.
 
     ``y (m,)`` one signal; ``noise_var`` the noise variance of each sample of ``y`` (``(m,)`` or
-    a scalar, ``y``'s units squared). Returns ``(image (H, W), info)`` with ``solver_lam`` (relative,
+    a scalar, ``y``'s units squared; 0 for exact rows); ``shape`` an image's ``(H, W)`` or a
+    :class:`~cssat.sparse.differences.Differences` (as :func:`tv_admm`). Returns ``(image (H, W)``
+    — ``(N,)`` for a ``Differences`` —, ``info)`` with ``solver_lam`` (relative,
     ``inf`` for the flat image), ``solver_lam_abs``, ``solver_residual`` and ``solver_noise_norm``
     (``Σ σᵢ²``), ``solver_discrepancy_met``, ``solver_converged``, ``solver_iterations`` (all solves).
     """
     op = as_operator(phi, "phi")
-    H, W = (int(s) for s in shape)
+    D, out_shape = _differences(op, shape)
     y2 = y.reshape(1, op.n_out)
     var = torch.as_tensor(noise_var, dtype=y2.dtype, device=y2.device).expand(op.n_out)
     if not bool(torch.isfinite(var).all()) or bool((var < 0).any()):
@@ -244,7 +258,7 @@ def tv_discrepancy(phi: OperatorLike, y: Tensor, shape: Sequence[int], noise_var
     if r_flat <= target:
         info.update(solver_lam=math.inf, solver_lam_abs=math.inf, solver_residual=r_flat, solver_discrepancy_met=True,
                     solver_converged=True)
-        return flat.reshape(H, W), info
+        return flat.reshape(out_shape), info
     ref = float(relative_weight(op, y2, 1.0)[0])
     grid = list(lams) if lams is not None else [10.0 ** -k for k in range(7)]
     solves: dict[float, tuple] = {}
@@ -252,12 +266,12 @@ def tv_discrepancy(phi: OperatorLike, y: Tensor, shape: Sequence[int], noise_var
 
     def solve(lam: float, tol: float = 10 * rtol, iters: int = min(max_iter, SEARCH_ITER)):
         nonlocal start
-        x, run, alg = tv_admm(op, y2, (H, W), nonneg=nonneg, max_iter=iters, rtol=tol, rho=rho,
+        x, run, alg = tv_admm(op, y2, D, nonneg=nonneg, max_iter=iters, rtol=tol, rho=rho,
                               lam_abs=torch.tensor([lam * ref], dtype=y2.dtype, device=y2.device), start=start,
                               progress=progress)
         start = alg.state()
         info["solver_iterations"] += run.n_iter
-        solves[lam] = (x[0], float(alg.residual()[0]), run.converged)
+        solves[lam] = (x[0].reshape(out_shape), float(alg.residual()[0]), run.converged)
         return solves[lam]
 
     hi, last = None, r_flat
@@ -270,10 +284,13 @@ def tv_discrepancy(phi: OperatorLike, y: Tensor, shape: Sequence[int], noise_var
         hi, last = lam, res
     lo = lam
     if hi is not None and solves[lo][1] <= target:
-        for _ in range(3):  # bisect log λ between a weight that misfits (hi) and one that fits (lo)
+        for _ in range(int(bisections)):  # bisect log λ between a weight that misfits (hi) and one that fits (lo)
             mid = math.sqrt(hi * lo)
-            if solve(mid)[1] <= target:
+            res = solve(mid)[1]
+            if res <= target:
                 lo = mid
+                if close is not None and res >= (1 - close) * target:
+                    break
             else:
                 hi = mid
     x, res, conv = solve(lo, rtol, max_iter)

@@ -1,0 +1,35 @@
+"""The task function: a composed config run into its output folder (lightning-hydra-template's
+``task``, apart from ``@hydra.main``). It picks the one pipeline's entry for the config — a grid
+of cells (:mod:`cssat.experiments.grid`), a mesh in a scenario (:mod:`cssat.experiments.scene`)
+or one image through the stages (:mod:`cssat.experiments.pipeline`) — and is what
+:func:`cssat.experiments.run_experiment` runs unless ``experiment_module`` names a module of
+the user's own."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from cssat.experiments import grid, report, scene
+from cssat.experiments.context import Run
+from cssat.experiments.pipeline import execute, metrics_of, plan
+
+__all__ = ["run"]
+
+
+def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
+    """Run the experiment ``cfg`` into ``out_dir``; return its metrics (timings included)."""
+    run_ = Run.from_config(cfg, out_dir)
+    if cfg.get("grid") is not None:
+        return grid.run(cfg, run_)
+    if getattr(cfg.get("target"), "get", lambda k: None)("_target_") == scene.SCENE_TARGET:
+        return scene.run(cfg, run_)
+    with run_.stage("setup"):
+        p = plan(cfg, run_)
+    res = execute(p, run_)
+    with run_.stage("score"):
+        metrics = metrics_of(p, run_, res)
+    with run_.stage("write"):
+        report.write(p, run_, res, metrics)
+    metrics.update(run_.timings())
+    report.log_headline(p, metrics)
+    return metrics
