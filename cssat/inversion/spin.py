@@ -91,7 +91,8 @@ def _check_light_curve(times_s, flux, sun, obs, sigma):
     S, O = (np.asarray(v, dtype=np.float64) for v in (sun, obs))
     T = len(t)
     if y.shape != t.shape or S.shape != (T, 3) or O.shape != (T, 3):
-        raise FieldError("flux", f"expected times (T,), flux (T,) and sun/obs (T, 3), got {t.shape}, {y.shape}, {S.shape}, {O.shape}")
+        raise FieldError("flux", f"expected times (T,), flux (T,) and sun/obs (T, 3), got {t.shape}, {y.shape}, {S.shape}, "
+                                 f"{O.shape}")
     if not (np.isfinite(t).all() and np.isfinite(y).all() and np.isfinite(S).all() and np.isfinite(O).all()):
         raise FieldError("flux", "the times, fluxes and directions must be finite")
     if np.any(np.diff(t) <= 0):
@@ -184,45 +185,17 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     Assumptions: a principal-axis rotation (no tumbling: :func:`~cssat.scene.attitude.torque_free`
     motion has two periods), a convex body (or negligible self-shadowing), one BRDF shape.
     """
-    from scipy.optimize import minimize
-
     from cssat._checks import choice_param
     from cssat.inversion.egi import fibonacci_sphere
 
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
     t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
     T = len(t)
-    n_poles, n_starts, n_refine = (int_param(v, k, 1) for v, k in ((n_poles, "n_poles"), (n_starts, "n_starts"), (n_refine, "n_refine")))
+    n_poles, n_starts, n_refine = (int_param(v, k, 1) for v, k in ((n_poles, "n_poles"), (n_starts, "n_starts"),
+                                                                   (n_refine, "n_refine")))
     n_refine = min(n_refine, n_starts)
     span = float(t[-1] - t[0])
-    if period_s is None:
-        synodic = estimate_period(t, y, sigma=None if sigma is None else 1.0 / w, min_period_s=min_period_s,
-                                  max_period_s=max_period_s)
-        P0 = synodic["best_period_s"]  # the search wants the best candidate, whatever the verdict
-    else:
-        P0 = float_param(period_s, "period_s", 0.0, open_lo=True)
-        synodic = {"period_s": P0, "given": True}
-    # The light curve's apparent (synodic) frequency is the sidereal one less a weighted rate of
-    # the longitudes of the Sun and the observer about the pole (each cosine factor of a facet's
-    # brightness turns with its own direction): for each pole the scan covers the sidereal
-    # frequencies between those two rates, plus a margin of half a cycle over the span
-    dt = np.diff(t)
-    close = dt < 10 * np.median(dt)
-    step = 1.0 / (20 * span)
-
-    def shifts(lon, lat):
-        """The Sun's and the observer's median longitude rates about the pole, in Hz, at most
-        3× their angular rates (a direction near the pole turns fast in longitude but hardly
-        modulates the light curve)."""
-        M = _pole_rotation(lon, lat, frame)
-        out = []
-        for v in (S @ M.T, O @ M.T):
-            dl = (np.diff(np.arctan2(v[:, 1], v[:, 0])) + np.pi) % (2 * np.pi) - np.pi
-            out.append(float(np.clip(np.median(dl[close] / dt[close]), -cap, cap)) / (2 * np.pi) if close.any() else 0.0)
-        return out
-
-    cap = 3.0 * max((float(np.median(np.arccos(np.clip(np.einsum("ij,ij->i", v[1:], v[:-1]), -1, 1))[close] / dt[close]))
-                     if close.any() else 0.0) for v in (S, O))
+    P0, synodic = _synodic_period(t, y, w, sigma, period_s, min_period_s, max_period_s)
 
     def subset(n):
         idx = np.unique(np.linspace(0, T - 1, min(n, T)).round().astype(int))
@@ -230,82 +203,33 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
 
     coarse = _Fit(*subset(int_param(coarse_samples, "coarse_samples", 16)),
                   fibonacci_sphere(int_param(coarse_normals, "coarse_normals", 16)).numpy(), brdf, frame)
-    fine = _Fit(*subset(int_param(max_samples, "max_samples", 16)), fibonacci_sphere(int_param(n_normals, "n_normals", 16)).numpy(),
-                brdf, frame)
-    grid = fibonacci_sphere(n_poles).numpy()
-    lons, lats = np.degrees(np.arctan2(grid[:, 1], grid[:, 0])), np.degrees(np.arcsin(np.clip(grid[:, 2], -1, 1)))
+    fine = _Fit(*subset(int_param(max_samples, "max_samples", 16)),
+                fibonacci_sphere(int_param(n_normals, "n_normals", 16)).numpy(), brdf, frame)
     cands = [1.0 / P0] + ([0.5 / P0] if 2 * P0 <= max_period_s or period_s is not None else [])
-    table = []  # (chi2, lon, lat, f)
-    for lo, la in zip(lons, lats):
-        best = (np.inf, lo, la, cands[0])
-        r = shifts(lo, la)
-        margin = 0.5 / span + 0.1 * max(abs(r[0]), abs(r[1]))
-        offsets = np.arange(min(0.0, *r) - margin, max(0.0, *r) + margin + step / 2, step)
-        for fc in cands:
-            for f in fc + offsets:
-                if f > 0:
-                    c = coarse.chi2(lo, la, f)
-                    if c < best[0]:
-                        best = (c, lo, la, f)
-        table.append(best)
+    table = _coarse_scan(coarse, t, S, O, n_poles, cands)
     # the coarse grid's bias is as large as the χ² differences between poles: each pole's best
     # spin is scored again on the fine grid of normals before the starts are chosen
     medium = _Fit(coarse.t, coarse.y, coarse.w, coarse.S, coarse.O, fine.N, brdf, frame)
     table = sorted(((medium.chi2(*r[1:]), *r[1:]) for r in table), key=lambda r: r[0])
     spacing = np.degrees(np.sqrt(4 * np.pi / n_poles))
-    starts: list[tuple] = []
-    for r in table:
-        if all(_separation_deg((r[1], r[2]), (s[1], s[2])) > 1.5 * spacing for s in starts):
-            starts.append(r)
-        if len(starts) == n_starts:
-            break
-
-    def refine(fit, x0, dpole, dphase):
-        scale = np.array([1.0, 1.0, 1.0 / (360.0 * span)])  # the frequency in degrees of phase over the span
-        fun = lambda z: fit.chi2(*(np.asarray(x0) + z * scale))  # noqa: E731
-        simplex = np.array([[0, 0, 0], [dpole, 0, 0], [0, dpole, 0], [0, 0, dphase]], dtype=np.float64)
-        res = minimize(fun, np.zeros(3), method="Nelder-Mead",
-                       options={"initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-9 * max(fun(np.zeros(3)), 1e-300),
-                                "maxfev": 400})
-        x = np.asarray(x0) + res.x * scale
-        return (float(res.fun), *x)
-
-    refined = sorted((refine(coarse, s[1:], spacing / 3, 90.0) for s in starts), key=lambda r: r[0])
+    starts = _distinct_poles(table, spacing, n_starts)
+    refined = sorted((_refine_spin(coarse, s[1:], spacing / 3, 90.0, span) for s in starts), key=lambda r: r[0])
     distinct: list[tuple] = []  # starts that converged to one minimum are refined once
     for r in refined:
         if all(_separation_deg((r[1], r[2]), (d[1], d[2])) > 10.0 or abs(r[3] - d[3]) * span > 0.5 for d in distinct):
             distinct.append(r)
-    finals = sorted((refine(fine, r[1:], 2.0, 20.0) for r in distinct[:n_refine]), key=lambda r: r[0])
+    finals = sorted((_refine_spin(fine, r[1:], 2.0, 20.0, span) for r in distinct[:n_refine]), key=lambda r: r[0])
     chi2, lon, lat, f = finals[0]
     lon = float((lon + 180.0) % 360.0 - 180.0)
     # the EGI grid's bias: the same refinement on a grid of normals turned at random
     from scipy.spatial.transform import Rotation
 
     turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=0).as_matrix().T, brdf, frame)
-    _, lon_g, lat_g, f_g = refine(turned, (lon, lat, f), 1.0, 5.0)
+    _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
     grid_pole = _separation_deg((lon, lat), (lon_g, lat_g))
     grid_period = abs(1 / f_g - 1 / f)
     # the EGI at the solution and its 1σ (Gauss–Newton on the spin and the support's areas)
-    a, _ = fine.solve(lon, lat, f)
-    A = fine.matrix(lon, lat, f) * fine.w[:, None]
-    sup = a > 1e-9 * max(float(a.max()), 1e-300)
-    h = np.array([1e-3, 1e-3, 1e-3 / (360.0 * span)])
-    cols = []
-    for i in range(3):
-        x_hi, x_lo = np.array([lon, lat, f]), np.array([lon, lat, f])
-        x_hi[i] += h[i]
-        x_lo[i] -= h[i]
-        x_hi[1], x_lo[1] = min(x_hi[1], 90.0), max(x_lo[1], -90.0)
-        cols.append((fine.matrix(*x_hi) - fine.matrix(*x_lo)) @ a * fine.w / (x_hi[i] - x_lo[i]))
-    J = np.column_stack(cols + [A[:, sup]])
-    dof = max(len(fine.t) - J.shape[1], 1)
-    red = chi2 / dof
-    scale2 = max(red, 1.0) if sigma is not None else red
-    try:
-        cov = np.linalg.pinv(J.T @ J)[:3, :3] * scale2
-        err = np.sqrt(np.clip(np.diag(cov), 0, None))
-    except np.linalg.LinAlgError:  # pragma: no cover - pinv converges on finite input
-        err = np.full(3, np.inf)
+    a, sup, err, red, scale2 = _spin_errors(fine, lon, lat, f, chi2, span, sigma is not None)
     formal_pole = float(np.hypot(err[1], np.cos(np.radians(lat)) * err[0]))
     pole_err = float(np.hypot(formal_pole, grid_pole))
     period_err = float(np.hypot(err[2] / f ** 2, grid_period))
@@ -320,9 +244,130 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     resid = y - full.matrix(lon, lat, f) @ a
     return SpinSolution(pole_lon_deg=lon, pole_lat_deg=float(lat), period_s=float(1 / f), lon_err_deg=float(err[0]),
                         lat_err_deg=float(err[1]), pole_err_deg=pole_err, period_err_s=period_err,
-                        formal_pole_err_deg=formal_pole, formal_period_err_s=float(err[2] / f ** 2), grid_pole_shift_deg=grid_pole,
-                        grid_period_shift_s=float(grid_period),
+                        formal_pole_err_deg=formal_pole, formal_period_err_s=float(err[2] / f ** 2),
+                        grid_pole_shift_deg=grid_pole, grid_period_shift_s=float(grid_period),
                         chi2=float(chi2), reduced_chi2=float(red), normals=fine.N[sup], areas=a[sup], residual=resid,
                         synodic=synodic, alternatives=alts, ambiguous=bool(ambiguous), frame=frame, brdf=brdf,
                         coarse=[{"chi2": float(r[0]), "pole_lon_deg": float(r[1]), "pole_lat_deg": float(r[2]),
                                  "period_s": float(1 / r[3])} for r in table])
+
+
+def _synodic_period(t: np.ndarray, y: np.ndarray, w: np.ndarray, sigma: Any, period_s: float | None, min_period_s: float,
+                    max_period_s: float) -> tuple[float, dict[str, Any]]:
+    """The search's synodic period ``P₀`` (s) and the verdict on it: ``period_s`` when given, else
+    :func:`estimate_period`'s best candidate on ``t, y (T,)`` (weights ``w = 1/σ``), whatever its
+    verdict."""
+    if period_s is None:
+        synodic = estimate_period(t, y, sigma=None if sigma is None else 1.0 / w, min_period_s=min_period_s,
+                                  max_period_s=max_period_s)
+        P0 = synodic["best_period_s"]  # the search wants the best candidate, whatever the verdict
+    else:
+        P0 = float_param(period_s, "period_s", 0.0, open_lo=True)
+        synodic = {"period_s": P0, "given": True}
+    return P0, synodic
+
+
+def _longitude_rates(S: np.ndarray, O: np.ndarray, dt: np.ndarray, close: np.ndarray, cap: float, lon: float, lat: float,
+                     frame: str) -> list[float]:
+    """The Sun's and the observer's (``S``, ``O (T, 3)``) median longitude rates about the pole
+    ``(lon, lat)``, in Hz, over the steps ``dt (T-1,)`` marked ``close``, at most ``cap`` rad/s
+    (3× their angular rates: a direction near the pole turns fast in longitude but hardly
+    modulates the light curve)."""
+    M = _pole_rotation(lon, lat, frame)
+    out = []
+    for v in (S @ M.T, O @ M.T):
+        dl = (np.diff(np.arctan2(v[:, 1], v[:, 0])) + np.pi) % (2 * np.pi) - np.pi
+        out.append(float(np.clip(np.median(dl[close] / dt[close]), -cap, cap)) / (2 * np.pi) if close.any() else 0.0)
+    return out
+
+
+def _coarse_scan(coarse: _Fit, t: np.ndarray, S: np.ndarray, O: np.ndarray, n_poles: int,
+                 cands: list[float]) -> list[tuple]:
+    """For each of ``n_poles`` poles on a Fibonacci grid, the best ``(chi2, lon, lat, f)`` on
+    ``coarse`` of a scan of sidereal frequencies about each of ``cands`` (Hz), in steps of
+    ``1/(20 span)`` of ``t (T,)``, over the Sun's (``S (T, 3)``) and the observer's (``O``)
+    longitude rates about that pole."""
+    from cssat.inversion.egi import fibonacci_sphere
+
+    # The light curve's apparent (synodic) frequency is the sidereal one less a weighted rate of
+    # the longitudes of the Sun and the observer about the pole (each cosine factor of a facet's
+    # brightness turns with its own direction): for each pole the scan covers the sidereal
+    # frequencies between those two rates, plus a margin of half a cycle over the span
+    span = float(t[-1] - t[0])
+    dt = np.diff(t)
+    close = dt < 10 * np.median(dt)
+    step = 1.0 / (20 * span)
+    cap = 3.0 * max((float(np.median(np.arccos(np.clip(np.einsum("ij,ij->i", v[1:], v[:-1]), -1, 1))[close] / dt[close]))
+                     if close.any() else 0.0) for v in (S, O))
+    grid = fibonacci_sphere(n_poles).numpy()
+    lons, lats = np.degrees(np.arctan2(grid[:, 1], grid[:, 0])), np.degrees(np.arcsin(np.clip(grid[:, 2], -1, 1)))
+    table = []  # (chi2, lon, lat, f)
+    for lo, la in zip(lons, lats):
+        best = (np.inf, lo, la, cands[0])
+        r = _longitude_rates(S, O, dt, close, cap, lo, la, coarse.frame)
+        margin = 0.5 / span + 0.1 * max(abs(r[0]), abs(r[1]))
+        offsets = np.arange(min(0.0, *r) - margin, max(0.0, *r) + margin + step / 2, step)
+        for fc in cands:
+            for f in fc + offsets:
+                if f > 0:
+                    c = coarse.chi2(lo, la, f)
+                    if c < best[0]:
+                        best = (c, lo, la, f)
+        table.append(best)
+    return table
+
+
+def _distinct_poles(table: list[tuple], spacing: float, n_starts: int) -> list[tuple]:
+    """The ``n_starts`` best rows ``(chi2, lon, lat, f)`` of the sorted ``table`` whose poles are
+    more than 1.5 ``spacing`` (deg) from every better one kept."""
+    starts: list[tuple] = []
+    for r in table:
+        if all(_separation_deg((r[1], r[2]), (s[1], s[2])) > 1.5 * spacing for s in starts):
+            starts.append(r)
+        if len(starts) == n_starts:
+            break
+    return starts
+
+
+def _refine_spin(fit: _Fit, x0: Any, dpole: float, dphase: float, span: float) -> tuple[float, float, float, float]:
+    """Nelder–Mead in ``(λ, β, f)`` from ``x0`` on ``fit``'s χ², the initial simplex ``dpole``
+    degrees in the pole and ``dphase`` degrees of phase over ``span`` seconds in the frequency:
+    ``(chi2, lon, lat, f)``."""
+    from scipy.optimize import minimize
+
+    scale = np.array([1.0, 1.0, 1.0 / (360.0 * span)])  # the frequency in degrees of phase over the span
+    fun = lambda z: fit.chi2(*(np.asarray(x0) + z * scale))  # noqa: E731
+    simplex = np.array([[0, 0, 0], [dpole, 0, 0], [0, dpole, 0], [0, 0, dphase]], dtype=np.float64)
+    res = minimize(fun, np.zeros(3), method="Nelder-Mead",
+                   options={"initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-9 * max(fun(np.zeros(3)), 1e-300),
+                            "maxfev": 400})
+    x = np.asarray(x0) + res.x * scale
+    return (float(res.fun), *x)
+
+
+def _spin_errors(fine: _Fit, lon: float, lat: float, f: float, chi2: float, span: float,
+                 weighted: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    """The EGI ``a (K,)`` at the spin ``(lon, lat, f)`` on ``fine``, its support ``(K,)`` (bool),
+    the formal Gauss–Newton 1σ ``(3,)`` of ``(λ, β, f)`` with the support's areas, the reduced χ²
+    and the covariance's scale (the reduced χ², at least 1 when ``weighted``)."""
+    a, _ = fine.solve(lon, lat, f)
+    A = fine.matrix(lon, lat, f) * fine.w[:, None]
+    sup = a > 1e-9 * max(float(a.max()), 1e-300)
+    h = np.array([1e-3, 1e-3, 1e-3 / (360.0 * span)])
+    cols = []
+    for i in range(3):
+        x_hi, x_lo = np.array([lon, lat, f]), np.array([lon, lat, f])
+        x_hi[i] += h[i]
+        x_lo[i] -= h[i]
+        x_hi[1], x_lo[1] = min(x_hi[1], 90.0), max(x_lo[1], -90.0)
+        cols.append((fine.matrix(*x_hi) - fine.matrix(*x_lo)) @ a * fine.w / (x_hi[i] - x_lo[i]))
+    J = np.column_stack(cols + [A[:, sup]])
+    dof = max(len(fine.t) - J.shape[1], 1)
+    red = chi2 / dof
+    scale2 = max(red, 1.0) if weighted else red
+    try:
+        cov = np.linalg.pinv(J.T @ J)[:3, :3] * scale2
+        err = np.sqrt(np.clip(np.diag(cov), 0, None))
+    except np.linalg.LinAlgError:  # pragma: no cover - pinv converges on finite input
+        err = np.full(3, np.inf)
+    return a, sup, err, red, scale2

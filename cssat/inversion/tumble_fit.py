@@ -1,0 +1,145 @@
+"""The tumbling search's refinement (:func:`cssat.inversion.tumble.estimate_tumbling`, steps 3–4):
+Levenberg–Marquardt in the eight numbers of a :class:`~cssat.inversion.tumble_state.TumblingState`
+with the EGI re-solved by NNLS at each step, the continuation from the first arc to every sample,
+the solution's 1σ (Gauss–Newton and the EGI grid's bias) and its distinct alternatives."""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import float_param
+from cssat.inversion.tumble_state import TumblingState, _TFit
+
+log = logging.getLogger("cssat")
+
+
+def _refine(fit: _TFit, x0: np.ndarray, alpha0: float, span_s: float, maxfev: int, t_ref: float,
+            frame: str) -> tuple[float, np.ndarray, float]:
+    """Levenberg–Marquardt (trust-region reflective) on the weighted residual, the EGI
+    re-solved by NNLS at every step (variable projection); the moments as ``i₂ ∈ [½, 1]``
+    and ``u ∈ [0, 1]``, ``i₁ = 1 − i₂ + u (2 i₂ − 1)``, so the rigid-body triangle is a box.
+    From the state vector ``x0 (8,)`` (root ``alpha0``), the phases scaled to degrees over
+    ``span_s`` seconds; at most ``maxfev`` evaluations. Returns ``(chi2, x (8,), alpha)``."""
+    from scipy.optimize import least_squares
+
+    scale = np.array([1.0, 1.0, 1 / (360 * span_s), 1 / (360 * span_s), 1 / (360 * x0[2]), 1.0, 1.0, 1.0])
+    i1, i2 = x0[0], x0[1]
+    u0 = (i1 - (1 - i2)) / max(2 * i2 - 1, 1e-12)
+    z0 = np.concatenate([[min(max(u0, 0.0), 1.0), i2], np.zeros(6)])
+    cache = {"alpha": alpha0}
+
+    def state(z):
+        u, j2 = z[0], z[1]
+        x = np.concatenate([[1 - j2 + u * (2 * j2 - 1), j2], x0[2:] + z[2:] * scale[2:]])
+        return x, TumblingState.from_vector(x, cache["alpha"], t_ref, frame)
+
+    def resid(z):
+        _, st = state(z)
+        if st is None:
+            return fit.yw * 10.0  # no motion has these numbers: far worse than any fit
+        cache["alpha"] = st.alpha
+        G = fit.matrix(st)
+        a, _ = fit.nnls(G)
+        return (G @ a) * fit.w - fit.yw
+
+    lo = np.array([0.0, 0.5] + [-np.inf] * 6)
+    hi = np.array([1.0, 1.0] + [np.inf] * 6)
+    z0 = np.clip(z0, lo + 1e-9, hi - 1e-9)
+    res = least_squares(resid, z0, bounds=(lo, hi), method="trf", diff_step=1e-4, x_scale=np.array([0.05, 0.05] + [1.0] * 6),
+                        max_nfev=int(maxfev))
+    x, st = state(res.x)
+    return (float(2 * res.cost), x, st.alpha if st is not None else alpha0)
+
+
+def _continuation(samples: tuple, cur: list[tuple], arc_s: float, growth: float, n_mid: int, mid_N: np.ndarray, brdf: Any,
+                  max_fev: int, t_ref: float, frame: str, clock: float) -> list[tuple]:
+    """The refined minima ``cur`` (``(chi2, x, alpha)``) carried from the first ``arc_s`` seconds
+    to arcs ``growth`` times longer up to every sample of ``samples = (t, y, w, S, O)`` (``n_mid``
+    samples of each arc, normals ``mid_N (K, 3)``): the phases stay coherent while the span grows."""
+    t = samples[0]
+    span = float(t[-1] - t[0])
+    length = arc_s
+    while length < span:
+        length = min(length * float_param(growth, "growth", 1.0, open_lo=True), span)
+        fit = _TFit.spread(samples, t <= t_ref + length, n_mid, mid_N, brdf)
+        cur = sorted((_refine(fit, r[1], r[2], length, max_fev, t_ref, frame) for r in cur), key=lambda r: r[0])
+        log.info("estimate_tumbling: arc %.0f s refined, %.1f s (best reduced chi2 %.3g)", length, time.perf_counter() - clock,
+                 cur[0][0] / len(fit.t))
+    return cur
+
+
+def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float,
+                   weighted: bool) -> tuple[np.ndarray, float, np.ndarray]:
+    """Gauss–Newton on the eight numbers ``x (8,)`` and the support's areas of the EGI ``a (K,)``:
+    the 1σ ``(8,)`` (scaled by the reduced χ² — when above 1 if ``weighted``), the reduced χ² and
+    the support ``(K,)`` (bool)."""
+    t_ref, frame = state.t_ref_s, state.frame
+    sup = a > 1e-9 * max(float(a.max()), 1e-300)
+    A = final.matrix(state) * final.w[:, None]
+    h = np.array([1e-4, 1e-4, 1e-4 / (360 * span), 1e-4 / (360 * span), 1e-4 / (360 * x[2]), 1e-3, 1e-3, 1e-3])
+    cols = []
+    for i in range(8):
+        hi, lo = x.copy(), x.copy()
+        hi[i] += h[i]
+        lo[i] -= h[i]
+        s_hi, s_lo = (TumblingState.from_vector(v, state.alpha, t_ref, frame) for v in (hi, lo))
+        if s_hi is None or s_lo is None:
+            cols.append(np.zeros(len(final.t)))
+            continue
+        cols.append((final.matrix(s_hi) - final.matrix(s_lo)) @ a * final.w / (2 * h[i]))
+    J = np.column_stack(cols + [A[:, sup]])
+    dof = max(len(final.t) - J.shape[1], 1)
+    red = chi2 / dof
+    cov = np.linalg.pinv(J.T @ J)[:8, :8] * (max(red, 1.0) if weighted else red)
+    return np.sqrt(np.clip(np.diag(cov), 0, None)), red, sup
+
+
+def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float, weighted: bool,
+            final_fev: int) -> tuple[dict[str, float], float, np.ndarray]:
+    """The solution's 1σ (:class:`~cssat.inversion.tumble.TumblingSolution`'s ``errors``): the
+    formal ones (:func:`_formal_errors`) added in quadrature to the shift of the fit on ``final``'s
+    grid of normals turned at random; with the reduced χ² and the EGI's support ``(K,)``."""
+    from cssat.inversion.spin import _separation_deg
+
+    e, red, sup = _formal_errors(final, state, x, a, chi2, span, weighted)
+    formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
+    # the EGI grid's bias (it dominates at high SNR): the fit again on the grid of normals turned at random
+    from scipy.spatial.transform import Rotation
+
+    turned = _TFit(final.t, final.y, final.w, final.S, final.O, final.N @ Rotation.random(random_state=0).as_matrix().T,
+                   final.brdf)
+    _, xg, _ = _refine(turned, x, state.alpha, span, final_fev, state.t_ref_s, state.frame)
+    shift = np.abs(xg - x)
+    grid_L = _separation_deg((state.lon_deg, state.lat_deg), (float(xg[5]), float(xg[6])))
+    errors = {"i1": np.hypot(e[0], shift[0]), "i2": np.hypot(e[1], shift[1]),
+              "P_omega_s": np.hypot(e[2], shift[2]) / x[2] ** 2, "P_phi_s": np.hypot(e[3], shift[3]) / x[3] ** 2,
+              "t0_s": np.hypot(e[4], shift[4]), "L_lon_deg": np.hypot(e[5], shift[5]), "L_lat_deg": np.hypot(e[6], shift[6]),
+              "phi0_deg": np.hypot(e[7], shift[7]), "L_err_deg": float(np.hypot(formal_L, grid_L)),
+              "formal_L_err_deg": formal_L, "grid_L_shift_deg": grid_L}
+    return {k: float(v) for k, v in errors.items()}, red, sup
+
+
+def _alternatives(others: list[tuple], x: np.ndarray, chi2: float, red: float, state: TumblingState) -> list[dict[str, Any]]:
+    """The other refined minima ``others`` (``(chi2, x, alpha)``, best first) that are not the
+    solution ``x (8,)`` or an earlier alternative reached from another start (``L`` within 1°,
+    both frequencies within 1e-4): their ``L``, periods, moments, ``chi2``, ``delta_chi2`` in
+    units of the reduced χ² ``red`` and ``separation_deg`` from the solution's ``L``."""
+    from cssat.inversion.spin import _separation_deg
+
+    alts: list[dict[str, Any]] = []
+    for c2, x2, _ in others:
+        if any(_separation_deg((float(x2[5]), float(x2[6])), (float(v[5]), float(v[6]))) < 1.0
+               and abs(x2[2] / v[2] - 1) < 1e-4 and abs(x2[3] / v[3] - 1) < 1e-4
+               for v in [x] + [np.array([0, 0, 1 / q["P_omega_s"], 1 / q["P_phi_s"], 0, q["L_lon_deg"], q["L_lat_deg"], 0])
+                               for q in alts]):
+            continue  # the same minimum reached from another start
+        alts.append({"L_lon_deg": float(x2[5]), "L_lat_deg": float(x2[6]), "P_omega_s": float(1 / x2[2]),
+                     "P_phi_s": float(1 / x2[3]), "i1": float(x2[0]), "i2": float(x2[1]), "chi2": float(c2),
+                     "delta_chi2": float((c2 - chi2) / max(red, 1e-300)),
+                     "separation_deg": _separation_deg((state.lon_deg, state.lat_deg), (float(x2[5]), float(x2[6])))})
+    return alts
