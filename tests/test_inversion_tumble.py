@@ -186,6 +186,17 @@ def test_the_tumbling_options_are_checked_before_work(tmp_path):
 
     with pytest.raises(FieldError, match=r"inversion\.tumbling\.bogus"):
         run_experiment(_cfg("experiment=inversion_tumbling", "+inversion.tumbling.bogus=1"), tmp_path / "bad")
+    for bad, field in (("+inversion.tumbling.arc_s=-1", r"inversion\.tumbling\.arc_s: .*\(0\.0, inf\]"),
+                       ("+inversion.tumbling.n_poles=0", r"inversion\.tumbling\.n_poles"),
+                       ("+inversion.tumbling.inertia_grid=-3", r"inversion\.tumbling\.inertia_grid"),
+                       ("+inversion.tumbling.inertia_grid=[[0.9,0.5]]", r"inversion\.tumbling\.inertia_grid.*triangle|0 < I1"),
+                       ("+inversion.tumbling.periods_s=[1,x]", r"inversion\.tumbling\.periods_s"),
+                       ("+inversion.tumbling.min_period_s=15", r"inversion\.tumbling\.min_period_s: 15 s is under two cadences"),
+                       ("inversion.min_period_s=19", r"inversion\.min_period_s: 19 s is under two cadences \(scenario.step_s = 10 s\)"),
+                       ("nights.fit=5", r"nights\.fit: 5 nights fitted of the 3")):
+        with pytest.raises(FieldError, match=field):
+            run_experiment(_cfg("experiment=inversion_tumbling", bad), tmp_path / "bad")
+        assert not (tmp_path / "bad" / "arrays.npz").exists()
     for bad, field in (("inversion.method=tvv", r"inversion\.method.*'nnls', 'nnomp', 'l1', 'tv'"),
                        ("inversion.lam=-1", r"inversion\.lam"), ("inversion.tv_neighbours=0", r"inversion\.tv_neighbours")):
         with pytest.raises(FieldError, match=field):

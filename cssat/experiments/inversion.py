@@ -97,14 +97,21 @@ def _check_search(search: dict[str, Any]) -> None:
 MAX_STEPS = 2_000_000
 
 
-def _check_size(cfg: Any, n_nights: int, n_faces: int) -> None:
-    """The simulated scenario's steps and the memory of its light curve (facet brightness and
-    visibility per step), before any is computed."""
+def _check_size(cfg: Any, n_nights: int, n_faces: int, searched: bool = True) -> None:
+    """The simulated scenario's steps against the periods searched (the shortest at least two
+    cadences: Nyquist) and the memory of its light curve (facet brightness and visibility per
+    step), before any is computed."""
     from cssat.experiments.resources import check_memory
 
     if cfg.get("observations"):
         return
     step = float_param(cfg.scenario.step_s, "scenario.step_s", 0.0, open_lo=True)
+    inv = cfg.get("inversion") or {}
+    for key, node in (("inversion.min_period_s", inv), ("inversion.tumbling.min_period_s", inv.get("tumbling") or {})):
+        lo = node.get("min_period_s")
+        if lo is not None and float(lo) < 2 * step:
+            raise FieldError(key, f"{float(lo):g} s is under two cadences (scenario.step_s = {step:g} s): a shorter period "
+                                  f"is aliased; raise it to {2 * step:g} s or more, or shorten the cadence")
     n_steps = int(n_nights * 86400.0 / step) + 1
     if n_steps > MAX_STEPS:
         raise FieldError("scenario.step_s", f"{step:g} s over {n_nights} nights is {n_steps:.3g} steps, more than "
@@ -162,14 +169,13 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         min_el = float_param(nights_cfg.get("min_elevation_deg", 20.0), "nights.min_elevation_deg", -90.0, 90.0)
         spin_mode = choice_param(inv.get("spin", "auto"), "inversion.spin", ("auto", "search", "tumbling", "known"))
         tumble = {k: v for k, v in _opts(inv.get("tumbling")).items() if v is not None}
-        import inspect
+        from cssat.experiments.context import as_field
+        from cssat.inversion.tumble import check_tumbling_options
 
-        from cssat.inversion import estimate_tumbling as _et
-
-        allowed = [k for k, p in inspect.signature(_et).parameters.items() if p.kind is p.KEYWORD_ONLY and k not in ("sigma", "brdf", "frame")]
-        for k in tumble:
-            if k not in allowed:
-                raise FieldError(f"inversion.tumbling.{k}", f"unknown option; allowed: {', '.join(allowed)}")
+        with as_field("inversion.tumbling"):  # every option of the tumbling search, before any work
+            check_tumbling_options(**tumble)
+        if n_fit is not None and n_fit > n_nights and not cfg.get("observations"):
+            raise FieldError("nights.fit", f"{n_fit} nights fitted of the {n_nights} observed (nights.n): at most {n_nights}")
         n_normals = int_param(inv.get("n_normals", 2000), "inversion.n_normals", 16, 20000)
         search_normals = int_param(inv.get("search_normals", 1000), "inversion.search_normals", 16, 20000)
         from cssat.inversion.recover import METHODS, lam_param
@@ -182,7 +188,7 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
                                       "min_period_s", "max_period_s") if inv.get(k) is not None}
         _check_search(search)  # the spin search's settings, before any work, with their full keys
         mesh = build_model(cfg.model)
-        _check_size(cfg, n_nights, len(mesh.faces) if hasattr(mesh, "faces") else 0)
+        _check_size(cfg, n_nights, len(mesh.faces) if hasattr(mesh, "faces") else 0, spin_mode != "known")
         attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         noise = build(cfg.get("noise"), "noise")

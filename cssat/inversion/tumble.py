@@ -21,7 +21,8 @@ from cssat.inversion.tumble_fit import _alternatives, _continuation, _errors, _r
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
 
-__all__ = ["TumblingState", "TumblingSolution", "tumbling_rates", "estimate_tumbling", "torque_free_invariants"]
+__all__ = ["TumblingState", "TumblingSolution", "tumbling_rates", "estimate_tumbling", "check_tumbling_options",
+           "torque_free_invariants"]
 
 log = logging.getLogger("cssat")
 
@@ -182,9 +183,45 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
                                      "i1": float(r[1][0]), "i2": float(r[1][1])} for r in table[:20]])
 
 
+def check_tumbling_options(**options: Any) -> None:
+    """Refuse, before any work, a keyword option of :func:`estimate_tumbling` out of its range
+    or unknown (a :class:`~cssat._checks.FieldError` naming it): counts ``>= 1`` (grids and
+    samples ``>= 16``, coarse normals ``>= 8``), periods and the arc ``> 0``, ``max_period_s >
+    min_period_s``, ``max_ratio >= 1``, ``growth > 1``, ``inertia_grid`` in the rigid-body triangle."""
+    import inspect
+
+    allowed = [k for k, p in inspect.signature(estimate_tumbling).parameters.items()
+               if p.kind is p.KEYWORD_ONLY and k not in ("sigma", "brdf", "frame")]
+    for k in options:
+        if k not in allowed:
+            raise FieldError(k, f"unknown option; allowed: {', '.join(allowed)}")
+    o = {k: p.default for k, p in inspect.signature(estimate_tumbling).parameters.items() if k in allowed}
+    o.update(options)
+    for k in ("n_poles", "n_t0", "n_phi", "n_prerank", "n_pairs", "screen_moments", "screen_poles", "n_screen", "n_starts",
+              "n_refine", "max_fev", "screen_fev", "final_fev"):
+        int_param(o[k], k, 1, 10**7)
+    int_param(o["coarse_normals"], "coarse_normals", 8, 10**6)
+    for k in ("coarse_samples", "mid_normals", "mid_samples", "n_normals", "max_samples"):
+        int_param(o[k], k, 16, 10**7)
+    float_param(o["arc_s"], "arc_s", 0.0, open_lo=True)
+    lo = float_param(o["min_period_s"], "min_period_s", 0.0, open_lo=True)
+    float_param(o["max_period_s"], "max_period_s", lo, open_lo=True)
+    float_param(o["max_ratio"], "max_ratio", 1.0)
+    float_param(o["growth"], "growth", 1.0, open_lo=True)
+    if o["periods_s"] is not None:
+        try:
+            _given_pairs(o["periods_s"])
+        except (TypeError, ValueError) as err:
+            raise FieldError("periods_s", f"expected (P_omega, P_phi) in seconds, got {o['periods_s']!r}") from err
+    _check_inertia_grid(o["inertia_grid"])
+
+
 def _check_inertia_grid(inertia_grid: Any) -> np.ndarray:
     """The moments ``(M, 2)`` of ``inertia_grid``, each in the rigid-body triangle."""
-    grid_I = np.asarray(inertia_grid, dtype=np.float64).reshape(-1, 2)
+    try:
+        grid_I = np.asarray(inertia_grid, dtype=np.float64).reshape(-1, 2)
+    except (TypeError, ValueError) as err:
+        raise FieldError("inertia_grid", f"expected pairs (I1/I3, I2/I3), got {inertia_grid!r}") from err
     if not np.all((grid_I[:, 0] > 0) & (grid_I[:, 0] <= grid_I[:, 1]) & (grid_I[:, 1] <= 1) & (grid_I.sum(1) >= 1)):
         raise FieldError("inertia_grid", "each (I1/I3, I2/I3) needs 0 < I1/I3 <= I2/I3 <= 1 <= I1/I3 + I2/I3")
     return grid_I
