@@ -1,0 +1,102 @@
+"""The one protocol of a forward model, and the one loop that plans and executes it (issue 35, point 1).
+
+A forward model is how an unknown becomes a light curve — pixels through an atmosphere
+(:class:`~cssat.experiments.forward.PixelSensing`, a moving scene), the EGI through a scene and
+an attitude (:class:`~cssat.experiments.forward.egi.EGILightCurve`), a silhouette through Fresnel
+diffraction onto an array of telescopes (:class:`~cssat.experiments.forward.shadow.Shadow`), a
+measured file (:class:`~cssat.experiments.forward.observed.Observed`). Each is one class with the
+same stages, run by :func:`run_model` in this order, each timed into ``seconds_<stage>``:
+
+``plan``
+    build and check every setting of the config — with its full key, in the range its physics
+    implies — and the memory estimate; refuse before any work;
+``measure``
+    the unknown's truth and its light curve (simulated, or read);
+``estimate``
+    how the solver gets its operator: known, from references, from statistics, or an attitude
+    search whose frames give the EGI operator;
+``solve``
+    the unknown from the light curve (the ``solver`` group's object where the model takes one);
+``score``
+    the metrics (against the truth where there is one);
+``write``
+    ``arrays.npz``, tables and figures.
+
+A model keeps what its stages hand on as attributes of itself; :func:`run_model` owns the loop,
+the timings and the headline line in the log. A new forward model is one subclass and one YAML
+in ``conf/forward/``; an experiment that uses it is an overlay in ``conf/experiment/``.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from cssat.experiments.context import Run
+
+__all__ = ["ForwardModel", "run_model", "STAGES"]
+
+log = logging.getLogger("cssat")
+
+#: the stages of every forward model, in the order :func:`run_model` runs them
+STAGES = ("plan", "measure", "estimate", "solve", "score", "write")
+
+
+class ForwardModel:
+    """A forward model of the one pipeline: the stages of :data:`STAGES` as methods. Each stage
+    that takes longer than a moment may time its own parts with ``run.stage(name)``;
+    :func:`run_model` times the rest under the stage's own name (``plan`` as ``setup``)."""
+
+    name = "forward"
+    #: a stage whose method times its own parts (``run.stage``) is not timed again around them
+    timed_inside: tuple[str, ...] = ()
+
+    def plan(self, cfg: Any, run: Run) -> None:  # pragma: no cover - abstract
+        """Build and check every setting of ``cfg`` and the memory estimate, before any work."""
+        raise NotImplementedError
+
+    def measure(self, run: Run) -> None:  # pragma: no cover - abstract
+        """The unknown's truth (if any) and its light curve."""
+        raise NotImplementedError
+
+    def estimate(self, run: Run) -> None:
+        """The operator the solver gets (default: the measurement's own: known)."""
+
+    def solve(self, run: Run) -> None:  # pragma: no cover - abstract
+        """The unknown from the light curve."""
+        raise NotImplementedError
+
+    def score(self, run: Run) -> dict[str, Any]:  # pragma: no cover - abstract
+        """The run's flat metrics."""
+        raise NotImplementedError
+
+    def write(self, run: Run, metrics: dict[str, Any]) -> None:  # pragma: no cover - abstract
+        """The run's arrays, tables and figures under ``run.out_dir``."""
+        raise NotImplementedError
+
+    def headline(self, metrics: dict[str, Any]) -> str | None:
+        """The one line the log gets at the end (``None``: none)."""
+        return None
+
+
+def run_model(model: ForwardModel, cfg: Any, run: Run) -> dict[str, Any]:
+    """Plan ``model`` on ``cfg`` (nothing computed when a setting is refused), then run its stages;
+    return its metrics with ``seconds_<stage>`` of every stage."""
+    names = {"plan": "setup"}
+    for stage in STAGES[:4]:
+        method = getattr(model, stage)
+        args = (cfg, run) if stage == "plan" else (run,)
+        if stage in model.timed_inside:
+            method(*args)
+        else:
+            with run.stage(names.get(stage, stage)):
+                method(*args)
+    with run.stage("score"):
+        metrics = model.score(run)
+    with run.stage("write"):
+        model.write(run, metrics)
+    metrics.update(run.timings())
+    line = model.headline(metrics)
+    if line:
+        log.info("%s", line)
+    return metrics

@@ -1,0 +1,156 @@
+"""The EGI forward model's last stages (:class:`~cssat.experiments.forward.egi.EGILightCurve`):
+the EGI and its convex shape solved from the fitted nights and the held-out nights predicted;
+the scores against the truth (the true EGI and hull in the fitted body frame, the pole and
+periods of the true attitude); the arrays, tables and figures."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cssat.experiments.context import Run
+
+__all__ = ["solve_egi", "score_truth", "write_egi", "egi_recovered_share", "EGI_WEIGHT_SHARE", "EGI_MATCH_DEG"]
+
+#: a recovered normal "carries weight" when it holds at least this share of the recovered area
+EGI_WEIGHT_SHARE = 0.01
+#: the true EGI's area within this angle of a weighted recovered normal is "recovered"
+EGI_MATCH_DEG = 10.0
+
+
+def egi_recovered_share(true_normals: np.ndarray, true_areas: np.ndarray, normals: np.ndarray, areas: np.ndarray,
+                        *, within_deg: float = EGI_MATCH_DEG, weight_share: float = EGI_WEIGHT_SHARE) -> float:
+    """The share of the true EGI's area within ``within_deg`` of a recovered normal holding at
+    least ``weight_share`` of the recovered area (both EGIs in one frame)."""
+    if areas.size == 0 or true_areas.sum() <= 0:
+        return 0.0
+    heavy = normals[areas >= weight_share * areas.sum()]
+    if heavy.size == 0:
+        return 0.0
+    near = (true_normals @ heavy.T).max(1) >= np.cos(np.radians(within_deg))
+    return float(true_areas[near].sum() / true_areas.sum())
+
+
+def _grid(n: int) -> np.ndarray:
+    from cssat.inversion import fibonacci_sphere
+
+    return fibonacci_sphere(min(n, 2000)).numpy()
+
+
+def _rms(x: np.ndarray, m: np.ndarray) -> float | None:
+    return float(np.sqrt(np.mean(x[m] ** 2))) if m.any() else None
+
+
+def solve_egi(f: Any) -> None:
+    """The EGI on ``inversion.n_normals`` normals and its convex shape from the fitted samples
+    (:func:`~cssat.inversion.invert_convex`), the model over every sample, the fit and held-out
+    residuals against the noise, and the observability of the fitted geometry."""
+    from cssat.inversion import egi_operator, invert_convex, observability
+
+    fit, held, sigma, y = f.fit, f.held, f.sigma, f.y
+    f.res = res = invert_convex(y[fit], f.sun_b[fit], f.obs_b[fit], brdf=f.brdf or "lambert", n_normals=f.n_normals,
+                                sigma=None if sigma is None else sigma[fit], method=f.method, closure=f.closure,
+                                **f.recover_opts)
+    f.model_unit = (egi_operator(f.sun_b, f.obs_b, res.normals, f.brdf).matrix().numpy() @ res.areas if res.areas.size
+                    else np.zeros_like(f.t))
+    resid = y - f.model_unit
+    noise_fit = _rms(sigma, fit) if sigma is not None else None
+    noise_held = _rms(sigma, held) if sigma is not None else None
+    rms_fit, rms_held = _rms(resid, fit), _rms(resid, held)
+    f.metrics.update(egi_n_normals=int(res.areas.size), egi_area_m2=float(res.areas.sum()), fit_rms=rms_fit,
+                     fit_rms_over_noise=(rms_fit / noise_fit) if noise_fit else None,
+                     heldout_rms=rms_held, heldout_rms_over_noise=(rms_held / noise_held) if noise_held and held.any() else None,
+                     heldout_rms_relative=(rms_held / float(np.sqrt(np.mean(y[held] ** 2)))) if held.any() else None,
+                     shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
+                     **{f"inversion_{k}": v for k, v in res.info.items() if isinstance(v, (int, float, str)) or v is None})
+    f.grid = _grid(f.n_normals)
+    f.obs_info = observability(f.sun_b[fit], f.obs_b[fit], f.grid, brdf=f.brdf)
+    f.metrics.update(observability_rank=f.obs_info["effective_rank"],
+                     observability_seen_share=float(f.obs_info["seen"].mean()))
+
+
+def score_truth(f: Any) -> dict[str, np.ndarray]:
+    """The recovered EGI and shape against the truth, in the fitted body frame at t = 0, and the
+    attitude's pole and periods against the true spin or tumbling state; returns the true EGI."""
+    from cssat.inversion import egi
+    from cssat.inversion.shape import convex_iou
+    from cssat.scene.attitudes import Spin, Tumbling
+
+    res, metrics, attitude, sol = f.res, f.metrics, f.attitude, f.sol
+    tn, ta = egi(f.mesh)
+    to_fit = f.frames[0] @ f.true_frames[0].T  # the true body normals in the fitted body frame at t = 0
+    tn_fit = tn @ to_fit.T
+    metrics["egi_recovered_share"] = egi_recovered_share(tn_fit, ta, res.normals, res.areas)
+    if res.mesh is not None:
+        import trimesh
+
+        hull = trimesh.convex.convex_hull(np.asarray(f.mesh.vertices) @ to_fit.T)
+        metrics["shape_iou_hull"] = convex_iou(hull, res.mesh)
+    if isinstance(attitude, Tumbling) and f.spin_mode == "tumbling":
+        metrics.update(_tumbling_errors(attitude, sol.state))
+    if isinstance(attitude, Spin) and sol is not None:
+        from cssat.inversion.spin import _separation_deg
+
+        metrics["period_error_relative"] = abs(sol.period_s - abs(attitude.period_s)) / abs(attitude.period_s)
+        lon, lat = attitude.pole_lon_deg, attitude.pole_lat_deg
+        if attitude.period_s < 0:  # a retrograde spin is a prograde one about the opposite pole
+            lon, lat = lon + 180.0, -lat
+        metrics["pole_error_deg"] = _separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (lon, lat))
+    return {"true_normals": tn_fit, "true_areas": ta}
+
+
+def _tumbling_errors(attitude: Any, st: Any) -> dict[str, Any]:
+    """A searched torque-free state ``st`` against the attitude's own invariants."""
+    from cssat.inversion.spin import _separation_deg
+    from cssat.inversion.tumble import torque_free_invariants
+
+    tr = torque_free_invariants(attitude.inertia, attitude.q0, attitude.omega0, st.frame)
+    if tr is None:
+        return {}
+    e_w, e_p = abs(st.f_omega_hz / tr["f_omega_hz"] - 1), abs(st.f_phi_hz / tr["f_phi_hz"] - 1)
+    return dict(pole_error_deg=_separation_deg((st.lon_deg, st.lat_deg), (tr["L_lon_deg"], tr["L_lat_deg"])),
+                period_error_relative=max(e_w, e_p), tumble_P_omega_error_relative=e_w,
+                tumble_P_phi_error_relative=e_p, tumble_i1_error=st.i1 - tr["i1"], tumble_i2_error=st.i2 - tr["i2"],
+                tumble_true_P_omega_s=1 / tr["f_omega_hz"], tumble_true_P_phi_s=1 / tr["f_phi_hz"],
+                tumble_true_i1=tr["i1"], tumble_true_i2=tr["i2"], tumble_mode_correct=st.short_axis == tr["short_axis"])
+
+
+def write_egi(f: Any, run: Run) -> None:
+    """``arrays.npz``, ``egi.csv``, ``lightcurve.csv``, ``shape.obj`` and the figures."""
+    from cssat.experiments.files import write_csv, write_npz
+
+    out, res, t, sigma, truth = run.out_dir, f.res, f.t, f.sigma, f.truth
+    write_npz(out / "arrays.npz", times=t, epoch_utc=np.array(str(f.scenario.times[0])), night=f.night, fit=f.fit,
+              flux=f.y, sigma=sigma if sigma is not None else np.full_like(t, np.nan),
+              clean=f.clean_w * f.unit if f.clean_w is not None else np.full_like(t, np.nan), model=f.model_unit,
+              normals=res.normals, areas=res.areas, sun_body=f.sun_b, obs_body=f.obs_b,
+              singular_values=f.obs_info["singular_values"], leverage=f.obs_info["leverage"], grid_normals=f.grid, **truth)
+    write_csv(out / "egi.csv", [{"nx": float(n[0]), "ny": float(n[1]), "nz": float(n[2]), "area_m2": float(a)}
+                                for n, a in zip(res.normals, res.areas)])
+    sigma_w = f.sigma_w if f.sigma_w is not None else np.full_like(t, np.nan)
+    write_csv(out / "lightcurve.csv", [
+        {"time_utc": f"{np.datetime_as_string(tt, unit='ms')}Z", "flux_W_m2": float(v), "flux_err_W_m2": float(s) if s == s else "",
+         "model_W_m2": float(m), "night": int(n), "fitted": bool(ff)}
+        for tt, v, s, m, n, ff in zip(f.scenario.times[f.keep], f.flux_w, sigma_w, f.model_unit / f.unit, f.night, f.fit)])
+    if res.mesh is not None:
+        from cssat._tmpfiles import atomic_write
+
+        atomic_write(out / "shape.obj", lambda tmp: res.mesh.export(str(tmp), file_type="obj"))
+    _figures(f, run)
+
+
+def _figures(f: Any, run: Run) -> None:
+    from cssat.plots import save_figure
+    from cssat.plots.inversion import egi_figure, inversion_lightcurve_figure, observability_figure, shapes_figure
+
+    res, truth, obs_info = f.res, f.truth, f.obs_info
+    save_figure(inversion_lightcurve_figure(f.t / 3600.0, f.y, f.sigma, f.model_unit, f.fit), run.figure("inversion_lightcurve"))
+    save_figure(egi_figure(res.normals, res.areas, truth.get("true_normals"), truth.get("true_areas")), run.figure("inversion_egi"))
+    if res.mesh is not None:
+        true_mesh = None
+        if truth:
+            true_mesh = (np.asarray(f.mesh.vertices) @ (f.frames[0] @ f.true_frames[0].T).T, np.asarray(f.mesh.faces))
+        save_figure(shapes_figure(res.mesh, true_mesh, f.metrics.get("shape_iou_hull")), run.figure("inversion_shapes"))
+    save_figure(observability_figure(f.grid, obs_info["leverage"], obs_info["seen"], obs_info["singular_values"]),
+                run.figure("inversion_observability"))
