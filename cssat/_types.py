@@ -10,7 +10,7 @@ if TYPE_CHECKING:
     import torch
 
     from cssat.physics import Measurement
-    from cssat.recon.problem import Problem
+    from cssat.sparse.problem import Problem
     from cssat.sparse.operators import LinearOperator
 
     #: a numpy array or a tensor (numpy in, numpy out where a function accepts both)

@@ -73,17 +73,23 @@ def _callable_with(obj: Any, field: str, signature: str) -> Any:
     return obj
 
 
-def build_solver(node: Any, m: int, n_pixels: int, field: str = "solver") -> Any:
+def build_solver(node: Any, m: int | None, n_pixels: int, field: str = "solver") -> Any:
     """The solver of ``node`` (a ``solver`` group node), its size-dependent settings checked for
-    ``m`` samples of ``n_pixels`` unknowns."""
+    ``m`` samples of ``n_pixels`` unknowns (``m`` None: later, by :func:`validate_solver`)."""
     solver = _callable_with(build(node, field), field, "solver(problem, y) -> (x, info)")
+    if m is not None:
+        validate_solver(solver, m, n_pixels, field)
+    return solver
+
+
+def validate_solver(solver: Any, m: int, n_pixels: int, field: str = "solver") -> None:
+    """The solver's size-dependent settings for ``m`` samples of ``n_pixels`` unknowns."""
     validate = getattr(solver, "validate", None)
     if validate is not None:
         try:
             validate(m, n_pixels)
         except FieldError as err:
             raise err.within(field) from err
-    return solver
 
 
 def build_denoiser(node: Any, field: str = "denoiser") -> Any:

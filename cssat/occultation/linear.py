@@ -110,24 +110,20 @@ def invert_linear(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float,
                   solver: Any = None, ground: Any = None) -> tuple[np.ndarray, dict[str, Any]]:
     """The silhouette ``(H, W)`` from the recorded ``series (J, K)`` by a linear solver on the
     linearised model (:class:`ShadowOperator`, rows weighted by ``1/sigma``): ``solver`` any
-    cssat solver (``x, info = solver(problem, y)``, e.g. from the ``solver`` config group) or one
-    of the names ``tv`` (default: TV ≥ 0 by PDHG at the relative weight 1e-2, 500 iterations),
-    ``l1``, ``omp``, ``landweber`` (their defaults).
+    cssat solver (``x, info = solver(problem, y)``: the ``solver`` config group's, e.g.
+    ``cssat.recon.TV(lam=1e-2, method="pdhg", max_iter=500)``, ``L1()``, ``OMP()``, ``Landweber()``).
     The estimate is clipped to [0, 1]. Returns ``(mask, info)`` with the solver's info and
     ``chi2_per_sample`` of the linear model."""
-    from cssat.recon.problem import Problem
+    from cssat.sparse.problem import Problem
 
+    if solver is None or isinstance(solver, str) or not callable(solver):
+        raise FieldError("solver", f"expected a solver object (x, info = solver(problem, y)), e.g. "
+                                   f"cssat.recon.TV(lam=1e-2, method='pdhg', max_iter=500); got {solver!r}")
     y = np.asarray(series, dtype=np.float64)
     op = ShadowOperator(shape, pixel_m, wavelength_m, distance_m, positions_m, velocity_m_s, times_s, kernel=kernel,
                         weights=weights, sigma=sigma, ground=ground)
     if y.size != op.n_out:
         raise FieldError("series", f"expected {len(op.positions)} × {len(op.times)} samples, got shape {y.shape}")
-    if solver is None or isinstance(solver, str):
-        from cssat._checks import choice_param
-        from cssat.recon import L1, OMP, TV, Landweber
-
-        name = choice_param("tv" if solver is None else solver, "solver", ("tv", "l1", "omp", "landweber"))
-        solver = {"tv": lambda: TV(lam=1e-2, method="pdhg", max_iter=500), "l1": L1, "omp": OMP, "landweber": Landweber}[name]()
     from cssat.sparse.solvers import operator_norm_sq
 
     yw = torch.as_tensor((y.reshape(-1) - 1.0) * (1.0 if op.inv_sigma is None else op.inv_sigma), dtype=torch.float64)
