@@ -4,7 +4,8 @@ Knows nothing of compressed sensing.
 """
 
 from cssat.scene.attitude import nadir_pointing_frame, random_unit_vectors, to_body
-from cssat.scene.mesh import MODELS, Mesh, as_mesh, astra_like, box, cylinder, dish, get_model, load_mesh, merge, panel, tess_like
+from cssat.scene.mesh import Mesh, as_mesh, load_mesh, merge
+from cssat.scene.models import MODELS, astra_like, box, cylinder, dish, get_model, panel, tess_like
 from cssat.scene.orbit import (ASTRA_1KR_SYNTHETIC_TLE, TIMES_FORMS, Scenario, check_tle, earth_shadow_fraction,
                                make_scenario, utc_times)
 

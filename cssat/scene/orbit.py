@@ -4,19 +4,24 @@ Every position is geocentric in one frame, the GCRS (axes of the ICRS), in km: S
 and skyfield rotates its output to the GCRS, and the Sun (JPL DE421, shipped by ``skyfield-data``)
 and the observer come from skyfield in the same frame. Mixing a J2000 Sun with a TEME satellite
 would misplace the Sun by 0.27°, half the 0.5° specular window of Eq. 9.
+
+The element sets SGP4 takes are read and checked in :mod:`cssat.scene.elements`, the time stamps in
+:mod:`cssat.scene.times`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from datetime import datetime, timedelta, timezone
+from datetime import datetime, timedelta
 from functools import lru_cache
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, FieldTypeError
+from cssat._checks import FieldError
+from cssat.scene.elements import ASTRA_1KR_SYNTHETIC_TLE, R_EARTH_KM, STALE_DAYS, _satellite, check_elements, check_tle
+from cssat.scene.times import TIMES_FORMS, _start_datetime, utc_times
 
 __all__ = [
     "ASTRA_1KR_SYNTHETIC_TLE",
@@ -28,53 +33,10 @@ __all__ = [
     "TIMES_FORMS",
 ]
 
-#: Astra 1KR (NORAD 29055, 19.2°E), re-epoched to 2020-04-01 00:00 UTC from the real 2020-09-30
-#: element set with the mean anomaly set so the longitude is 19.2°E. **Synthetic**: no real TLE near
-#: that date exists, and SGP4 from one months away drifts by tens of degrees (DESIGN.md).
-ASTRA_1KR_SYNTHETIC_TLE = (
-    "1 29055U 06012A   20092.00000000  .00000104  00000-0  00000-0 0  9998",
-    "2 29055   0.0291 247.7716 0004915 319.3582   1.8831  1.00273365 24812",
-)
-
-R_EARTH_KM = 6378.137  # WGS84 equatorial radius
 R_SUN_KM = 695_700.0  # IAU 2015 nominal solar radius
-
-
 
 #: the dates DE421 (skyfield-data's ephemeris) covers
 EPHEMERIS_RANGE = (datetime(1899, 7, 29), datetime(2053, 10, 9))
-
-
-def check_tle(line1: str, line2: str, field: str = "tle") -> None:
-    """Validate a two-line element set; raise ``ValueError`` naming ``field.line1``/``field.line2``.
-
-    Checks the line numbers, the 69-column length, the modulo-10 checksums (sgp4's
-    ``compute_checksum``: digits count their value, ``-`` counts 1) and that both lines carry the
-    same catalogue number.
-    """
-    from sgp4.io import compute_checksum
-
-    for k, line in ((1, line1), (2, line2)):
-        name = f"{field}.line{k}"
-        if not isinstance(line, str):
-            raise FieldError(name, f"expected a string, got {type(line).__name__}")
-        line = line.rstrip()
-        if len(line) != 69:
-            raise FieldError(name, f"a TLE line has 69 columns, got {len(line)}")
-        if line[0] != str(k) or line[1] != " ":
-            raise FieldError(name, f"must start with '{k} ', got {line[:2]!r}")
-        if not line[68].isdigit() or int(line[68]) != compute_checksum(line):
-            raise FieldError(name, f"checksum {line[68]!r} does not match the computed {compute_checksum(line)}")
-    if line1[2:7] != line2[2:7]:
-        raise FieldError(field, f"catalogue numbers differ between the lines ({line1[2:7]!r} vs {line2[2:7]!r})")
-    epoch = line1[18:32]
-    try:
-        day = float(epoch[2:])
-        ok = epoch[:2].isdigit() and 1.0 <= day < 367.0
-    except ValueError:
-        ok = False
-    if not ok:
-        raise FieldError(f"{field}.line1", f"the epoch (columns 19-32, YYDDD.DDDDDDDD) is not a date: {epoch!r}")
 
 
 @dataclass(frozen=True)
@@ -173,154 +135,6 @@ def earth_shadow_fraction(r_sat_km: np.ndarray, r_sun_km: np.ndarray) -> np.ndar
     return np.clip(frac, 0.0, 1.0)
 
 
-#: OMM/GP keys without which no orbit can be initialised (CCSDS 502.0-B, CelesTrak's GP format)
-OMM_REQUIRED = ("EPOCH", "MEAN_MOTION", "ECCENTRICITY", "INCLINATION", "RA_OF_ASC_NODE",
-                "ARG_OF_PERICENTER", "MEAN_ANOMALY", "NORAD_CAT_ID")
-#: bookkeeping OMM keys, and the values assumed when a record lacks them
-OMM_DEFAULTS = {"CLASSIFICATION_TYPE": "U", "OBJECT_ID": "", "EPHEMERIS_TYPE": 0, "ELEMENT_SET_NO": 999,
-                "REV_AT_EPOCH": 0, "BSTAR": 0.0, "MEAN_MOTION_DOT": 0.0, "MEAN_MOTION_DDOT": 0.0}
-
-SATELLITE_FORMS = ("two TLE lines (line1, line2)", "three (name, line1, line2)", "a 2- or 3-line TLE string",
-                   "a skyfield EarthSatellite", "an sgp4 Satrec", "an OMM/GP record (a dict of CCSDS keys)")
-
-
-def _satellite(tle, ts, field: str = "scenario.tle"):
-    """``(EarthSatellite, name)`` of any of :data:`SATELLITE_FORMS`; TLE lines are checked by
-    :func:`check_tle` first (``name`` is ``""`` when the input carries none)."""
-    from sgp4.api import Satrec
-    from skyfield.api import EarthSatellite
-
-    if isinstance(tle, EarthSatellite):
-        return EarthSatellite.from_satrec(tle.model, ts), tle.name or ""
-    if isinstance(tle, Satrec):
-        return EarthSatellite.from_satrec(tle, ts), ""
-    if isinstance(tle, Mapping):
-        return _from_omm(tle, ts, field)
-    if isinstance(tle, str):
-        lines = [ln for ln in tle.splitlines() if ln.strip()]
-    elif isinstance(tle, (tuple, list)) and all(isinstance(ln, str) for ln in tle):
-        lines = list(tle)
-    else:
-        raise FieldTypeError(field, f"expected {', '.join(SATELLITE_FORMS)}; got {type(tle).__name__}")
-    if len(lines) not in (2, 3):
-        raise FieldError(field, f"a TLE has 2 lines, or 3 with a name line first; got {len(lines)}")
-    name = ""
-    if len(lines) == 3:
-        name = lines[0].strip()
-        name = name[2:].strip() if name.startswith("0 ") else name  # the "0 NAME" form of 3LE files
-        lines = lines[1:]
-    line1, line2 = (ln.rstrip() for ln in lines)
-    check_tle(line1, line2, field=field)
-    return EarthSatellite(line1, line2, name=name or None, ts=ts), name
-
-
-#: lowest perigee altitude (km) whose orbit SGP4 propagates as a satellite: below, it has re-entered
-MIN_PERIGEE_KM = 80.0
-#: propagating this many days or more from the element set's epoch is logged as a warning
-STALE_DAYS = 30.0
-_MU_KM3_S2 = 398600.4418
-
-
-def check_elements(model: Any, field: str = "scenario.tle") -> None:
-    """Refuse mean elements that are not an orbit around the Earth: inclination outside
-    [0°, 180°], eccentricity outside [0, 1), a mean motion ≤ 0 or one whose perigee lies below
-    :data:`MIN_PERIGEE_KM` (17 rev/day: ≈ 13 km). ``model`` is an sgp4 ``Satrec``."""
-    inc = math.degrees(model.inclo)
-    if not 0.0 <= inc <= 180.0:
-        raise FieldError(field, f"inclination {inc:g}° is outside [0, 180]")
-    if not 0.0 <= model.ecco < 1.0:
-        raise FieldError(field, f"eccentricity {model.ecco:g} is outside [0, 1)")
-    n = model.no_kozai / 60.0  # rad/s
-    if not n > 0:
-        raise FieldError(field, f"mean motion {model.no_kozai * 1440 / (2 * math.pi):g} rev/day must be > 0")
-    a = (_MU_KM3_S2 / n**2) ** (1 / 3)
-    perigee = a * (1 - model.ecco) - R_EARTH_KM
-    if perigee < MIN_PERIGEE_KM:
-        raise FieldError(field, f"mean motion {model.no_kozai * 1440 / (2 * math.pi):.6g} rev/day and eccentricity "
-                                f"{model.ecco:g} put the perigee {perigee:.0f} km above the ground, below {MIN_PERIGEE_KM:g} km")
-
-
-def _from_omm(rec, ts, field: str):
-    from sgp4 import omm
-    from sgp4.api import Satrec
-    from skyfield.api import EarthSatellite
-
-    missing = [k for k in OMM_REQUIRED if rec.get(k) is None]
-    if missing:
-        raise FieldError(field, f"an OMM/GP record needs {', '.join(OMM_REQUIRED)}; missing {', '.join(missing)}")
-    fields = {**OMM_DEFAULTS, **{k: v for k, v in rec.items() if v is not None}}
-    epoch = _start_datetime(str(fields["EPOCH"]), field=f"{field}.EPOCH")
-    fields["EPOCH"] = epoch.strftime("%Y-%m-%dT%H:%M:%S.%f")  # the one form sgp4.omm parses
-    fields["OBJECT_ID"] = str(fields["OBJECT_ID"])
-    sat = Satrec()
-    try:
-        omm.initialize(sat, fields)
-    except (TypeError, ValueError) as e:
-        raise FieldError(field, f"not a valid OMM/GP record ({e})") from None
-    return EarthSatellite.from_satrec(sat, ts), str(rec.get("OBJECT_NAME") or "")
-
-
-START_FORMS = "an ISO string, a datetime (naive = UTC), a numpy.datetime64 or a skyfield Time"
-
-
-def _start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
-    """A naive UTC ``datetime`` of any of :data:`START_FORMS` (a scalar)."""
-    if isinstance(start_utc, str):
-        try:
-            start = datetime.fromisoformat(start_utc.strip().replace("Z", "+00:00"))
-        except ValueError:
-            raise FieldError(field, f"not an ISO date-time: {start_utc!r}") from None
-    elif isinstance(start_utc, datetime):  # also pandas.Timestamp
-        start = start_utc
-    elif isinstance(start_utc, np.datetime64):
-        if np.isnat(start_utc):
-            raise FieldError(field, "NaT is not a time")
-        us = start_utc.astype("datetime64[us]").astype(np.int64)
-        start = datetime(1970, 1, 1) + timedelta(microseconds=int(us))
-    elif type(start_utc).__module__.startswith("skyfield") and hasattr(start_utc, "utc_datetime"):
-        if np.ndim(start_utc.tt) != 0:
-            raise FieldError(field, f"expected one time, got a skyfield Time of shape {np.shape(start_utc.tt)}")
-        start = start_utc.utc_datetime()
-    else:
-        raise FieldTypeError(field, f"expected {START_FORMS}; got {type(start_utc).__name__}")
-    if start.tzinfo is not None:
-        start = start.astimezone(timezone.utc).replace(tzinfo=None)
-    return start
-
-
-#: what ``make_scenario(times=...)`` takes
-TIMES_FORMS = ("a skyfield Time array", "an astropy Time array", "numpy datetime64 values",
-               "datetime objects", "ISO 8601 strings (UTC unless they carry an offset)")
-
-
-def utc_times(times: Any, field: str = "scenario.times") -> np.ndarray:
-    """UTC instants of any of :data:`TIMES_FORMS` as a 1-D ``datetime64[us]`` array, checked:
-    at least one, no NaT, strictly increasing (the error names the first offending index)."""
-    mod = type(times).__module__
-    if mod.startswith("skyfield") and hasattr(times, "utc_datetime"):
-        times = [times.utc_datetime()] if np.ndim(times.tt) == 0 else list(times.utc_datetime())
-    elif mod.startswith("astropy") and hasattr(times, "utc"):
-        times = np.atleast_1d(times.utc.to_value("datetime64"))
-    if isinstance(times, (str, bytes, datetime, np.datetime64)):
-        times = [times]
-    arr = np.asarray(times) if not isinstance(times, np.ndarray) else times
-    if arr.ndim != 1 or arr.size == 0:
-        raise FieldError(field, f"expected a 1-D sequence of at least one time ({', '.join(TIMES_FORMS)}), got shape {arr.shape}")
-    if np.issubdtype(arr.dtype, np.datetime64):
-        out = arr.astype("datetime64[us]")
-        nat = np.flatnonzero(np.isnat(out))
-        if nat.size:
-            raise FieldError(f"{field}[{nat[0]}]", "NaT is not a time")
-    else:
-        out = np.array([np.datetime64(_start_datetime(t, f"{field}[{i}]"), "us") for i, t in enumerate(arr.tolist())])
-    step = np.diff(out).astype(np.int64)
-    bad = np.flatnonzero(step <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise FieldError(f"{field}[{i}]", f"times must increase: {out[i]} does not come after {out[i - 1]}")
-    return out
-
-
 def make_scenario(
     tle: Any = ASTRA_1KR_SYNTHETIC_TLE,
     start_utc: Any = "2020-04-01T00:00:00",
@@ -336,15 +150,17 @@ def make_scenario(
     from ``start_utc`` and compute the Sun, the observer at geodetic ``lat_deg``/``lon_deg``/``alt_m``
     (WGS84), the topocentric azimuth/elevation/range and the Earth shadow, all batched.
 
-    ``tle`` is any of :data:`SATELLITE_FORMS`: two TLE lines, three with a name, a TLE text, a
-    skyfield ``EarthSatellite``, an sgp4 ``Satrec`` or an OMM/GP record (CelesTrak's JSON/CSV
-    rows, ``sgp4.omm.parse_xml`` output; keys :data:`OMM_REQUIRED`, others default to
-    :data:`OMM_DEFAULTS`). ``start_utc`` is any of :data:`START_FORMS`; an aware datetime is
-    converted to UTC. ``name`` defaults to the one the satellite carries.
+    ``tle`` is any of :data:`~cssat.scene.elements.SATELLITE_FORMS`: two TLE lines, three with a
+    name, a TLE text, a skyfield ``EarthSatellite``, an sgp4 ``Satrec`` or an OMM/GP record
+    (CelesTrak's JSON/CSV rows, ``sgp4.omm.parse_xml`` output; keys
+    :data:`~cssat.scene.elements.OMM_REQUIRED`, others default to
+    :data:`~cssat.scene.elements.OMM_DEFAULTS`). ``start_utc`` is any of
+    :data:`~cssat.scene.times.START_FORMS`; an aware datetime is converted to UTC. ``name``
+    defaults to the one the satellite carries.
 
-    ``times``: any UTC instants (:data:`TIMES_FORMS`, :func:`utc_times`) — the time stamps of a
-    measured light curve, with gaps and any cadence — replace ``start_utc``, ``n_steps`` and
-    ``step_s``.
+    ``times``: any UTC instants (:data:`~cssat.scene.times.TIMES_FORMS`,
+    :func:`~cssat.scene.times.utc_times`) — the time stamps of a measured light curve, with gaps
+    and any cadence — replace ``start_utc``, ``n_steps`` and ``step_s``.
 
     The defaults are the paper's scenario: Astra 1KR, 1437 one-minute steps from 2020-04-01
     00:00 UTC, an observer at 51.17°N 10.45°E.
