@@ -197,9 +197,11 @@ def test_the_tumbling_options_are_checked_before_work(tmp_path):
         with pytest.raises(FieldError, match=field):
             run_experiment(_cfg("experiment=inversion_tumbling", bad), tmp_path / "bad")
         assert not (tmp_path / "bad" / "arrays.npz").exists()
-    for bad, field in (("inversion.method=tvv", r"inversion\.method.*'nnls', 'nnomp', 'l1', 'tv'"),
-                       ("inversion.lam=-1", r"inversion\.lam"), ("inversion.tv_neighbours=0", r"inversion\.tv_neighbours")):
+    for bad, field in ((["+inversion.method=tv"], r"inversion\.method: the EGI's solve is the solver group's: solver=nnls"),
+                       (["solver=nntv", "solver.lam=-1"], r"solver\.lam"),
+                       (["solver=nntv", "solver.tv_neighbours=0"], r"solver\.tv_neighbours"),
+                       (["solver=omp", "solver.n_nonzero_coefs=100000"], r"solver\.n_nonzero_coefs")):
         with pytest.raises(FieldError, match=field):
-            run_experiment(_cfg("experiment=inversion", bad), tmp_path / "bad2")
+            run_experiment(_cfg("experiment=inversion", *bad), tmp_path / "bad2")
         assert json.loads((tmp_path / "bad2" / "metrics.json").read_text())["status"] == "failed"
         assert not (tmp_path / "bad2" / "arrays.npz").exists()

@@ -39,7 +39,7 @@ QUICK[("atmosphere", "phase_screen")] = QUICK[("atmosphere", "phase_screen_conve
     x for x in TINY["realism"] if x.startswith("atmosphere.")]
 #: the name metrics.json records for an option whose YAML is a variant of another's class
 RECORDED = {("atmosphere", "phase_screen_converged"): "phase_screen", ("noise", "photometric_object"): "photometric",
-            ("denoiser", "sparse_ksvd_pnp"): "sparse_ksvd"}
+            ("denoiser", "sparse_ksvd_pnp"): "sparse_ksvd", ("solver", "tv_shadow"): "tv"}
 #: which array of sim1 a group's option changes first
 CHANGES = {"atmosphere": "y", "noise": "y", "solver": "reconstruction", "denoiser": "denoised"}
 #: the option each other experiment is tried with, per group it reads (one that is not its default)

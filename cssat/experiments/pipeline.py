@@ -23,10 +23,11 @@ from typing import Any
 import numpy as np
 
 from cssat.experiments.context import Run, as_field
+from cssat.experiments.forward.base import ForwardModel
 
 log = logging.getLogger("cssat")
 
-__all__ = ["Plan", "plan", "measure", "execute", "metrics_of"]
+__all__ = ["Plan", "plan", "measure", "execute", "metrics_of", "ImagePipeline"]
 
 
 @dataclass
@@ -215,3 +216,38 @@ def metrics_of(p: Plan, run: Run, res: dict[str, Any]) -> dict[str, Any]:
     out = {**rows[0], **common, **recs[0].metrics}
     out["psnr_gain_denoised"] = out["psnr_denoised"] - out["psnr"]
     return out
+
+
+class ImagePipeline(ForwardModel):
+    """The image forward models (``forward: pixels``, ``moving``) as a forward model of the one
+    protocol: ``plan`` is :func:`plan` (every stage built and checked, the memory estimated),
+    ``measure`` runs :func:`execute` — the measurement, the operator estimate of the
+    ``reference`` group (its stage ``estimate``) and the ``solver`` and denoisers (``solve``) over
+    the repeats, each timed by its own stages —, ``score`` is :func:`metrics_of`, ``write`` the
+    report's arrays and figures."""
+
+    name = "image"
+    timed_inside = ("measure", "estimate", "solve")
+
+    def plan(self, cfg: Any, run: Run) -> None:
+        self.p = plan(cfg, run)
+
+    def measure(self, run: Run) -> None:
+        self.res = execute(self.p, run)
+
+    def solve(self, run: Run) -> None:
+        """Solved with the repeats of :meth:`measure` (each repeat's operator estimate, solve and denoising)."""
+
+    def score(self, run: Run) -> dict[str, Any]:
+        return metrics_of(self.p, run, self.res)
+
+    def write(self, run: Run, metrics: dict[str, Any]) -> None:
+        from cssat.experiments import report
+
+        report.write(self.p, run, self.res, metrics)
+
+    def headline(self, metrics: dict[str, Any]) -> None:
+        from cssat.experiments import report
+
+        report.log_headline(self.p, metrics)
+        return None

@@ -3,19 +3,18 @@
 :class:`~cssat.experiments.forward.base.ForwardModel` (the EGI, a shadow, a measured file) is
 planned and run stage by stage by :func:`~cssat.experiments.forward.base.run_model`; the image
 models (pixels, a moving scene) run the image stages — a grid of cells
-(:mod:`cssat.experiments.grid`), a mesh in a scenario (:mod:`cssat.experiments.scene`) or one
-image (:mod:`cssat.experiments.pipeline`). It is what :func:`cssat.experiments.run_experiment`
+(:mod:`cssat.experiments.grid`) or one image (:mod:`cssat.experiments.pipeline`). It is what :func:`cssat.experiments.run_experiment`
 runs unless ``experiment_module`` names a module of the user's own."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from cssat.experiments import grid, report, scene
+from cssat.experiments import grid
 from cssat.experiments.build import build
 from cssat.experiments.context import Run
 from cssat.experiments.forward.base import ForwardModel, run_model
-from cssat.experiments.pipeline import execute, metrics_of, plan
+from cssat.experiments.pipeline import ImagePipeline
 
 __all__ = ["run"]
 
@@ -23,23 +22,11 @@ __all__ = ["run"]
 def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
     """Run the experiment ``cfg`` into ``out_dir``; return its metrics (timings included)."""
     run_ = Run.from_config(cfg, out_dir)
-    node = cfg.get("forward")
-    if node is not None and cfg.get("grid") is None:
-        with run_.stage("setup"):
-            model = build(node, "forward")
-        if isinstance(model, ForwardModel):
-            return run_model(model, cfg, run_)
     if cfg.get("grid") is not None:
         return grid.run(cfg, run_)
-    if getattr(cfg.get("target"), "get", lambda k: None)("_target_") == scene.SCENE_TARGET:
-        return scene.run(cfg, run_)
     with run_.stage("setup"):
-        p = plan(cfg, run_)
-    res = execute(p, run_)
-    with run_.stage("score"):
-        metrics = metrics_of(p, run_, res)
-    with run_.stage("write"):
-        report.write(p, run_, res, metrics)
-    metrics.update(run_.timings())
-    report.log_headline(p, metrics)
-    return metrics
+        node = cfg.get("forward")
+        model = build(node, "forward") if node is not None else None
+    if not isinstance(model, ForwardModel):  # an image sensing model (pixels, a moving scene): the image stages
+        model = ImagePipeline()
+    return run_model(model, cfg, run_)

@@ -205,15 +205,40 @@ class ConvexInversion:
                f"{float(np.sqrt(np.mean(self.residual ** 2))):.3g})"
 
 
+def _solve_with(solver: Any, G: Any, y: np.ndarray, sigma: Any, closure: float) -> tuple[np.ndarray, dict[str, Any]]:
+    """The EGI by a solver object (``x, info = solver(problem, y)``, e.g. the ``solver`` group's)
+    on ``Problem(G, (K,), noise_sigma=sigma)``, its ``closure`` set to this one's when it has one;
+    ``info`` as :func:`~cssat.inversion.recover_egi`'s (``chi2`` on the weighted data rows,
+    ``n_nonzero``, ``method``: the solver's name, ``closure_norm``) plus the solver's own."""
+    import torch
+
+    from cssat.sparse.nonneg import weighted_system
+    from cssat.sparse.problem import Problem
+
+    if hasattr(solver, "closure"):
+        solver.closure = closure
+    x, sinfo = solver(Problem(G, (G.n_in,), noise_sigma=sigma), torch.as_tensor(y, dtype=torch.float64))
+    a = np.asarray(x.detach().cpu().numpy() if hasattr(x, "detach") else x, dtype=np.float64).reshape(-1)
+    A, b = weighted_system(G.matrix().numpy(), y, sigma)
+    r = A @ a - b
+    normals = G.normals.detach().cpu().double().numpy()
+    info = {k: v for k, v in sinfo.items() if k not in ("solver_chi2", "solver_n_nonzero")}
+    info.update(chi2=float(r @ r), n_nonzero=int((a > 1e-12 * max(float(a.max()), 1e-300)).sum()),
+                method=getattr(solver, "name", type(solver).__name__), closure_norm=float(np.linalg.norm(normals.T @ a)))
+    return a, info
+
+
 def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambert", n_normals: int = 1000,
                   sigma: Any = None, method: str = "nnls", closure: float = 1.0, refine: bool | None = None,
-                  **recover_options: Any) -> ConvexInversion:
+                  solver: Any = None, **recover_options: Any) -> ConvexInversion:
     """The convex shape of a light curve: ``flux (T,)`` per unit irradiance and range (for
     ``brdf="lambert"``: ``Σ_f A_f (albedo/π) max(0, s·n_f) max(0, o·n_f)``, so the areas come
     back in the flux's units × albedo), ``sun_body``/``obs_body (T, 3)`` body-frame unit vectors;
     the EGI on a ``n_normals`` Fibonacci grid by :func:`~cssat.inversion.recover_egi` (``method``,
     weights ``1/sigma``, ``closure``; ``recover_options``: its ``lam``, ``n_nonzero``,
-    ``max_iter``, ``tv_neighbours``), with ``refine`` its atoms moved off the grid
+    ``max_iter``, ``tv_neighbours``) — or by ``solver``, a solver object (``x, info =
+    solver(problem, y)``: ``cssat.recon.NNLS()``, ``NNTV(lam="discrepancy")``, … the ``solver``
+    config group's) on the EGI operator, instead of ``method`` —, with ``refine`` its atoms moved off the grid
     (:func:`~cssat.inversion.recover.refine_egi`: neighbours within 1.5 grid spacings merged,
     directions and areas fitted by least squares; ``None``: for the sparse methods, not for
     ``tv``, whose EGI is a density on the grid rather than a few facets), then :func:`minkowski`. ``brdf``: a
@@ -233,7 +258,13 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     for k in recover_options:
         if k not in allowed:
             raise FieldError(k, f"not an option of the EGI solve; allowed: {', '.join(allowed)}")
-    a, info = recover_egi(G, y, sigma=sigma, method=method, closure=closure, **recover_options)
+    if solver is not None:
+        if recover_options:
+            raise FieldError(next(iter(recover_options)), "an option of recover_egi's methods: give it to the solver instead")
+        a, info = _solve_with(solver, G, y, sigma, closure)
+        method = "tv" if info["method"] == "nntv" else info["method"]
+    else:
+        a, info = recover_egi(G, y, sigma=sigma, method=method, closure=closure, **recover_options)
     keep = a > 1e-9 * max(float(a.max()), 1e-300)
     normals, areas = N.numpy()[keep], a[keep]
     Gm = G.matrix().numpy()

@@ -41,7 +41,10 @@ class _NonNeg(Solver):
         prob = Problem.of(problem, shape)
         prob.check(y)
         sigma = None
-        if prob.noise_var is not None or prob.noise_sigma is not None:
+        if prob.noise_sigma is not None:  # as given: the weights 1/σ exactly
+            s = prob.sigma()
+            sigma = s.numpy() if bool((s > 0).all()) else None
+        elif prob.noise_var is not None:
             v = prob.variance()
             sigma = v.clamp_min(float(v.max()) * 1e-12).sqrt().numpy() if float(v.max()) > 0 else None
         rows = y.reshape(-1, prob.m)

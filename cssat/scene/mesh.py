@@ -251,18 +251,3 @@ def merge(meshes: Sequence[Mesh], name: str = "") -> Mesh:
         cs.append(m.cs)
         off += len(m.vertices)
     return Mesh(np.concatenate(verts), np.concatenate(faces), np.concatenate(cd), np.concatenate(cs), name=name)
-
-
-#: names that moved to :mod:`cssat.scene.models` (issue 35) and stay reachable here, for code and
-#: configs that name them by this module (``_target_: cssat.scene.mesh.get_model``)
-_MOVED = frozenset({"MAX_RADIUS_M", "MODELS", "astra_like", "box", "cylinder", "dish", "get_model", "panel", "tess_like"})
-
-
-def __getattr__(name: str) -> Any:
-    """A name of :data:`_MOVED`, looked up in :mod:`cssat.scene.models` on first use: imported
-    lazily, since that module builds on :class:`Mesh` (an import at the top would be a cycle)."""
-    if name in _MOVED:
-        from cssat.scene import models
-
-        return getattr(models, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

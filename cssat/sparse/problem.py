@@ -27,13 +27,14 @@ __all__ = ["Problem"]
 class Problem:
     """``y = A x + noise`` with ``A (m, N)`` a :class:`~cssat.sparse.LinearOperator`, the unknown
     ``x`` of ``x_shape`` (``prod(x_shape) = N``; an image ``(H, W)``) and the noise's standard
-    deviation ``noise_sigma`` in ``y``'s units (``None``: unknown), or the variance of each sample
+    deviation ``noise_sigma`` in ``y``'s units (a scalar, or ``(m,)`` one per sample; ``None``:
+    unknown), or the variance of each sample
     ``noise_var (m,)`` (a heteroscedastic noise: photon counts) — what the discrepancy principle
     (TV's ``lam: discrepancy``, OMP's ``epsilon: discrepancy``) fits the data to."""
 
     operator: LinearOperator
     x_shape: tuple[int, ...]
-    noise_sigma: float | None = None
+    noise_sigma: Any = None
     noise_var: Any = None
 
     def variance(self) -> Tensor:
@@ -46,9 +47,21 @@ class Problem:
                 raise FieldError("noise_var", f"expected {self.m} variances (one per sample), got {v.numel()}")
             return v.expand(self.m)
         if self.noise_sigma is not None:
-            return torch.full((self.m,), float(self.noise_sigma) ** 2, dtype=torch.float64)
+            return self.sigma() ** 2
         raise FieldError("noise", "the discrepancy principle needs the noise level: give the problem noise_sigma or "
                                   "noise_var (the pipeline takes it from the noise model)")
+
+    def sigma(self) -> Tensor:
+        """The noise's standard deviation of each sample ``(m,)`` float64: ``noise_sigma`` (a scalar
+        or one per sample) as given, else ``√noise_var``."""
+        import torch
+
+        if self.noise_sigma is None:
+            return self.variance().sqrt()
+        s = torch.as_tensor(self.noise_sigma, dtype=torch.float64).reshape(-1)
+        if s.numel() not in (1, self.m):
+            raise FieldError("noise_sigma", f"expected a scalar or {self.m} values (one per sample), got {s.numel()}")
+        return s.expand(self.m)
 
     def __post_init__(self) -> None:
         self.x_shape = tuple(int(s) for s in self.x_shape)

@@ -46,6 +46,8 @@ __all__ = ["EGILightCurve", "egi_recovered_share", "EGI_WEIGHT_SHARE", "EGI_MATC
 
 log = logging.getLogger("cssat")
 
+#: the EGI solve's settings that are the ``solver`` group's (``solver=nntv solver.lam=...``)
+MOVED_TO_SOLVER = ("method", "lam", "n_nonzero", "tv_neighbours")
 #: the spin search's settings read from the ``inversion`` group
 SEARCH_KEYS = ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples", "min_period_s",
                "max_period_s")
@@ -64,9 +66,8 @@ class EGILightCurve(ForwardModel):
     timed_inside = ("measure", "estimate", "solve")
 
     def plan(self, cfg: Any, run: Run) -> None:
-        from cssat.experiments.build import build, build_model
+        from cssat.experiments.build import build, build_model, build_solver
         from cssat.experiments.scene import check_elements, read_observations
-        from cssat.inversion.recover import METHODS, lam_param
         from cssat.inversion.tumble import check_tumbling_options
 
         self.cfg = cfg
@@ -78,9 +79,11 @@ class EGILightCurve(ForwardModel):
             check_tumbling_options(**self.tumble)
         self.n_normals = int_param(inv.get("n_normals", 2000), "inversion.n_normals", 16, 20000)
         self.search_normals = int_param(inv.get("search_normals", 1000), "inversion.search_normals", 16, 20000)
-        self.method = choice_param(inv.get("method", "nnls"), "inversion.method", METHODS)
-        checks = {"lam": lam_param, "n_nonzero": lambda v, f: int_param(v, f, 1), "tv_neighbours": lambda v, f: int_param(v, f, 1, 32)}
-        self.recover_opts = {k: check(inv[k], f"inversion.{k}") for k, check in checks.items() if inv.get(k) is not None}
+        for key in MOVED_TO_SOLVER:
+            if key in inv:
+                raise FieldError(f"inversion.{key}", "the EGI's solve is the solver group's: solver=nnls|nnomp|nnl1|nntv "
+                                                     "(e.g. solver=nntv solver.lam=discrepancy)")
+        self.solver = build_solver(cfg.solver, None, self.n_normals)  # its size-dependent settings once the samples are known
         self.closure = float_param(inv.get("closure", 1.0), "inversion.closure", 0.0)
         self.search = {k: inv[k] for k in SEARCH_KEYS if inv.get(k) is not None}
         check_search(self.search)  # the spin search's settings, before any work, with their full keys
@@ -139,6 +142,9 @@ class EGILightCurve(ForwardModel):
         self.night = night = night_index(t)
         self.scenario, self.keep = scenario, keep
         self.metrics.update(n_samples=int(keep.sum()), n_nights_observed=int(night.max() + 1))
+        from cssat.experiments.build import validate_solver
+
+        validate_solver(self.solver, int(keep.sum()), self.n_normals)
         if observed is not None:
             check_constrained(observed, t, night)
             if observed.ranges_km is not None:  # the file's own range against the element set's

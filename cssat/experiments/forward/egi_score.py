@@ -43,15 +43,14 @@ def _rms(x: np.ndarray, m: np.ndarray) -> float | None:
 
 
 def solve_egi(f: Any) -> None:
-    """The EGI on ``inversion.n_normals`` normals and its convex shape from the fitted samples
-    (:func:`~cssat.inversion.invert_convex`), the model over every sample, the fit and held-out
+    """The EGI on ``inversion.n_normals`` normals by the ``solver`` group's solver and its convex
+    shape from the fitted samples (:func:`~cssat.inversion.invert_convex`), the model over every sample, the fit and held-out
     residuals against the noise, and the observability of the fitted geometry."""
     from cssat.inversion import egi_operator, invert_convex, observability
 
     fit, held, sigma, y = f.fit, f.held, f.sigma, f.y
     f.res = res = invert_convex(y[fit], f.sun_b[fit], f.obs_b[fit], brdf=f.brdf or "lambert", n_normals=f.n_normals,
-                                sigma=None if sigma is None else sigma[fit], method=f.method, closure=f.closure,
-                                **f.recover_opts)
+                                sigma=None if sigma is None else sigma[fit], closure=f.closure, solver=f.solver)
     f.model_unit = (egi_operator(f.sun_b, f.obs_b, res.normals, f.brdf).matrix().numpy() @ res.areas if res.areas.size
                     else np.zeros_like(f.t))
     resid = y - f.model_unit

@@ -1,0 +1,211 @@
+"""The scene forward model (``forward: scene``; ``cssat experiment=lightcurve``, paper Fig. 4 and
+Fig. 5): a mesh in a scenario, measured as its light curve and through an atmosphere over its
+facets (Eq. 11) and over its rendered pixels (Eq. 12). No unknown is reconstructed: the model's
+``solve`` is empty and its numbers are the magnitudes, the eclipse and the render's flux check.
+
+Stages: ``plan`` — ``render.*``, ``geometry``, ``atmosphere``, ``noise``, ``model``, ``attitude``,
+``brdf`` and a measured file checked, the memory of the renders and the facet arrays estimated;
+``measure`` — the ``scenario`` (orbit, Sun, observer, time steps; ``observations=<file>``: the
+file's time stamps), the atmosphere-free light curve of the ``model`` (stage ``light_curve``),
+its images rendered at ``render.size`` (stage ``render``), the facet-wise and pixel-wise
+attenuated noisy curves with the ``atmosphere`` group's weights and the ``noise`` group (stage
+``atmosphere``; a model whose weights depend on the pixels' directions has no facet-wise form);
+``score`` — the geometry, the eclipse, the magnitudes, ``pixel_sum_relative_error``; ``write`` —
+``arrays.npz`` (``times`` in seconds since ``epoch_utc``, the fluxes in W/m², the magnitudes,
+``sunlit`` — the fraction of the solar disk seen —, the masks ``lit`` and ``above_horizon``,
+``phase_angle_deg``, the geometry and the marked renders), ``lightcurve.csv`` (``time_utc,
+flux_W_m2, magnitude, phase_angle_deg, sunlit, elevation_deg``; a dark step's magnitude is
+``inf``), the figures ``fig4_lightcurve``, ``fig5_atmosphere`` and, for a measured file,
+``observations`` (the measured curve against the simulated one, ``observations_*`` metrics).
+
+The paper's zero-mean Gaussian weights make the fluxes sums that may be negative: the magnitudes
+shown are those of ``|I(t)|``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import float_param, int_param
+from cssat.experiments.context import Run
+from cssat.experiments.forward.base import ForwardModel
+
+__all__ = ["SceneLightCurve", "memory_parts"]
+
+log = logging.getLogger("cssat")
+
+
+def memory_parts(n_steps: int, size: int, n_facets: int = 0) -> dict[str, int]:
+    """The large arrays (bytes): the float64 renders ``(T, size, size)``, the pixel-wise
+    weights of Eq. 12 of the same size, and their product; the facet brightnesses ``(T, F)``
+    with the facet-wise weights of Eq. 11 and their product, and the visibility masks."""
+    b = n_steps * size * size * 8
+    f = n_steps * n_facets * 8
+    return {"renders": b, "Φ (pixel-wise)": b, "Φ ⊙ renders": b, "facet brightness (T, F)": f,
+            "Φ (facet-wise)": f, "Φ ⊙ facets": f, "facet visibility": 2 * f}
+
+
+class SceneLightCurve(ForwardModel):
+    """A mesh in a scenario, its light curve rendered and attenuated (the module's docstring has the stages)."""
+
+    name = "scene"
+    timed_inside = ("measure", "estimate", "solve")
+
+    def plan(self, cfg: Any, run: Run) -> None:
+        from cssat.experiments.build import build, build_model
+        from cssat.experiments.forward import Geometry
+        from cssat.experiments.resources import check_memory
+        from cssat.experiments.scene import read_observations
+
+        self.cfg = cfg
+        self.size = int_param(cfg.render.size, "render.size", 1, 4096)
+        self.n_marks = int_param(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
+        geometry = build(cfg.geometry, "geometry") if cfg.get("geometry") is not None else Geometry()
+        self.atm = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs())
+        self.noise = build(cfg.get("noise"), "noise")
+        self.fov = cfg.render.get("fov_m")
+        if self.fov is not None:
+            float_param(self.fov, "render.fov_m", 0.0, open_lo=True)
+        self.mesh = build_model(cfg.model)
+        self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
+        self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
+        self.observed = read_observations(cfg)
+        self.times = self.observed.times_utc if self.observed is not None else None
+        n_steps = len(self.times) if self.times is not None else int_param(cfg.scenario.n_steps, "scenario.n_steps", 1)
+        check_memory(memory_parts(n_steps, self.size, len(self.mesh.faces)), run.memory_limit_gb,
+                     "lower render.size or scenario.n_steps")
+
+    def measure(self, run: Run) -> None:
+        import torch
+
+        from cssat.experiments.scene import build_scenario
+        from cssat.optics import default_fov, render, simulate_light_curve
+
+        with run.stage("scene"):
+            self.scenario = build_scenario(self.cfg, self.times)
+        with run.stage("light_curve"):
+            self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=bool(self.cfg.get("shadows", True)),
+                                           attitude=self.attitude, brdf=self.brdf)
+            self.flux = self.lc.flux
+        with run.stage("render"):  # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
+            self.fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)
+            self.images = render(self.mesh, self.lc.sun, self.lc.observer, self.size, fov_m=self.fov_m,
+                                 brightness=self.lc.facets.to(run.device), dtype=torch.float64, progress=run.progress).cpu()
+        with run.stage("atmosphere"):
+            self._attenuate(run)
+
+    def _attenuate(self, run: Run) -> None:
+        """The facet-wise (Eq. 11) and pixel-wise (Eq. 12) attenuated noisy curves."""
+        import torch
+
+        from cssat.physics import Measurement
+
+        atm, noise, seed, flux = self.atm, self.noise, run.seed, self.flux
+        T = len(flux)
+        if getattr(atm, "spatial", False):  # weights over the sky's pixels: no facet-wise form (Eq. 11)
+            log.info("lightcurve: the %s atmosphere weights pixels by direction: no facet-wise curve", atm.name)
+            self.facetwise = torch.full_like(flux, float("nan"))
+        else:
+            self.facetwise = Measurement(atm.operator(T, self.lc.facets.shape[1], seed=seed, dtype=torch.float64), noise,
+                                         seed=seed + 2).frames(self.lc.facets)
+        self.pixelwise = Measurement(atm.operator(T, self.size * self.size, seed=seed + 1, dtype=torch.float64), noise,
+                                     seed=seed + 3).frames(self.images)
+
+    def solve(self, run: Run) -> None:
+        """Nothing is reconstructed: the light curves are the result."""
+
+    def score(self, run: Run) -> dict[str, Any]:
+        from cssat.optics import apparent_magnitude
+
+        self.mag, self.mag_f, self.mag_p = (apparent_magnitude(v).numpy()
+                                            for v in (self.flux, self.facetwise.abs(), self.pixelwise.abs()))
+        self.marks = _mark_steps(self.flux.numpy(), self.n_marks)
+        atm, attitude, brdf = self.atm, self.attitude, self.brdf
+        return {**_metrics(self.scenario, self.mesh, self.flux, self.images, self.mag, self.mag_f, self.mag_p),
+                "image_size": self.size, **atm.describe(),
+                **(attitude.describe() if attitude is not None else {"attitude": "nadir"}),
+                **(brdf.describe() if brdf is not None else {"brdf": "mesh"}), **self.noise.describe(), "seed": run.seed}
+
+    def write(self, run: Run, metrics: dict[str, Any]) -> None:
+        from cssat.experiments.files import write_csv, write_npz
+        from cssat.plots import atmosphere_figure, lightcurve_figure, save_figure
+
+        sc, flux, mag, marks, images = self.scenario, self.flux, self.mag, self.marks, self.images
+        minutes = (sc.times - sc.times[0]) / np.timedelta64(1, "m")
+        epoch = sc.times[0]
+        seconds = (sc.times - epoch) / np.timedelta64(1, "s")
+        phase = np.degrees(np.arccos(np.clip((sc.sun_dir * sc.obs_dir).sum(1), -1.0, 1.0)))
+        write_npz(run.out_dir / "arrays.npz", times=seconds, epoch_utc=np.array(str(epoch)), minutes=minutes, flux=flux,
+                  flux_facetwise=self.facetwise, flux_pixelwise=self.pixelwise, magnitude=mag, sunlit=sc.sunlit,
+                  lit=flux.numpy() > 0, above_horizon=sc.elevation_deg > 0, phase_angle_deg=phase,
+                  elevation_deg=sc.elevation_deg, azimuth_deg=sc.azimuth_deg, range_km=sc.range_km,
+                  mark_steps=marks, mark_images=images[marks])
+        write_csv(run.out_dir / "lightcurve.csv", [
+            {"time_utc": f"{np.datetime_as_string(t, unit='s')}Z", "flux_W_m2": float(f), "magnitude": float(mm),
+             "phase_angle_deg": float(a), "sunlit": float(s_), "elevation_deg": float(e)}
+            for t, f, mm, a, s_, e in zip(sc.times, flux.numpy(), mag, phase, sc.sunlit, sc.elevation_deg)])
+        save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, sc.times, sc.sunlit, self.fov_m),
+                    run.figure("fig4_lightcurve"))
+        save_figure(atmosphere_figure(minutes, mag, self.mag_f, self.mag_p, getattr(self.atm, "name", ""), epoch=epoch),
+                    run.figure("fig5_atmosphere"))
+        if self.observed is not None:
+            metrics.update(_compare(self.observed, mag, epoch, run))
+
+    def headline(self, metrics: dict[str, Any]) -> str:
+        return "lightcurve: %d steps, %s (%d facets), magnitude %.2f..%.2f, eclipse %s-%s, %.1f s" % (
+            len(self.scenario), self.mesh.name, len(self.mesh), metrics["magnitude_min"] or math.nan,
+            metrics["magnitude_max"] or math.nan, metrics["eclipse_start_utc"], metrics["eclipse_end_utc"],
+            sum(v for k, v in metrics.items() if k.startswith("seconds_")))
+
+
+def _compare(observed: Any, mag: np.ndarray, epoch: Any, run: Run) -> dict[str, Any]:
+    """The measured curve against the simulated one on its stamps: the figure
+    ``observations`` and the residuals' metrics (``observations_*``; magnitudes)."""
+    from cssat.plots import observations_figure, save_figure
+
+    measured = observed.magnitudes()
+    res = measured - mag
+    ok = np.isfinite(res)  # a dark simulated step has an infinite magnitude
+    hours = (observed.times_utc - observed.times_utc[0]) / np.timedelta64(1, "h")
+    save_figure(observations_figure(hours, measured, observed.magnitude_errors(), mag, epoch=epoch,
+                                    label=Path(observed.source).name), run.figure("observations"))
+    out = {"observations_file": observed.source, "observations_n": len(observed), "observations_compared": int(ok.sum()),
+           "observations_span_hours": float(hours[-1])}
+    if ok.any():
+        out.update(observations_offset_mag=float(np.median(res[ok])), observations_rms_mag=float(np.sqrt(np.mean(res[ok] ** 2))))
+    return out
+
+
+def _metrics(scenario, mesh, flux, images, mag, mag_f, mag_p) -> dict[str, Any]:
+    """The scenario's geometry, the eclipse, the magnitudes and the render's flux check."""
+    lit = flux.numpy() > 0
+    shadow = np.flatnonzero(scenario.sunlit < 1)
+
+    def stat(f, v):
+        return float(f(v[lit])) if lit.any() else None
+
+    return {
+        "psnr": None, "ssim": None,
+        "model": mesh.name, "n_facets": len(mesh), "n_steps": len(scenario), "start_utc": str(scenario.times[0]),
+        "azimuth_deg_mean": float(scenario.azimuth_deg.mean()), "elevation_deg_mean": float(scenario.elevation_deg.mean()),
+        "range_km_mean": float(scenario.range_km.mean()),
+        "eclipse_start_utc": str(scenario.times[shadow[0]]) if shadow.size else None,
+        "eclipse_end_utc": str(scenario.times[shadow[-1]]) if shadow.size else None,
+        "magnitude_min": stat(np.min, mag), "magnitude_max": stat(np.max, mag),
+        "magnitude_facetwise_median": stat(np.median, mag_f), "magnitude_pixelwise_median": stat(np.median, mag_p),
+        "pixel_sum_relative_error": float((images.sum((1, 2)) - flux).abs().max() / flux.abs().max().clamp_min(1e-300)),
+    }
+
+
+def _mark_steps(flux: np.ndarray, n: int) -> np.ndarray:
+    """``n`` steps spread over the lit part of the curve (as the paper's five marked points)."""
+    lit = np.flatnonzero(flux > 0)
+    if lit.size == 0:
+        lit = np.arange(len(flux))
+    pos = np.linspace(0, lit.size - 1, n + 2)[1:-1].round().astype(int)
+    return lit[pos]
