@@ -64,3 +64,11 @@ def run_cli(args, cwd):
         GlobalHydra.instance().clear()
         torch.set_num_threads(1)
     return code, [ln for ln in out.getvalue().splitlines() if ln.strip()]
+
+
+def cfg_of(*overrides):
+    """The composed config of the command-line ``overrides`` (as the app composes it)."""
+    from hydra import compose, initialize_config_module
+
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))

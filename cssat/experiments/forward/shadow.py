@@ -242,7 +242,8 @@ class Shadow(ForwardModel):
             self.linear = None
             if self.solver is not None:
                 self.linear, linfo = invert_linear(*self.geo, kernel=self.k, solver=self.solver, ground=self.ground)
-                self.metrics.update(iou_linear=iou(self.linear, self.truth), chi2_per_sample_linear=linfo["chi2_per_sample"])
+                self.metrics.update(iou_linear=iou(self.linear, self.truth), chi2_per_sample_linear=linfo["chi2_per_sample"],
+                                    solver_linear=getattr(self.solver, "name", type(self.solver).__name__))
         with run.stage("invert"):
             self._fit(run)
 
