@@ -1,4 +1,4 @@
-"""The figure of the characterisation experiment (:mod:`cssat.experiments.characterise`): the
+"""The figure of the characterisation experiment (:mod:`cssat.experiments.forward.observed`): the
 light curve with its gaps shown as gaps, the periodogram with the alternatives marked, the
 phase-folded curve with the model, and the residuals. Returns a Figure (no pyplot)."""
 

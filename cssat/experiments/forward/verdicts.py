@@ -1,0 +1,222 @@
+"""The verdicts of a measured light curve (:class:`~cssat.experiments.forward.observed.Observed`'s
+``estimate`` stage): the period (the whole selection and each track apart), one period or two
+(tumbling), and — where the data allow — the spin: pole, sidereal period and convex shape.
+
+Each stage records its verdict ``stage_<name>`` in the metrics: ``ok``, ``skipped: <why>`` or
+``off``; a stage set ``on`` that the data cannot serve is a :class:`~cssat._checks.FieldError`
+naming ``stages.<name>``. Times are seconds from the first sample; periods in seconds.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cssat._checks import FieldError
+from cssat.experiments.context import Run
+
+__all__ = ["VERDICT_STAGES", "MAX_RANGE_MISMATCH", "MAX_PHASE_MISMATCH_DEG", "period_stage", "per_track",
+           "tumbling_stage", "spin_stage", "compare_geometry", "fitted_model"]
+
+#: the stages of the verdict (each a key of the ``stages`` group and a ``seconds_<stage>`` timing)
+VERDICT_STAGES = ("period", "tumbling", "spin")
+#: the spin stage's geometry must agree with the file's: median |Δrange| / range and |Δphase|
+MAX_RANGE_MISMATCH = 0.05
+MAX_PHASE_MISMATCH_DEG = 5.0
+
+
+def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
+                 tracks: np.ndarray, m: dict[str, Any]) -> dict[str, Any] | None:
+    """The period stage: the whole selection (its tracks' offsets and slopes fitted), and, when
+    it holds several tracks, each track apart (``tracks.csv``); the whole may be out of reach
+    (tracks days apart: too many trial frequencies), the tracks then answer alone. Returns
+    :func:`~cssat.inversion.estimate_period`'s result (``None``: off or out of reach)."""
+    from cssat.inversion import estimate_period
+
+    if opt["modes"]["period"] == "off":
+        m["stage_period"] = "off"
+        return None
+    kw = dict(opt["period"])
+    res, why_not = None, None
+    with run_.stage("period"):
+        try:
+            res = estimate_period(t, y, sigma=sig, segments=tracks, **kw)
+        except FieldError as err:
+            if "trial frequencies" not in err.detail or len(set(tracks)) < 2:
+                raise
+            why_not = err.detail
+        rows = per_track(t, y, sig, tracks, kw, opt["min_samples"]) if len(set(tracks)) > 1 else []
+    if rows:
+        m["n_tracks_periodic"] = sum(bool(r["periodic"]) for r in rows)
+        m["track_periods_s"] = [r["period_s"] for r in rows if r["periodic"]]
+        m["_tracks"] = rows  # tracks.csv, written with the other files
+    found = [r["period_s"] for r in rows if r["periodic"]]
+    p0 = float(np.median(found)) if found else None
+    if p0 is not None and not {"min_period_s", "max_period_s"} & set(kw) and (
+            res is None or not res["model_fits"] or abs(res["best_period_s"] / p0 - 1) > 0.02):
+        # the tracks have a period the whole curve missed (tracks hours or days apart: the cycle count
+        # between them is ambiguous on a full grid): the whole curve searched about it, kept if it fits better
+        with run_.stage("period"):
+            try:
+                near = estimate_period(t, y, sigma=sig, segments=tracks, min_period_s=0.7 * p0, max_period_s=1.45 * p0, **kw)
+            except FieldError as err:
+                near, why_not = None, err.detail
+        if near is not None and (res is None or near["chi2_per_sample"] < res["chi2_per_sample"]):
+            res = near
+            m["period_search"] = f"about the tracks' median period {p0:.6g} s (0.7x to 1.45x)"
+    if res is None:
+        m.update(periodic=False, period_s=None, stage_period=f"skipped (whole curve): {why_not} (set period.min_period_s "
+                                                             "and period.max_period_s); see tracks.csv")
+        return None
+    keys = ("periodic", "period_s", "period_err_s", "fap", "repeat", "best_period_s", "best_period_err_s", "chi2_per_sample",
+            "model_fits", "n_harmonics", "n_cycles", "min_period_s", "max_period_s", "why")
+    m.update({k: res[k] for k in keys})
+    m["alternatives"] = res["alternatives"]
+    m["warnings"] = list(res["warnings"])
+    pub = m.get("published_period_s")
+    if pub and res["periodic"]:
+        m["period_vs_published"] = float(res["period_s"] / pub - 1.0)
+    m["stage_period"] = "ok"
+    if opt["modes"]["period"] == "on" and not res["periodic"]:
+        raise FieldError("stages.period", f"no significant period (fap {res['fap']:.3g}, repeat {res['repeat']:.3g}); "
+                                          "stages.period=auto records that as the answer")
+    return res
+
+
+def per_track(t: np.ndarray, y: np.ndarray, sig: np.ndarray | None, tracks: np.ndarray, kw: dict[str, Any],
+              min_samples: int) -> list[dict[str, Any]]:
+    """One row per track: its own period analysis (or why none: too few samples)."""
+    from cssat.inversion import estimate_period
+
+    rows = []
+    for k in dict.fromkeys(tracks):
+        on = tracks == k
+        row: dict[str, Any] = {"track": k, "n_samples": int(on.sum()), "span_s": float(np.ptp(t[on]))}
+        if on.sum() < min_samples:
+            row.update(status="skipped: too few samples", periodic=False, period_s=None)
+        else:
+            try:
+                r = estimate_period(t[on], y[on], sigma=None if sig is None else sig[on], **kw)
+            except FieldError as err:
+                row.update(status=f"failed: {err}", periodic=False, period_s=None)
+            else:
+                row.update(status="ok", periodic=r["periodic"], period_s=r["period_s"], period_err_s=r["period_err_s"],
+                           best_period_s=r["best_period_s"], fap=r["fap"], repeat=r["repeat"],
+                           chi2_per_sample=r["chi2_per_sample"])
+        rows.append(row)
+    return rows
+
+
+def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
+                   res: dict[str, Any] | None, m: dict[str, Any]) -> None:
+    """The tumbling stage: :func:`~cssat.inversion.estimate_tumbling_periods`'s verdict when the
+    curve holds enough samples (and cycles) for its 2-D series of order ``tumbling.order``."""
+    from cssat.inversion import estimate_tumbling_periods
+
+    mode = opt["modes"]["tumbling"]
+    if mode == "off":
+        m["stage_tumbling"] = "off"
+        return
+    order = int(opt["tumbling"].get("order", 3))
+    need = 2 * (2 * len([1 for j in range(order + 1) for k in range(-order, order + 1) if 0 < j + abs(k) <= order]) + 1)
+    why = None
+    if str(m.get("stage_period", "")).startswith("skipped (whole curve)"):
+        why = "the whole curve is out of the period search's reach (its tracks are analysed apart: tracks.csv)"
+    elif len(t) < need:
+        why = f"{len(t)} samples, the 2-D series of order {order} needs {need}"
+    elif res is not None and res["n_cycles"] < 4:
+        why = f"the track holds {res['n_cycles']:.2g} cycles; two periods need several of each"
+    if why is not None:
+        if mode == "on":
+            raise FieldError("stages.tumbling", why)
+        m["stage_tumbling"] = f"skipped: {why}"
+        return
+    with run_.stage("tumbling"):
+        try:
+            tp = estimate_tumbling_periods(t, y, sigma=sig, **opt["tumbling"])
+        except FieldError as err:
+            if "trial frequencies" not in err.detail or mode == "on":
+                raise err.within("tumbling") from None
+            m["stage_tumbling"] = f"skipped: {err.detail}"
+            return
+    m.update(tumbling=bool(tp["tumbling"]), tumbling_delta_bic=tp["delta_bic"], tumbling_why=tp.get("why"))
+    if tp["tumbling"]:
+        m["tumbling_periods_s"] = [float(p) for p in tp["periods_s"]]
+    m["stage_tumbling"] = "ok"
+
+
+def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray, res: dict[str, Any] | None,
+               m: dict[str, Any]) -> None:
+    """The spin stage: the pole, sidereal period and convex shape (``shape.obj``, written here)
+    from a periodic curve over ``characterise.min_nights`` nights and the object's element set,
+    whose range and phase angle must agree with the file's (``MAX_RANGE_MISMATCH``,
+    ``MAX_PHASE_MISMATCH_DEG``)."""
+    mode = opt["modes"]["spin"]
+    if mode == "off":
+        m["stage_spin"] = "off"
+        return
+    from cssat.inversion.fourier import stretches
+
+    nights = len(np.unique(stretches(t, min_gap_s=6 * 3600.0)))
+    missing = []
+    if res is None or not res["periodic"]:
+        missing.append("a periodic light curve")
+    if cfg.scenario.get("tle") is None:
+        missing.append("the object's element set (scenario.tle)")
+    if nights < opt["min_nights"]:
+        missing.append(f"{opt['min_nights']} nights (the file holds {nights}: one pass does not constrain a pole)")
+    if missing:
+        why = "needs " + ", ".join(missing)
+        if mode == "on":
+            raise FieldError("stages.spin", why)
+        m["stage_spin"] = f"skipped: {why}"
+        return
+    from cssat.experiments.scene import build_scenario, check_elements
+    from cssat.inversion import estimate_spin, minkowski
+    from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
+
+    with run_.stage("spin"):
+        check_elements(cfg, lc, opt["max_epoch_days"])
+        sc = build_scenario(cfg, lc.times_utc, lc.sites)  # the file's observer of each sample, where it gives them
+        compare_geometry(sc, lc, m)
+        rel = m.get("range_diff_km_median", 0.0) / float(np.median(lc.ranges_km)) if lc.ranges_km is not None else 0.0
+        if rel > MAX_RANGE_MISMATCH or m.get("phase_diff_deg_median", 0.0) > MAX_PHASE_MISMATCH_DEG:
+            raise FieldError("scenario.tle", "the element set and observer put the object "
+                                             f"{m.get('range_diff_km_median', 0):.0f} km and "
+                                             f"{m.get('phase_diff_deg_median', 0):.1f}° of phase from the file's own "
+                                             "range and phase angle (median): check scenario.tle and scenario.observer")
+        unit = (sc.range_km * 1e3) ** 2 / SOLAR_IRRADIANCE_W_M2
+        flux = lc.fluxes() * unit
+        err = lc.flux_errors()
+        sol = estimate_spin(t, flux, sc.sun_dir, sc.obs_dir, sigma=None if err is None else err * unit,
+                            period_s=res["period_s"], frame="equatorial")
+        m.update(sol.describe())
+        mesh, info = minkowski(sol.normals, sol.areas)
+        mesh.export(run_.out_dir / "shape.obj")
+        m["shape_converged"] = bool(info.get("converged"))
+    m["stage_spin"] = "ok"
+
+
+def compare_geometry(sc: Any, lc: Any, m: dict[str, Any]) -> None:
+    """The scenario's range (km) and phase angle (°) less the file's (median |difference|)."""
+    if lc.ranges_km is not None:
+        m["range_diff_km_median"] = float(np.median(np.abs(sc.range_km - lc.ranges_km)))
+    if lc.phase_deg is not None:
+        ph = np.degrees(np.arccos(np.clip((sc.sun_dir * sc.obs_dir).sum(1), -1, 1)))
+        m["phase_diff_deg_median"] = float(np.median(np.abs(ph - lc.phase_deg)))
+
+
+def fitted_model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int,
+                 tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The chosen Fourier series with each track's offset and trend at ``t``, and that offset
+    and trend alone (the fold shows the curve less it)."""
+    from cssat.inversion.fourier import _Curve, _design
+
+    if not np.isfinite(res["best_period_s"]):
+        flat = np.full_like(y, np.mean(y))
+        return flat, flat
+    cv = _Curve(t, y, np.ones_like(y), np.unique(tracks, return_inverse=True)[1].reshape(-1), detrend, False)
+    X = np.concatenate([cv.Q, _design(t, 1.0 / res["best_period_s"], res["n_harmonics"])], 1)
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    return X @ coef, cv.Q @ coef[:cv.q]
