@@ -111,3 +111,23 @@ def test_the_solver_group_solves_the_linearised_silhouette(tmp_path):
     base = ["experiment=occultation", "silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5", "threads=1"]
     m = run_experiment(cfg_of(*base, "solver=landweber"), tmp_path / "lw")
     assert m["status"] == "ok" and m["solver_linear"] == "landweber" and m["iou_linear"] > 0.3, m
+
+
+@pytest.mark.parametrize("solver", ["tv", "pnp"])
+def test_an_image_solver_on_the_egi_is_refused_before_work(tmp_path, solver):
+    from cssat._checks import FieldError
+    from cssat.experiments import run_experiment
+
+    with pytest.raises(FieldError, match=rf"solver: {solver} works on images; .*solver=nnls\|nnomp\|nnl1\|nntv"):
+        run_experiment(cfg_of(*EGI_TINY, f"solver={solver}"), tmp_path / "bad")
+    assert not (tmp_path / "bad" / "arrays.npz").exists()
+
+
+def test_total_variation_refuses_an_unknown_that_is_not_an_image():
+    import torch
+
+    from cssat._checks import FieldError
+    from cssat.sparse.solvers import tv_pdhg
+
+    with pytest.raises(FieldError, match=r"shape: total variation works on images \(H, W\); the unknown has shape \(6,\)"):
+        tv_pdhg(torch.eye(6, dtype=torch.float64), torch.ones(6, dtype=torch.float64), (6,))

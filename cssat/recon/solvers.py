@@ -42,6 +42,8 @@ class Solver:
     """Base class of the reconstruction solvers."""
 
     name = "solver"
+    #: the unknowns the solver takes: "any" (a vector of any shape) or "image" (an (H, W) grid: TV, PnP)
+    unknown = "any"
 
     def validate(self, m: int, n_pixels: int) -> None:
         """Check the size-dependent settings for ``m`` samples of ``n_pixels`` pixels."""
@@ -206,6 +208,7 @@ class TV(_Convex):
     """
 
     name = "tv"
+    unknown = "image"
 
     def __init__(self, lam: float | str | None = None, nonneg: bool = True, max_iter: int = 2000, rtol: float = 1e-5,
                  method: str = "auto", *, progress: bool | None = None):
@@ -288,6 +291,7 @@ class PnP(Solver):
     """
 
     name = "pnp"
+    unknown = "image"
 
     def __init__(self, denoiser: Denoiser, max_iter: int = 30, sigma_start: float = 0.1, sigma_end: float = 0.005,
                  init: str = "zero", *, progress: bool | None = None):

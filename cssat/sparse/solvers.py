@@ -196,6 +196,8 @@ class _ChambollePock(Iteration):
 
 
 def _image_shape(op: LinearOperator, shape: Sequence[int]) -> tuple[int, int]:
+    if len(tuple(shape)) != 2:
+        raise FieldError("shape", f"total variation works on images (H, W); the unknown has shape {tuple(shape)}")
     H, W = (int(s) for s in shape)
     if H * W != op.n_in:
         raise FieldError("shape", f"{tuple(shape)} does not match the operator's {op.n_in} pixels")

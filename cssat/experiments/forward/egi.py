@@ -84,6 +84,9 @@ class EGILightCurve(ForwardModel):
                 raise FieldError(f"inversion.{key}", "the EGI's solve is the solver group's: solver=nnls|nnomp|nnl1|nntv "
                                                      "(e.g. solver=nntv solver.lam=discrepancy)")
         self.solver = build_solver(cfg.solver, None, self.n_normals)  # its size-dependent settings once the samples are known
+        if getattr(self.solver, "unknown", "any") == "image":
+            raise FieldError("solver", f"{getattr(self.solver, 'name', 'this solver')} works on images; the EGI is areas on "
+                                       "the sphere's normals: solver=nnls|nnomp|nnl1|nntv (nntv: TV on the sphere)")
         self.closure = float_param(inv.get("closure", 1.0), "inversion.closure", 0.0)
         self.search = {k: inv[k] for k in SEARCH_KEYS if inv.get(k) is not None}
         check_search(self.search)  # the spin search's settings, before any work, with their full keys
