@@ -34,3 +34,16 @@ def test_refused_before_work_naming_the_full_key(tmp_path, base, bad, field):
     refusal = [ln for ln in lines if "bad input:" in ln]
     assert len(refusal) == 1 and f"bad input: {field}:" in refusal[0], lines
     assert not list(tmp_path.glob("r/*.npz"))  # nothing computed, nothing written but the failed status
+
+
+def test_the_egi_operator_counts_in_the_memory_estimate(tmp_path):
+    """20,000 normals over the tiny inversion's 193 steps: ~25 MB of facet arrays, ~62 MB for
+    G and its weighted copy. Under a 50 MB limit the run is refused before any work, and the
+    refusal names the EGI operator's part (without it the facets alone would pass)."""
+    from conftest import run_cli
+
+    code, lines = run_cli([*INV, "inversion.n_normals=20000", "memory_limit_gb=0.05", f"hydra.run.dir={tmp_path / 'r'}"],
+                          tmp_path)
+    refusal = [ln for ln in lines if "bad input:" in ln]
+    assert code == 2 and len(refusal) == 1 and "bad input: memory:" in refusal[0], lines
+    assert "EGI operator and its weighted copy (T, K) 0.06" in refusal[0], refusal

@@ -95,7 +95,8 @@ class EGILightCurve(ForwardModel):
         self.observed = read_observations(cfg)
         self.auto = spin_mode == "auto"
         self.spin_mode = self._resolve(spin_mode)
-        check_size(cfg, self.n_nights, len(self.mesh.faces) if hasattr(self.mesh, "faces") else 0, self.spin_mode != "known")
+        check_size(cfg, self.n_nights, len(self.mesh.faces) if hasattr(self.mesh, "faces") else 0, self.spin_mode != "known",
+                   self.n_normals)
         self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         self.noise = build(cfg.get("noise"), "noise")
         if self.observed is not None:

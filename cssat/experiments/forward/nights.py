@@ -48,10 +48,12 @@ def check_search(search: dict[str, Any]) -> None:
     float_param(search.get("max_period_s", 86400.0), "inversion.max_period_s", lo, open_lo=True)
 
 
-def check_size(cfg: Any, n_nights: int, n_faces: int, searched: bool = True) -> None:
+def check_size(cfg: Any, n_nights: int, n_faces: int, searched: bool = True, n_normals: int = 0) -> None:
     """The simulated scenario's steps against the periods searched (the shortest at least two
     cadences: Nyquist) and the memory of its light curve (facet brightness and visibility per
-    step), before any is computed; ``searched``: the spin is searched (not given)."""
+    step) and of the EGI operator on ``n_normals`` normals (``G (T, K)`` and its weighted copy;
+    every step counted: an upper bound), before any is computed; ``searched``: the spin is
+    searched (not given)."""
     from cssat.experiments.resources import check_memory
 
     if cfg.get("observations"):
@@ -67,9 +69,10 @@ def check_size(cfg: Any, n_nights: int, n_faces: int, searched: bool = True) -> 
     if n_steps > MAX_STEPS:
         raise FieldError("scenario.step_s", f"{step:g} s over {n_nights} nights is {n_steps:.3g} steps, more than "
                                             f"{MAX_STEPS:.0e}: lengthen the cadence")
-    parts = {"scenario (T, ~20 values)": n_steps * 20 * 8, "facet brightness and visibility (T, F)": n_steps * max(n_faces, 1) * 8 * 4}
+    parts = {"scenario (T, ~20 values)": n_steps * 20 * 8, "facet brightness and visibility (T, F)": n_steps * max(n_faces, 1) * 8 * 4,
+             "EGI operator and its weighted copy (T, K)": n_steps * n_normals * 8 * 2}
     check_memory(parts, None if cfg.get("memory_limit_gb") is None else float(cfg.memory_limit_gb),
-                 "lengthen scenario.step_s or lower nights.n")
+                 "lengthen scenario.step_s or lower nights.n or inversion.n_normals")
 
 
 def check_constrained(observed: Any, t: np.ndarray, night: np.ndarray) -> None:
