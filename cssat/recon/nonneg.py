@@ -70,7 +70,8 @@ class _NonNeg(Solver):
                                    **extra)
             out.append(torch.as_tensor(a, dtype=y.dtype, device=y.device))
         x = torch.stack(out).reshape(*y.shape[:-1], *prob.x_shape)
-        return x, {"solver_chi2": info["chi2"], "solver_n_nonzero": info["n_nonzero"]}
+        extra = {k: v for k, v in info.items() if k not in ("chi2", "n_nonzero", "method")}  # e.g. λ, discrepancy_met
+        return x, {"solver_chi2": info["chi2"], "solver_n_nonzero": info["n_nonzero"], **extra}
 
 
 class NNLS(_NonNeg):
