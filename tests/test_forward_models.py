@@ -131,3 +131,22 @@ def test_total_variation_refuses_an_unknown_that_is_not_an_image():
 
     with pytest.raises(FieldError, match=r"shape: total variation works on images \(H, W\); the unknown has shape \(6,\)"):
         tv_pdhg(torch.eye(6, dtype=torch.float64), torch.ones(6, dtype=torch.float64), (6,))
+
+
+OCC_TINY = ["experiment=occultation", "silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5", "threads=1"]
+
+
+@pytest.mark.parametrize("base, bad, field", [
+    (EGI_TINY, ["shadows=maybe"], r"shadows: expected true or false"),
+    (["experiment=lightcurve", "scenario.n_steps=3", "render.size=8"], ["shadows=1"], r"shadows: expected true or false"),
+    (OCC_TINY, ["star.ra_deg=10"], r"star\.dec_deg: give both"),
+    (OCC_TINY, ["star.ra_deg=400", "star.dec_deg=0"], r"star\.ra_deg: must be a finite number in \[0\.0, 360\.0\]"),
+    (OCC_TINY, ["star.ra_deg=10", "star.dec_deg=-91"], r"star\.dec_deg"),
+])
+def test_the_models_settings_are_refused_before_work(tmp_path, base, bad, field):
+    from cssat._checks import FieldError
+    from cssat.experiments import run_experiment
+
+    with pytest.raises(FieldError, match=field):
+        run_experiment(cfg_of(*base, *bad), tmp_path / "bad")
+    assert not (tmp_path / "bad" / "arrays.npz").exists()

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.forward.egi_score import (EGI_MATCH_DEG, EGI_WEIGHT_SHARE, egi_recovered_share, score_truth, solve_egi,
@@ -97,6 +97,7 @@ class EGILightCurve(ForwardModel):
         self.spin_mode = self._resolve(spin_mode)
         check_size(cfg, self.n_nights, len(self.mesh.faces) if hasattr(self.mesh, "faces") else 0, self.spin_mode != "known",
                    self.n_normals)
+        self.shadows = bool_param(cfg.get("shadows", True), "shadows")
         self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         self.noise = build(cfg.get("noise"), "noise")
         if self.observed is not None:
@@ -176,8 +177,7 @@ class EGILightCurve(ForwardModel):
             sigma_w = err[keep] if err is not None else None
             clean_w = None
         else:
-            lc = simulate_light_curve(self.mesh, sc, shadows=bool(self.cfg.get("shadows", True)), attitude=self.attitude,
-                                      brdf=self.brdf)
+            lc = simulate_light_curve(self.mesh, sc, shadows=self.shadows, attitude=self.attitude, brdf=self.brdf)
             clean_w = lc.flux.numpy()[keep]
             gen = torch.Generator().manual_seed(run.seed)
             y = torch.as_tensor(clean_w, dtype=torch.float64)[None]

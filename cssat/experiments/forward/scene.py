@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import float_param, int_param
+from cssat._checks import bool_param, float_param, int_param
 from cssat.experiments.context import Run
 from cssat.experiments.forward.base import ForwardModel
 
@@ -73,6 +73,7 @@ class SceneLightCurve(ForwardModel):
             float_param(self.fov, "render.fov_m", 0.0, open_lo=True)
         self.mesh = build_model(cfg.model)
         self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
+        self.shadows = bool_param(cfg.get("shadows", True), "shadows")
         self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         self.observed = read_observations(cfg)
         self.times = self.observed.times_utc if self.observed is not None else None
@@ -89,8 +90,8 @@ class SceneLightCurve(ForwardModel):
         with run.stage("scene"):
             self.scenario = build_scenario(self.cfg, self.times)
         with run.stage("light_curve"):
-            self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=bool(self.cfg.get("shadows", True)),
-                                           attitude=self.attitude, brdf=self.brdf)
+            self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=self.shadows, attitude=self.attitude,
+                                           brdf=self.brdf)
             self.flux = self.lc.flux
         with run.stage("render"):  # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
             self.fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)

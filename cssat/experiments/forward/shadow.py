@@ -85,6 +85,13 @@ class Shadow(ForwardModel):
         self.band = float_param(optics.get("bandwidth_m", 0.0), "optics.bandwidth_m", 0.0)
         self.n_lam = int_param(optics.get("n_wavelengths", 1), "optics.n_wavelengths", 1, 64)
         self.mag = float_param(star.get("magnitude", 8.0), "star.magnitude", -30.0, 30.0)
+        if (star.get("ra_deg") is None) != (star.get("dec_deg") is None):
+            missing = "dec_deg" if star.get("dec_deg") is None else "ra_deg"
+            raise FieldError(f"star.{missing}", "give both star.ra_deg and star.dec_deg, or neither (a star exactly behind "
+                                                "the satellite)")
+        if star.get("ra_deg") is not None:
+            float_param(star.get("ra_deg"), "star.ra_deg", 0.0, 360.0)
+            float_param(star.get("dec_deg"), "star.dec_deg", -90.0, 90.0)
         self.diam_mas = float_param(star.get("diameter_mas", 0.2), "star.diameter_mas", 0.0)
         self.limb = float_param(star.get("limb_darkening", 0.6), "star.limb_darkening", 0.0, 1.0)
         self.D = D = float_param(array.get("aperture_m", 0.5), "array.aperture_m", 0.0, open_lo=True)
