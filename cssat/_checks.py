@@ -100,7 +100,7 @@ def opt(value: Any, check, *args, **kw):
 
 def dtype_param(name: Any, field: str = "dtype") -> torch.dtype:
     """``"float32"``/``"float64"`` -> torch dtype."""
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     table = {"float32": torch.float32, "float64": torch.float64}
     if name not in table:
@@ -110,7 +110,7 @@ def dtype_param(name: Any, field: str = "dtype") -> torch.dtype:
 
 def device_param(name: Any, field: str = "device") -> torch.device:
     """``"cpu"``/``"cuda"``/``"cuda:N"`` -> torch device, checked for availability."""
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     if not isinstance(name, str) or not (name == "cpu" or name.startswith("cuda")):
         raise FieldError(field, f"expected 'cpu' or 'cuda[:N]', got {name!r}")

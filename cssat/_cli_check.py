@@ -46,7 +46,7 @@ def _values(o: Any) -> list[Any] | None:
     if not o.is_sweep_override():
         return [o.value()]
     if o.is_discrete_sweep():
-        from hydra.errors import HydraException
+        from hydra.errors import HydraException  # startup: hydra; this module imports without it
 
         try:
             return list(o.sweep_iterator())
@@ -57,7 +57,7 @@ def _values(o: Any) -> list[Any] | None:
 
 def _text(o: Any, value: Any) -> str:
     """The override with one value, as Hydra reads it."""
-    from hydra.core.override_parser.types import Override
+    from hydra.core.override_parser.types import Override  # startup: hydra; this module imports without it
 
     prefix = {"ADD": "+", "FORCE_ADD": "++", "DEL": "~"}.get(o.type.name, "")
     key = o.get_key_element().lstrip("+~")
@@ -67,7 +67,7 @@ def _text(o: Any, value: Any) -> str:
 
 
 def _parent_keys(cfg: Any, key: str) -> str:
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf  # startup: omegaconf; this module imports without it
 
     parent, _, _ = key.rpartition(".")
     node = OmegaConf.select(cfg, parent, default=None) if parent else cfg
@@ -80,7 +80,7 @@ def _parent_keys(cfg: Any, key: str) -> str:
 def _bad_option(compose, config_name, paths, o, group, value, loader) -> str | None:
     """Why ``group=value`` is not an option (Hydra's own list of the options, which includes the
     command line's ``hydra.searchpath``), or ``None``."""
-    from hydra.errors import MissingConfigException
+    from hydra.errors import MissingConfigException  # startup: hydra; this module imports without it
 
     key = o.get_key_element().lstrip("+~")
     if not isinstance(value, str):
@@ -98,11 +98,11 @@ def _bad_option(compose, config_name, paths, o, group, value, loader) -> str | N
 
 def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_name: str = "config") -> str | None:
     """The first mistake in ``overrides`` as ``"<key>: <what is wrong>; <what is allowed>"``, or ``None``."""
-    from hydra import compose, initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.errors import HydraException, OverrideParseException
-    from omegaconf import OmegaConf
+    from hydra import compose, initialize_config_module  # startup: hydra; this module imports without it
+    from hydra.core.global_hydra import GlobalHydra  # startup: hydra; this module imports without it
+    from hydra.core.override_parser.overrides_parser import OverridesParser  # startup: hydra; this module imports without it
+    from hydra.errors import HydraException, OverrideParseException  # startup: hydra; this module imports without it
+    from omegaconf import OmegaConf  # startup: omegaconf; this module imports without it
 
     parser = OverridesParser.create()
     parsed = []

@@ -12,7 +12,7 @@ _KERNELS: dict = {}
 def available() -> bool:
     """Whether numba can be imported."""
     try:
-        import numba  # noqa: F401
+        import numba  # heavy: numba (~0.3 s), only probed here  # noqa: F401
     except ImportError:
         return False
     return True
@@ -29,8 +29,8 @@ def kernel(build: Callable[[bool], Callable], threads: int, parallel: bool | Non
     the pool unstarted (in a DataLoader worker, a forked child of a process that uses OpenMP, it
     must not start). With more threads, numba's pool is set to ``threads``.
     """
-    import numba
-    from numba.np.ufunc import parallel as _pool
+    import numba  # heavy: numba, only for kernel()
+    from numba.np.ufunc import parallel as _pool  # heavy: numba, only for kernel()
 
     parallel = threads > 1 if parallel is None else bool(parallel) and threads > 1
     key = (build, parallel)
@@ -47,7 +47,7 @@ def _run_keeping_threads(fn: Callable, threads: int, *args):
     torch reads its own count from OpenMP — at ``threads=1`` every later torch operation and
     numba kernel would run on every core (measured: a 32² sparse-KSVD denoise on a busy 2-core
     machine 2.8–23.8 s instead of 0.3–0.44 s)."""
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     out = fn(*args)
     if torch.get_num_threads() != threads:

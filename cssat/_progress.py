@@ -12,7 +12,10 @@ ipywidgets is installed.
 from __future__ import annotations
 
 import sys
+import warnings
 from typing import Any
+
+from tqdm.auto import tqdm
 
 from cssat._checks import progress_param
 
@@ -58,9 +61,6 @@ def progress_bar(total: int | None, desc: str, progress: bool | None = None, uni
     no-op object with the same methods when it is not shown)."""
     if progress_param(progress) is False or (progress is None and not _on_terminal()):
         return _Off(kwargs.get("iterable"))
-    import warnings
-
-    from tqdm.auto import tqdm
 
     with warnings.catch_warnings():  # tqdm.auto in a notebook without ipywidgets: the text bar is fine
         warnings.filterwarnings("ignore", message=".*IProgress not found.*")

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
+from cssat._checks import FieldError
+
 __all__ = ["Record", "recording", "note_output", "read_input", "digest"]
 
 
@@ -67,15 +69,11 @@ def read_input(path: str | os.PathLike, max_bytes: int | None = None, field: str
     if max_bytes is not None and os.path.isfile(path):
         size = os.path.getsize(path)
         if size > max_bytes:
-            from cssat._checks import FieldError
-
             raise FieldError(field, f"{os.fspath(path)!r} is {size / 2**20:.0f} MiB, more than the "
                                     f"{max_bytes / 2**20:.0f} MiB an input of this kind may be")
     try:
         data = Path(path).read_bytes()
     except OSError as err:  # the user's input: a field error, not a machine fault
-        from cssat._checks import FieldError
-
         raise FieldError(field, f"cannot read {os.fspath(path)!r}: {err.strerror or err}") from None
     rec = _current.get()
     if rec is not None:

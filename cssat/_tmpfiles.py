@@ -17,12 +17,15 @@ ignores and removes stale temporary files on its next write of that entry.
 
 from __future__ import annotations
 
+import csv
 import os
 import secrets
 import subprocess
 import sys
 import threading
 from pathlib import Path
+
+from cssat._record import note_output
 
 # The guardian: read every record until the writer's end of the pipe closes, then remove the
 # files registered ("+") and not released ("-"). Records are NUL-terminated file-system paths.
@@ -103,8 +106,6 @@ def atomic_write(path: str | os.PathLike, write, result: bool = True) -> None:
         write(str(tmp))
         os.replace(tmp, path)
         if result:
-            from cssat._record import note_output
-
             note_output(path)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -116,8 +117,6 @@ def atomic_write(path: str | os.PathLike, write, result: bool = True) -> None:
 def atomic_csv(path: str | os.PathLike, rows: list, fieldnames: list | None = None) -> None:
     """Write ``rows`` (dicts) as a CSV with a header through :func:`atomic_write`; columns
     ``fieldnames`` (default: every key in the order first seen), missing values empty."""
-    import csv
-
     cols = fieldnames or list(dict.fromkeys(k for r in rows for k in r))
 
     def write(tmp):

@@ -7,13 +7,24 @@ library code never reads Hydra state.
 
 from __future__ import annotations
 
+import errno
+import glob
 import logging
+import os
 import sys
 from pathlib import Path
 from typing import Any, Callable
 
 import hydra
-from omegaconf import DictConfig
+from hydra.core.hydra_config import HydraConfig
+from hydra.core.plugins import Plugins
+from hydra.types import RunMode
+from omegaconf import DictConfig, OmegaConf, open_dict
+
+from cssat import __version__, _cli_check, summary
+from cssat._checks import FieldError
+from cssat._tmpfiles import atomic_write
+from cssat.summary import SWEEP_MARK, sweep_id
 
 log = logging.getLogger("cssat")
 
@@ -32,10 +43,9 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
     failed job is logged and returns ``None`` (its ``metrics.json`` says ``status: failed``), so
     the sweep goes on.
     """
-    from tqdm.contrib.logging import logging_redirect_tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm  # startup: tqdm, only when a job runs
 
-    from cssat._checks import FieldError
-    from cssat.experiments import run_experiment
+    from cssat.experiments import run_experiment  # startup: cssat.experiments imports numpy, only when a job runs
 
     try:
         key = cfg.get("optimized_metric", "psnr")
@@ -51,8 +61,6 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
             log.error("bad input: %s", err)
             sys.exit(2)
         if isinstance(err, OSError):  # the machine, not the input: a full disk, a read-only directory
-            import errno
-
             writing = err.errno in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT,
                                     errno.EEXIST, errno.ENOTDIR, errno.EISDIR)
             log.error("%s: %s", "cannot write the results" if writing else "system error", _os_error(err, output_dir))
@@ -72,8 +80,6 @@ def _os_error(err: OSError, where: str | Path) -> str:
 def _check_output_dir(overrides: list[str], multirun: bool) -> str | None:
     """Why the run's output directory cannot be written (a file in its place, a read-only or
     unwritable parent), or ``None``; checked before Hydra creates it."""
-    import os
-
     key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
     given = [o.split("=", 1)[1] for o in overrides if o.split("=", 1)[0].lstrip("+") == key]
     path = Path(given[-1]) if given and "${" not in given[-1] else Path("outputs" if not given else ".")
@@ -89,11 +95,6 @@ def _check_output_dir(overrides: list[str], multirun: bool) -> str | None:
 
 @hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
 def _hydra_main(cfg: DictConfig) -> float | None:
-    from hydra.core.hydra_config import HydraConfig
-    from hydra.types import RunMode
-
-    from omegaconf import open_dict
-
     hc = HydraConfig.get()
     multirun = hc.mode == RunMode.MULTIRUN
     choice = hc.runtime.choices.get("experiment")
@@ -102,8 +103,6 @@ def _hydra_main(cfg: DictConfig) -> float | None:
             cfg.experiment_name = choice
     tags = None
     if multirun:  # mark the job directory with its sweep's id (the summary keeps this sweep's jobs)
-        from cssat.summary import SWEEP_MARK, sweep_id
-
         sid = sweep_id(hc.sweep.dir)
         if sid is not None:
             out = Path(hc.runtime.output_dir)
@@ -114,10 +113,6 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     def save_hydra_files() -> None:
         """Hydra wrote ``.hydra/`` before this run took the directory's lock; a second run refused
         by the lock may have overwritten them since: write this run's again, under the lock."""
-        from omegaconf import OmegaConf
-
-        from cssat._tmpfiles import atomic_write
-
         sub = hc.output_subdir
         if not sub:
             return
@@ -133,9 +128,7 @@ def _register_launcher() -> None:
     """Register cssat's joblib launcher with Hydra (``launcher=local``): an editable install maps
     ``hydra_plugins.cssat_launcher`` into place, where Hydra's own package scan does not look."""
     try:
-        from hydra.core.plugins import Plugins
-
-        from hydra_plugins.cssat_launcher.launcher import RobustJoblibLauncher
+        from hydra_plugins.cssat_launcher.launcher import RobustJoblibLauncher  # local: optional (launchers extra)
     except ImportError:  # the launchers extra (hydra-joblib-launcher) is not installed
         return
     if isinstance(RobustJoblibLauncher, type) and RobustJoblibLauncher.__mro__[1] is not object:
@@ -151,9 +144,6 @@ def expand_file_sweeps(argv: list[str]) -> list[str]:
     as Hydra's sweep of those files, sorted and quoted: one job per file (a catalogue of
     thousands of tracks through Hydra's launchers). A pattern that matches nothing is a
     ``ValueError`` naming the key."""
-    import glob
-    import os
-
     out = []
     for a in argv:
         key, eq, value = a.partition("=")
@@ -172,8 +162,6 @@ def expand_file_sweeps(argv: list[str]) -> list[str]:
 def main() -> None:
     """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
     after every job has run and the summary is written."""
-    from cssat import __version__, _cli_check, summary
-
     logging.raiseExceptions = False  # a log file on a full disk: drop its lines, never print tracebacks
     if "--version" in sys.argv[1:] or "-V" in sys.argv[1:]:  # cssat's version, not Hydra's
         print(f"cssat {__version__}")

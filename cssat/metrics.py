@@ -68,7 +68,7 @@ def psnr(image_true: Any, image_test: Any, data_range: float | None = None, *, v
     it is ``image_true.max() − image_true.min()`` (per image in a batch). Infinite for identical
     images. A float for one image or volume, an array ``(B,)`` for a batch (see the module).
     """
-    from skimage.metrics import peak_signal_noise_ratio
+    from skimage.metrics import peak_signal_noise_ratio  # heavy: scikit-image, only for psnr()
 
     return _score(lambda r, t, R, ch: peak_signal_noise_ratio(r, t, data_range=R),
                   image_true, image_test, data_range, volume)
@@ -78,7 +78,7 @@ def ssim(image_true: Any, image_test: Any, data_range: float | None = None, *, v
     """Structural similarity (Wang et al. 2004) by ``skimage.metrics.structural_similarity``
     with its default 7×7 window (7×7×7 for a volume), in scikit-image's order; ``data_range``
     and the shapes as in :func:`psnr`."""
-    from skimage.metrics import structural_similarity
+    from skimage.metrics import structural_similarity  # heavy: scikit-image, only for ssim()
 
     return _score(lambda r, t, R, ch: structural_similarity(r, t, data_range=R, channel_axis=ch),
                   image_true, image_test, data_range, volume)

@@ -22,6 +22,7 @@ from typing import NamedTuple, Sequence
 import torch
 from torch import Tensor
 from cssat._checks import FieldError, FieldTypeError
+from cssat.sparse import DCT, batch_omp
 from cssat.sparse._io import numpy_io
 
 __all__ = [
@@ -52,7 +53,7 @@ def _rcond_1norm(lu: Tensor, anorm: float) -> float | None:
     """LAPACK's 1-norm reciprocal condition estimate from an LU factor (CPU only; else None)."""
     if lu.device.type != "cpu":
         return None
-    from scipy.linalg import lapack
+    from scipy.linalg import lapack  # heavy: scipy.linalg, only for _rcond_1norm()
 
     fn = lapack.sgecon if lu.dtype == torch.float32 else lapack.dgecon
     rcond, info = fn(lu.numpy(), anorm, norm="1")
@@ -168,8 +169,6 @@ def estimate_sensing_sparse(
     with ``return_info``, a :class:`SparseEstimate`. ``progress``: the OMP's tqdm bar
     (:func:`~cssat.sparse.batch_omp`).
     """
-    from cssat.sparse import DCT, batch_omp
-
     n_pixel, N, m = _check(X_ref, Y_ref)
     if shape is None:
         side = math.isqrt(n_pixel)

@@ -63,7 +63,7 @@ def run_one(name: str, out_dir: Path, extra: Sequence[str] = ()) -> str | None:
         metrics = json.loads((out_dir / "metrics.json").read_text())
     except (OSError, ValueError) as err:
         return f"no readable metrics.json: {err}"
-    from cssat.experiments.results import check_complete
+    from cssat.experiments.results import check_complete  # startup: cssat.experiments.results imports numpy
 
     why = check_complete(out_dir, metrics, metrics.get("config_sha", ""))
     return None if why is None else f"an incomplete result set: {why}"
@@ -71,7 +71,7 @@ def run_one(name: str, out_dir: Path, extra: Sequence[str] = ()) -> str | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m cssat.smoke [--out DIR] [NAME ...]``: every experiment (or the ones named)."""
-    from cssat.experiments import experiment_names
+    from cssat.experiments import experiment_names  # startup: cssat.experiments imports numpy
 
     ap = argparse.ArgumentParser(prog="python -m cssat.smoke", description=__doc__.split("\n\n")[0])
     ap.add_argument("names", nargs="*", help="experiments to run (default: every one)")

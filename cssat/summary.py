@@ -15,8 +15,15 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
+import sys
+import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
+
+import yaml
+
+from cssat._tmpfiles import atomic_write
 
 if TYPE_CHECKING:
     from omegaconf import DictConfig
@@ -27,8 +34,6 @@ __all__ = ["collect", "summarize", "SummaryCallback", "main"]
 
 
 def _parse_overrides(path: Path) -> dict[str, str]:
-    import yaml
-
     out: dict[str, str] = {}
     for item in yaml.safe_load(path.read_text()) or []:
         key, _, value = str(item).partition("=")
@@ -111,7 +116,7 @@ def collect(sweep_dir: str | Path) -> tuple[list[dict[str, Any]], list[str]]:
 def _verify(job: Path, metrics: dict, current: str | None) -> dict[str, Any]:
     """``{}`` when the job's ``metrics.json`` is this sweep's and its result files still hash as
     listed; else the ``status`` (``missing``: another sweep's results; ``corrupt``) and ``error``."""
-    from cssat.experiments.results import files_problem, seal_problem
+    from cssat.experiments.results import files_problem, seal_problem  # startup: cssat.experiments.results imports numpy
 
     sid = metrics.get("sweep_id")
     if current is not None and sid is not None and sid != current:
@@ -154,8 +159,8 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | No
               figure_format: str = "png") -> tuple[Path, Path | None]:
     """Write ``summary.csv`` and ``summary_<metric>.<figure_format>`` into ``sweep_dir``; return
     their paths. ``collected``: the result of :func:`collect` when the caller has it already."""
-    from cssat.experiments.files import write_csv
-    from cssat.plots import save_figure, sweep_figure
+    from cssat.experiments.files import write_csv  # startup: cssat.experiments.files imports numpy
+    from cssat.plots import save_figure, sweep_figure  # startup: cssat.plots imports numpy
 
     sweep_dir = Path(sweep_dir)
     rows, swept = collected if collected is not None else collect(sweep_dir)
@@ -195,13 +200,7 @@ class SummaryCallback(Callback):
         self.metric = metric
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        import os
-        import sys
-        import uuid
-
-        from filelock import FileLock, Timeout
-
-        from cssat._tmpfiles import atomic_write
+        from filelock import FileLock, Timeout  # startup: filelock, loaded only when on_multirun_start() runs
 
         d = Path(config.hydra.sweep.dir)
         d.mkdir(parents=True, exist_ok=True)

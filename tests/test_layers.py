@@ -5,6 +5,10 @@ point 3). The arrows that remain to be undone are listed, so no new one can come
 from __future__ import annotations
 
 import ast
+import io
+import subprocess
+import sys
+import tokenize
 from pathlib import Path
 
 #: DESIGN.md's layers, with one change (issue 35): ``data`` sits above ``physics`` — its torch
@@ -199,3 +203,57 @@ def test_files_and_functions_stay_short():
     assert long_funcs <= LONG_FUNCTIONS, f"functions over 100 code lines: {sorted(long_funcs - LONG_FUNCTIONS)}"
     assert not (LONG_FILES - long_files) and not (LONG_FUNCTIONS - long_funcs), \
         f"cut now, remove from the lists: {sorted(LONG_FILES - long_files)} {sorted(LONG_FUNCTIONS - long_funcs)}"
+
+
+#: the reasons a function may import inside its body (issue 35, point 3): a heavy optional
+#: dependency (matplotlib, astropy, scipy submodules, torch in a numpy-only module, …), the
+#: command line's start-up, or another reason spelled out
+LOCAL_IMPORT_REASONS = ("# heavy:", "# startup:", "# local:")
+
+
+def local_imports_without_reason(root: Path) -> list[str]:
+    """``path:line`` of every import inside a function body (outside ``if TYPE_CHECKING:``)
+    whose first line has no trailing comment starting with one of ``LOCAL_IMPORT_REASONS``."""
+    out = set()
+    for f in sorted(root.rglob("*.py")):
+        src = f.read_text(encoding="utf-8")
+        tree = ast.parse(src)
+        comments = {t.start[0]: t.string for t in tokenize.generate_tokens(io.StringIO(src).readline)
+                    if t.type == tokenize.COMMENT}
+        skip = _type_checking_lines(tree)
+        for func in ast.walk(tree):
+            if isinstance(func, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for node in ast.walk(func):
+                    if isinstance(node, (ast.Import, ast.ImportFrom)) and node.lineno not in skip \
+                            and not comments.get(node.lineno, "").startswith(LOCAL_IMPORT_REASONS):
+                        out.add(f"{f.relative_to(root.parent).as_posix()}:{node.lineno}")
+    return sorted(out)
+
+
+def test_function_local_imports_say_why():
+    """An import inside a function says why it is not at the top of its module (issue 35,
+    point 3): ``# heavy: <what>``, ``# startup: <what>`` or ``# local: <why>``."""
+    import cssat
+
+    bad = local_imports_without_reason(Path(cssat.__file__).parent)
+    assert bad == [], f"function-local imports without a '# heavy:/# startup:/# local:' comment: {bad}"
+
+
+def test_the_reader_sees_a_local_import_without_reason(tmp_path):
+    pkg = tmp_path / "cssat"
+    pkg.mkdir()
+    (pkg / "m.py").write_text("from typing import TYPE_CHECKING\n\n\ndef f():\n    if TYPE_CHECKING:\n        import torch\n"
+                              "    import scipy.optimize  # heavy: scipy.optimize, only here\n"
+                              "    from cssat.x import (  # local: a cycle\n        a, b)\n"
+                              "    import json  # a comment, not a reason\n"
+                              "    from cssat.y import (\n        c)  # heavy: too late, on the last line\n"
+                              "    s = '# heavy: in a string'; import os\n")
+    assert local_imports_without_reason(pkg) == ["cssat/m.py:10", "cssat/m.py:11", "cssat/m.py:13"]
+
+
+def test_import_cssat_imports_no_array_library():
+    """``import cssat`` stays light: the subpackages load on first use, and torch, numpy and
+    scipy with them."""
+    code = "import cssat, sys; print([m for m in ('torch', 'numpy', 'scipy') if m in sys.modules])"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", (out.stdout, out.stderr)

@@ -17,6 +17,10 @@ import logging
 from pathlib import Path
 from typing import Any, Sequence
 
+from hydra.core.singleton import Singleton
+from hydra.core.utils import JobReturn, JobStatus, setup_globals
+from omegaconf import OmegaConf
+
 try:
     from hydra_plugins.hydra_joblib_launcher.joblib_launcher import JoblibLauncher
 except ImportError:  # pragma: no cover - the launchers extra is not installed
@@ -30,8 +34,6 @@ __all__ = ["RobustJoblibLauncher"]
 def _job_dir(config: Any, idx: int) -> Path:
     """The directory of job ``idx``: ``hydra.sweep.dir / hydra.sweep.subdir`` with the job number
     (cssat's subdir is ``${hydra.job.num}``; read unresolved, as the number is not set here)."""
-    from omegaconf import OmegaConf
-
     sub = str(OmegaConf.to_container(config.hydra.sweep, resolve=False)["subdir"])
     return Path(str(config.hydra.sweep.dir)) / sub.replace("${hydra.job.num}", str(idx))
 
@@ -55,11 +57,9 @@ class RobustJoblibLauncher(JoblibLauncher):
 
     def _run(self, job_overrides, batch: list[int], initial_job_idx: int) -> list:
         """Jobs ``batch`` (their own indices, so each keeps its number and directory) in loky workers."""
-        from hydra.core.singleton import Singleton
-        from hydra.core.utils import setup_globals
-        from joblib import Parallel, delayed
+        from joblib import Parallel, delayed  # startup: joblib, only when a sweep launches
 
-        from hydra_plugins.hydra_joblib_launcher import _core
+        from hydra_plugins.hydra_joblib_launcher import _core  # startup: joblib, only when a sweep launches
 
         setup_globals()
         cfg = dict(self.joblib)
@@ -78,8 +78,7 @@ class RobustJoblibLauncher(JoblibLauncher):
         """Run every job; after a worker dies, the jobs that were running then are run again one
         at a time, so a job is blamed (recorded ``failed``) only when its worker dies twice while
         it runs alone — never a job that only shared the batch with the culprit."""
-        from hydra.core.utils import JobReturn, JobStatus
-        from joblib.externals.loky.process_executor import TerminatedWorkerError
+        from joblib.externals.loky.process_executor import TerminatedWorkerError  # startup: joblib, only when a sweep launches
 
         def done(i: int) -> JobReturn:
             return JobReturn(overrides=list(job_overrides[i]), status=JobStatus.COMPLETED, _return_value=None)
@@ -126,7 +125,7 @@ class RobustJoblibLauncher(JoblibLauncher):
         return [results[i] for i in pending]
 
     def _fail(self, i: int, initial_job_idx: int, error: str) -> None:
-        from cssat.experiments.files import write_json
+        from cssat.experiments.files import write_json  # startup: cssat.experiments.files imports numpy
 
         write_json(_job_dir(self.config, initial_job_idx + i) / "metrics.json",
                    {"status": "failed", "error": error, "experiment": None})

@@ -4,12 +4,16 @@ made UTC by astropy and its units checked against the light curve's kind."""
 
 from __future__ import annotations
 
+import io
+import warnings
 from typing import Any
 
 import numpy as np
 
 from cssat._checks import FieldError
 from cssat.data.formats import _datetime64, _period
+from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE
+from cssat.scene.orbit import _start_datetime
 
 __all__ = ["read_astropy", "read_astropy_file"]
 
@@ -21,8 +25,8 @@ def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str 
     their units (magnitudes in mag; a flux in W/m² — converted — or a spectral flux density,
     kept in its unit, the error in the value's), one value per row, no masked entries. A
     ``Time`` column with a ``location`` gives each sample's site."""
-    from astropy import units as u
-    from astropy.time import Time
+    from astropy import units as u  # heavy: astropy, only for read_astropy()
+    from astropy.time import Time  # heavy: astropy, only for read_astropy()
 
     cols = list(table.colnames)
     if time_col is None:
@@ -38,11 +42,8 @@ def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str 
         except Exception as err:  # a scale astropy cannot make UTC ('local'), an out-of-range date
             raise FieldError(f"observations.{time_col}", f"not a time astropy can make UTC: {' '.join(str(err).split())}") from None
     else:
-        from cssat.scene.orbit import _start_datetime
-
         times = np.array([np.datetime64(_start_datetime(str(v).strip(), f"observations.{time_col}[row {i + 1}]"), "us")
                           for i, v in enumerate(tc)], dtype="datetime64[us]")
-    from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE
 
     value_col = value_col or next((c for c in (DEFAULT_VALUE[kind], "mag", "magnitude", "flux") if c in cols), None)
     if value_col not in cols:
@@ -90,11 +91,7 @@ def _unmasked(col: Any, name: str) -> None:
 
 def read_astropy_file(data: bytes, fmt: str, name: str) -> Any:
     """An ECSV or FITS file's bytes as an astropy Table (FITS time columns as ``Time``)."""
-    import io
-
-    from astropy.table import Table
-
-    import warnings
+    from astropy.table import Table  # heavy: astropy, only for read_astropy_file()
 
     try:
         with warnings.catch_warnings():  # astropy's verification warnings: the error below says it once
@@ -109,7 +106,7 @@ def read_astropy_file(data: bytes, fmt: str, name: str) -> Any:
 def _unit(col: Any, name: str, kind: str) -> Any:
     """The column's unit (None when it has none), checked against ``kind``: magnitudes in mag, a
     flux in W/m² or a spectral flux density (Jy, W m⁻² Hz⁻¹, erg s⁻¹ cm⁻² Å⁻¹)."""
-    from astropy import units as u
+    from astropy import units as u  # heavy: astropy, only for _unit()
 
     unit = getattr(col, "unit", None)
     if unit is None or unit == u.dimensionless_unscaled:

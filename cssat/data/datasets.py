@@ -7,6 +7,7 @@ DataLoader workers.
 
 from __future__ import annotations
 
+import numbers
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -14,12 +15,14 @@ import torch
 from torch.utils.data import Dataset
 
 from cssat._checks import FieldError, FieldTypeError
+from cssat.optics import render, simulate_light_curve
+from cssat.physics import Atmosphere, GaussianAtmosphere, Measurement, NoiseModel
+from cssat.scene.attitude import random_unit_vectors
 from cssat.scene.mesh import Mesh
 
 if TYPE_CHECKING:
     from typing import Sequence
 
-    from cssat.physics import Atmosphere, Measurement, NoiseModel
     from cssat.scene import Scenario
 
 
@@ -29,8 +32,6 @@ __all__ = ["ReferenceImages", "LightCurves", "item_rng"]
 def check_index(index: Any, length: int) -> int:
     """``index`` as an item number in ``[0, length)`` (negative counts from the end); an index
     that is not an integer (``1.7``, ``True``, a string) is a TypeError, not truncated."""
-    import numbers
-
     if isinstance(index, bool) or not isinstance(index, numbers.Integral):
         if not (hasattr(index, "ndim") and index.ndim == 0 and not getattr(index, "is_floating_point", lambda: True)()):
             raise TypeError(f"index: expected an integer, got {index!r}")
@@ -92,8 +93,6 @@ class ReferenceImages(Dataset):
         if not noise >= 0:
             raise FieldError("reference.noise", f"must be >= 0, got {noise!r}")
         if measurement is not None:
-            from cssat.physics import Measurement
-
             if not isinstance(measurement, Measurement):
                 raise FieldTypeError("measurement", f"expected a cssat.physics.Measurement, got {type(measurement).__name__}")
             if measurement.shape[1] != size * size:
@@ -123,8 +122,6 @@ class ReferenceImages(Dataset):
 
     def directions(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         """The Sun and view directions (body frame, unit) of item ``index``."""
-        from cssat.scene.attitude import random_unit_vectors
-
         d = random_unit_vectors(2, item_rng(self.seed, index, 0))
         return d[0], d[1]
 
@@ -134,8 +131,6 @@ class ReferenceImages(Dataset):
     def images(self, indices: Sequence[int]) -> torch.Tensor:
         """The images of ``indices`` (any order, repeats allowed) rendered in one vectorised
         call: ``(len(indices), size, size)`` (no channel axis)."""
-        from cssat.optics import render
-
         idx = [self._index(i) for i in indices]
         if not idx:
             return torch.zeros(0, self.size, self.size, dtype=self.dtype)
@@ -208,8 +203,6 @@ class LightCurves(Dataset):
     def __init__(self, mesh: Mesh, scenario: Scenario, length: int, seed: int = 0,
                  atmosphere: Atmosphere | str | None = "default", noise: NoiseModel | None = None,
                  images: bool = False, size: int = 64, shadows: bool = True, attitude: Any = None):
-        from cssat.optics import simulate_light_curve
-        from cssat.physics import Atmosphere, GaussianAtmosphere, NoiseModel
 
         if isinstance(atmosphere, str) and atmosphere == "default":
             atmosphere = GaussianAtmosphere(emitters="facets")
@@ -233,15 +226,11 @@ class LightCurves(Dataset):
     def renders(self) -> torch.Tensor:
         """The ``(T, size, size)`` images of the scenario (rendered once, then kept)."""
         if self._renders is None:
-            from cssat.optics import render
-
             self._renders = render(self.mesh, self.sun_body, self.obs_body, self.size,
                                    brightness=self.facets, dtype=torch.float64)
         return self._renders
 
     def __getitem__(self, index: int) -> dict:
-        from cssat.physics import Measurement
-
         index = check_index(index, self.length)
         seed = int(item_rng(self.seed, index, 2).integers(0, 2**62))
         item = {"times": self.times, "clean": self.clean}

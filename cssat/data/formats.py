@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat.scene.orbit import _start_datetime
 
 __all__ = ["FORMATS", "sniff_format", "read_mmt", "read_score", "read_alcdef", "to_utc", "check_dates", "check_magnitudes"]
 
@@ -47,7 +48,7 @@ def to_utc(values: Any, fmt: str, scale: str, field: str) -> np.ndarray:
     """``(T,)`` ``datetime64[us]`` UTC of times in astropy's ``fmt`` (``jd``, ``mjd``, ``unix``,
     ``isot``…) and ``scale`` (``utc``, ``tt``, ``tdb``, ``tai``), converted by astropy; a number
     outside 1900–2100 (a JD of 0, a placeholder) is refused naming its row."""
-    from astropy.time import Time
+    from astropy.time import Time  # heavy: astropy, only for to_utc()
 
     if fmt in _NUMERIC_RANGE:
         x = np.asarray(values, dtype=np.float64)
@@ -252,7 +253,6 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
         raise FieldError("observations.object", f"{name} holds {len({n for n, _ in objects})} objects; choose one "
                                                "(NORAD id or name): " + ", ".join(f"{n} {s}" for n, s in objects))
     stamps = get("time")
-    from cssat.scene.orbit import _start_datetime
 
     times = np.array([np.datetime64(_start_datetime(s, f"observations.{SCORE_COLUMNS['time']}[row {i + 1}]"), "us")
                       for i, s in enumerate(stamps)], dtype="datetime64[us]")

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import io
 import os
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat._record import read_input
+from cssat.scene import tess_like
 
 if TYPE_CHECKING:
     import trimesh
@@ -27,8 +30,6 @@ TESS_VIEW = {"sun": (0.4, -0.7, 0.6), "observer": (0.8, -0.5, 0.3)}
 
 def render_tess(size: int) -> np.ndarray:
     """The procedural TESS-like model rendered at ``size × size`` by :func:`render_exposed`."""
-    from cssat.scene import tess_like
-
     return render_exposed(tess_like(), size)
 
 
@@ -38,9 +39,9 @@ def render_exposed(mesh: Mesh | trimesh.Trimesh, size: int, view: dict = TESS_VI
     photograph: scaled so the 99th percentile of the lit pixels is 1 and clipped there (a few
     pixels that collect the flux of several sub-pixel facets would otherwise leave the rest of the
     spacecraft near black)."""
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
-    from cssat.optics import render
+    from cssat.optics import render  # heavy: cssat.optics imports torch
 
     unit = [np.asarray(v, float) / np.linalg.norm(v) for v in (view["sun"], view["observer"])]
     img = render(mesh, unit[0][None], unit[1][None], size, shadows=True, dtype=torch.float64)[0].numpy()
@@ -60,7 +61,7 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
     channel), and the image is resized with anti-aliasing. It must be square: a CS image is
     ``n × n`` and stretching would distort it. ``field`` names the config field in error messages.
     """
-    from skimage.transform import resize
+    from skimage.transform import resize  # heavy: scikit-image, only for load_target()
 
     if not isinstance(size, int) or isinstance(size, bool) or size < 2:
         raise FieldError("target.size", f"must be an integer >= 2, got {size!r}")
@@ -69,7 +70,7 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
     if image == "tess" and not os.path.exists(image):
         return render_tess(size)
     if image in BUILTIN_IMAGES and not os.path.exists(image):
-        import skimage.data
+        import skimage.data  # heavy: scikit-image, only for load_target()
 
         arr = np.asarray(getattr(skimage.data, image)())
     else:
@@ -78,11 +79,7 @@ def load_target(image: str, size: int, field: str = "target.image") -> np.ndarra
                 field, f"{image!r} is neither a readable file nor a built-in image "
                 f"({', '.join(BUILTIN_IMAGES)})"
             )
-        from PIL import Image, UnidentifiedImageError
-
-        import io
-
-        from cssat._record import read_input
+        from PIL import Image, UnidentifiedImageError  # heavy: pillow, only for load_target()
 
         data = read_input(image, 1 << 30, field)  # hashed as read: the manifest's input is what was loaded
         try:

@@ -21,8 +21,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from cssat._checks import FieldError, choice_param
+from cssat._checks import FieldError, FieldTypeError, choice_param
+from cssat._record import read_input
+from cssat.data import formats as F
+from cssat.data.astro import read_astropy, read_astropy_file
+from cssat.data.formats import check_dates, check_magnitudes
 from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE, write_light_curve  # noqa: F401  (cssat's own CSV)
+from cssat.data.text import check_size, read_csv, text_rows
 
 __all__ = ["ObservedLightCurve", "read_light_curve", "write_light_curve", "stretches", "KINDS", "TIME_FORMATS", "DUPLICATES"]
 
@@ -143,9 +148,9 @@ class ObservedLightCurve:
     def to_table(self) -> Any:
         """The light curve as an astropy ``TimeSeries`` (``time`` in UTC; the value column
         ``mag`` in mag or ``flux``; its error; every per-sample column; ``meta``)."""
-        from astropy import units as u
-        from astropy.time import Time
-        from astropy.timeseries import TimeSeries
+        from astropy import units as u  # heavy: astropy, only for to_table()
+        from astropy.time import Time  # heavy: astropy, only for to_table()
+        from astropy.timeseries import TimeSeries  # heavy: astropy, only for to_table()
 
         ts = TimeSeries(time=Time(self.times_utc, scale="utc"))
         unit = u.mag if self.kind == "magnitude" else None
@@ -172,7 +177,7 @@ class ObservedLightCurve:
         """The values as magnitudes (a flux in W/m² through the Sun's V magnitude)."""
         if self.kind == "magnitude":
             return self.values
-        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V
+        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V  # heavy: cssat.optics.photometry imports torch
 
         with np.errstate(divide="ignore"):
             return SUN_MAGNITUDE_V - 2.5 * np.log10(self.values / SOLAR_IRRADIANCE_W_M2)
@@ -181,7 +186,7 @@ class ObservedLightCurve:
         """The values as flux in W/m² (a V magnitude through the Sun's: ``I₀ 10^(−0.4 (V − V_☉))``)."""
         if self.kind == "flux":
             return self.values
-        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V
+        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V  # heavy: cssat.optics.photometry imports torch
 
         return SOLAR_IRRADIANCE_W_M2 * 10.0 ** (-0.4 * (self.values - SUN_MAGNITUDE_V))
 
@@ -237,8 +242,6 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     a unit or column name that contradicts ``kind``, times that do not increase, an empty file,
     a file too large for the memory available.
     """
-    from cssat.data import formats as F
-
     kind = choice_param(kind, "kind", KINDS)
     time_format = choice_param(time_format, "time_format", TIME_FORMATS)
     time_scale = choice_param(time_scale, "time_scale", F.TIME_SCALES)
@@ -246,14 +249,10 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     if format is not None:
         format = choice_param(str(format).lower(), "format", F.FORMATS)
     if hasattr(path, "colnames"):  # an astropy table in memory
-        from cssat.data.astro import read_astropy
-
         d = read_astropy(path, "the table", time_col=time_col, value_col=value_col, error_col=error_col, kind=kind)
         name, fmt = "the table", "astropy"
     else:
         if not isinstance(path, (str, Path)):
-            from cssat._checks import FieldTypeError
-
             raise FieldTypeError("observations", f"expected a file path or an astropy table, got {type(path).__name__}")
         p = Path(path)
         if p.is_dir():
@@ -261,10 +260,8 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
                                              f"experiment=characterise observations={p}")
         if not p.is_file():
             raise FieldError("observations", f"no such file: {p}")
-        from cssat.data.text import check_size, read_csv
 
         check_size(p)
-        from cssat._record import read_input
 
         data = read_input(p, 1 << 30, "observations")
         name = p.name
@@ -283,13 +280,9 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
         elif fmt == "alcdef":
             d = F.read_alcdef(text, name)
         elif fmt == "score":
-            from cssat.data.text import text_rows
-
             header, rows = text_rows(text, name)
             d = F.read_score(header, rows, name, object)
         elif fmt in ("ecsv", "fits", "astropy"):
-            from cssat.data.astro import read_astropy, read_astropy_file
-
             d = read_astropy(read_astropy_file(data, "fits" if fmt == "fits" else "ecsv", name), name,
                                time_col=time_col, value_col=value_col, error_col=error_col, kind=kind)
         else:
@@ -328,8 +321,6 @@ def _fixed_format(fmt: str, **given: Any) -> None:
 def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: str, ecol: str) -> ObservedLightCurve:
     """Check values and dates, sort (MMT, SCORE, ALCDEF), refuse or merge duplicate stamps;
     every error names the file's own row."""
-    from cssat.data.formats import check_dates, check_magnitudes
-
     if not len(lc):
         raise FieldError("observations", "no data rows")
     check_dates(lc.times_utc, f"observations.{tcol}")

@@ -8,12 +8,16 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat._tmpfiles import atomic_csv
+from cssat.data.formats import to_utc
+from cssat.scene.orbit import _start_datetime
 
 __all__ = ["check_size", "read_csv", "text_rows", "write_light_curve", "DEFAULT_VALUE", "DEFAULT_ERROR"]
 
@@ -28,8 +32,6 @@ BYTES_PER_BYTE = 40
 
 def check_size(p: Path) -> None:
     """Refuse a file whose parsed table would not fit in the memory available now."""
-    import os
-
     size = p.stat().st_size
     try:
         avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
@@ -84,11 +86,7 @@ def _is_number(v: str) -> bool:
 
 
 def _times(raw: Sequence[Any], col: str, time_format: str, time_scale: str) -> np.ndarray:
-    from cssat.data.formats import to_utc
-
     if time_format == "iso":
-        from cssat.scene.orbit import _start_datetime
-
         out = np.array([np.datetime64(_start_datetime((v.decode() if isinstance(v, bytes) else str(v)).strip(),
                                                       f"observations.{col}[row {i + 1}]"), "us")
                         for i, v in enumerate(raw)], dtype="datetime64[us]")
@@ -175,6 +173,5 @@ def write_light_curve(path: str | Path, lc: Any) -> None:
         if lc.tracks is not None:
             row["track"] = lc.tracks[i]
         rows.append(row)
-    from cssat._tmpfiles import atomic_csv
 
     atomic_csv(Path(path), rows)

@@ -12,12 +12,19 @@ import hashlib
 import importlib
 import json
 import logging
+import platform
 import time
 import traceback
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy
+
+import cssat
 from cssat._checks import FieldError, int_param
+from cssat._record import recording
+from cssat.experiments.files import write_json
+from cssat.experiments.results import check_complete, clear_results, load_saved, move_aside, result_files, run_lock, write_metrics
 
 __all__ = ["experiment_names", "run_experiment", "config_sha", "provenance", "ConfigError", "FieldError"]
 
@@ -29,14 +36,14 @@ ConfigError = FieldError
 
 def experiment_names() -> list[str]:
     """The experiments: the YAML files of ``conf/experiment/`` (``cssat.conf.experiment``)."""
-    import cssat.conf
+    import cssat.conf  # local: cssat.conf is the configs (a symlink in a source tree), only listed here
 
     return sorted(p.stem for p in (Path(cssat.conf.__file__).parent / "experiment").glob("*.yaml"))
 
 
 def _process_seconds() -> float:
     """Seconds since this process started (Python start-up, imports, Hydra's composition)."""
-    import psutil
+    import psutil  # heavy: psutil, only for _process_seconds()
 
     return max(0.0, time.time() - psutil.Process().create_time())
 
@@ -66,11 +73,7 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
     input files — the run is skipped and the saved metrics are returned; otherwise the log says
     why it runs again.
     """
-    import torch
-
-    from cssat._record import recording
-    from cssat.experiments.results import (check_complete, clear_results, load_saved, move_aside, result_files, run_lock,
-                                           write_metrics)
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     startup = _process_seconds()
     out_dir = Path(out_dir)
@@ -122,8 +125,6 @@ def run_experiment(cfg: Any, out_dir: str | Path, finalize: Callable[[], None] |
 def _write_status(out_dir: Path, metrics: dict[str, Any]) -> None:
     """Write a failed run's ``metrics.json``; a disk that refuses it (full, read-only) is logged,
     not raised over the run's own error."""
-    from cssat.experiments.files import write_json
-
     try:
         write_json(out_dir / "metrics.json", metrics)
     except OSError as err:
@@ -139,12 +140,7 @@ _NOT_RESULTS = ("resume", "hydra", "optimized_metric")  # and "progress" at any 
 def provenance() -> dict[str, Any]:
     """``cssat_version``, ``git_commit`` (of cssat's own checkout, when it is one; else null),
     ``torch_version``, ``numpy_version`` and ``python_version`` of this run."""
-    import platform
-
-    import numpy
-    import torch
-
-    import cssat
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     return {"cssat_version": cssat.__version__, "git_commit": _git_commit(Path(cssat.__file__).resolve().parent.parent),
             "torch_version": torch.__version__, "numpy_version": numpy.__version__,
@@ -180,7 +176,7 @@ def config_sha(cfg: Any) -> str:
     """A short hash of the resolved config, without the keys that do not change the results
     (``resume``, ``progress`` — also the ``progress`` of the solver and denoiser nodes, …);
     ``threads`` is part of it (the last digits of some results depend on it)."""
-    from omegaconf import DictConfig, OmegaConf
+    from omegaconf import DictConfig, OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     if isinstance(cfg, DictConfig):
         data = OmegaConf.to_container(cfg, resolve=True)

@@ -9,6 +9,7 @@ message. (Hydra's ``instantiate`` would do the calls, but reports nested errors 
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 from cssat._checks import FieldError, FieldTypeError
@@ -17,7 +18,7 @@ __all__ = ["build", "build_solver", "build_denoiser", "build_model"]
 
 
 def _is_node(node: Any) -> bool:
-    from omegaconf import DictConfig
+    from omegaconf import DictConfig  # heavy: omegaconf; library code, importable without Hydra
 
     return isinstance(node, (dict, DictConfig)) and "_target_" in node
 
@@ -32,8 +33,8 @@ def build(node: Any, field: str, *, optional: dict[str, Any] | None = None, **kw
     :class:`FieldError` prefixed with ``field``, a ``TypeError`` of its call (an unknown or
     missing setting) as ``field``, any other ``ValueError`` as ``field``.
     """
-    from hydra.utils import get_method
-    from omegaconf import DictConfig, OmegaConf
+    from hydra.utils import get_method  # heavy: hydra; library code, importable without Hydra
+    from omegaconf import DictConfig, OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     if not _is_node(node):
         raise FieldError(field, f"expected a config with a _target_ (a group option such as {field}=<name>), got {node!r}")
@@ -58,8 +59,6 @@ def build(node: Any, field: str, *, optional: dict[str, Any] | None = None, **kw
 
 def _takes(target: Any, name: str) -> bool:
     """Whether ``target(**{name: …})`` is a valid call by its signature."""
-    import inspect
-
     try:
         params = inspect.signature(target).parameters.values()
     except (TypeError, ValueError):
@@ -95,7 +94,7 @@ def validate_solver(solver: Any, m: int, n_pixels: int, field: str = "solver") -
 def build_denoiser(node: Any, field: str = "denoiser") -> Any:
     """The denoiser of ``node`` (a ``denoiser`` group node); ``None`` means no denoising."""
     if node is None:
-        from cssat.recon import NoDenoiser
+        from cssat.recon import NoDenoiser  # heavy: cssat.recon imports torch
 
         return NoDenoiser()
     return _callable_with(build(node, field), field, "denoiser(image, sigma) -> (image, info)")

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from cssat._checks import FieldError, bool_param, choice_param, dtype_param, float_param, int_param, opt
 from cssat.experiments.context import Run, as_field
+from cssat.experiments.refsets import reference_set
+from cssat.experiments.resources import peak_rss_bytes
 
 if TYPE_CHECKING:
     import torch
@@ -75,9 +77,9 @@ class Statistics(Known):
     center = False  #: E[Φ] has rank 1: nothing to centre
 
     def prepare(self, run: Run, measured: Measured) -> None:
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.sparse import MatrixOperator
+        from cssat.sparse import MatrixOperator  # heavy: cssat.sparse imports torch
 
         phi = measured.measurement.operator.matrix()
         self._op = MatrixOperator(phi.mean(0, keepdim=True).expand(phi.shape[0], -1).contiguous())
@@ -107,16 +109,12 @@ class _References(Known):
 
     def render(self, run: Run, size: int, count: int) -> torch.Tensor:
         """``(count, size, size)`` float32 reference images (from the cache when there)."""
-        from cssat.experiments.refsets import reference_set
-
         with run.stage("references"):
             images, self.cached = reference_set(self.cache_dir, size, count, self.ref_seed(run), self.model,
                                                 self.noise, self.shadows, run.progress)
         return images
 
     def describe(self) -> dict[str, Any]:
-        from cssat.experiments.resources import peak_rss_bytes
-
         return {"reference": self.name, "reference_noise": self.noise, "reference_cached": self.cached,
                 "peak_rss_gb": peak_rss_bytes() / 2**30}
 
@@ -150,14 +148,14 @@ class FullRank(_References):
         return parts, max(at_lu, at_solve, later)
 
     def precision(self, run: Run) -> tuple[torch.dtype, torch.dtype | None]:
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
         return self.dtype, torch.float32
 
     def prepare(self, run: Run, measured: Measured) -> None:
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.reference import estimate_sensing_full_rank, relative_error
+        from cssat.reference import estimate_sensing_full_rank, relative_error  # heavy: cssat.reference imports torch
 
         n, N = measured.shape[0], math.prod(measured.shape)
         n_ref, meas = self.n_ref(N), measured.measurement
@@ -178,7 +176,7 @@ class FullRank(_References):
 
 
 def torch_itemsize(dtype: torch.dtype) -> int:
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     return torch.finfo(dtype).bits // 8
 
@@ -271,7 +269,7 @@ class Sparse(_References):
 
     def _draw(self, run: Run, r: int) -> tuple[torch.Tensor, torch.Tensor]:
         """Repeat ``r``'s ``X_refᵀ (N_ref, N)`` and ``Y_ref (m, N_ref)`` (Eq. 22)."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
         base = self.ref_seed(run) * 1_000_003 + r
         idx = torch.randperm(self.pool_n, generator=torch.Generator().manual_seed(base))[:self.n_ref]
@@ -282,8 +280,8 @@ class Sparse(_References):
         return Xt, Y_ref
 
     def operator(self, run: Run, r: int) -> tuple[Any, dict[str, Any]]:
-        from cssat.reference import estimate_sensing_sparse, relative_error
-        from cssat.sparse import DictionarySensing
+        from cssat.reference import estimate_sensing_sparse, relative_error  # heavy: cssat.reference imports torch
+        from cssat.sparse import DictionarySensing  # heavy: cssat.sparse imports torch
 
         self._Xt, self._Y = self._draw(run, r)
         with run.stage("estimate"), as_field("reference"):
@@ -298,7 +296,7 @@ class Sparse(_References):
     def baseline(self, run: Run, r: int, solve: Callable[[Any], Any]) -> dict[str, Any]:
         """The minimum-norm estimate of repeat ``r`` and the PSNR of its reconstruction by
         ``solve`` (while ``r`` < the baseline's repeats)."""
-        from cssat.reference import estimate_sensing_min_norm, relative_error
+        from cssat.reference import estimate_sensing_min_norm, relative_error  # heavy: cssat.reference imports torch
 
         Xt, Y, self._Xt, self._Y = self._Xt, self._Y, None, None
         if r >= self.n_baseline:
@@ -328,7 +326,7 @@ class MinNorm(Sparse):
         super().__init__(model, **kwargs)
 
     def operator(self, run: Run, r: int) -> tuple[Any, dict[str, Any]]:
-        from cssat.reference import estimate_sensing_min_norm, relative_error
+        from cssat.reference import estimate_sensing_min_norm, relative_error  # heavy: cssat.reference imports torch
 
         Xt, Y = self._draw(run, r)
         with run.stage("estimate"), as_field("reference"):
@@ -344,7 +342,7 @@ def _noisy(meas: Any, clean: torch.Tensor, truth: Any, generator: torch.Generato
     of ``clean``) noised as one light curve, on the target's photometric scale (the flux ``Σ x``
     of the target carries the noise model's magnitude: the references are observed in the same
     units and conditions; a dark reference gets sky and read noise only)."""
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     flux = torch.full((clean.shape[1],), float(truth.sum()), dtype=torch.float64)
     return meas.add_noise(clean.T, generator, flux=flux).T
@@ -361,7 +359,7 @@ def _pool_light_curves(phi, flat, block: int = 4096):
     """``Φ x`` for every image of the pool ``flat (pool, N)``: ``(m, pool)``, in blocks of
     images: each column is the product of Φ with that image, so a repeat's columns are
     ``Φ X_ref`` (to round-off; bit for bit with this project's BLAS — BENCHMARKS.md)."""
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     out = torch.empty(phi.shape[0], flat.shape[0], dtype=phi.dtype, device=phi.device)
     for s in range(0, flat.shape[0], block):

@@ -29,7 +29,13 @@ import itertools
 import logging
 from typing import Any
 
+import numpy as np
+
 from cssat._checks import FieldError, choice_param
+from cssat.experiments.files import write_csv, write_npz
+from cssat.experiments.pipeline import execute, metrics_of, plan
+from cssat.metrics import psnr
+from cssat.plots import grid_curves_figure, grid_images_figure, grid_maps_figure, save_figure
 
 log = logging.getLogger("cssat")
 
@@ -65,7 +71,7 @@ def _axes(grid: Any) -> list[dict[str, Any]]:
 
 def cells(cfg: Any) -> list[tuple[dict[str, Any], Any]]:
     """``[(labels by axis, cell config)]`` of ``cfg``'s grid, the first axis slowest."""
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     base = OmegaConf.to_container(cfg, resolve=True)
     base.pop("grid", None)
@@ -96,12 +102,6 @@ def run(cfg: Any, run_: Any) -> dict[str, Any]:
     """Run every cell of ``cfg.grid`` into ``run_.out_dir``; return the grid's metrics."""
     g = cfg.grid
     with run_.stage("setup"):
-        from cssat.experiments.files import write_csv, write_npz
-        import numpy as np
-
-        from cssat.experiments.pipeline import execute, metrics_of, plan
-        from cssat.metrics import psnr
-
         axes = _axes(g)
         todo = cells(cfg)
         plans = [plan(c, run_) for _, c in todo]  # every cell checked before any work
@@ -142,10 +142,6 @@ def run(cfg: Any, run_: Any) -> dict[str, Any]:
 
 def _metrics(g: Any, axes: list[dict], rows: list[dict], p: Any, truth: Any) -> dict[str, Any]:
     """Every cell's PSNR and the headline: the best over ``headline.over`` at ``headline.at``."""
-    import numpy as np
-
-    from cssat.metrics import psnr
-
     names = [ax["name"] for ax in axes]
     head = g.get("headline") or {}
     over = choice_param(head.get("over", names[-1]), "grid.headline.over", names)
@@ -172,8 +168,6 @@ def _metrics(g: Any, axes: list[dict], rows: list[dict], p: Any, truth: Any) -> 
 
 
 def _figures(g, figures, axes, rows, images, truth, run_, metrics) -> None:
-    from cssat.plots import grid_curves_figure, grid_images_figure, grid_maps_figure, save_figure
-
     stem = str(g.get("figure_name") or "grid")
     if "images" in figures:
         save_figure(grid_images_figure(truth, axes, rows, images), run_.figure(stem))

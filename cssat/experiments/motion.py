@@ -26,6 +26,7 @@ import numpy as np
 from cssat._checks import FieldError, bool_param, float_param, int_param
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.forward import Measured, PixelSensing
+from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario, tess_like
 
 __all__ = ["MovingScene", "scene_frames"]
 
@@ -40,10 +41,9 @@ def scene_frames(m: int, size: int, *, start_utc: str, step_s: float, tle: Any =
     key = (m, size, start_utc, step_s, str(tle), lat_deg, lon_deg, alt_m, shadows)
     if key in _FRAMES:
         return _FRAMES[key]
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
-    from cssat.optics import default_fov, render, simulate_light_curve
-    from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario, tess_like
+    from cssat.optics import default_fov, render, simulate_light_curve  # heavy: cssat.optics imports torch
 
     mesh = tess_like()
     sc = make_scenario(tle=ASTRA_1KR_SYNTHETIC_TLE if tle is None else tle, start_utc=start_utc, n_steps=m, step_s=step_s,
@@ -94,9 +94,9 @@ class MovingScene(PixelSensing):
     def measure(self, run: Run, truth: np.ndarray, operator: Any, noise: Any, dtype: Any) -> Measured:
         """Measure the moving scene through ``operator`` with ``noise`` (seed + 1); the truth is
         the time-mean image, ``truth`` (the target's) only sets the size."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.physics import Measurement
+        from cssat.physics import Measurement  # heavy: cssat.physics imports torch
 
         n = truth.shape[0]
         m = operator.n_out

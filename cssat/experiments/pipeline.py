@@ -22,8 +22,17 @@ from typing import Any
 
 import numpy as np
 
+from cssat._checks import FieldError, choice_param, int_param
+from cssat._progress import progress_bar
+from cssat.experiments import report
+from cssat.experiments.build import build, build_denoiser, build_solver
 from cssat.experiments.context import Run, as_field
+from cssat.experiments.estimators import Known
+from cssat.experiments.forward import Geometry, PixelSensing, measurements, phi_stats
 from cssat.experiments.forward.base import ForwardModel
+from cssat.experiments.report import FIGURES, repeats_summary
+from cssat.experiments.resources import check_memory
+from cssat.metrics import psnr
 
 log = logging.getLogger("cssat")
 
@@ -59,22 +68,13 @@ def _node(cfg: Any, key: str) -> Any:
 
 def plan(cfg: Any, run: Run) -> Plan:
     """Build every stage of ``cfg`` and check the run fits in memory, before any work."""
-    import torch
-
-    from cssat._checks import choice_param
-    from cssat.experiments.build import build, build_denoiser, build_solver
-    from cssat.experiments.estimators import Known
-    from cssat.experiments.forward import Geometry, PixelSensing, measurements
-    from cssat.experiments.resources import check_memory
-    from cssat.experiments.report import FIGURES
+    import torch  # heavy: torch (~1 s); the module imports without it
 
     target = build(cfg.target, "target")
     forward = build(cfg.forward, "forward") if _node(cfg, "forward") is not None else PixelSensing()
     geometry = build(cfg.geometry, "geometry") if _node(cfg, "geometry") is not None else Geometry()
     atmosphere = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs())
     if getattr(atmosphere, "emitters", "pixels") != "pixels":
-        from cssat._checks import FieldError
-
         raise FieldError("atmosphere.emitters", f"expected 'pixels' (this forward model measures an image's pixels), "
                                                 f"got {atmosphere.emitters!r}: use atmosphere=gaussian")
     noise = build(cfg.get("noise"), "noise")
@@ -102,7 +102,6 @@ def plan(cfg: Any, run: Run) -> Plan:
     est = check_memory(parts, run.memory_limit_gb, "lower target.size or cs.m (or the reference sizes)", peak=peak)
     key = json.dumps([_plain(cfg.get(k)) for k in ("target", "forward", "geometry", "atmosphere", "phi_stats")]
                      + [m, str(reference.precision(run))], sort_keys=True, default=str)
-    from cssat._checks import int_param
 
     information = int_param(cfg.get("information") or 0, "information", 0, N)
     return Plan(str(cfg.get("experiment_name") or "experiment"), target, forward, geometry, atmosphere, noise, m,
@@ -111,7 +110,7 @@ def plan(cfg: Any, run: Run) -> Plan:
 
 
 def _plain(node: Any) -> Any:
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else node
 
@@ -120,8 +119,6 @@ def measure(p: Plan, run: Run, cache: dict | None = None) -> Any:
     """The target's unknown measured (:class:`cssat.experiments.forward.Measured`), with the
     statistics of Φ; ``cache`` (the grid's) reuses Φ and its statistics across cells whose forward
     settings are the same (one Φ at a time: it may be large)."""
-    from cssat.experiments.forward import phi_stats
-
     with run.stage("target"), as_field("target"):
         truth = p.target.load()
     dtype, draw = p.forward.precision(run, *p.reference.precision(run))
@@ -140,7 +137,7 @@ def measure(p: Plan, run: Run, cache: dict | None = None) -> Any:
         measured = p.forward.measure(run, truth, op, p.noise, dtype)
         measured.metrics.update({**p.atmosphere.describe(), **stats})
     if p.information and measured.noise_var is not None:
-        from cssat.physics.information import mode_information
+        from cssat.physics.information import mode_information  # heavy: cssat.physics.information imports torch
 
         with run.stage("information"):
             mat = op.matrix() if hasattr(op, "matrix") else op
@@ -152,8 +149,7 @@ def measure(p: Plan, run: Run, cache: dict | None = None) -> Any:
 
 def execute(p: Plan, run: Run, cache: dict | None = None) -> dict[str, Any]:
     """Run the stages of ``p``; return ``{"metrics", "arrays", "recs", "rows", "measured"}``."""
-    from cssat.experiments.reconstruct import denoise, reconstruct, scores
-    from cssat.metrics import psnr
+    from cssat.experiments.reconstruct import denoise, reconstruct, scores  # heavy: cssat.experiments.reconstruct imports torch
 
     measured = measure(p, run, cache)
     x, shape, est = measured.truth, measured.shape, p.reference
@@ -161,7 +157,6 @@ def execute(p: Plan, run: Run, cache: dict | None = None) -> dict[str, Any]:
     est.prepare(run, measured)
     measured.measurement = None  # the estimate holds what it needs of Φ: free the rest now
     recs, rows = [], []
-    from cssat._progress import progress_bar
 
     bar = progress_bar(est.repeats, f"{p.name}: repeats", run.progress if est.repeats > 1 else False, unit="repeat")
     for r in range(est.repeats):
@@ -200,8 +195,6 @@ def execute(p: Plan, run: Run, cache: dict | None = None) -> dict[str, Any]:
 
 def metrics_of(p: Plan, run: Run, res: dict[str, Any]) -> dict[str, Any]:
     """The flat metrics of an executed plan (the headline ``psnr``/``ssim`` first)."""
-    from cssat.experiments.report import repeats_summary
-
     measured, recs, rows = res["measured"], res["recs"], res["rows"]
     n = measured.shape[0]
     N = int(np.prod(measured.shape))
@@ -242,12 +235,8 @@ class ImagePipeline(ForwardModel):
         return metrics_of(self.p, run, self.res)
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
-        from cssat.experiments import report
-
         report.write(self.p, run, self.res, metrics)
 
     def headline(self, metrics: dict[str, Any]) -> None:
-        from cssat.experiments import report
-
         report.log_headline(self.p, metrics)
         return None

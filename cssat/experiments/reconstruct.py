@@ -15,6 +15,11 @@ import numpy as np
 from torch import Tensor
 
 from cssat._checks import FieldError, choice_param
+from cssat.experiments.context import as_field
+from cssat.metrics import psnr, ssim
+from cssat.physics import Centered
+from cssat.recon import Problem
+from cssat.sparse import MatrixOperator, as_operator
 
 if TYPE_CHECKING:
     import torch
@@ -64,8 +69,6 @@ def denoise(denoiser: Any, x: np.ndarray, *, field: str = "denoiser",
 def is_positive(phi: Any) -> bool:
     """Whether a sensing matrix is a mean-1-like, positive one: its mean exceeds 3× its std (on
     its first 1024 rows)."""
-    from cssat.sparse import as_operator
-
     mat = as_operator(phi, "phi").matrix()[:1024]  # 1024 samples decide it
     return bool(mat.mean().abs() > 3 * mat.std())
 
@@ -91,17 +94,11 @@ def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoi
     the solver in its :class:`~cssat.recon.Problem` (mapped onto the centred rows when centred) —
     what the discrepancy principle fits to.
     """
-    from cssat.experiments.context import as_field
-    from cssat.recon import Problem
-    from cssat.sparse import MatrixOperator, as_operator
-
     choice_param(center, "center", (True, False, "auto"))
     if center == "auto":
         center = is_positive(phi)
     dtype = dtype or y.dtype
     if center:
-        from cssat.physics import Centered
-
         cache = phi.__dict__.setdefault("_centered", {}) if hasattr(phi, "__dict__") else {}
         if dtype not in cache:  # one per operator and dtype: the grid's cells share Φ (and ADMM's factor)
             cache.clear()
@@ -135,8 +132,6 @@ def reconstruct(solver: Any, phi: Any, y: Tensor, shape: Sequence[int], *, denoi
 
 def scores(rec: np.ndarray, den: np.ndarray | None, truth: np.ndarray) -> dict[str, float]:
     """PSNR and SSIM of a reconstruction, and of its denoised version, against the truth (range 1)."""
-    from cssat.metrics import psnr, ssim
-
     out = {"psnr": psnr(truth, rec, data_range=1.0), "ssim": ssim(truth, rec, data_range=1.0)}
     if den is not None:
         out.update(psnr_denoised=psnr(truth, den, data_range=1.0), ssim_denoised=ssim(truth, den, data_range=1.0))

@@ -8,13 +8,18 @@ import json
 import logging
 import math
 import os
+import shutil
+import stat
 import time
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from filelock import FileLock
+from numpy.lib import format as npf
 
+from cssat._progress import progress_bar
 from cssat._tmpfiles import atomic_write
 
 if TYPE_CHECKING:
@@ -44,8 +49,6 @@ def _array_hash(a: np.ndarray) -> str:
 
 def _remove(p: Path) -> None:
     """Remove whatever is at ``p`` (a file, a FIFO, a directory); errors are ignored."""
-    import shutil
-
     try:
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p, ignore_errors=True)
@@ -58,8 +61,6 @@ def _remove(p: Path) -> None:
 def _regular(p: Path) -> bool | None:
     """``True`` for a regular file, ``None`` when nothing is there, ``False`` for anything else
     (a directory, a FIFO, a device, a socket): never opened, so never a hang."""
-    import stat
-
     try:
         return stat.S_ISREG(os.stat(p).st_mode)
     except FileNotFoundError:
@@ -69,8 +70,6 @@ def _regular(p: Path) -> bool | None:
 def _check_npy(path: Path, shape: tuple[int, ...]) -> str | None:
     """Why the ``.npy`` at ``path`` is not a C-ordered float32 array of ``shape`` whose data fill
     the file exactly, read from its header only (nothing allocated), or ``None``."""
-    from numpy.lib import format as npf
-
     with open(path, "rb") as f:
         version = npf.read_magic(f)
         if version == (1, 0):
@@ -131,8 +130,6 @@ def _key_lock(path: Path):
     (the second waits for the first, then reads its entry). Yields ``True`` when held; ``False``
     when the cache cannot be written (a read-only cache: it is only read). Anything but a regular
     file in the lock's place is removed first."""
-    from filelock import FileLock
-
     lock_path = path.with_suffix(".lock")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -176,7 +173,7 @@ def reference_set(cache_dir: str | None, size: int, n: int, seed: int, mesh: Mes
         t = time.perf_counter()
         arr = _read_entry(path, key, (n, size, size))
         if arr is not None:
-            import torch
+            import torch  # heavy: torch (~1 s); the module imports without it
 
             log.info("reference set: %d images %d² from the cache %s (%.1f s)", n, size, path, time.perf_counter() - t)
             return torch.from_numpy(arr), True
@@ -210,11 +207,9 @@ def _write_entry(path: Path, arr: np.ndarray, key: str, spec: dict) -> None:
 
 
 def _render(mesh, size: int, n: int, seed: int, noise: float, shadows: bool, progress: bool | None):
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
-    from cssat._progress import progress_bar
-
-    from cssat.data import ReferenceImages
+    from cssat.data import ReferenceImages  # heavy: cssat.data imports torch
 
     ds = ReferenceImages(mesh, size, n, seed=seed, noise=noise, shadows=shadows, dtype=torch.float32)
     out = torch.empty(n, size, size, dtype=torch.float32)

@@ -14,6 +14,9 @@ from typing import Any, Callable
 
 import numpy as np
 
+from cssat.experiments.files import write_npz
+from cssat.plots import save_figure, sim1_figure, sim2_figure, sim3_figures
+
 log = logging.getLogger("cssat")
 
 __all__ = ["FIGURES", "write", "repeats_summary", "log_headline"]
@@ -24,15 +27,11 @@ def _best(res: dict[str, Any]) -> int:
 
 
 def _fig9(res, metrics):
-    from cssat.plots import sim1_figure
-
     rec = res["recs"][_best(res)]
     return sim1_figure(res["measured"].y.cpu().numpy(), rec.image, rec.denoised, res["measured"].truth, metrics)
 
 
 def _fig11(res, metrics):
-    from cssat.plots import sim2_figure
-
     rec = res["recs"][_best(res)]
     return sim2_figure(res["measured"].truth, rec.image, rec.denoised, metrics)
 
@@ -46,15 +45,11 @@ def _stack(res):
 
 
 def _fig13(res, metrics):
-    from cssat.plots import sim3_figures
-
     stack, den2, den3, psnr3 = _stack(res)
     return sim3_figures(res["measured"].truth, stack, den2, den3, res["rows"], psnr3, _best(res), _sim3_labels(res, metrics))[0]
 
 
 def _fig14(res, metrics):
-    from cssat.plots import sim3_figures
-
     stack, den2, den3, psnr3 = _stack(res)
     return sim3_figures(res["measured"].truth, stack, den2, den3, res["rows"], psnr3, _best(res), _sim3_labels(res, metrics))[1]
 
@@ -75,9 +70,6 @@ def write(p: Any, run: Any, res: dict[str, Any], metrics: dict[str, Any]) -> Non
     """``arrays.npz`` (``truth``, ``y``; one run: ``reconstruction``, ``reconstruction_unclipped``,
     ``denoised`` and the solver's tensors; a stack: ``reconstructions``, ``denoised_2d``,
     ``denoised_3d``) and the figures of ``p.figures``."""
-    from cssat.experiments.files import write_npz
-    from cssat.plots import save_figure
-
     m = res["measured"]
     arrays: dict[str, Any] = {"truth": m.truth, "y": m.y.to(run.dtype)}
     if p.reference.repeated:

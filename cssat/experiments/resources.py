@@ -3,6 +3,8 @@ reached (``peak_rss_gb`` in ``metrics.json``)."""
 
 from __future__ import annotations
 
+import resource
+
 from cssat._checks import FieldError
 
 __all__ = ["available_memory_bytes", "peak_rss_bytes", "check_memory"]
@@ -13,7 +15,7 @@ GB = 2**30
 def available_memory_bytes() -> int:
     """Memory available to this process now, bytes (``psutil.virtual_memory().available``: what
     can be allocated without swapping, page cache included)."""
-    import psutil
+    import psutil  # heavy: psutil, only for available_memory_bytes()
 
     return int(psutil.virtual_memory().available)
 
@@ -21,8 +23,6 @@ def available_memory_bytes() -> int:
 def peak_rss_bytes() -> int:
     """Peak resident memory of this process so far, bytes: ``getrusage``'s running maximum
     (Linux reports KiB; psutil has no peak on Linux, so the standard library gives it)."""
-    import resource
-
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
 
 

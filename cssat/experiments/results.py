@@ -26,7 +26,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
+from filelock import FileLock, Timeout
+
 from cssat._checks import FieldError
+from cssat._record import digest
+from cssat.experiments.files import as_json, write_json
 
 __all__ = ["run_lock", "file_hash", "result_files", "check_complete", "clear_results", "move_aside", "load_saved",
            "write_metrics", "seal_problem", "SEAL"]
@@ -52,9 +56,6 @@ def write_metrics(out_dir: Path, metrics: dict[str, Any]) -> dict[str, Any]:
     """Write ``out_dir/metrics.json`` atomically with its seal (``metrics_digest``: the hash of
     the rest, see the module's docstring) and return what was written: ``metrics`` as JSON reads
     it back (numpy scalars as numbers, non-finite floats as null, other objects as strings)."""
-    from cssat._record import digest
-    from cssat.experiments.files import as_json, write_json
-
     data = as_json(metrics)
     data[SEAL] = digest(_canonical(data))
     write_json(Path(out_dir) / "metrics.json", data)
@@ -63,8 +64,6 @@ def write_metrics(out_dir: Path, metrics: dict[str, Any]) -> dict[str, Any]:
 
 def seal_problem(saved: dict) -> str | None:
     """Why ``saved`` (a ``metrics.json`` as read) is not as its run wrote it, or ``None``."""
-    from cssat._record import digest
-
     seal = saved.get(SEAL)
     if not isinstance(seal, str):
         return "metrics.json has no digest of itself (written by an older cssat or by hand)"
@@ -174,8 +173,6 @@ def run_lock(out_dir: Path) -> Iterator[None]:
     """Hold an exclusive lock on ``out_dir`` (``filelock`` on ``out_dir/.cssat.lock``: ``flock`` on
     POSIX, ``msvcrt`` on Windows) for a run; a second run into the same directory is refused at
     once with a FieldError naming it. The holder's pid is in ``.cssat.lock.pid``."""
-    from filelock import FileLock, Timeout
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     lock = FileLock(str(out_dir / LOCK), timeout=0)

@@ -6,12 +6,15 @@ element set checked against a measured file's object and epoch), a measured ligh
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from cssat._checks import FieldError, int_param
+from cssat.scene import make_scenario
+from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, _satellite, _skyfield
 
 if TYPE_CHECKING:
     from cssat.scene import Scenario
@@ -37,9 +40,9 @@ def read_observations(cfg: Any) -> Any:
     path = cfg.get("observations")
     if not path:
         return None
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
-    from cssat.data import read_light_curve
+    from cssat.data import read_light_curve  # heavy: cssat.data imports torch
 
     opts = cfg.get("observed")
     opts = OmegaConf.to_container(opts, resolve=True) if OmegaConf.is_config(opts) else dict(opts or {})
@@ -51,9 +54,7 @@ def check_elements(cfg: Any, lc: Any, max_epoch_days: float = 14.0) -> None:
     synthetic Astra 1KR set) must carry the file's NORAD number when the file names one, and its
     epoch must lie within ``max_epoch_days`` of the observations (SGP4's error grows by
     kilometres a day). A FieldError naming ``scenario.tle``."""
-    from omegaconf import OmegaConf
-
-    from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, _satellite, _skyfield
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     tle = cfg.scenario.get("tle")
     given = tle is not None
@@ -79,11 +80,7 @@ def build_scenario(cfg: Any, times: Any = None, sites: Any = None) -> Scenario:
     its regular grid. ``sites (T, 3)`` (latitude °, longitude °, altitude m of each sample's
     observer, e.g. a SCORE file's): one observer per sample — each site's samples computed with
     its own observer, then put back in time order — instead of ``scenario.observer``."""
-    from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario
-
     if sites is not None and times is not None:
-        import dataclasses
-
         sites = np.asarray(sites, dtype=np.float64)
         uniq, which = np.unique(sites, axis=0, return_inverse=True)
         which = which.reshape(-1)
@@ -91,7 +88,7 @@ def build_scenario(cfg: Any, times: Any = None, sites: Any = None) -> Scenario:
             stamps = np.asarray(times, dtype="datetime64[us]")
             parts = []
             for k, (lat, lon, alt) in enumerate(uniq):
-                from omegaconf import OmegaConf, open_dict
+                from omegaconf import OmegaConf, open_dict  # heavy: omegaconf; library code, importable without Hydra
 
                 sub = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
                 with open_dict(sub):
@@ -108,13 +105,13 @@ def build_scenario(cfg: Any, times: Any = None, sites: Any = None) -> Scenario:
                 arrays[f.name] = out
             return dataclasses.replace(parts[0][1], **arrays)
         lat, lon, alt = uniq[0]
-        from omegaconf import OmegaConf, open_dict
+        from omegaconf import OmegaConf, open_dict  # heavy: omegaconf; library code, importable without Hydra
 
         cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
         with open_dict(cfg):
             cfg.scenario.observer = {"lat_deg": float(lat), "lon_deg": float(lon), "alt_m": float(alt)}
 
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     sc = cfg.scenario
     tle = sc.get("tle")

@@ -34,7 +34,7 @@ class ImageTarget:
 
     def load(self) -> np.ndarray:
         """The image ``(size, size)`` float64 in ``[0, 1]`` (read once)."""
-        from cssat.data import load_target
+        from cssat.data import load_target  # heavy: cssat.data imports torch
 
         if self._array is None:
             self._array = load_target(self.image, self.size, field="image")

@@ -22,6 +22,9 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, int_param
+from cssat.optics.brdf import Lambert
+from cssat.scene import as_mesh
+from cssat.sparse.differences import knn_differences
 from cssat.sparse.operators import MatrixOperator
 
 __all__ = ["EGIOperator", "egi", "egi_operator", "fibonacci_sphere", "geometry_matrix"]
@@ -54,8 +57,6 @@ class EGIOperator(MatrixOperator):
 
     def differences(self, k: int = 6) -> Any:
         """``D (E, K)`` sparse: the unknown's neighbours for TV — each normal to its ``k`` nearest."""
-        from cssat.sparse.differences import knn_differences
-
         return knn_differences(self.normals.detach().cpu().double().numpy(), k)
 
 
@@ -65,8 +66,6 @@ def egi_operator(sun_body: Any, obs_body: Any, normals: Any, brdf: Any = None) -
     vectors from the object and ``normals (K, 3)``; ``brdf`` a :mod:`cssat.optics.brdf` object
     (default ``Lambert(1)``: ``G = (s·n)₊(o·n)₊/π``). Per unit irradiance and range: multiply
     by ``I₀ / r²`` for W/m². Follows the dtype and device of ``normals`` when it is a tensor."""
-    from cssat.optics.brdf import Lambert
-
     ref = normals if isinstance(normals, Tensor) else None
     dtype = ref.dtype if ref is not None and ref.is_floating_point() else torch.float64
     device = ref.device if ref is not None else None
@@ -84,8 +83,6 @@ def egi_operator(sun_body: Any, obs_body: Any, normals: Any, brdf: Any = None) -
 def lambert_scale(brdf: Any) -> float | None:
     """``albedo/π`` when ``brdf`` is ``None`` (Lambert, albedo 1) or exactly a
     :class:`~cssat.optics.brdf.Lambert`; ``None`` for any other BRDF."""
-    from cssat.optics.brdf import Lambert
-
     return 1.0 / math.pi if brdf is None else brdf.albedo / math.pi if type(brdf) is Lambert else None
 
 
@@ -107,8 +104,6 @@ def egi(mesh: Any, *, decimals: int = 9) -> tuple[np.ndarray, np.ndarray]:
     """A mesh's own EGI: ``(normals (U, 3), areas (U,))`` — the facets' areas × their diffuse
     albedo ``cd`` summed over identical normals (rounded to ``decimals``), so that the mesh's
     Lambertian light curve without shadows is ``egi_operator(s, o, normals) @ areas``."""
-    from cssat.scene import as_mesh
-
     m = as_mesh(mesh)
     keep = m.areas > 0
     N = np.round(m.normals[keep], decimals) + 0.0

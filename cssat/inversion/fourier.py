@@ -126,7 +126,7 @@ class _Curve:
 
     def refine(self, f: float, m: int, step: float) -> tuple[float, float]:
         """The frequency minimising the RSS within ``f ± step``, and that RSS."""
-        from scipy.optimize import minimize_scalar
+        from scipy.optimize import minimize_scalar  # heavy: scipy.optimize, only for refine()
 
         res = minimize_scalar(lambda x: self.rss(x, m), bounds=(f - step, f + step), method="bounded",
                               options={"xatol": step * 1e-5})
@@ -153,7 +153,7 @@ class _Curve:
     def fap(self, rss: float, m: int, n_eff: float) -> float:
         """The F-test's tail of the ``m``-harmonic model against the nuisance model alone, over
         ``n_eff`` independent trials."""
-        from scipy.stats import f as fdist
+        from scipy.stats import f as fdist  # heavy: scipy.stats, only for fap()
 
         p, dof = 2 * m, self.N - 2 * m - self.q
         if dof <= 0:

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
+from cssat.inversion.fourier import _Curve, check_grid, frame_step, stretches
 from cssat.inversion.period import estimate_period
 
 __all__ = ["estimate_tumbling_periods"]
@@ -60,8 +61,8 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     periodic up to a uniform precession, so the light curve is quasi-periodic in two frequencies;
     the samples span many cycles of both. Each contiguous stretch's offset and slope are fitted
     first (a drift is not a second period)."""
-    from astropy.timeseries import LombScargle
-    from scipy.optimize import minimize
+    from astropy.timeseries import LombScargle  # heavy: astropy, only for estimate_tumbling_periods()
+    from scipy.optimize import minimize  # heavy: scipy.optimize, only for estimate_tumbling_periods()
 
     t = np.asarray(times_s, dtype=np.float64).reshape(-1)
     y = np.asarray(flux, dtype=np.float64).reshape(-1)
@@ -80,7 +81,6 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     span = float(t[-1])
     if not span > 0 or np.ptp(y) == 0:
         return _not_tumbling("the curve does not vary" if span > 0 else "the samples span no time")
-    from cssat.inversion.fourier import _Curve, check_grid, frame_step, stretches
 
     seg = stretches(t)
     nuisance = _Curve(t, y, w, seg, 1, dy is not None)  # each stretch's offset and slope: a drift is not a period

@@ -21,7 +21,7 @@ def observability(sun_body: Any, obs_body: Any, normals: Any, *, brdf: Any = Non
     """``{"singular_values" (min(T, K),) normalised to the largest, "effective_rank" (the count
     at ≥ rcond), "leverage" (K,), "seen" (K,) bool — the normal is ever lit while seen}`` of the
     EGI operator of this geometry."""
-    from cssat.inversion.egi import egi_operator
+    from cssat.inversion.egi import egi_operator  # heavy: cssat.inversion.egi imports torch
 
     G = egi_operator(sun_body, obs_body, normals, brdf).matrix().double().cpu().numpy()
     if not np.any(G):

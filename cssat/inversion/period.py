@@ -194,7 +194,7 @@ def _periodogram_peaks(t: np.ndarray, resid: np.ndarray, dy: np.ndarray | None, 
     """astropy's Lomb–Scargle of ``resid (T,)`` (the curve less its nuisance model; ``dy`` its 1σ
     or ``None``) between ``f_lo`` and ``f_hi`` Hz, ``spp`` samples per peak: the frequencies, the
     power, and the ``n_peaks`` strongest local maxima more than ``1.5/span`` apart, strongest first."""
-    from astropy.timeseries import LombScargle
+    from astropy.timeseries import LombScargle  # heavy: astropy, only for _periodogram_peaks()
 
     freq, power = LombScargle(t, resid, dy).autopower(minimum_frequency=f_lo, maximum_frequency=f_hi, samples_per_peak=spp)
     is_max = np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True]

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.inversion.egi import egi_operator, geometry_matrix, lambert_scale
+from cssat.metrics import _np  # tensors or arrays as float64 arrays
 from cssat.sparse.differences import grid_differences, knn_differences
 from cssat.sparse.nonneg import METHODS, lam_param, nonneg_solve, weighted_system
 
@@ -42,8 +44,6 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
     (Morozov's principle; needs ``sigma``). Returns ``(a, info)`` with ``chi2`` (the weighted
     residual's square norm, without the closure rows), ``n_nonzero``, ``closure_norm`` and the
     method's own counts."""
-    from cssat.metrics import _np  # tensors or arrays as float64 arrays
-
     method = choice_param(method, "method", METHODS)
     closure = float_param(closure, "closure", 0.0)
     if hasattr(G, "matrix"):
@@ -107,9 +107,7 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
     seed of the default experiment); a well-seen atom's data curvature is ~1/ridge times the
     penalty's, so it barely moves. Returns ``(normals (J, 3), areas (J,), info)`` with ``chi2``
     (weighted, without the closure rows), ``atoms_merged`` and ``nfev``."""
-    from scipy.optimize import least_squares
-
-    from cssat.inversion.egi import egi_operator, geometry_matrix, lambert_scale
+    from scipy.optimize import least_squares  # heavy: scipy.optimize, only for refine_egi()
 
     S, O = np.asarray(sun_body, dtype=np.float64), np.asarray(obs_body, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64).reshape(-1)
@@ -194,7 +192,7 @@ def refine_egi(sun_body: Any, obs_body: Any, y: Any, normals: Any, areas: Any, *
     # atoms that converged onto one facet (within 0.5°) become one: their areas refitted by NNLS
     Nm, am = _merge_atoms(N, a, 0.5)
     if len(am) < len(a):
-        from scipy.optimize import nnls
+        from scipy.optimize import nnls  # heavy: scipy.optimize, only for refine_egi()
 
         Gm = egi_operator(S, O, Nm, brdf).matrix().numpy() * w[:, None]
         am, _ = nnls(np.vstack([Gm, sr * np.eye(len(am))]), np.concatenate([w * y, np.zeros(len(am))]),

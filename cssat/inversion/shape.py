@@ -25,7 +25,7 @@ def polytope(normals: np.ndarray, heights: np.ndarray, *, edges: bool = False) -
     volume, facet areas (K,))`` — facet ``k``'s area is 0 when its plane does not touch ``P``;
     with ``edges`` also ``(i, j, length)``: each ordered pair of adjacent facets and the length
     of their common edge (the mixed-volume Hessian's entries, :func:`_volume_hessian`)."""
-    from scipy.spatial import ConvexHull, HalfspaceIntersection
+    from scipy.spatial import ConvexHull, HalfspaceIntersection  # heavy: scipy.spatial, only for polytope()
 
     hs = np.hstack([normals, -heights[:, None]])
     pts = HalfspaceIntersection(hs, np.zeros(3)).intersections
@@ -53,7 +53,7 @@ def polytope(normals: np.ndarray, heights: np.ndarray, *, edges: bool = False) -
 def _volume_hessian(normals: np.ndarray, edges: tuple, K: int) -> Any:
     """``∂²V/∂h_i∂h_j = ∂A_i/∂h_j`` (sparse ``(K, K)``): ``ℓ_ij / sin θ_ij`` for adjacent facets,
     ``−Σ_j ℓ_ij cot θ_ij`` on the diagonal (so that ``H N = 0``: a translation changes no area)."""
-    import scipy.sparse as sp
+    import scipy.sparse as sp  # heavy: scipy.sparse, only for _volume_hessian()
 
     i, j, length = edges
     c = np.einsum("ij,ij->i", normals[i], normals[j]).clip(-1.0, 1.0)
@@ -72,7 +72,7 @@ def _centroid(pts: np.ndarray, simplices: np.ndarray) -> np.ndarray:
 def _encloses(N: np.ndarray) -> bool:
     """Whether the origin is strictly inside the normals' convex hull (they are in no closed
     hemisphere, so their halfspaces bound a body)."""
-    from scipy.spatial import ConvexHull
+    from scipy.spatial import ConvexHull  # heavy: scipy.spatial, only for _encloses()
 
     try:
         hull = ConvexHull(N)
@@ -92,7 +92,7 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 200, tol: float = 1e-
     converges in ~10 steps: 0.03–0.05 s for 40–90 facets, 0.4 s for 600, 13 s for 6,000), until every facet's
     share of the surface is within ``tol`` of ``a_k/Σa``. The normals with area must not all lie
     in a closed hemisphere."""
-    import trimesh
+    import trimesh  # heavy: trimesh, only for minkowski()
 
     N = np.asarray(normals, dtype=np.float64)
     a = np.asarray(areas, dtype=np.float64)
@@ -136,8 +136,8 @@ def minkowski(normals: Any, areas: Any, *, max_iter: int = 200, tol: float = 1e-
     # same structure: a step is halved until every facet keeps a share ≥ ε₀ of the surface (so the
     # Hessian stays non-singular) and |∇F| falls by (1 − t/2). Starts at h = 1, where every plane
     # touches (each is tangent to the unit sphere at its own normal).
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
+    import scipy.sparse as sp  # heavy: scipy.sparse, only for minkowski()
+    import scipy.sparse.linalg as spla  # heavy: scipy.sparse, only for minkowski()
 
     K = len(N)
     h = np.ones(K)
@@ -210,10 +210,10 @@ def _solve_with(solver: Any, G: Any, y: np.ndarray, sigma: Any, closure: float) 
     on ``Problem(G, (K,), noise_sigma=sigma)``, its ``closure`` set to this one's when it has one;
     ``info`` as :func:`~cssat.inversion.recover_egi`'s (``chi2`` on the weighted data rows,
     ``n_nonzero``, ``method``: the solver's name, ``closure_norm``) plus the solver's own."""
-    import torch
+    import torch  # heavy: torch (~1 s); the module imports without it
 
-    from cssat.sparse.nonneg import weighted_system
-    from cssat.sparse.problem import Problem
+    from cssat.sparse.nonneg import weighted_system  # heavy: cssat.sparse.nonneg imports torch
+    from cssat.sparse.problem import Problem  # heavy: cssat.sparse.problem imports torch
 
     if hasattr(solver, "closure"):
         solver.closure = closure
@@ -243,9 +243,9 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     directions and areas fitted by least squares; ``None``: for the sparse methods, not for
     ``tv``, whose EGI is a density on the grid rather than a few facets), then :func:`minkowski`. ``brdf``: a
     :mod:`cssat.optics.brdf` object or its name (default parameters, albedo 1 for Lambert)."""
-    from cssat.inversion.egi import egi_operator, fibonacci_sphere
-    from cssat.inversion.recover import recover_egi
-    from cssat.optics.brdf import BRDFS, Lambert
+    from cssat.inversion.egi import egi_operator, fibonacci_sphere  # heavy: cssat.inversion.egi imports torch
+    from cssat.inversion.recover import recover_egi  # heavy: cssat.inversion.recover imports torch
+    from cssat.optics.brdf import BRDFS, Lambert  # heavy: cssat.optics.brdf imports torch
 
     if isinstance(brdf, str):
         if brdf not in BRDFS:
@@ -272,7 +272,7 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     if refine is None:
         refine = method != "tv"
     if refine and keep.any():
-        from cssat.inversion.recover import refine_egi
+        from cssat.inversion.recover import refine_egi  # heavy: cssat.inversion.recover imports torch
 
         spacing = np.degrees(np.sqrt(4 * np.pi / len(N)))
         S_, O_ = (np.asarray(v, dtype=np.float64) for v in (sun_body, obs_body))
@@ -293,7 +293,7 @@ def convex_iou(a: Any, b: Any, *, match_volume: bool = True, align_centroids: bo
     meshes or ``(V, 3)`` points), exact: the intersection of two convex polytopes is the
     intersection of their halfspaces (scipy's qhull). ``match_volume``: ``b`` scaled about its
     centroid to ``a``'s volume first; ``align_centroids``: both moved to their centroids."""
-    from scipy.spatial import ConvexHull, HalfspaceIntersection
+    from scipy.spatial import ConvexHull, HalfspaceIntersection  # heavy: scipy.spatial, only for convex_iou()
 
     def hull(x):
         pts = np.asarray(getattr(x, "vertices", x), dtype=np.float64)
@@ -315,7 +315,7 @@ def convex_iou(a: Any, b: Any, *, match_volume: bool = True, align_centroids: bo
     inner = ca if align_centroids else None
     eqs = np.vstack([ha.equations, hb.equations])
     if inner is None or not (eqs[:, :3] @ inner + eqs[:, 3] < -1e-12).all():
-        from scipy.optimize import linprog  # a point strictly inside both: the Chebyshev centre
+        from scipy.optimize import linprog  # heavy: scipy.optimize; a point strictly inside both: the Chebyshev centre
 
         norm = np.linalg.norm(eqs[:, :3], axis=1)
         res = linprog([0, 0, 0, -1], A_ub=np.hstack([eqs[:, :3], norm[:, None]]), b_ub=-eqs[:, 3],

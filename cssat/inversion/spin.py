@@ -16,9 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, float_param, int_param
+from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.inversion.egi import egi_operator, fibonacci_sphere, geometry_matrix
 from cssat.inversion.frequencies import estimate_tumbling_periods
 from cssat.inversion.period import estimate_period
+from cssat.scene.attitude import spin_frame, to_body
 
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution"]
 
@@ -41,17 +43,12 @@ class SpinSolution:
 
     def frames(self, times_s: Any) -> np.ndarray:
         """The body frames ``(T, 3, 3)`` of this spin at ``times_s`` (same origin as the fit's)."""
-        from cssat.scene.attitude import spin_frame
-
         return spin_frame(np.asarray(times_s, dtype=np.float64), self.pole_lon_deg, self.pole_lat_deg, self.period_s,
                           0.0, self.frame)
 
     def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
         """The fitted model's light curve ``(T,)`` (flux units of the fit) at ``times_s`` for
         inertial ``sun``/``obs (T, 3)`` directions: e.g. a night held out of the fit."""
-        from cssat.inversion.egi import egi_operator
-        from cssat.scene.attitude import to_body
-
         R = self.frames(times_s)
         G = egi_operator(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
                          self.normals, self.brdf).matrix().numpy()
@@ -79,8 +76,6 @@ def _separation_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
 
 def _pole_rotation(lon: float, lat: float, frame: str) -> np.ndarray:
     """``(3, 3)``: inertial → the frame whose z is the pole (spin_frame at zero phase)."""
-    from cssat.scene.attitude import spin_frame
-
     return spin_frame(np.zeros(1), lon, lat, 1.0, 0.0, frame)[0]
 
 
@@ -105,7 +100,7 @@ def _check_light_curve(times_s, flux, sun, obs, sigma):
 
 def _weighted_nnls(G: np.ndarray, w: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, float]:
     """The search loops' EGI: NNLS of ``diag(w) G a ≈ yw``, and its χ²."""
-    from scipy.optimize import nnls
+    from scipy.optimize import nnls  # heavy: scipy.optimize, only for _weighted_nnls()
 
     A = G * w[:, None]
     a, rnorm = nnls(A, yw, maxiter=max(30 * A.shape[1], 1000))
@@ -135,8 +130,6 @@ class _Fit:
 
         def turn(v):  # R_z(φ) v, spin_frame's passive rotation
             return np.stack([c * v[:, 0] + s_ * v[:, 1], c * v[:, 1] - s_ * v[:, 0], v[:, 2]], 1)
-
-        from cssat.inversion.egi import geometry_matrix
 
         return geometry_matrix(turn(sp), turn(op), self.N, self.brdf)
 
@@ -185,9 +178,6 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     Assumptions: a principal-axis rotation (no tumbling: :func:`~cssat.scene.attitude.torque_free`
     motion has two periods), a convex body (or negligible self-shadowing), one BRDF shape.
     """
-    from cssat._checks import choice_param
-    from cssat.inversion.egi import fibonacci_sphere
-
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
     t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
     T = len(t)
@@ -222,7 +212,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     chi2, lon, lat, f = finals[0]
     lon = float((lon + 180.0) % 360.0 - 180.0)
     # the EGI grid's bias: the same refinement on a grid of normals turned at random
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for estimate_spin()
 
     turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=0).as_matrix().T, brdf, frame)
     _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
@@ -287,8 +277,6 @@ def _coarse_scan(coarse: _Fit, t: np.ndarray, S: np.ndarray, O: np.ndarray, n_po
     ``coarse`` of a scan of sidereal frequencies about each of ``cands`` (Hz), in steps of
     ``1/(20 span)`` of ``t (T,)``, over the Sun's (``S (T, 3)``) and the observer's (``O``)
     longitude rates about that pole."""
-    from cssat.inversion.egi import fibonacci_sphere
-
     # The light curve's apparent (synodic) frequency is the sidereal one less a weighted rate of
     # the longitudes of the Sun and the observer about the pole (each cosine factor of a facet's
     # brightness turns with its own direction): for each pole the scan covers the sidereal
@@ -333,7 +321,7 @@ def _refine_spin(fit: _Fit, x0: Any, dpole: float, dphase: float, span: float) -
     """Nelder–Mead in ``(λ, β, f)`` from ``x0`` on ``fit``'s χ², the initial simplex ``dpole``
     degrees in the pole and ``dphase`` degrees of phase over ``span`` seconds in the frequency:
     ``(chi2, lon, lat, f)``."""
-    from scipy.optimize import minimize
+    from scipy.optimize import minimize  # heavy: scipy.optimize, only for _refine_spin()
 
     scale = np.array([1.0, 1.0, 1.0 / (360.0 * span)])  # the frequency in degrees of phase over the span
     fun = lambda z: fit.chi2(*(np.asarray(x0) + z * scale))  # noqa: E731

@@ -10,16 +10,18 @@ the refinement, continuation and 1σ :mod:`cssat.inversion.tumble_fit`'s.
 
 from __future__ import annotations
 
+import inspect
 import logging
 import time
 from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, float_param, int_param
+from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.tumble_fit import _alternatives, _continuation, _errors, _refine
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
+from cssat.scene.attitude import to_body
 
 __all__ = ["TumblingState", "TumblingSolution", "tumbling_rates", "estimate_tumbling", "check_tumbling_options",
            "torque_free_invariants"]
@@ -48,8 +50,7 @@ class TumblingSolution:
 
     def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
         """The fitted light curve ``(T,)`` at ``times_s`` for inertial ``sun``/``obs (T, 3)``."""
-        from cssat.inversion.egi import egi_operator
-        from cssat.scene.attitude import to_body
+        from cssat.inversion.egi import egi_operator  # heavy: cssat.inversion.egi imports torch
 
         R = self.frames(times_s)
         G = egi_operator(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
@@ -115,9 +116,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     (no self-shadowing), one BRDF shape, samples dense enough to resolve the light curve's
     harmonics (seconds, not minutes: a 30 s cadence aliases a 200 s tumbler's glints).
     """
-    from cssat._checks import choice_param
-    from cssat.inversion.egi import fibonacci_sphere
-    from cssat.inversion.spin import _check_light_curve
+    from cssat.inversion.egi import fibonacci_sphere  # heavy: cssat.inversion.egi imports torch
+    from cssat.inversion.spin import _check_light_curve  # heavy: cssat.inversion.spin imports torch
 
     clock = time.perf_counter()
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
@@ -188,8 +188,6 @@ def check_tumbling_options(**options: Any) -> None:
     or unknown (a :class:`~cssat._checks.FieldError` naming it): counts ``>= 1`` (grids and
     samples ``>= 16``, coarse normals ``>= 8``), periods and the arc ``> 0``, ``max_period_s >
     min_period_s``, ``max_ratio >= 1``, ``growth > 1``, ``inertia_grid`` in the rigid-body triangle."""
-    import inspect
-
     allowed = [k for k, p in inspect.signature(estimate_tumbling).parameters.items()
                if p.kind is p.KEYWORD_ONLY and k not in ("sigma", "brdf", "frame")]
     for k in options:

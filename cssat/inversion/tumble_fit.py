@@ -25,7 +25,7 @@ def _refine(fit: _TFit, x0: np.ndarray, alpha0: float, span_s: float, maxfev: in
     and ``u ∈ [0, 1]``, ``i₁ = 1 − i₂ + u (2 i₂ − 1)``, so the rigid-body triangle is a box.
     From the state vector ``x0 (8,)`` (root ``alpha0``), the phases scaled to degrees over
     ``span_s`` seconds; at most ``maxfev`` evaluations. Returns ``(chi2, x (8,), alpha)``."""
-    from scipy.optimize import least_squares
+    from scipy.optimize import least_squares  # heavy: scipy.optimize, only for _refine()
 
     scale = np.array([1.0, 1.0, 1 / (360 * span_s), 1 / (360 * span_s), 1 / (360 * x0[2]), 1.0, 1.0, 1.0])
     i1, i2 = x0[0], x0[1]
@@ -104,12 +104,12 @@ def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, ch
     """The solution's 1σ (:class:`~cssat.inversion.tumble.TumblingSolution`'s ``errors``): the
     formal ones (:func:`_formal_errors`) added in quadrature to the shift of the fit on ``final``'s
     grid of normals turned at random; with the reduced χ² and the EGI's support ``(K,)``."""
-    from cssat.inversion.spin import _separation_deg
+    from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
 
     e, red, sup = _formal_errors(final, state, x, a, chi2, span, weighted)
     formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
     # the EGI grid's bias (it dominates at high SNR): the fit again on the grid of normals turned at random
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for _errors()
 
     turned = _TFit(final.t, final.y, final.w, final.S, final.O, final.N @ Rotation.random(random_state=0).as_matrix().T,
                    final.brdf)
@@ -129,7 +129,7 @@ def _alternatives(others: list[tuple], x: np.ndarray, chi2: float, red: float, s
     solution ``x (8,)`` or an earlier alternative reached from another start (``L`` within 1°,
     both frequencies within 1e-4): their ``L``, periods, moments, ``chi2``, ``delta_chi2`` in
     units of the reduced χ² ``red`` and ``separation_deg`` from the solution's ``L``."""
-    from cssat.inversion.spin import _separation_deg
+    from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
 
     alts: list[dict[str, Any]] = []
     for c2, x2, _ in others:

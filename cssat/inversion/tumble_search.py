@@ -14,6 +14,7 @@ import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
 from cssat.inversion.tumble_state import TumblingState, _alpha_roots, _TFit, tumbling_rates
+from cssat.scene.attitude import _rz
 
 log = logging.getLogger("cssat")
 
@@ -63,7 +64,7 @@ def _lattice_pairs(t: np.ndarray, y: np.ndarray, w: np.ndarray, sig: np.ndarray 
     ``(f_ω, f_φ)`` in it (:func:`_candidates`) that the moments of ``grid_I (M, 2)`` reach, both
     periods above ``min_period_s``; more than ``n_prerank`` are ranked by the χ² of the 2-D Fourier
     series of order 3 in their basis and the ``n_prerank`` best kept."""
-    from cssat.inversion.frequencies import estimate_tumbling_periods
+    from cssat.inversion.frequencies import estimate_tumbling_periods  # heavy: cssat.inversion.frequencies imports torch
 
     tp = estimate_tumbling_periods(t, y, sigma=sig, min_period_s=min_period_s, max_period_s=max_period_s, order=4)
     lattice = tp["frequencies_hz"]
@@ -77,7 +78,7 @@ def _lattice_pairs(t: np.ndarray, y: np.ndarray, w: np.ndarray, sig: np.ndarray 
         raise FieldError("periods_s", f"no pair of the light curve's frequencies {lattice} is a torque-free motion of the "
                                       "inertia grid")
     if len(pairs) > n_prerank:  # the light curve's power at low orders of each basis: the physical one is compact
-        from cssat.inversion.frequencies import _chi2_2d, _lattice
+        from cssat.inversion.frequencies import _chi2_2d, _lattice  # heavy: cssat.inversion.frequencies imports torch
 
         jk = _lattice(3)
         ta = t - t_ref
@@ -91,8 +92,6 @@ class _CoarseGrid:
     phases for each moment, frequency pair, root ``α`` and direction of ``L``, each scored by NNLS."""
 
     def __init__(self, fit: _TFit, n_t0: int, n_phi: int, t_ref: float, frame: str):
-        from cssat.scene.attitude import _rz
-
         self.fit, self.n_t0, self.n_phi, self.t_ref, self.frame = fit, n_t0, n_phi, t_ref, frame
         self.phis = np.arange(n_phi) * (360.0 / n_phi)
         self.Rphi = _rz(np.radians(self.phis))  # (n_phi, 3, 3)
@@ -101,8 +100,8 @@ class _CoarseGrid:
         """Each moment of ``moments (M, 2)`` and each of ``n_dirs`` directions of ``L`` (a Fibonacci
         grid): its best ``(chi2, vector (8,), alpha, moment index)`` over ``pairs``, the roots ``α``
         and the phases."""
-        from cssat.inversion.egi import fibonacci_sphere
-        from cssat.inversion.spin import _pole_rotation
+        from cssat.inversion.egi import fibonacci_sphere  # heavy: cssat.inversion.egi imports torch
+        from cssat.inversion.spin import _pole_rotation  # heavy: cssat.inversion.spin imports torch
 
         coarse, Rphi, n_t0, t_ref = self.fit, self.Rphi, self.n_t0, self.t_ref
         poles = fibonacci_sphere(n_dirs).numpy()
@@ -148,7 +147,7 @@ class _CoarseGrid:
 def _distinct_starts(table: list[tuple], n_poles: int, n_screen: int) -> list[tuple]:
     """At most ``n_screen`` starts from the coarse ``table`` (sorted by χ²): the best of each moment,
     then others, at most two per moment and distinct in ``L`` (1.5× the pole grid's spacing)."""
-    from cssat.inversion.spin import _separation_deg
+    from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
 
     spacing = math.degrees(math.sqrt(4 * math.pi / n_poles))
     starts: list[tuple] = []  # the best of each moment, then others, distinct in L within a moment

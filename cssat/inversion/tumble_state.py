@@ -31,13 +31,12 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat.scene.attitude import OBLIQUITY_DEG, _euler_solution, _nutation, _omega_of, _rx3, _ry, _rz, quaternion_frames, to_body
 
 __all__ = ["TumblingState", "tumbling_rates", "torque_free_invariants"]
 
 
 def _solution(i1: float, i2: float, alpha: float):
-    from cssat.scene.attitude import _euler_solution
-
     Ip = np.array([i1, i2, 1.0])
     wp = np.array([math.sin(alpha), 0.0, math.cos(alpha)]) / Ip
     return Ip, wp, _euler_solution(Ip, wp)
@@ -50,9 +49,7 @@ def tumbling_rates(i1: float, i2: float, alpha_rad: float, *, n: int = 256) -> t
     ``φ̇ = |L| (I₁ω₁² + I₂ω₂²)/(I₁²ω₁² + I₂²ω₂²)`` (Landau & Lifshitz §37) over its period
     ``2K/λ`` by the trapezoid rule (spectrally accurate for a periodic integrand) over ``2π``.
     ``(nan, nan)`` on the separatrix or at a steady spin."""
-    from scipy.special import ellipk
-
-    from cssat.scene.attitude import _omega_of
+    from scipy.special import ellipk  # heavy: scipy.special, only for tumbling_rates()
 
     Ip, _, mo = _solution(i1, i2, alpha_rad)
     if mo is None or not mo["m"] < 1.0 - 1e-12 or mo["lam"] <= 0:
@@ -73,8 +70,6 @@ def torque_free_invariants(inertia_kg_m2: Any, q0: Any, omega0_rad_s: Any, frame
     ``frame``), ``alpha`` (rad) and ``short_axis`` — the numbers
     :func:`~cssat.inversion.tumble.estimate_tumbling` estimates.
     ``None`` for a steady spin."""
-    from cssat.scene.attitude import OBLIQUITY_DEG, _rx3, quaternion_frames
-
     I = np.asarray(inertia_kg_m2, dtype=np.float64)
     I = np.diag(I) if I.shape == (3,) else I
     moments, V = np.linalg.eigh(I)
@@ -106,7 +101,7 @@ def torque_free_invariants(inertia_kg_m2: Any, q0: Any, omega0_rad_s: Any, frame
 def _ratio_roots(i1: float, i2: float, ratio: float, grid: np.ndarray, n_rates: int, xtol: float) -> list[float]:
     """The ``α`` on ``grid``'s brackets where ``f_φ/f_ω = ratio`` for moments ``(i₁, i₂, 1)``
     (``tumbling_rates`` on ``n_rates`` points; a jump of the ratio across a bracket is no root)."""
-    from scipy.optimize import brentq
+    from scipy.optimize import brentq  # heavy: scipy.optimize, only for _ratio_roots()
 
     def g(a):
         fw, fp = tumbling_rates(i1, i2, a, n=n_rates)
@@ -149,8 +144,7 @@ class TumblingState:
 
     def frames(self, times_s: Any) -> np.ndarray:
         """Body (principal) frames ``(T, 3, 3)`` at ``times_s`` (``v_body = R v_inertial``)."""
-        from cssat.inversion.spin import _pole_rotation
-        from cssat.scene.attitude import _rz
+        from cssat.inversion.spin import _pole_rotation  # heavy: cssat.inversion.spin imports torch
 
         tau = np.asarray(times_s, dtype=np.float64).reshape(-1) - self.t_ref_s + self.t0_s
         return self.motion(tau) @ (_rz(np.float64(math.radians(self.phi0_deg)))
@@ -162,8 +156,6 @@ class TumblingState:
         exact from the Jacobi solution), the precession ``φ`` by its mean rate plus its periodic
         part tabulated on ``n_table`` points of one period (Simpson, linear interpolation:
         1e-9 rad; the tests hold it to ``torque_free``)."""
-        from cssat.scene.attitude import _nutation, _omega_of, _rx3, _ry, _rz
-
         Ip, _, mo = _solution(self.i1, self.i2, self.alpha)
         if mo is None:
             raise FieldError("alpha", "a steady spin is no tumbling motion")
@@ -215,10 +207,8 @@ def _precession_table(mo: dict, Ip: np.ndarray, n_table: int = 2048):
     """``Φ(s) = ∫₀ˢ (I₁ω₁² + I₂ω₂²)/(I₁²ω₁² + I₂²ω₂²) ds'`` at ``|L| = 1``: whole periods of the
     integrand (``2K/λ``) times their integral plus a tabulated part (Simpson on ``n_table``
     intervals, cumulative; linear interpolation)."""
-    from scipy.integrate import cumulative_simpson
-    from scipy.special import ellipk
-
-    from cssat.scene.attitude import _omega_of
+    from scipy.integrate import cumulative_simpson  # heavy: scipy.integrate, only for _precession_table()
+    from scipy.special import ellipk  # heavy: scipy.special, only for _precession_table()
 
     half = 2 * float(ellipk(mo["m"])) / mo["lam"]
     grid = np.linspace(0.0, half, n_table + 1)
@@ -252,18 +242,16 @@ class _TFit:
 
     def G(self, sb: np.ndarray, ob: np.ndarray) -> np.ndarray:
         """``(..., T, K)`` for body-frame ``sb``, ``ob (..., T, 3)``."""
-        from cssat.inversion.egi import geometry_matrix
+        from cssat.inversion.egi import geometry_matrix  # heavy: cssat.inversion.egi imports torch
 
         return geometry_matrix(sb, ob, self.N, self.brdf)
 
     def matrix(self, state: TumblingState) -> np.ndarray:
-        from cssat.scene.attitude import to_body
-
         R = state.frames(self.t)
         return self.G(to_body(R, self.S), to_body(R, self.O))
 
     def nnls(self, G: np.ndarray) -> tuple[np.ndarray, float]:
-        from cssat.inversion.spin import _weighted_nnls
+        from cssat.inversion.spin import _weighted_nnls  # heavy: cssat.inversion.spin imports torch
 
         return _weighted_nnls(G, self.w, self.yw)
 

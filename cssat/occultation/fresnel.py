@@ -51,7 +51,7 @@ def pixel_kernel(n: int, pixel_m: float, wavelength_m: float, distance_m: float)
     """The 1-D pixel-integrated Fresnel kernel ``k(m)``, ``m = −(n−1) … n−1`` (``(2n−1,)``
     complex128): ``k(m) = [C(v₊) − C(v₋)] + i [S(v₊) − S(v₋)]``, ``v± = √(2/(λz)) pixel (m ± ½)``;
     the 2-D kernel of a pixel offset ``(m, n)`` is ``k(m) k(n) / (2i)``."""
-    from scipy.special import fresnel
+    from scipy.special import fresnel  # heavy: scipy.special, only for pixel_kernel()
 
     scale = math.sqrt(2.0 / (wavelength_m * distance_m)) * pixel_m
     edges = (np.arange(-(n - 1), n + 1) - 0.5) * scale  # 2n edges around the 2n − 1 offsets
@@ -100,7 +100,7 @@ def _kernel_spectrum(H, W, Hg, Wg, pixel_m, wavelength_m, distance_m, cdtype, de
     ``P ≥ H + Hg − 1``: the full linear convolution is ``2H + Hg − 2`` long and the ground
     samples are its indices ``H − 1 … H + Hg − 2``, which nothing from beyond ``P`` wraps onto
     (overlap-save) — 511 rather than 766 for a 256² mask on its own grid, 0.44× the FFT work."""
-    from scipy.fft import next_fast_len
+    from scipy.fft import next_fast_len  # heavy: scipy.fft, only for _kernel_spectrum()
 
     key = (H, W, Hg, Wg, pixel_m, wavelength_m, distance_m, cdtype, str(device))
     hit = _SPECTRA.get(key)

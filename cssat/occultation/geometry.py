@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
+from cssat.scene import as_mesh
 
 __all__ = ["bar_target", "star_direction", "plane_basis", "shadow_track", "silhouette"]
 
@@ -68,9 +69,7 @@ def silhouette(mesh: Any, view_body: Any, pixel_m: float, size: int, *, supersam
     or its opposite: a projection), on a grid of ``pixel_m`` centred on ``center`` (body frame,
     m; default the mesh's bounding-box centre). Rows run along the plane's ``e_north`` of
     :func:`plane_basis` (of ``view_body``), columns along ``e_east``."""
-    from skimage.draw import polygon
-
-    from cssat.scene import as_mesh
+    from skimage.draw import polygon  # heavy: scikit-image, only for silhouette()
 
     m = as_mesh(mesh)
     size = int_param(size, "size", 1, 1 << 14)

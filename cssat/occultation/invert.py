@@ -29,7 +29,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat._checks import float_param, int_param
+from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.occultation.fresnel import shadow
+from cssat.occultation.record import record, smooth
 
 __all__ = ["invert_silhouette", "iou", "edge_width", "feature_contrast"]
 
@@ -44,7 +46,7 @@ def iou(a: Any, b: Any, threshold: float = 0.5) -> float:
 
 def _signed_distance(truth: np.ndarray, pixel_m: float) -> np.ndarray:
     """Each pixel centre's distance (m) to the truth's boundary, > 0 inside (opaque)."""
-    from scipy.ndimage import distance_transform_edt
+    from scipy.ndimage import distance_transform_edt  # heavy: scipy.ndimage, only for _signed_distance()
 
     T = np.asarray(truth) >= 0.5
     return np.where(T, distance_transform_edt(T) - 0.5, -(distance_transform_edt(~T) - 0.5)) * float(pixel_m)
@@ -88,7 +90,7 @@ def feature_contrast(mask: Any, truth: Any, pixel_m: float, width_m: float = 0.5
     thin feature, the opaque ones for a gap): 1 for a perfect mask, 0 where the feature is lost.
     Returns ``thin_contrast``, ``gap_contrast`` (None where the truth has no such feature) and
     their pixel counts."""
-    from scipy import ndimage as ndi
+    from scipy import ndimage as ndi  # heavy: scipy.ndimage, only for feature_contrast()
 
     T = np.asarray(truth) >= 0.5
     m = np.asarray(mask, dtype=np.float64)
@@ -117,9 +119,6 @@ def recorded(m: Tensor, pixel_m: float, wavelength_m: Any, distance_m: float, po
              times_s: Any, *, kernel: Any = None, weights: Any = None, ground: Any = None) -> Tensor:
     """The full forward model: the series ``(J, K)`` the telescopes record behind the mask ``m``
     (:func:`~cssat.occultation.shadow`, the averaging ``kernel``, :func:`~cssat.occultation.record.record`)."""
-    from cssat.occultation.fresnel import shadow
-    from cssat.occultation.record import record, smooth
-
     k = np.ones((1, 1)) if kernel is None else np.asarray(kernel, dtype=np.float64)
     I = shadow(m, pixel_m, wavelength_m, distance_m, weights=weights, ground=ground)
     return record(smooth(I, k), pixel_m, positions_m, velocity_m_s, times_s)
@@ -152,15 +151,11 @@ def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: 
     s = torch.as_tensor(np.broadcast_to(np.asarray(sigma, dtype=np.float64), tuple(y.shape)).copy(), dtype=dtype, device=device)
     g = torch.Generator(device="cpu").manual_seed(int(seed))
     if init is not None and (np.shape(init) != (H, W) or not np.isfinite(np.asarray(init, dtype=np.float64)).all()):
-        from cssat._checks import FieldError
-
         raise FieldError("init", f"expected a finite mask of shape {(H, W)}, got shape {np.shape(init)}")
 
     def model(m):
         return recorded(m, pixel_m, wavelength_m, distance_m, positions_m, velocity_m_s, times_s, kernel=kernel,
                         weights=weights, ground=ground)
-
-    from cssat._checks import choice_param
 
     method = choice_param(method, "method", ("lbfgs", "adam"))
     best, losses = None, []

@@ -29,7 +29,11 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, int_param
+from cssat.occultation.fresnel import aperture_field
+from cssat.occultation.record import record, smooth
 from cssat.sparse.operators import LinearOperator
+from cssat.sparse.problem import Problem
+from cssat.sparse.solvers import operator_norm_sq
 
 __all__ = ["ShadowOperator", "invert_linear"]
 
@@ -75,9 +79,6 @@ class ShadowOperator(LinearOperator):
         self._checked = False
 
     def forward(self, x: Tensor) -> Tensor:
-        from cssat.occultation.fresnel import aperture_field
-        from cssat.occultation.record import record, smooth
-
         x = self.flatten_input(x)
         batch = x.shape[:-1]
         m = x.reshape(-1, *self.in_shape)
@@ -114,8 +115,6 @@ def invert_linear(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float,
     ``cssat.recon.TV(lam=1e-2, method="pdhg", max_iter=500)``, ``L1()``, ``OMP()``, ``Landweber()``).
     The estimate is clipped to [0, 1]. Returns ``(mask, info)`` with the solver's info and
     ``chi2_per_sample`` of the linear model."""
-    from cssat.sparse.problem import Problem
-
     if solver is None or isinstance(solver, str) or not callable(solver):
         raise FieldError("solver", f"expected a solver object (x, info = solver(problem, y)), e.g. "
                                    f"cssat.recon.TV(lam=1e-2, method='pdhg', max_iter=500); got {solver!r}")
@@ -124,7 +123,6 @@ def invert_linear(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float,
                         weights=weights, sigma=sigma, ground=ground)
     if y.size != op.n_out:
         raise FieldError("series", f"expected {len(op.positions)} × {len(op.times)} samples, got shape {y.shape}")
-    from cssat.sparse.solvers import operator_norm_sq
 
     yw = torch.as_tensor((y.reshape(-1) - 1.0) * (1.0 if op.inv_sigma is None else op.inv_sigma), dtype=torch.float64)
     # weighted by 1/σ the operator's norm is ~1e4: scaled to ‖A‖² = 8, the norm of the image

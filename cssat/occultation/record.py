@@ -25,9 +25,11 @@ from typing import Any
 
 import numpy as np
 import torch
+import torch.nn.functional as Fn
 from torch import Tensor
 
 from cssat._checks import FieldError, float_param, int_param
+from cssat.physics.photometry import magnitude_to_photon_rate
 
 __all__ = ["pattern_kernel", "smooth", "record", "noisy", "photons"]
 
@@ -37,7 +39,7 @@ def pattern_kernel(pixel_m: float, *, aperture_m: float = 0.0, star_diameter_m: 
     """The averaging kernel ``(k, k)`` on the pattern's pixels (rows north, columns east), sum 1:
     a uniform disk of ``aperture_m`` ∗ a limb-darkened disk of ``star_diameter_m`` ∗ a segment
     of ``smear_m`` along ``smear_dir`` (east, north), each sampled ``supersample``² times a pixel."""
-    from scipy.signal import fftconvolve
+    from scipy.signal import fftconvolve  # heavy: scipy.signal, only for pattern_kernel()
 
     pixel_m = float_param(pixel_m, "pixel_m", 0.0, open_lo=True)
     ss = int_param(supersample, "supersample", 1, 64)
@@ -107,8 +109,6 @@ def record(I: Tensor, pixel_m: float, positions_m: Any, velocity_m_s: Any, times
     at ``velocity_m_s (2,)``: ``(..., J, K)`` at ``times_s (K,)`` (the exposures' mid-times; the
     pattern's centre passes the grid's centre at t = 0) — bilinear between the pixel centres,
     1 outside the grid. Differentiable in ``I``."""
-    import torch.nn.functional as Fn
-
     P = torch.as_tensor(np.asarray(positions_m, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(-1, 2)
     v = torch.as_tensor(np.asarray(velocity_m_s, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(2)
     t = torch.as_tensor(np.asarray(times_s, dtype=np.float64), dtype=I.dtype, device=I.device).reshape(-1)
@@ -126,8 +126,6 @@ def record(I: Tensor, pixel_m: float, positions_m: Any, velocity_m_s: Any, times
 
 def photons(star_mag: float, aperture_m: float, exposure_s: float, throughput: float = 0.5) -> float:
     """Photo-electrons of the unocculted star per exposure: ``F₀ 10^(−0.4 V) (π D²/4) τ t``."""
-    from cssat.physics.photometry import magnitude_to_photon_rate
-
     return magnitude_to_photon_rate(float(star_mag)) * math.pi * aperture_m ** 2 / 4 * throughput * exposure_s
 
 
@@ -141,7 +139,7 @@ def noisy(series: Tensor, star_mag: float, aperture_m: float, exposure_s: float,
     N = photons(star_mag, aperture_m, exposure_s, throughput)
     sig_i = 0.0
     if scintillation:
-        from cssat.physics.turbulence import scintillation_index
+        from cssat.physics.turbulence import scintillation_index  # heavy: cssat.physics.turbulence imports scipy
 
         sig_i = math.sqrt(scintillation_index(aperture_m, airmass, exposure_s))
     s = series.double().cpu().clamp_min(0)

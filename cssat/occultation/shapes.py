@@ -29,6 +29,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, float_param, int_param
+from cssat.occultation.invert import recorded
 
 __all__ = ["render_shapes", "fit_shapes", "shapes_from_mask"]
 
@@ -63,7 +64,7 @@ def shapes_from_mask(mask: Any, pixel_m: float, *, min_area_m2: float = 0.5, max
     """Starting shapes ``(K, 6)``: one superellipse (exponent 6) per connected component of
     ``mask ≥ 0.5`` larger than ``min_area_m2``, the ``max_shapes`` largest, with the component's
     centroid, orientation and the half-axes of its equivalent ellipse (second moments)."""
-    from skimage.measure import label, regionprops
+    from skimage.measure import label, regionprops  # heavy: scikit-image, only for shapes_from_mask()
 
     m = np.asarray(mask, dtype=np.float64)
     H, W = m.shape
@@ -90,8 +91,6 @@ def fit_shapes(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, 
     :func:`~cssat.occultation.invert_silhouette`). Returns ``(mask (H, W), params (K, 6),
     info)`` with ``chi2_per_sample``, ``n_shapes``. Raises :class:`~cssat._checks.FieldError`
     (``init_mask``) when the start has no component of ``min_area_m2``."""
-    from cssat.occultation.invert import recorded
-
     H, W = (int_param(v, "shape", 1, 1 << 14) for v in shape)
     start = shapes_from_mask(init_mask, pixel_m, min_area_m2=min_area_m2, max_shapes=max_shapes)
     if not len(start):

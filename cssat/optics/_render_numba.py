@@ -16,7 +16,7 @@ __all__ = ["available"]
 
 
 def _build(parallel: bool):
-    from numba import njit, prange
+    from numba import njit, prange  # heavy: numba, only for _build()
 
     @njit(parallel=parallel, cache=True, nogil=True)
     def _raster(X, Y, Z, faces, back, b, size, bias, out):

@@ -34,6 +34,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, float_param
+from cssat.optics.photometry import SUN_RADIUS_KM
 
 __all__ = ["BRDF", "Lambert", "Phong", "BlinnPhong", "CookTorrance", "AshikhminShirley", "PaperBRDF", "BRDFS"]
 
@@ -198,8 +199,6 @@ class PaperBRDF(BRDF):
         self.sun_range_km = float_param(sun_range_km, "sun_range_km", 1e3, open_lo=True)
 
     def _f(self, n, l, v, nl, nv):
-        from cssat.optics.photometry import SUN_RADIUS_KM
-
         r = 2 * nl[..., None] * n - l
         tau = _dot(r, v) >= math.cos(math.radians(self.window_deg))
         return self.cd / math.pi + tau * self.cs * (self.sun_range_km / SUN_RADIUS_KM) ** 2 / nv

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
+from cssat._checks import FieldError
 from cssat.optics.photometry import facet_brightness
 from cssat.scene.attitude import nadir_pointing_frame, to_body
 from cssat.scene.mesh import Mesh, as_mesh
@@ -49,8 +50,6 @@ def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, a
     else:
         frame = np.asarray(attitude, dtype=np.float64)
     if frame.shape != (len(scenario), 3, 3):
-        from cssat._checks import FieldError
-
         raise FieldError("attitude", f"expected body frames of shape ({len(scenario)}, 3, 3), got {frame.shape}")
     sun = to_body(frame, scenario.sun_dir)
     obs = to_body(frame, scenario.obs_dir)

@@ -9,6 +9,7 @@ Geometry inputs are body-frame unit vectors *from the object*: ``sun (T, 3)`` (t
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -233,14 +234,14 @@ def shadow_mask(
     inter = None
     if engine != "triangle":
         try:
-            from trimesh.ray.ray_pyembree import RayMeshIntersector
+            from trimesh.ray.ray_pyembree import RayMeshIntersector  # heavy: embree (optional), only for ray casts
 
             inter = RayMeshIntersector(tm, scale_to_box=False)
         except Exception:
             if engine == "embree":
                 raise
     if inter is None:
-        from trimesh.ray.ray_triangle import RayMeshIntersector
+        from trimesh.ray.ray_triangle import RayMeshIntersector  # heavy: trimesh.ray, only for shadow_mask()
 
         inter = RayMeshIntersector(tm)
     origins = mesh.centroids[fi.numpy()] + offset * mesh.normals[fi.numpy()]
@@ -274,7 +275,6 @@ def _any_hit(inter, origins: np.ndarray, dirs: np.ndarray, threaded: bool) -> np
     threads = torch.get_num_threads()
     if not threaded or threads < 2 or len(origins) < 100_000:
         return query(origins, dirs)
-    from concurrent.futures import ThreadPoolExecutor
 
     parts = np.array_split(np.arange(len(origins)), threads)
     with ThreadPoolExecutor(threads) as pool:

@@ -19,6 +19,8 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
+from cssat._progress import progress_bar
+from cssat.optics import _render_numba
 from cssat.optics.photometry import check_unit, facet_brightness
 from cssat.scene.mesh import Mesh, as_mesh
 
@@ -81,8 +83,6 @@ def render(
     tensors when it is installed. ``progress``: a tqdm bar of the views rendered (``None``: on a
     terminal, after a second).
     """
-    from cssat._progress import progress_bar
-
     mesh = as_mesh(mesh)
     if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
         raise FieldError("size", f"image size must be a positive integer, got {size!r}")
@@ -111,7 +111,6 @@ def render(
     bias = 1e-5 * max(mesh.radius, 1e-12)  # ~100 float32 ulps of a depth
     if backend not in ("auto", "torch", "numba"):
         raise FieldError("backend", f"expected 'auto', 'torch' or 'numba', got {backend!r}")
-    from cssat.optics import _render_numba
 
     use_numba = dev.type == "cpu" and (backend == "numba" or (backend == "auto" and _render_numba.available()))
     images = torch.zeros(T, size, size, dtype=dtype, device=dev)

@@ -21,6 +21,7 @@ from torch import Tensor
 from cssat._checks import choice_param, float_param, int_param, opt
 from cssat.physics.atmosphere_base import (ARCSEC, EMITTERS, Atmosphere, _geometry, _lognormal, _PositiveAtmosphere, _side,
                                            _unit_normals)
+from cssat.sparse import MatrixOperator
 from cssat.sparse.operators import GaussianSensing, LinearOperator
 
 if TYPE_CHECKING:
@@ -88,8 +89,6 @@ class LognormalAtmosphere(_PositiveAtmosphere):
         self._geometry(object_size_m, range_km)  # independent per pixel: no effect
 
     def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
-        from cssat.sparse import MatrixOperator
-
         dtype = dtype or torch.get_default_dtype()
         s2 = math.log1p(self.scintillation_index)
         w = _lognormal(math.sqrt(s2) * _unit_normals(m, n, seed, torch.float64), s2)
@@ -140,8 +139,6 @@ class CorrelatedAtmosphere(_PositiveAtmosphere):
         return torch.exp(-0.5 * (dd / theta) ** 2)
 
     def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
-        from cssat.sparse import MatrixOperator
-
         side = _side(n)
         ev, vec = torch.linalg.eigh(self.correlation_matrix(side))
         root = (vec * ev.clamp_min(0).sqrt()) @ vec.T  # symmetric square root, exact also when singular
@@ -220,7 +217,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         return cache[seed]
 
     def _make_layers(self, seed: int) -> Layers:
-        from cssat.physics.turbulence import layers_from_profile
+        from cssat.physics.turbulence import layers_from_profile  # heavy: cssat.physics.turbulence imports scipy
 
         match = dict(diameter_m=self.diameter_m, exposure_s=self.exposure_s, airmass=self.airmass,
                      wavelength_m=self.wavelength_m, outer_scale_m=self.outer_scale_m)
@@ -240,7 +237,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         return cache[seed]
 
     def _make_spectrum(self, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        from cssat.physics.turbulence import intensity_psd
+        from cssat.physics.turbulence import intensity_psd  # heavy: cssat.physics.turbulence imports scipy
 
         lay = self.layers(seed)
         fvec, wts, idx = [], [], []
@@ -285,8 +282,6 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         return math.expm1(self.log_variance)
 
     def operator(self, m: int, n: int, *, seed: int = 0, dtype: torch.dtype | None = None, device: torch.device | str | None = None) -> LinearOperator:
-        from cssat.sparse import MatrixOperator
-
         side = _side(n)
         fz, w, _ = self.spectrum(seed)
         keep = w > w.max() * 1e-9
@@ -302,7 +297,7 @@ class PhaseScreenAtmosphere(_PositiveAtmosphere):
         return MatrixOperator(_lognormal(g, float(w.sum())).to(dtype=dtype or torch.get_default_dtype()))
 
     def describe(self) -> dict[str, Any]:
-        from cssat.physics.turbulence import fried_parameter, isoplanatic_angle
+        from cssat.physics.turbulence import fried_parameter, isoplanatic_angle  # heavy: cssat.physics.turbulence imports scipy
 
         lay = self.layers()
         return {**super().describe(), "atmosphere_fov_arcsec": self.fov_rad / ARCSEC,

@@ -112,7 +112,7 @@ class _PositiveAtmosphere(Atmosphere):
         if self.given_index is not None:
             return float(self.given_index)
         if self._profile_index is None:
-            from cssat.physics.turbulence import scintillation_index
+            from cssat.physics.turbulence import scintillation_index  # heavy: cssat.physics.turbulence imports scipy
 
             self._profile_index = scintillation_index(self.diameter_m, self.airmass, self.exposure_s,
                                                       self.site_altitude_m, self.wavelength_m)

@@ -35,7 +35,7 @@ __all__ = ["dct_modes", "mode_information", "statistics_fisher"]
 def dct_modes(shape: tuple[int, int], k: int) -> np.ndarray:
     """The ``k`` lowest-frequency orthonormal 2-D DCT-II basis images, ``(k, H·W)``, ordered by
     ``i + j`` then ``i`` (the DC mode first)."""
-    from scipy.fft import idctn
+    from scipy.fft import idctn  # heavy: scipy.fft, only for dct_modes()
 
     H, W = shape
     order = sorted(((i, j) for i in range(H) for j in range(W)), key=lambda t: (t[0] + t[1], t[0]))[:k]

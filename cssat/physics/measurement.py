@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import Any, Sequence
 
+import numpy as np
 import torch
 from torch import Tensor, nn
 
@@ -112,7 +113,6 @@ class Measurement(nn.Module):
         """``seed``, or with ``resample`` a seed of ``(seed, call number)`` (numpy's SeedSequence)."""
         if not self.resample:
             return self.seed
-        import numpy as np
 
         k, self.calls = self.calls, self.calls + 1
         return int(np.random.SeedSequence([self.seed & (2**63 - 1), k]).generate_state(1, dtype=np.uint64)[0] >> 1)

@@ -9,6 +9,8 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, choice_param, float_param, opt
+from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V
+from cssat.physics.photometry import ccd_snr, magnitude_to_photon_rate, photon_rate_to_magnitude
 
 __all__ = ["NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise"]
 
@@ -173,14 +175,10 @@ class PhotometricNoise(NoiseModel):
 
     def electrons(self, magnitude: float) -> float:
         """Source electrons per exposure of a source of V ``magnitude``."""
-        from cssat.physics.photometry import magnitude_to_photon_rate
-
         return magnitude_to_photon_rate(magnitude) * self.area_m2 * self.throughput * self.exposure_s
 
     def magnitude_of(self, electrons: float) -> float:
         """The V magnitude whose source gives ``electrons`` per exposure (inverse of :meth:`electrons`)."""
-        from cssat.physics.photometry import photon_rate_to_magnitude
-
         return photon_rate_to_magnitude(electrons / (self.area_m2 * self.throughput * self.exposure_s))
 
     @property
@@ -227,8 +225,6 @@ class PhotometricNoise(NoiseModel):
 
     def snr(self, magnitude: float | None = None) -> float:
         """SNR of one atmosphere-free sample of a source of ``magnitude`` (default: the model's)."""
-        from cssat.physics.photometry import ccd_snr
-
         mag = self.magnitude if magnitude is None else magnitude
         if mag is None:
             raise FieldError("magnitude", "give the source's magnitude (the model has none: its light curves are in W/m²)")
@@ -237,8 +233,6 @@ class PhotometricNoise(NoiseModel):
     def _scale(self, y: Tensor, flux: Tensor | None) -> Tensor:
         """Electrons per unit of ``y``, per light curve ``(B, 1)``."""
         if self.magnitude is None:  # y in W/m²: through the Sun's V magnitude
-            from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V
-
             return torch.full((*y.shape[:-1], 1), self.electrons(SUN_MAGNITUDE_V) / SOLAR_IRRADIANCE_W_M2,
                               dtype=torch.float64, device=y.device)
         if flux is None:

@@ -7,6 +7,8 @@ from typing import Sequence
 import torch
 from torch import Tensor
 
+from cssat.sparse import sensing_dictionary
+
 __all__ = ["sensing_stats", "effective_rank"]
 
 
@@ -34,8 +36,6 @@ def sensing_stats(phi: Tensor, shape: Sequence[int] | None = None, *, max_rows: 
     ``ΦΨ`` for a DCT Ψ on ``shape``; of ``Φ`` when ``shape`` is None). Computed on at most
     ``max_rows`` rows of ``phi (m, N)``; ``full=False`` skips the rank and the coherence (two
     Gram eigenvalue problems and a Gram of ``N`` columns: ~9 s at 64² on one thread, minutes at 128²)."""
-    from cssat.sparse import sensing_dictionary
-
     p = phi[:max_rows].double()
     mean = p.mean(0)
     positive = bool(p.mean() > 3 * p.std())  # a transmission; the paper's zero-mean Φ has no index

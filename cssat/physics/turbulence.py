@@ -222,7 +222,7 @@ def phase_psd(f: ArrayLike, cn2dh: float, wavelength_m: float = 550e-9, airmass:
 
 def aperture_filter(f: ArrayLike, diameter_m: float) -> np.ndarray:
     """``|P̂(f)|²`` of a circular pupil normalised to 1 at f = 0: ``(2 J₁(πDf)/(πDf))²``."""
-    from scipy.special import j1
+    from scipy.special import j1  # heavy: scipy.special, only for aperture_filter()
 
     x = np.pi * diameter_m * np.asarray(f, dtype=np.float64)
     safe = np.where(x > 1e-8, x, 1.0)

@@ -10,13 +10,14 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat._tmpfiles import atomic_write
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 
 def _figure(figsize):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # heavy: matplotlib, only for figures
 
     return Figure(figsize=figsize)
 
@@ -30,9 +31,7 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = 120) -> None:
     format of ``path``'s suffix: ``.png`` (``dpi``), ``.pdf`` or ``.svg`` (vector). The same
     figure gives the same bytes every time, in every format: no creation date, and the SVG's
     element ids drawn from a fixed salt."""
-    import matplotlib
-
-    from cssat._tmpfiles import atomic_write
+    import matplotlib  # heavy: matplotlib, only for figures
 
     fmt = Path(path).suffix.lstrip(".").lower()
     if fmt not in FIGURE_FORMATS:
@@ -114,7 +113,7 @@ def error_panels(truth: np.ndarray, estimates: Sequence[tuple[Any, str]]) -> lis
 
 def _scale_bar(ax, fov_m: float, size: int) -> None:
     """A white scale bar of a round length (1, 2 or 5 × 10ᵏ m) near a quarter of the field."""
-    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar  # heavy: matplotlib, only for figures
 
     target = fov_m / 4
     k = 10 ** math.floor(math.log10(target))

@@ -162,7 +162,7 @@ def grid_maps_figure(axes: Sequence[dict], rows: Sequence[dict], flux_only: floa
 
 def _hatch(j: int, i: int):
     """A hatched cell at column ``j``, row ``i`` of an ``imshow`` map."""
-    from matplotlib.patches import Rectangle
+    from matplotlib.patches import Rectangle  # heavy: matplotlib, only for figures
 
     return Rectangle((j - 0.5, i - 0.5), 1, 1, fill=False, hatch="//", edgecolor="0.85", linewidth=0)
 

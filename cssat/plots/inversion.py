@@ -65,7 +65,7 @@ def egi_figure(normals: np.ndarray, areas: np.ndarray, true_normals: np.ndarray 
 
 
 def _draw_mesh(ax: Any, vertices: np.ndarray, faces: np.ndarray, color: str, r: float) -> None:
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # heavy: matplotlib, only for figures
 
     light = np.array([0.4, -0.5, 0.75])
     light /= np.linalg.norm(light)

@@ -11,7 +11,7 @@ __all__ = ["occultation_figures"]
 
 
 def _panel(img: np.ndarray, size: tuple[float, float], label: str, xlabel: str, ylabel: str, title: str, **show: Any) -> Any:
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # heavy: matplotlib, only for figures
 
     fig = Figure(figsize=size)
     ax = fig.add_subplot()
@@ -30,7 +30,7 @@ def occultation_figures(truth: np.ndarray, pattern: np.ndarray, series: np.ndarr
     ``occultation_silhouette`` (``truth``, ``geometric``, ``recon``, each ``(H, W)``); ``metrics``
     gives the titles' numbers (``fresnel_scale_m``, ``n_telescopes``, ``star_magnitude``,
     ``iou_geometric``, ``iou``)."""
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # heavy: matplotlib, only for figures
 
     ext = [-truth.shape[1] * pixel / 2, truth.shape[1] * pixel / 2, -truth.shape[0] * pixel / 2, truth.shape[0] * pixel / 2]
     gext = [-pattern.shape[1] * pixel / 2, pattern.shape[1] * pixel / 2, -pattern.shape[0] * pixel / 2, pattern.shape[0] * pixel / 2]

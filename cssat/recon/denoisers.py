@@ -22,6 +22,8 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, float_param, int_param, opt, progress_param
+from cssat.sparse import estimate_sigma, ksvd_denoise
+from cssat.sparse.denoise import check_settings
 
 if TYPE_CHECKING:
     from cssat._types import Array
@@ -40,8 +42,6 @@ class Denoiser:
         self.sigma = opt(sigma, float_param, "sigma", 0.0, open_lo=True)
 
     def _sigma(self, x: np.ndarray, sigma: float | None) -> float:
-        from cssat.sparse import estimate_sigma
-
         if sigma is not None:
             return float_param(sigma, "sigma", 0.0)
         return self.sigma if self.sigma is not None else estimate_sigma(x)
@@ -95,7 +95,7 @@ class TVDenoiser(Denoiser):
         self.weight = opt(weight, float_param, "weight", 0.0)
 
     def _denoise(self, x, sigma):
-        from skimage.restoration import denoise_tv_chambolle
+        from skimage.restoration import denoise_tv_chambolle  # heavy: scikit-image, only for _denoise()
 
         w = self.weight if self.weight is not None else sigma
         return denoise_tv_chambolle(x, weight=w), {"denoise_weight": w}
@@ -108,7 +108,7 @@ class WaveletDenoiser(Denoiser):
     name = "wavelet"
 
     def _denoise(self, x, sigma):
-        from skimage.restoration import denoise_wavelet
+        from skimage.restoration import denoise_wavelet  # heavy: scikit-image, only for _denoise()
 
         return denoise_wavelet(x, sigma=sigma, method="BayesShrink", mode="soft", rescale_sigma=True), {}
 
@@ -124,7 +124,7 @@ class NLMDenoiser(Denoiser):
         self.h_factor = float_param(h_factor, "h_factor", 0.0)
 
     def _denoise(self, x, sigma):
-        from skimage.restoration import denoise_nl_means
+        from skimage.restoration import denoise_nl_means  # heavy: scikit-image, only for _denoise()
 
         def one(s):
             return denoise_nl_means(s, h=self.h_factor * sigma, sigma=sigma, fast_mode=True, patch_size=5, patch_distance=6)
@@ -181,13 +181,9 @@ class SparseKSVD(Denoiser):
 
     def check(self, shape: Sequence[int]) -> None:
         """Block and step sizes, atoms and training blocks against an input of ``shape``."""
-        from cssat.sparse.denoise import check_settings
-
         check_settings(shape, **self.kw)
 
     def __call__(self, image: Array, sigma: float | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse import ksvd_denoise
-
         is_tensor = isinstance(image, Tensor)
         x = image if is_tensor else torch.as_tensor(np.asarray(image), dtype=self.dtype, device=self.device)
         _check_image(x)

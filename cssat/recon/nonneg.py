@@ -13,10 +13,12 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError, float_param, int_param, opt
+from cssat.metrics import _np
 from cssat.recon.problem import Problem
 from cssat.recon.solvers import Solver
 from cssat.sparse._io import numpy_io
-from cssat.sparse.nonneg import lam_param
+from cssat.sparse.differences import grid_differences
+from cssat.sparse.nonneg import lam_param, nonneg_solve, weighted_system
 
 if TYPE_CHECKING:
     from cssat._types import Array, ProblemLike
@@ -34,10 +36,6 @@ class _NonNeg(Solver):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.metrics import _np
-        from cssat.sparse.differences import grid_differences
-        from cssat.sparse.nonneg import nonneg_solve, weighted_system
-
         prob = Problem.of(problem, shape)
         prob.check(y)
         sigma = None

@@ -29,7 +29,10 @@ from torch import Tensor
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param, opt, progress_param
 from cssat.recon.denoisers import Denoiser
 from cssat.recon.problem import Problem
+from cssat.sparse import DCT, batch_omp, sensing_dictionary
 from cssat.sparse._io import numpy_io
+from cssat.sparse.solvers import SolverInfo, fista_l1, landweber, pnp_pgd, tv_pdhg
+from cssat.sparse.tv_admm import ADMM_MAX_PIXELS, flat_fit, inverse_variance, tv_admm, tv_discrepancy
 
 if TYPE_CHECKING:
     from cssat._types import Array, ProblemLike
@@ -109,8 +112,6 @@ class OMP(Solver):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse import DCT, batch_omp, sensing_dictionary
-
         prob = Problem.of(problem, shape)
         prob.check(y)
         phi, m, N, shape = prob.operator, prob.m, prob.n, prob.x_shape
@@ -169,9 +170,6 @@ class L1(_Convex):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse import DCT, sensing_dictionary
-        from cssat.sparse.solvers import fista_l1
-
         phi, m, N, shape = _problem(problem, y, shape)
         t = time.perf_counter()
         A = sensing_dictionary(phi, shape)
@@ -220,8 +218,6 @@ class TV(_Convex):
         self.method = choice_param(method, "method", ("auto", "pdhg", "admm"))
 
     def _method(self, phi: LinearOperator, N: int) -> str:
-        from cssat.sparse.tv_admm import ADMM_MAX_PIXELS
-
         if self.method != "auto":
             return self.method
         wants = self.discrepancy or getattr(phi, "scale_rows", None) is not None
@@ -229,9 +225,6 @@ class TV(_Convex):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse.solvers import SolverInfo, tv_pdhg
-        from cssat.sparse.tv_admm import tv_admm, tv_discrepancy
-
         prob = Problem.of(problem, shape)
         prob.check(y)
         phi, m, N, shape = prob.operator, prob.m, prob.n, prob.x_shape
@@ -268,8 +261,6 @@ class FluxOnly(Solver):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse.tv_admm import flat_fit, inverse_variance
-
         prob = Problem.of(problem, shape)
         prob.check(y)
         w = None
@@ -306,8 +297,6 @@ class PnP(Solver):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse.solvers import pnp_pgd, tv_pdhg
-
         phi, m, N, shape = _problem(problem, y, shape)
         x0 = tv_pdhg(phi, y, shape, lam=1e-3, max_iter=300, progress=self.progress) if self.init == "tv" else None
         sig = np.geomspace(self.sigma_start, self.sigma_end, self.max_iter)
@@ -337,8 +326,6 @@ class Landweber(_Convex):
 
     @numpy_io
     def __call__(self, problem: ProblemLike, y: Array, shape: Sequence[int] | None = None) -> tuple[Array, dict[str, Any]]:
-        from cssat.sparse.solvers import landweber
-
         phi, m, N, shape = _problem(problem, y, shape)
         x, sinfo = landweber(phi, y, relaxation=self.relaxation, lower=0.0 if self.nonneg else None,
                              max_iter=self.max_iter, rtol=self.rtol, return_info=True, progress=self.progress)

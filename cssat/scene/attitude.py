@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cssat._checks import FieldError
+from cssat._checks import FieldError, choice_param, float_param
 
 __all__ = ["nadir_pointing_frame", "to_body", "random_unit_vectors", "quaternion_frames", "inertial_frame",
            "spin_frame", "interpolated_frames", "torque_free", "OBLIQUITY_DEG"]
@@ -69,7 +69,7 @@ def quaternion_frames(q: np.ndarray, field: str = "attitude.quaternion") -> np.n
     """Body frames ``(..., 3, 3)`` of attitude quaternions ``q (..., 4)`` [x, y, z, w] (scalar
     last, normalised here), each the rotation that takes body-frame vectors to the inertial frame
     (scipy's ``Rotation.from_quat`` convention): the frame's rows are ``R(q)ᵀ``."""
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for quaternion_frames()
 
     q = _unit_quaternions(q, field)
     R = Rotation.from_quat(q.reshape(-1, 4)).as_matrix()
@@ -103,8 +103,6 @@ def spin_frame(times_s: np.ndarray, pole_lon_deg: float, pole_lat_deg: float, pe
     (``frame="ecliptic"``, J2000; ``E`` rotates GCRS into the ecliptic by the obliquity) or right
     ascension and declination (``"equatorial"``, ``E = I``). ``period_s > 0`` (sidereal);
     a negative period spins retrograde about the pole."""
-    from cssat._checks import choice_param, float_param
-
     frame = choice_param(frame, "attitude.frame", ("ecliptic", "equatorial"))
     lam = np.radians(float_param(pole_lon_deg, "attitude.pole_lon_deg", -360.0, 360.0))
     beta = np.radians(float_param(pole_lat_deg, "attitude.pole_lat_deg", -90.0, 90.0))
@@ -123,7 +121,7 @@ def interpolated_frames(times_s: np.ndarray, knot_times_s: np.ndarray, quaternio
     """User-supplied attitudes: quaternions ``(K, 4)`` [x, y, z, w] at ``knot_times_s (K,)``
     (increasing), interpolated by slerp (scipy's ``Slerp``) at ``times_s (T,)`` inside
     ``[knot_times_s[0], knot_times_s[-1]]``: ``(T, 3, 3)``."""
-    from scipy.spatial.transform import Rotation, Slerp
+    from scipy.spatial.transform import Rotation, Slerp  # heavy: scipy.spatial, only for interpolated_frames()
 
     kt = np.asarray(knot_times_s, dtype=np.float64)
     q = _unit_quaternions(quaternions, "attitude.quaternions")
@@ -154,7 +152,7 @@ def torque_free(inertia_kg_m2: np.ndarray, q0: np.ndarray, omega0_rad_s: np.ndar
     over one period of the motion by Gauss–Legendre quadrature, then by periodicity — so ``L`` is
     fixed in the inertial frame to round-off over days. ``return_omega``: also ``ω (T, 3)`` in
     the body frame (rad/s)."""
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for torque_free()
 
     I_b = np.asarray(inertia_kg_m2, dtype=np.float64)
     if I_b.shape != (3, 3) or not np.isfinite(I_b).all() or not np.allclose(I_b, I_b.T, rtol=1e-12, atol=0):
@@ -218,7 +216,7 @@ def _nutation(Ip: np.ndarray, omega: np.ndarray, L: float) -> tuple[np.ndarray, 
 
 def _motion(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
     """The elliptic solution's constants: amplitudes, rate, modulus, phase, the axis order."""
-    from scipy.special import ellipkinc
+    from scipy.special import ellipkinc  # heavy: scipy.special, only for _motion()
 
     E2 = float(np.sum(Ip * wp ** 2))
     L2 = float(np.sum((Ip * wp) ** 2))
@@ -242,7 +240,7 @@ def _motion(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
 
 
 def _omega_of(mo: dict, t: np.ndarray, sign: float) -> np.ndarray:
-    from scipy.special import ellipj
+    from scipy.special import ellipj  # heavy: scipy.special, only for _omega_of()
 
     sn, cn, dn, _ = ellipj(sign * mo["lam"] * t + mo["tau0"], mo["m"])
     w = np.stack([mo["amp"][0] * cn, mo["amp"][1] * sn, mo["s3"] * mo["amp"][2] * dn], -1)
@@ -275,7 +273,7 @@ def _precession(mo: dict, Ip: np.ndarray, L: float, t: np.ndarray, nodes: int = 
     """``∫₀ᵗ L (I₁ω₁² + I₂ω₂²)/(I₁²ω₁² + I₂²ω₂²) dt'`` for every ``t``: Gauss–Legendre over
     ``pieces`` equal parts of the motion's period (its integrand's, ``2K(m)/λ``), then whole
     periods and the rest."""
-    from scipy.special import ellipk
+    from scipy.special import ellipk  # heavy: scipy.special, only for _precession()
 
     A, B, _ = Ip
     period = 2 * float(ellipk(mo["m"])) / mo["lam"] if mo["m"] < 1 else np.inf

@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param
+from cssat.scene.attitude import interpolated_frames, nadir_pointing_frame, quaternion_frames, spin_frame, torque_free
+from cssat.scene.orbit import utc_times
 
 if TYPE_CHECKING:
     from cssat.scene.orbit import Scenario
@@ -30,8 +32,6 @@ __all__ = ["Attitude", "Nadir", "Inertial", "Spin", "Tumbling", "Quaternions"]
 
 
 def _seconds(scenario: Scenario, epoch_utc: Any) -> np.ndarray:
-    from cssat.scene.orbit import utc_times
-
     t0 = scenario.times[0] if epoch_utc is None else utc_times(epoch_utc, "attitude.epoch_utc")[0]
     return (scenario.times - t0).astype(np.int64) * 1e-6
 
@@ -62,8 +62,6 @@ class Nadir(Attitude):
     name = "nadir"
 
     def frames(self, scenario: Scenario) -> np.ndarray:
-        from cssat.scene.attitude import nadir_pointing_frame
-
         return nadir_pointing_frame(scenario.r_sat, scenario.v_sat)
 
 
@@ -73,8 +71,6 @@ class Inertial(Attitude):
     name = "inertial"
 
     def __init__(self, quaternion: Sequence[float] = (0.0, 0.0, 0.0, 1.0)):
-        from cssat.scene.attitude import quaternion_frames
-
         self.quaternion = _vector(quaternion, 4, "attitude.quaternion")
         self._frame = quaternion_frames(self.quaternion)
 
@@ -101,8 +97,6 @@ class Spin(Attitude):
         self.epoch_utc, self.frame = epoch_utc, choice_param(frame, "frame", ("ecliptic", "equatorial"))
 
     def frames(self, scenario: Scenario) -> np.ndarray:
-        from cssat.scene.attitude import spin_frame
-
         return spin_frame(_seconds(scenario, self.epoch_utc), self.pole_lon_deg, self.pole_lat_deg, self.period_s,
                           self.phase_deg, self.frame)
 
@@ -132,8 +126,6 @@ class Tumbling(Attitude):
         self.epoch_utc = epoch_utc
 
     def frames(self, scenario: Scenario) -> np.ndarray:
-        from cssat.scene.attitude import torque_free
-
         return torque_free(self.inertia, self.q0, self.omega0, _seconds(scenario, self.epoch_utc))
 
     def describe(self) -> dict[str, Any]:
@@ -147,15 +139,11 @@ class Quaternions(Attitude):
     name = "quaternions"
 
     def __init__(self, times_utc: Sequence[Any], quaternions: Sequence[Sequence[float]]):
-        from cssat.scene.orbit import utc_times
-
         self.times_utc = utc_times(list(times_utc) if not isinstance(times_utc, np.ndarray) else times_utc,
                                    "attitude.times_utc")
         self.quaternions = np.asarray(quaternions, dtype=np.float64)
 
     def frames(self, scenario: Scenario) -> np.ndarray:
-        from cssat.scene.attitude import interpolated_frames
-
         t0 = self.times_utc[0]
         sec = lambda t: (t - t0).astype(np.int64) * 1e-6  # noqa: E731
         return interpolated_frames(sec(scenario.times), sec(self.times_utc), self.quaternions)

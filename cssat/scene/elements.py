@@ -31,7 +31,7 @@ def check_tle(line1: str, line2: str, field: str = "tle") -> None:
     ``compute_checksum``: digits count their value, ``-`` counts 1) and that both lines carry the
     same catalogue number.
     """
-    from sgp4.io import compute_checksum
+    from sgp4.io import compute_checksum  # heavy: sgp4, only for check_tle()
 
     for k, line in ((1, line1), (2, line2)):
         name = f"{field}.line{k}"
@@ -70,8 +70,8 @@ SATELLITE_FORMS = ("two TLE lines (line1, line2)", "three (name, line1, line2)",
 def _satellite(tle, ts, field: str = "scenario.tle"):
     """``(EarthSatellite, name)`` of any of :data:`SATELLITE_FORMS`; TLE lines are checked by
     :func:`check_tle` first (``name`` is ``""`` when the input carries none)."""
-    from sgp4.api import Satrec
-    from skyfield.api import EarthSatellite
+    from sgp4.api import Satrec  # heavy: sgp4, only for _satellite()
+    from skyfield.api import EarthSatellite  # heavy: skyfield, only for _satellite()
 
     if isinstance(tle, EarthSatellite):
         return EarthSatellite.from_satrec(tle.model, ts), tle.name or ""
@@ -124,9 +124,9 @@ def check_elements(model: Any, field: str = "scenario.tle") -> None:
 
 
 def _from_omm(rec, ts, field: str):
-    from sgp4 import omm
-    from sgp4.api import Satrec
-    from skyfield.api import EarthSatellite
+    from sgp4 import omm  # heavy: sgp4, only for _from_omm()
+    from sgp4.api import Satrec  # heavy: sgp4, only for _from_omm()
+    from skyfield.api import EarthSatellite  # heavy: skyfield, only for _from_omm()
 
     missing = [k for k in OMM_REQUIRED if rec.get(k) is None]
     if missing:

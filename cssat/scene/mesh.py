@@ -8,6 +8,8 @@ models and the config's choice of a model (:func:`get_model`) are in :mod:`cssat
 
 from __future__ import annotations
 
+import io
+import logging
 import math
 import os
 from dataclasses import dataclass, field
@@ -16,6 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cssat._checks import FieldError, FieldTypeError
+from cssat._record import read_input
+from cssat.scene._obj import check_obj
 
 if TYPE_CHECKING:
     from typing import Sequence
@@ -107,7 +111,7 @@ class Mesh:
         return float(np.linalg.norm(self.vertices, axis=1).max())
 
     def to_trimesh(self) -> trimesh.Trimesh:
-        import trimesh
+        import trimesh  # heavy: trimesh, only for to_trimesh()
 
         return trimesh.Trimesh(self.vertices, self.faces, process=False, validate=False)
 
@@ -127,7 +131,7 @@ class Mesh:
         triangles placed by its node's transform and concatenated; each body is a ``part`` named
         by its material (else its node), with its own ``cd``/``cs`` face attributes when it has
         them."""
-        import trimesh
+        import trimesh  # heavy: trimesh, only for from_scene()
 
         verts, faces, cds, css, part, names, off = [], [], [], [], [], [], 0
         for node in scene.graph.nodes_geometry:
@@ -180,20 +184,16 @@ def load_mesh(
     bounding-box centre to the origin. Zero-area facets reflect nothing and are dropped; a file
     with no facet of positive area is refused. Errors name ``field``.
     """
-    import trimesh
+    import trimesh  # heavy: trimesh, only for load_mesh()
 
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise FieldError(field, f"no such file: {path!r}")
     if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
         raise FieldError("scale", f"must be a positive number, got {scale!r}")
-    import io
-
-    from cssat._record import read_input
 
     data = read_input(path, 4 << 30, field)  # hashed as read: the manifest's input is what was loaded
     ext = os.path.splitext(path)[1].lstrip(".").lower()
-    from cssat.scene._obj import check_obj
 
     expected = check_obj(data, field, path) if ext == "obj" else 0
     try:
@@ -223,8 +223,6 @@ def load_mesh(
     if not good.any():
         raise FieldError(field, f"every facet of {path!r} is degenerate (zero area)")
     if not good.all():
-        import logging
-
         logging.getLogger("cssat").warning(
             "%s: dropped %d zero-area (degenerate) facets of %d in %r", field, int((~good).sum()), len(faces), path
         )
@@ -233,8 +231,6 @@ def load_mesh(
     outward = float((np.sign(np.einsum("ij,ij->i", mesh.normals, mesh.centroids - mesh.centroids.mean(0))) * mesh.areas).sum()
                     / mesh.areas.sum())
     if outward < -0.5:
-        import logging
-
         logging.getLogger("cssat").warning(
             "%s: most facets of %r face inward (area-weighted %.0f %%): their winding may be reversed, which "
             "makes the satellite nearly dark; flip it (e.g. trimesh's mesh.invert())", field, path, 50 * (1 - outward))

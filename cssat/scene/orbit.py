@@ -11,7 +11,9 @@ The element sets SGP4 takes are read and checked in :mod:`cssat.scene.elements`,
 
 from __future__ import annotations
 
+import logging
 import math
+import warnings
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from functools import lru_cache
@@ -87,10 +89,8 @@ class Scenario:
 @lru_cache(maxsize=1)
 def _skyfield():
     """The timescale and DE421 ephemeris, loaded offline from ``skyfield-data``."""
-    import warnings
-
-    import skyfield_data
-    from skyfield.api import Loader
+    import skyfield_data  # heavy: skyfield-data, only for _skyfield()
+    from skyfield.api import Loader  # heavy: skyfield, only for _skyfield()
 
     with warnings.catch_warnings():
         # skyfield-data warns when its Earth-orientation table is past its date; DE421 and the
@@ -165,8 +165,8 @@ def make_scenario(
     The defaults are the paper's scenario: Astra 1KR, 1437 one-minute steps from 2020-04-01
     00:00 UTC, an observer at 51.17°N 10.45°E.
     """
-    from sgp4.api import SGP4_ERRORS
-    from skyfield.api import wgs84
+    from sgp4.api import SGP4_ERRORS  # heavy: sgp4, only for make_scenario()
+    from skyfield.api import wgs84  # heavy: skyfield, only for make_scenario()
 
     ts, eph = _skyfield()
     sat, own_name = _satellite(tle, ts)
@@ -191,8 +191,6 @@ def make_scenario(
     epoch_days = sat.model.jdsatepoch + sat.model.jdsatepochF - 2440587.5  # days since 1970
     span = (start - datetime(1970, 1, 1)).total_seconds() / 86400 - epoch_days
     if abs(span) >= STALE_DAYS:
-        import logging
-
         logging.getLogger("cssat").warning(
             "scenario.tle: the run starts %.0f days %s the element set's epoch; SGP4's error grows by ~1-3 km a day "
             "(tens of degrees along a GEO orbit after months): use elements near the dates", abs(span),

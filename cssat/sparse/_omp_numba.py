@@ -9,6 +9,8 @@ and the output are those of the torch path (``_omp_torch.omp_chunk``), and the t
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from cssat.sparse._numba import available, kernel
@@ -17,7 +19,7 @@ __all__ = ["available", "sparse_gram"]
 
 
 def _build(parallel: bool):
-    from cssat.sparse import _omp_kernels
+    from cssat.sparse import _omp_kernels  # heavy: cssat.sparse._omp_kernels imports numba
 
     return _omp_kernels.build(parallel)
 
@@ -39,7 +41,6 @@ def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out
     if bar is None or bar.disable:
         run()
         return
-    import threading
 
     stop, shown = threading.Event(), [0]
 
@@ -63,7 +64,7 @@ def omp_gram(G: np.ndarray, A0: np.ndarray, ynorm2: np.ndarray, K: int, tol, out
 
 
 def _build_sparse_gram(parallel: bool):
-    from cssat.sparse import _omp_kernels
+    from cssat.sparse import _omp_kernels  # heavy: cssat.sparse._omp_kernels imports numba
 
     return _omp_kernels.build_sparse_gram(parallel)
 

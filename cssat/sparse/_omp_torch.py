@@ -7,6 +7,8 @@ updates the residual. The stopping rules and the output are documented in :func:
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import torch
 from torch import Tensor
 
@@ -27,7 +29,6 @@ def _mv(A: Tensor, x: Tensor) -> Tensor:
     threads = torch.get_num_threads()
     if A.device.type != "cpu" or threads < 2 or A.numel() < (1 << 22):
         return torch.mv(A, x)
-    from concurrent.futures import ThreadPoolExecutor
 
     pool = _POOL.get(threads)
     if pool is None:

@@ -84,7 +84,7 @@ class GraphDifferences(Differences):
     (no dense ``E × N`` copy)."""
 
     def __init__(self, D: Any):
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # heavy: scipy.sparse, only for GraphDifferences()
 
         D = sp.coo_matrix(D)
         self.n, self.n_edges = D.shape[1], D.shape[0]
@@ -114,8 +114,8 @@ class GraphDifferences(Differences):
 def knn_differences(points: Any, k: int = 6) -> Any:
     """``D (E, K)`` sparse: one row ``e_i − e_j`` per edge joining each of the ``points (K, d)`` to
     its ``k`` nearest (Euclidean; on the unit sphere the same order as by angle; each edge once)."""
-    import scipy.sparse as sp
-    from scipy.spatial import cKDTree
+    import scipy.sparse as sp  # heavy: scipy.sparse, only for knn_differences()
+    from scipy.spatial import cKDTree  # heavy: scipy.spatial, only for knn_differences()
 
     P = np.asarray(points, dtype=np.float64)
     k = min(int(k), len(P) - 1)
@@ -134,7 +134,7 @@ def grid_differences(shape: Sequence[int]) -> Any:
     """``D (E, prod(shape))`` sparse: the forward differences along each axis of a grid of
     ``shape`` (row-major, as ``x.reshape(-1)``), one row ``e_{i+1} − e_i`` per adjacent pair — the
     anisotropic TV's gradient of an image."""
-    import scipy.sparse as sp
+    import scipy.sparse as sp  # heavy: scipy.sparse, only for grid_differences()
 
     shape = tuple(int(s) for s in shape)
     blocks = []

@@ -16,6 +16,8 @@ from typing import Callable
 import torch
 from torch import Tensor
 
+from cssat._progress import progress_bar
+
 __all__ = ["Iteration", "RunInfo", "run_iterations", "relative_change"]
 
 log = logging.getLogger("cssat")
@@ -61,8 +63,6 @@ def run_iterations(alg: Iteration, max_iter: int, *, rtol: float | None = None, 
     the step's relative change is ``≤ rtol`` for every signal (``converged``). ``progress``: a tqdm
     bar of the iterations (``None``: on a terminal only, after a second).
     """
-    from cssat._progress import progress_bar
-
     t0 = time.perf_counter()
     info = RunInfo(0)
     bar = progress_bar(int(max_iter), alg.label, progress, unit="iter")

@@ -29,6 +29,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, FieldTypeError
+from cssat._progress import progress_bar
 from cssat.sparse.omp import batch_omp
 from cssat.sparse.operators import LinearOperator
 from cssat.sparse.transforms import KroneckerOperator, odct_matrix
@@ -169,8 +170,6 @@ def sparse_ksvd(
     coder = _AtomCoder(base.to(device=X.device), T, X.dtype, X.device)
     gen = torch.Generator().manual_seed(int(seed))
     A = _initial_atoms(init, X, L, coder, gen)
-
-    from cssat._progress import progress_bar
 
     info = KSVDInfo([], [], [])
     BtX = coder.base.adjoint(X)  # (n, K0): Bᵀx once; Dᵀx = Aᵀ(Bᵀx) every iteration

@@ -28,6 +28,10 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.sparse.differences import GraphDifferences
+from cssat.sparse.operators import MatrixOperator
+from cssat.sparse.solvers import fista_l1
+from cssat.sparse.tv_admm import tv_admm, tv_discrepancy
 
 __all__ = ["METHODS", "lam_param", "weighted_system", "nonneg_solve"]
 
@@ -71,7 +75,7 @@ def nonneg_solve(A: np.ndarray, b: np.ndarray, n_data: int, *, method: str = "nn
     level) and the rest exact constraints; ``differences (E, K)`` the ``tv`` method's edges.
     Returns ``(x, info)`` with ``chi2`` (over the data rows), ``n_nonzero``, ``method`` and the
     method's own counts."""
-    from scipy.optimize import nnls
+    from scipy.optimize import nnls  # heavy: scipy.optimize, only for nonneg_solve()
 
     method = choice_param(method, "method", METHODS)
     T = int(n_data)
@@ -133,7 +137,7 @@ def _by_discrepancy(solve: Any, A: np.ndarray, b: np.ndarray, T: int) -> tuple[n
 
 
 def _nnomp(A: np.ndarray, b: np.ndarray, T: int, n_nonzero: int | None, weighted: bool) -> tuple[np.ndarray, dict]:
-    from scipy.optimize import nnls
+    from scipy.optimize import nnls  # heavy: scipy.optimize, only for _nnomp()
 
     K = A.shape[1]
     cap = min(K, A.shape[0]) if n_nonzero is None else int_param(n_nonzero, "n_nonzero", 1, K)
@@ -161,8 +165,6 @@ def _nnomp(A: np.ndarray, b: np.ndarray, T: int, n_nonzero: int | None, weighted
 
 def _nnl1(A: np.ndarray, b: np.ndarray, lam: float, max_iter: int) -> tuple[np.ndarray, dict]:
     """FISTA over ``x ≥ 0`` on the one runner, with the exact Lipschitz constant ``‖A‖₂²``."""
-    from cssat.sparse.solvers import fista_l1
-
     lam = float_param(lam, "lam", 0.0)
     L = float(np.linalg.norm(A, 2) ** 2)
     x, info = fista_l1(torch.as_tensor(A), torch.as_tensor(b), lam=lam, max_iter=max_iter, rtol=1e-10, lipschitz=L,
@@ -175,10 +177,6 @@ def _nntv(A: np.ndarray, b: np.ndarray, T: int, D: Any, lam: float | str, max_it
     relative to ``‖Aᵀb‖∞``) or, for ``"discrepancy"``, :func:`~cssat.sparse.tv_admm.tv_discrepancy`
     with ``τ = 1`` (``χ² ≤ T`` on the whitened data rows; the constraint rows exact), its walk
     over ``10⁰ … 10⁻⁹`` refined to 2 % of the target."""
-    from cssat.sparse.differences import GraphDifferences
-    from cssat.sparse.operators import MatrixOperator
-    from cssat.sparse.tv_admm import tv_admm, tv_discrepancy
-
     op, bt, graph = MatrixOperator(torch.as_tensor(A)), torch.as_tensor(b), GraphDifferences(D)
     if lam == "discrepancy":
         var = torch.zeros(len(b), dtype=bt.dtype)

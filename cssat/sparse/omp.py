@@ -25,8 +25,11 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
+from cssat._progress import progress_bar
+from cssat.sparse import _omp_numba
 from cssat.sparse._io import numpy_io
 from cssat.sparse._omp_checks import check_consistent, check_inputs, given, rescale
+from cssat.sparse._omp_torch import correlate, omp_chunk
 
 __all__ = ["batch_omp", "gram_matrix", "omp_path_costs", "OMPInfo"]
 
@@ -195,7 +198,6 @@ def _solve(D, Y2, K, tol, gram, Dty, use_gram, backend, chunk_size, progress, ch
     if B == 0:
         return out, n_iter, res_sq
     use_numba, chunk_size = _kernel_settings(D, K, use_gram, backend, chunk_size)
-    from cssat._progress import progress_bar
 
     path = "gram" if use_gram else "nogram"
     with progress_bar(B * K, f"OMP ({path}, {B} signal{'s' if B != 1 else ''}, K={K})", progress, unit="atom") as bar:
@@ -228,8 +230,6 @@ def _choose_path(D, B, K, tol, gram, precompute, backend) -> bool:
 def _kernel_settings(D, K, use_gram, backend, chunk_size) -> tuple[bool, int]:
     """Whether the numba kernel runs the Gram path, and the torch path's chunk of signals: its
     ``(chunk, K, width)`` work buffer near 8 MB on a CPU (cache), 1 GB on a GPU."""
-    from cssat.sparse import _omp_numba
-
     if backend == "numba" and not use_gram:
         raise FieldError("backend", "'numba' runs the Gram path only; drop precompute=False or use backend='torch'")
     use_numba = use_gram and D.device.type == "cpu" and (
@@ -248,9 +248,6 @@ def _kernel_settings(D, K, use_gram, backend, chunk_size) -> tuple[bool, int]:
 def _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state, check=True) -> None:
     """The Gram path (Batch-OMP) into ``state = (out, n_iter, res_sq, bar)``, by the numba kernel
     (one signal per thread) or the torch kernel (chunks of ``chunk_size`` signals)."""
-    from cssat.sparse import _omp_numba
-    from cssat.sparse._omp_torch import omp_chunk
-
     out, n_iter, res_sq, bar = state
     B, n_atoms = out.shape
     G = given(gram, "gram", (n_atoms, n_atoms), D) if gram is not None else gram_matrix(D)
@@ -280,8 +277,6 @@ def _run_gram(D, Y2, K, tol, gram, Dty, use_numba, chunk_size, state, check=True
 
 def _run_nogram(D, Y2, K, tol, chunk_size, state) -> None:
     """The no-Gram path (Gram–Schmidt on the residual, torch) into ``state``, chunk by chunk."""
-    from cssat.sparse._omp_torch import correlate, omp_chunk
-
     out, n_iter, res_sq, bar = state
     Dt = D.T  # (n_atoms, m): atom j is row j (contiguous when D is a transposed view)
     diag = torch.linalg.vector_norm(D, dim=0) ** 2
@@ -317,8 +312,6 @@ def gram_matrix(D: Tensor, block: int = 512, sparse: bool | str = "auto") -> Ten
     m, n = D.shape
     dense_work = m * n * n / 2  # multiply-adds of the dense product
     if sparse is not False and D.device.type == "cpu":
-        from cssat.sparse import _omp_numba
-
         if sparse is True or (dense_work >= _SPARSE_GRAM_MIN and _omp_numba.available()):
             mask = D != 0
             nnz = mask.sum(1)
@@ -337,8 +330,6 @@ def gram_matrix(D: Tensor, block: int = 512, sparse: bool | str = "auto") -> Ten
 def _sparse_gram(D: Tensor, mask: Tensor, nnz: Tensor) -> Tensor:
     """``DᵀD`` by the numba kernel from ``D``'s non-zeros (``mask``, ``nnz`` per row), built into
     CSR by hand: ``nonzero()`` lists them row by row, columns ascending."""
-    from cssat.sparse import _omp_numba
-
     if not _omp_numba.available():
         raise ImportError("sparse: the sparse Gram needs the numba package (pip install numba)")
     crow = torch.zeros(D.shape[0] + 1, dtype=torch.int64)

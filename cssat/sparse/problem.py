@@ -39,7 +39,7 @@ class Problem:
 
     def variance(self) -> Tensor:
         """The noise variance of each sample ``(m,)`` float64: ``noise_var``, else ``noise_sigma²``."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
         if self.noise_var is not None:
             v = torch.as_tensor(self.noise_var, dtype=torch.float64).reshape(-1)
@@ -54,7 +54,7 @@ class Problem:
     def sigma(self) -> Tensor:
         """The noise's standard deviation of each sample ``(m,)`` float64: ``noise_sigma`` (a scalar
         or one per sample) as given, else ``√noise_var``."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
         if self.noise_sigma is None:
             return self.variance().sqrt()
@@ -89,9 +89,9 @@ class Problem:
         """``problem`` as a :class:`Problem`: itself; a ``Measurement`` (its operator, its
         ``x_shape`` unless ``shape`` is given, its noise's ``sigma``); an operator or a dense
         ``(m, N)`` matrix with ``shape`` (or the operator's own ``in_shape``)."""
-        from torch import Tensor
+        from torch import Tensor  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.sparse.operators import LinearOperator, MatrixOperator
+        from cssat.sparse.operators import LinearOperator, MatrixOperator  # heavy: cssat.sparse.operators imports torch
 
         if isinstance(problem, Problem):
             return problem if shape is None else cls(problem.operator, shape, problem.noise_sigma, problem.noise_var)

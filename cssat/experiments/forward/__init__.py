@@ -124,7 +124,7 @@ class PixelSensing:
                  draw: torch.dtype | None = None) -> Any:
         """``Φ (m, N)`` of ``atmosphere`` for the unknown's ``shape``, drawn from the run's seed in
         ``draw`` (default ``dtype``) and held in ``dtype``."""
-        from cssat.sparse import MatrixOperator
+        from cssat.sparse import MatrixOperator  # heavy: cssat.sparse imports torch
 
         with as_field("atmosphere"):
             op = atmosphere.operator(m, math.prod(shape), seed=run.seed, dtype=draw or dtype, device=run.device)
@@ -135,9 +135,9 @@ class PixelSensing:
     def measure(self, run: Run, truth: np.ndarray, operator: Any, noise: Any, dtype: torch.dtype) -> Measured:
         """Measure ``truth`` through ``operator`` (from :meth:`operator`) with ``noise``, seeded
         with the run's seed + 1, in ``dtype``."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.physics import Measurement
+        from cssat.physics import Measurement  # heavy: cssat.physics imports torch
 
         shape = tuple(truth.shape)
         meas = Measurement(operator, noise, seed=run.seed + 1, x_shape=shape)
@@ -161,7 +161,7 @@ def phi_stats(mode: Any, phi: Any, shape: tuple[int, ...]) -> dict[str, Any]:
     """:func:`cssat.physics.sensing_stats` of ``phi`` as ``phi_stats`` says: ``true`` (all),
     ``false`` (none), ``auto`` (the mean, std and scintillation index always; the effective rank
     and the coherence of ΦΨ while Φ has at most :data:`PHI_STATS_FULL_MAX` entries)."""
-    from cssat.physics import sensing_stats
+    from cssat.physics import sensing_stats  # heavy: cssat.physics imports torch
 
     if mode not in (True, False, "auto"):
         raise FieldError("phi_stats", f"expected true, false or auto, got {mode!r}")

@@ -35,12 +35,16 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
+from cssat.experiments.build import build, build_model, build_solver, validate_solver
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.forward.egi_score import (EGI_MATCH_DEG, EGI_WEIGHT_SHARE, egi_recovered_share, score_truth, solve_egi,
                                                  write_egi)
 from cssat.experiments.forward.nights import (check_constrained, check_search, check_size, night_index, night_mask,
                                               nights_settings)
+from cssat.experiments.scene import build_scenario, check_elements, read_observations
+from cssat.scene.attitude import nadir_pointing_frame, to_body
+from cssat.scene.attitudes import Spin, Tumbling
 
 __all__ = ["EGILightCurve", "egi_recovered_share", "EGI_WEIGHT_SHARE", "EGI_MATCH_DEG"]
 
@@ -54,7 +58,7 @@ SEARCH_KEYS = ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samp
 
 
 def _opts(node: Any) -> dict:
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
 
@@ -66,9 +70,7 @@ class EGILightCurve(ForwardModel):
     timed_inside = ("measure", "estimate", "solve")
 
     def plan(self, cfg: Any, run: Run) -> None:
-        from cssat.experiments.build import build, build_model, build_solver
-        from cssat.experiments.scene import check_elements, read_observations
-        from cssat.inversion.tumble import check_tumbling_options
+        from cssat.inversion.tumble import check_tumbling_options  # heavy: cssat.inversion.tumble imports torch
 
         self.cfg = cfg
         self.n_nights, self.n_fit, self.sun_alt, self.min_el = nights_settings(cfg)
@@ -108,8 +110,6 @@ class EGILightCurve(ForwardModel):
         """``auto``: a spin attitude is searched as one, a tumbling one as one, a file as a spin (the
         2-D series' BIC also prefers two periods for a spinner seen over changing geometry: a file's
         tumbling search is asked for, ``inversion.spin=tumbling``, not guessed); else known."""
-        from cssat.scene.attitudes import Spin, Tumbling
-
         if spin_mode != "auto":
             return spin_mode
         if isinstance(self.attitude, Tumbling):
@@ -124,14 +124,12 @@ class EGILightCurve(ForwardModel):
 
     def _scene(self) -> None:
         """The scenario and its observable samples: the file's time stamps, or ``nights.n`` days."""
-        from cssat.experiments.scene import build_scenario
-
         cfg, observed = self.cfg, self.observed
         if observed is not None:
             scenario = build_scenario(cfg, observed.times_utc)
             keep = np.isfinite(observed.fluxes()) & (scenario.sunlit > 0)
         else:
-            from omegaconf import OmegaConf, open_dict
+            from omegaconf import OmegaConf, open_dict  # heavy: omegaconf; library code, importable without Hydra
 
             step = float_param(cfg.scenario.step_s, "scenario.step_s", 0.0, open_lo=True)
             cfg2 = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
@@ -147,7 +145,6 @@ class EGILightCurve(ForwardModel):
         self.night = night = night_index(t)
         self.scenario, self.keep = scenario, keep
         self.metrics.update(n_samples=int(keep.sum()), n_nights_observed=int(night.max() + 1))
-        from cssat.experiments.build import validate_solver
 
         validate_solver(self.solver, int(keep.sum()), self.n_normals)
         if observed is not None:
@@ -157,18 +154,16 @@ class EGILightCurve(ForwardModel):
 
     def _light_curve(self, run: Run) -> None:
         """The light curve per unit irradiance and range, its 1σ, the fitted and held-out nights."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.optics.lightcurve import simulate_light_curve
-        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
+        from cssat.optics.lightcurve import simulate_light_curve  # heavy: cssat.optics.lightcurve imports torch
+        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2  # heavy: cssat.optics.photometry imports torch
 
         sc, keep, noise, observed = self.scenario, self.keep, self.noise, self.observed
         self.unit = unit = ((sc.range_km * 1e3) ** 2 / SOLAR_IRRADIANCE_W_M2)[keep]  # W/m² → per unit irradiance and range
         self.sun_in, self.obs_in = sc.sun_dir[keep], sc.obs_dir[keep]
         self.true_frames = None
         if self.attitude is not None or observed is None:
-            from cssat.scene.attitude import nadir_pointing_frame
-
             frames_all = self.attitude.frames(sc) if self.attitude is not None else nadir_pointing_frame(sc.r_sat, sc.v_sat)
             self.true_frames = frames_all[keep]
         if observed is not None:
@@ -202,7 +197,7 @@ class EGILightCurve(ForwardModel):
 
     def _two_periods(self) -> None:
         """One period or two: a tumbling (non-principal-axis) light curve has two fundamental frequencies."""
-        from cssat.inversion import estimate_tumbling_periods
+        from cssat.inversion import estimate_tumbling_periods  # heavy: cssat.inversion imports torch
 
         fit, sigma, inv = self.fit, self.sigma, self.inv
         try:
@@ -220,8 +215,7 @@ class EGILightCurve(ForwardModel):
 
     def _attitude(self) -> None:
         """The frames of the fitted attitude, and the body-frame Sun and observer: the EGI operator's geometry."""
-        from cssat.inversion import estimate_spin, estimate_tumbling
-        from cssat.scene.attitude import to_body
+        from cssat.inversion import estimate_spin, estimate_tumbling  # heavy: cssat.inversion imports torch
 
         fit, sigma, spin_mode = self.fit, self.sigma, self.spin_mode
         if spin_mode == "known" and self.true_frames is None:

@@ -9,7 +9,11 @@ from typing import Any
 
 import numpy as np
 
+from cssat._tmpfiles import atomic_write
 from cssat.experiments.context import Run
+from cssat.experiments.files import write_csv, write_npz
+from cssat.plots import save_figure
+from cssat.scene.attitudes import Spin, Tumbling
 
 __all__ = ["solve_egi", "score_truth", "write_egi", "egi_recovered_share", "EGI_WEIGHT_SHARE", "EGI_MATCH_DEG"]
 
@@ -33,7 +37,7 @@ def egi_recovered_share(true_normals: np.ndarray, true_areas: np.ndarray, normal
 
 
 def _grid(n: int) -> np.ndarray:
-    from cssat.inversion import fibonacci_sphere
+    from cssat.inversion import fibonacci_sphere  # heavy: cssat.inversion imports torch
 
     return fibonacci_sphere(min(n, 2000)).numpy()
 
@@ -46,7 +50,7 @@ def solve_egi(f: Any) -> None:
     """The EGI on ``inversion.n_normals`` normals by the ``solver`` group's solver and its convex
     shape from the fitted samples (:func:`~cssat.inversion.invert_convex`), the model over every sample, the fit and held-out
     residuals against the noise, and the observability of the fitted geometry."""
-    from cssat.inversion import egi_operator, invert_convex, observability
+    from cssat.inversion import egi_operator, invert_convex, observability  # heavy: cssat.inversion imports torch
 
     fit, held, sigma, y = f.fit, f.held, f.sigma, f.y
     f.res = res = invert_convex(y[fit], f.sun_b[fit], f.obs_b[fit], brdf=f.brdf or "lambert", n_normals=f.n_normals,
@@ -72,9 +76,8 @@ def solve_egi(f: Any) -> None:
 def score_truth(f: Any) -> dict[str, np.ndarray]:
     """The recovered EGI and shape against the truth, in the fitted body frame at t = 0, and the
     attitude's pole and periods against the true spin or tumbling state; returns the true EGI."""
-    from cssat.inversion import egi
-    from cssat.inversion.shape import convex_iou
-    from cssat.scene.attitudes import Spin, Tumbling
+    from cssat.inversion import egi  # heavy: cssat.inversion imports torch
+    from cssat.inversion.shape import convex_iou  # heavy: cssat.inversion.shape imports torch
 
     res, metrics, attitude, sol = f.res, f.metrics, f.attitude, f.sol
     tn, ta = egi(f.mesh)
@@ -82,14 +85,14 @@ def score_truth(f: Any) -> dict[str, np.ndarray]:
     tn_fit = tn @ to_fit.T
     metrics["egi_recovered_share"] = egi_recovered_share(tn_fit, ta, res.normals, res.areas)
     if res.mesh is not None:
-        import trimesh
+        import trimesh  # heavy: trimesh, only for score_truth()
 
         hull = trimesh.convex.convex_hull(np.asarray(f.mesh.vertices) @ to_fit.T)
         metrics["shape_iou_hull"] = convex_iou(hull, res.mesh)
     if isinstance(attitude, Tumbling) and f.spin_mode == "tumbling":
         metrics.update(_tumbling_errors(attitude, sol.state))
     if isinstance(attitude, Spin) and sol is not None:
-        from cssat.inversion.spin import _separation_deg
+        from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
 
         metrics["period_error_relative"] = abs(sol.period_s - abs(attitude.period_s)) / abs(attitude.period_s)
         lon, lat = attitude.pole_lon_deg, attitude.pole_lat_deg
@@ -101,8 +104,8 @@ def score_truth(f: Any) -> dict[str, np.ndarray]:
 
 def _tumbling_errors(attitude: Any, st: Any) -> dict[str, Any]:
     """A searched torque-free state ``st`` against the attitude's own invariants."""
-    from cssat.inversion.spin import _separation_deg
-    from cssat.inversion.tumble import torque_free_invariants
+    from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
+    from cssat.inversion.tumble import torque_free_invariants  # heavy: cssat.inversion.tumble imports torch
 
     tr = torque_free_invariants(attitude.inertia, attitude.q0, attitude.omega0, st.frame)
     if tr is None:
@@ -117,8 +120,6 @@ def _tumbling_errors(attitude: Any, st: Any) -> dict[str, Any]:
 
 def write_egi(f: Any, run: Run) -> None:
     """``arrays.npz``, ``egi.csv``, ``lightcurve.csv``, ``shape.obj`` and the figures."""
-    from cssat.experiments.files import write_csv, write_npz
-
     out, res, t, sigma, truth = run.out_dir, f.res, f.t, f.sigma, f.truth
     write_npz(out / "arrays.npz", times=t, epoch_utc=np.array(str(f.scenario.times[0])), night=f.night, fit=f.fit,
               flux=f.y, sigma=sigma if sigma is not None else np.full_like(t, np.nan),
@@ -133,15 +134,13 @@ def write_egi(f: Any, run: Run) -> None:
          "model_W_m2": float(m), "night": int(n), "fitted": bool(ff)}
         for tt, v, s, m, n, ff in zip(f.scenario.times[f.keep], f.flux_w, sigma_w, f.model_unit / f.unit, f.night, f.fit)])
     if res.mesh is not None:
-        from cssat._tmpfiles import atomic_write
-
         atomic_write(out / "shape.obj", lambda tmp: res.mesh.export(str(tmp), file_type="obj"))
     _figures(f, run)
 
 
 def _figures(f: Any, run: Run) -> None:
-    from cssat.plots import save_figure
-    from cssat.plots.inversion import egi_figure, inversion_lightcurve_figure, observability_figure, shapes_figure
+    from cssat.plots.inversion import (  # heavy: cssat.plots.inversion imports matplotlib
+        egi_figure, inversion_lightcurve_figure, observability_figure, shapes_figure)
 
     res, truth, obs_info = f.res, f.truth, f.obs_info
     save_figure(inversion_lightcurve_figure(f.t / 3600.0, f.y, f.sigma, f.model_unit, f.fit), run.figure("inversion_lightcurve"))

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
+from cssat.experiments.resources import check_memory
 
 __all__ = ["night_mask", "night_index", "check_search", "check_size", "check_constrained", "MAX_STEPS",
            "MIN_OBSERVED_SAMPLES", "MIN_OBSERVED_NIGHTS"]
@@ -54,8 +55,6 @@ def check_size(cfg: Any, n_nights: int, n_faces: int, searched: bool = True, n_n
     step) and of the EGI operator on ``n_normals`` normals (``G (T, K)`` and its weighted copy;
     every step counted: an upper bound), before any is computed; ``searched``: the spin is
     searched (not given)."""
-    from cssat.experiments.resources import check_memory
-
     if cfg.get("observations"):
         return
     step = float_param(cfg.scenario.step_s, "scenario.step_s", 0.0, open_lo=True)

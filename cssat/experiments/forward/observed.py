@@ -51,8 +51,11 @@ import numpy as np
 
 from cssat._checks import FieldError, bool_param, choice_param, int_param
 from cssat.experiments.context import Run
+from cssat.experiments.files import write_csv, write_npz
 from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.forward.verdicts import VERDICT_STAGES, fitted_model, period_stage, spin_stage, tumbling_stage
+from cssat.experiments.scene import check_elements, read_observations
+from cssat.plots import save_figure
 
 __all__ = ["Observed", "observed_settings", "STAGE_MODES"]
 
@@ -63,14 +66,14 @@ CHARACTERISE_KEYS = {"tracks", "min_samples", "drop_penumbra", "min_nights", "ma
 
 
 def _opts(node: Any) -> dict:
-    from omegaconf import OmegaConf
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
 
     return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
 
 
 def observed_settings(cfg: Any) -> dict[str, Any]:
     """Every setting of the experiment checked before any work (a FieldError with its full key)."""
-    from cssat.inversion import estimate_period, estimate_tumbling_periods
+    from cssat.inversion import estimate_period, estimate_tumbling_periods  # heavy: cssat.inversion imports torch
 
     if not cfg.get("observations"):
         raise FieldError("observations", "characterise needs a light-curve file: observations=<path>")
@@ -123,8 +126,6 @@ class Observed(ForwardModel):
     def _read(self) -> None:
         """The light curve of ``observations`` with the ``observed`` settings, its tracks selected,
         a given element set checked against it; the file's own description in the metrics."""
-        from cssat.experiments.scene import check_elements, read_observations
-
         cfg, opt, m = self.cfg, self.opt, self.metrics
         lc = read_observations(cfg)
         if opt["tracks"] is not None:
@@ -175,8 +176,6 @@ class Observed(ForwardModel):
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
         """``tracks.csv``, ``alternatives.csv``, ``arrays.npz`` and the ``characterise`` figure."""
-        from cssat.experiments.files import write_csv, write_npz
-
         t, y, res, lc = self.t, self.y, self.res, self.lc
         arrays: dict[str, Any] = {"times_s": t, "values": y}
         if self.per_track:
@@ -188,8 +187,7 @@ class Observed(ForwardModel):
             write_csv(run.out_dir / "alternatives.csv", res["alternatives"] or [{"relation": "none"}])
         write_npz(run.out_dir / "arrays.npz", **arrays)
         if self.opt["figures"]:
-            from cssat.plots import save_figure
-            from cssat.plots.characterise import characterise_figure
+            from cssat.plots.characterise import characterise_figure  # heavy: cssat.plots.characterise imports matplotlib
 
             save_figure(characterise_figure(t, y, lc.magnitude_errors() if lc.kind == "magnitude" else lc.errors, res,
                                             arrays.get("model"), lc.kind, trend=arrays.get("trend")), run.figure("characterise"))

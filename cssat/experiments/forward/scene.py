@@ -32,8 +32,14 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import bool_param, float_param, int_param
+from cssat.experiments.build import build, build_model
 from cssat.experiments.context import Run
+from cssat.experiments.files import write_csv, write_npz
+from cssat.experiments.forward import Geometry
 from cssat.experiments.forward.base import ForwardModel
+from cssat.experiments.resources import check_memory
+from cssat.experiments.scene import build_scenario, read_observations
+from cssat.plots import atmosphere_figure, lightcurve_figure, observations_figure, save_figure
 
 __all__ = ["SceneLightCurve", "memory_parts"]
 
@@ -57,11 +63,6 @@ class SceneLightCurve(ForwardModel):
     timed_inside = ("measure", "estimate", "solve")
 
     def plan(self, cfg: Any, run: Run) -> None:
-        from cssat.experiments.build import build, build_model
-        from cssat.experiments.forward import Geometry
-        from cssat.experiments.resources import check_memory
-        from cssat.experiments.scene import read_observations
-
         self.cfg = cfg
         self.size = int_param(cfg.render.size, "render.size", 1, 4096)
         self.n_marks = int_param(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
@@ -82,10 +83,9 @@ class SceneLightCurve(ForwardModel):
                      "lower render.size or scenario.n_steps")
 
     def measure(self, run: Run) -> None:
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.experiments.scene import build_scenario
-        from cssat.optics import default_fov, render, simulate_light_curve
+        from cssat.optics import default_fov, render, simulate_light_curve  # heavy: cssat.optics imports torch
 
         with run.stage("scene"):
             self.scenario = build_scenario(self.cfg, self.times)
@@ -102,9 +102,9 @@ class SceneLightCurve(ForwardModel):
 
     def _attenuate(self, run: Run) -> None:
         """The facet-wise (Eq. 11) and pixel-wise (Eq. 12) attenuated noisy curves."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.physics import Measurement
+        from cssat.physics import Measurement  # heavy: cssat.physics imports torch
 
         atm, noise, seed, flux = self.atm, self.noise, run.seed, self.flux
         T = len(flux)
@@ -121,7 +121,7 @@ class SceneLightCurve(ForwardModel):
         """Nothing is reconstructed: the light curves are the result."""
 
     def score(self, run: Run) -> dict[str, Any]:
-        from cssat.optics import apparent_magnitude
+        from cssat.optics import apparent_magnitude  # heavy: cssat.optics imports torch
 
         self.mag, self.mag_f, self.mag_p = (apparent_magnitude(v).numpy()
                                             for v in (self.flux, self.facetwise.abs(), self.pixelwise.abs()))
@@ -133,9 +133,6 @@ class SceneLightCurve(ForwardModel):
                 **(brdf.describe() if brdf is not None else {"brdf": "mesh"}), **self.noise.describe(), "seed": run.seed}
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
-        from cssat.experiments.files import write_csv, write_npz
-        from cssat.plots import atmosphere_figure, lightcurve_figure, save_figure
-
         sc, flux, mag, marks, images = self.scenario, self.flux, self.mag, self.marks, self.images
         minutes = (sc.times - sc.times[0]) / np.timedelta64(1, "m")
         epoch = sc.times[0]
@@ -167,8 +164,6 @@ class SceneLightCurve(ForwardModel):
 def _compare(observed: Any, mag: np.ndarray, epoch: Any, run: Run) -> dict[str, Any]:
     """The measured curve against the simulated one on its stamps: the figure
     ``observations`` and the residuals' metrics (``observations_*``; magnitudes)."""
-    from cssat.plots import observations_figure, save_figure
-
     measured = observed.magnitudes()
     res = measured - mag
     ok = np.isfinite(res)  # a dark simulated step has an infinite magnitude

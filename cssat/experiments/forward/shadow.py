@@ -41,8 +41,15 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
+from cssat.experiments.build import build, build_model, build_solver, validate_solver
 from cssat.experiments.context import Run
+from cssat.experiments.files import write_npz
 from cssat.experiments.forward.base import ForwardModel
+from cssat.experiments.resources import check_memory
+from cssat.experiments.scene import build_scenario
+from cssat.plots import save_figure
+from cssat.plots.occultation import occultation_figures
+from cssat.scene.attitude import nadir_pointing_frame
 
 __all__ = ["Shadow", "MAX_EXPOSURES"]
 
@@ -75,8 +82,6 @@ class Shadow(ForwardModel):
     timed_inside = ("measure", "solve")
 
     def plan(self, cfg: Any, run: Run) -> None:
-        from cssat.experiments.build import build, build_model, build_solver
-
         self.cfg = cfg
         star, optics, array, sil, inv = (cfg.get(k) or {} for k in ("star", "optics", "array", "silhouette", "invert"))
         self.size = size = int_param(sil.get("size", 128), "silhouette.size", 8, 4096)
@@ -138,11 +143,9 @@ class Shadow(ForwardModel):
     def _geometry(self) -> None:
         """The scenario around the event, the star, the shadow's track and the line of sight in the
         body frame; the exposure against the grid and the memory, before the shadow is computed."""
-        from omegaconf import OmegaConf, open_dict
+        from omegaconf import OmegaConf, open_dict  # heavy: omegaconf; library code, importable without Hydra
 
-        from cssat.experiments.scene import build_scenario
-        from cssat.occultation import shadow_track, star_direction
-        from cssat.scene.attitude import nadir_pointing_frame
+        from cssat.occultation import shadow_track, star_direction  # heavy: cssat.occultation imports torch
 
         cfg, star = self.cfg, self.cfg.get("star") or {}
         cfg2 = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
@@ -169,8 +172,6 @@ class Shadow(ForwardModel):
     def _check_sampling(self, speed: float) -> None:
         """An exposure that smears over the whole grid, or so short that a series would hold more
         than :data:`MAX_EXPOSURES`; and the memory of the shadow and the series."""
-        from cssat.experiments.resources import check_memory
-
         size, pixel, ground, t_exp = self.size, self.pixel, self.ground, self.t_exp
         grid_m = size * pixel * ground
         if speed * t_exp > grid_m:
@@ -186,8 +187,6 @@ class Shadow(ForwardModel):
         parts = {"shadow fields (complex, per wavelength)": 16 * side * side * self.n_lam * 4,
                  "smoothing kernel": 8 * kernel_px * kernel_px * 4, "series": 8 * n_tel * n_exp * 6}
         if self.solver is not None:
-            from cssat.experiments.build import validate_solver
-
             validate_solver(self.solver, n_tel * n_exp, size * size)
         limit = self.cfg.get("memory_limit_gb")
         check_memory(parts, None if limit is None else float(limit), "lower silhouette.size or ground, or lengthen array.exposure_s")
@@ -195,13 +194,13 @@ class Shadow(ForwardModel):
     def _shadow(self) -> None:
         """The silhouette (the truth), its ground shadow and that shadow seen through an aperture, an
         exposure and the star's disk."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.occultation import pattern_kernel, shadow, silhouette, smooth
+        from cssat.occultation import pattern_kernel, shadow, silhouette, smooth  # heavy: cssat.occultation imports torch
 
         size, pixel, v, z = self.size, self.pixel, self.v, self.z
         if self.target == "bars":
-            from cssat.occultation import bar_target
+            from cssat.occultation import bar_target  # heavy: cssat.occultation imports torch
 
             self.truth = bar_target(size, pixel, self.bar_m)
         else:
@@ -220,9 +219,9 @@ class Shadow(ForwardModel):
 
     def _record(self, run: Run) -> None:
         """The telescopes placed across the track (a seeded ``fill`` of the slots) and their noisy series."""
-        import torch
+        import torch  # heavy: torch (~1 s); the module imports without it
 
-        from cssat.occultation import noisy, photons, record
+        from cssat.occultation import noisy, photons, record  # heavy: cssat.occultation imports torch
 
         v, speed, n_slots, D, t_exp = self.v, self.speed, self.n_slots, self.D, self.t_exp
         u = v / speed
@@ -242,7 +241,7 @@ class Shadow(ForwardModel):
                             photons_per_exposure=photons(self.mag, D, t_exp), star_magnitude=self.mag, aperture_m=D)
 
     def solve(self, run: Run) -> None:
-        from cssat.occultation import invert_linear, iou
+        from cssat.occultation import invert_linear, iou  # heavy: cssat.occultation imports torch
 
         self.geo = (self.y, self.sig, (self.size, self.size), self.pixel, self.lams, self.z, self.pos, self.v, self.times)
         with run.stage("invert_linear"):
@@ -256,14 +255,14 @@ class Shadow(ForwardModel):
 
     def _fit(self, run: Run) -> None:
         """The non-linear fit from the linear estimate, then the union of shapes where it fits to the noise."""
-        from cssat.occultation import invert_silhouette, iou
+        from cssat.occultation import invert_silhouette, iou  # heavy: cssat.occultation imports torch
 
         m, info = invert_silhouette(*self.geo, kernel=self.k, tv=self.tv_weight, iters=self.iters, n_starts=self.n_starts,
                                     seed=run.seed, init=self.linear, ground=self.ground)
         self.metrics.update(iou_pixels=iou(m, self.truth), chi2_per_sample_pixels=info["chi2_per_sample"])
         used, self.shapes = "pixels", None
         if self.prior != "pixels":
-            from cssat.occultation import fit_shapes
+            from cssat.occultation import fit_shapes  # heavy: cssat.occultation imports torch
 
             try:
                 ms, params, sinfo = fit_shapes(*self.geo, init_mask=m, kernel=self.k, ground=self.ground, iters=self.shape_iters)
@@ -283,7 +282,7 @@ class Shadow(ForwardModel):
         self.m, self.info = m, info
 
     def score(self, run: Run) -> dict[str, Any]:
-        from cssat.occultation import edge_width, feature_contrast, iou
+        from cssat.occultation import edge_width, feature_contrast, iou  # heavy: cssat.occultation imports torch
 
         size, m, truth, pixel = self.size, self.m, self.truth, self.pixel
         gy, gx = (self.I.shape[-2] - size) // 2, (self.I.shape[-1] - size) // 2
@@ -296,10 +295,6 @@ class Shadow(ForwardModel):
         return self.metrics
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
-        from cssat.experiments.files import write_npz
-        from cssat.plots import save_figure
-        from cssat.plots.occultation import occultation_figures
-
         extra = {} if self.linear is None else {"reconstruction_linear": self.linear}
         if self.shapes is not None:
             extra["shapes"] = self.shapes

@@ -15,6 +15,7 @@ import numpy as np
 
 from cssat._checks import FieldError
 from cssat.experiments.context import Run
+from cssat.experiments.scene import build_scenario, check_elements
 
 __all__ = ["VERDICT_STAGES", "MAX_RANGE_MISMATCH", "MAX_PHASE_MISMATCH_DEG", "period_stage", "per_track",
            "tumbling_stage", "spin_stage", "compare_geometry", "fitted_model"]
@@ -32,7 +33,7 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
     it holds several tracks, each track apart (``tracks.csv``); the whole may be out of reach
     (tracks days apart: too many trial frequencies), the tracks then answer alone. Returns
     :func:`~cssat.inversion.estimate_period`'s result (``None``: off or out of reach)."""
-    from cssat.inversion import estimate_period
+    from cssat.inversion import estimate_period  # heavy: cssat.inversion imports torch
 
     if opt["modes"]["period"] == "off":
         m["stage_period"] = "off"
@@ -87,7 +88,7 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
 def per_track(t: np.ndarray, y: np.ndarray, sig: np.ndarray | None, tracks: np.ndarray, kw: dict[str, Any],
               min_samples: int) -> list[dict[str, Any]]:
     """One row per track: its own period analysis (or why none: too few samples)."""
-    from cssat.inversion import estimate_period
+    from cssat.inversion import estimate_period  # heavy: cssat.inversion imports torch
 
     rows = []
     for k in dict.fromkeys(tracks):
@@ -112,7 +113,7 @@ def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray,
                    res: dict[str, Any] | None, m: dict[str, Any]) -> None:
     """The tumbling stage: :func:`~cssat.inversion.estimate_tumbling_periods`'s verdict when the
     curve holds enough samples (and cycles) for its 2-D series of order ``tumbling.order``."""
-    from cssat.inversion import estimate_tumbling_periods
+    from cssat.inversion import estimate_tumbling_periods  # heavy: cssat.inversion imports torch
 
     mode = opt["modes"]["tumbling"]
     if mode == "off":
@@ -156,7 +157,7 @@ def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray,
     if mode == "off":
         m["stage_spin"] = "off"
         return
-    from cssat.inversion.fourier import stretches
+    from cssat.inversion.fourier import stretches  # heavy: cssat.inversion.fourier imports torch
 
     nights = len(np.unique(stretches(t, min_gap_s=6 * 3600.0)))
     missing = []
@@ -172,9 +173,8 @@ def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray,
             raise FieldError("stages.spin", why)
         m["stage_spin"] = f"skipped: {why}"
         return
-    from cssat.experiments.scene import build_scenario, check_elements
-    from cssat.inversion import estimate_spin, minkowski
-    from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
+    from cssat.inversion import estimate_spin, minkowski  # heavy: cssat.inversion imports torch
+    from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2  # heavy: cssat.optics.photometry imports torch
 
     with run_.stage("spin"):
         check_elements(cfg, lc, opt["max_epoch_days"])
@@ -211,7 +211,7 @@ def fitted_model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int
                  tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The chosen Fourier series with each track's offset and trend at ``t``, and that offset
     and trend alone (the fold shows the curve less it)."""
-    from cssat.inversion.fourier import _Curve, _design
+    from cssat.inversion.fourier import _Curve, _design  # heavy: cssat.inversion.fourier imports torch
 
     if not np.isfinite(res["best_period_s"]):
         flat = np.full_like(y, np.mean(y))
