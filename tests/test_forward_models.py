@@ -150,3 +150,22 @@ def test_the_models_settings_are_refused_before_work(tmp_path, base, bad, field)
     with pytest.raises(FieldError, match=field):
         run_experiment(cfg_of(*base, *bad), tmp_path / "bad")
     assert not (tmp_path / "bad" / "arrays.npz").exists()
+
+
+@pytest.mark.parametrize("base, bad, field", [
+    (OCC_TINY, ["optics.wavelength_m=1e9"], r"optics\.wavelength_m: must be a finite number in \[1e-07, 3e-05\]"),
+    (OCC_TINY, ["optics.bandwidth_m=1e-6"], r"optics\.bandwidth_m"),
+    (OCC_TINY, ["silhouette.pixel_m=1e300"], r"silhouette\.pixel_m: .* more than 1000 m"),
+    (EGI_TINY, ["inversion.spin=search", "inversion.max_period_s=1e300", "inversion.min_period_s=1800"],
+     r"inversion\.max_period_s: 1e\+300 s is longer than the 172800 s the light curve spans"),
+])
+def test_extreme_values_that_pass_a_sign_check_are_refused(tmp_path, base, bad, field):
+    """Values a "> 0" check lets through: a wavelength of a kilometre (was a traceback), a pixel of
+    1e300 m (was refused as a 5e302-slot array), a spin period beyond the span (ran 50 s to a
+    pole 160° off)."""
+    from cssat._checks import FieldError
+    from cssat.experiments import run_experiment
+
+    with pytest.raises(FieldError, match=field):
+        run_experiment(cfg_of(*base, *bad), tmp_path / "bad")
+    assert not (tmp_path / "bad" / "arrays.npz").exists()

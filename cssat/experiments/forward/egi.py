@@ -41,7 +41,7 @@ from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.forward.egi_score import (EGI_MATCH_DEG, EGI_WEIGHT_SHARE, egi_recovered_share, score_truth, solve_egi,
                                                  write_egi)
 from cssat.experiments.forward.nights import (check_constrained, check_search, check_size, night_index, night_mask,
-                                              nights_settings)
+                                              nights_settings, span_seconds)
 from cssat.experiments.scene import build_scenario, check_elements, read_observations
 from cssat.scene.attitude import nadir_pointing_frame, to_body
 from cssat.scene.attitudes import Spin, Tumbling
@@ -95,6 +95,8 @@ class EGILightCurve(ForwardModel):
         self.mesh = build_model(cfg.model)
         self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         self.observed = read_observations(cfg)
+        if self.observed is None:  # a measured file's span is checked once its usable nights are (measure)
+            check_search(self.search, span_seconds(cfg, None, self.n_nights))
         self.auto = spin_mode == "auto"
         self.spin_mode = self._resolve(spin_mode)
         check_size(cfg, self.n_nights, len(self.mesh.faces) if hasattr(self.mesh, "faces") else 0, self.spin_mode != "known",
@@ -149,6 +151,8 @@ class EGILightCurve(ForwardModel):
         validate_solver(self.solver, int(keep.sum()), self.n_normals)
         if observed is not None:
             check_constrained(observed, t, night)
+            if self.spin_mode != "known":
+                check_search(self.search, span_seconds(cfg, observed, self.n_nights))
             if observed.ranges_km is not None:  # the file's own range against the element set's
                 self.metrics["range_diff_km_median"] = float(np.median(np.abs(scenario.range_km - observed.ranges_km)[keep]))
 

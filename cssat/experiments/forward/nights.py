@@ -13,7 +13,7 @@ import numpy as np
 from cssat._checks import FieldError, float_param, int_param
 from cssat.experiments.resources import check_memory
 
-__all__ = ["night_mask", "night_index", "check_search", "check_size", "check_constrained", "MAX_STEPS",
+__all__ = ["night_mask", "night_index", "check_search", "span_seconds", "check_size", "check_constrained", "MAX_STEPS",
            "MIN_OBSERVED_SAMPLES", "MIN_OBSERVED_NIGHTS"]
 
 #: the most time steps a simulated scenario may hold (nights.n × 86400 / scenario.step_s)
@@ -39,14 +39,26 @@ def night_index(seconds: np.ndarray, gap_s: float = 6 * 3600.0) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(np.diff(seconds) > gap_s)]).astype(int)
 
 
-def check_search(search: dict[str, Any]) -> None:
-    """The spin search's settings (``inversion.*``), each in its range."""
+def check_search(search: dict[str, Any], span_s: float | None = None) -> None:
+    """The spin search's settings (``inversion.*``), each in its range; the longest period
+    searched at most ``span_s``, the time the light curve spans (a longer one is not determined)."""
     for key, lo in (("n_poles", 1), ("n_starts", 1), ("n_refine", 1), ("coarse_normals", 16), ("coarse_samples", 16),
                     ("max_samples", 16)):
         if key in search:
             int_param(search[key], f"inversion.{key}", lo, 10**6)
     lo = float_param(search.get("min_period_s", 60.0), "inversion.min_period_s", 0.0, open_lo=True)
-    float_param(search.get("max_period_s", 86400.0), "inversion.max_period_s", lo, open_lo=True)
+    hi = float_param(search.get("max_period_s", 86400.0), "inversion.max_period_s", lo, open_lo=True)
+    if span_s is not None and hi > span_s:
+        raise FieldError("inversion.max_period_s", f"{hi:g} s is longer than the {span_s:g} s the light curve spans: "
+                                                   "a period is determined only within the span")
+
+
+def span_seconds(cfg: Any, observed: Any, n_nights: int) -> float:
+    """The time a light curve spans: a measured file's first to last stamp, or ``nights.n`` days."""
+    if observed is not None:
+        t = observed.times_utc
+        return float((t[-1] - t[0]) / np.timedelta64(1, "s")) if len(t) > 1 else 0.0
+    return n_nights * 86400.0
 
 
 def check_size(cfg: Any, n_nights: int, n_faces: int, searched: bool = True, n_normals: int = 0) -> None:

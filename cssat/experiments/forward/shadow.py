@@ -63,6 +63,8 @@ _KEYS = {"star": ("ra_deg", "dec_deg", "magnitude", "diameter_mas", "limb_darken
          "invert": ("init", "tv", "iters", "n_starts", "prior", "shape_iters", "feature_m")}
 #: the most exposures a telescope's series may hold
 MAX_EXPOSURES = 1_000_000
+#: the widest silhouette grid (m): silhouette.size × silhouette.pixel_m
+MAX_SILHOUETTE_M = 1000.0
 
 
 def _known_keys(*nodes: Any) -> None:
@@ -86,8 +88,9 @@ class Shadow(ForwardModel):
         star, optics, array, sil, inv = (cfg.get(k) or {} for k in ("star", "optics", "array", "silhouette", "invert"))
         self.size = size = int_param(sil.get("size", 128), "silhouette.size", 8, 4096)
         self.pixel = pixel = float_param(sil.get("pixel_m", 0.2), "silhouette.pixel_m", 0.0, open_lo=True)
-        self.lam = float_param(optics.get("wavelength_m", 550e-9), "optics.wavelength_m", 0.0, open_lo=True)
-        self.band = float_param(optics.get("bandwidth_m", 0.0), "optics.bandwidth_m", 0.0)
+        # the Fresnel shadow of a star in a filter: from the near UV to the thermal infrared
+        self.lam = float_param(optics.get("wavelength_m", 550e-9), "optics.wavelength_m", 1e-7, 3e-5)
+        self.band = float_param(optics.get("bandwidth_m", 0.0), "optics.bandwidth_m", 0.0, self.lam)
         self.n_lam = int_param(optics.get("n_wavelengths", 1), "optics.n_wavelengths", 1, 64)
         self.mag = float_param(star.get("magnitude", 8.0), "star.magnitude", -30.0, 30.0)
         if (star.get("ra_deg") is None) != (star.get("dec_deg") is None):
@@ -121,6 +124,9 @@ class Shadow(ForwardModel):
         self.feat = float_param(feat if feat is not None else (self.bar_m if self.target == "bars" else 0.5),
                                 "invert.feature_m", 0.0, open_lo=True)
         grid_m = size * pixel * ground  # the ground grid's side
+        if size * pixel > MAX_SILHOUETTE_M:
+            raise FieldError("silhouette.pixel_m", f"{pixel:g} m × {size} pixels is a {size * pixel:.3g} m silhouette, more than "
+                                                   f"{MAX_SILHOUETTE_M:g} m: a satellite is metres to tens of metres across")
         if D > grid_m:
             raise FieldError("array.aperture_m", f"{D:g} m is wider than the ground grid ({grid_m:g} m: silhouette.size × "
                                                  "pixel_m × ground): the aperture would average the whole shadow away")
