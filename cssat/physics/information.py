@@ -1,15 +1,23 @@
-"""What the light curve can tell about the image, whatever the solver: Fisher information and
-Cramér–Rao bounds of the image's low-frequency modes (issue 22).
+"""What the light curve can tell about the image without prior knowledge of it: Fisher information
+and Cramér–Rao bounds of the image's low-frequency modes (issue 22).
 
 For ``y = Φx + n`` with independent Gaussian noise of variance ``σᵢ²`` per sample (the photon,
 read and systematic noise of :meth:`cssat.physics.PhotometricNoise.variance`), the Fisher
 information of the image is ``F = Φᵀ Σ⁻¹ Φ`` (Kay 1993, Eq. 3.31). In the 2-D DCT basis ``Ψ``
 restricted to its ``K`` lowest-frequency modes (the image's flux, gradients, second moments,
 …), ``F_K = (ΦΨ_K)ᵀ Σ⁻¹ (ΦΨ_K)``; the Cramér–Rao bound of mode ``k`` is ``[F_K⁻¹]_kk`` and its
-SNR is ``|α_k| / √[F_K⁻¹]_kk`` for the true coefficient ``α_k``. A mode with SNR < 1 cannot be
-told from zero by any unbiased estimator. The bound is *optimistic* — every mode above ``K`` is
-taken as known and Φ as known exactly (an oracle) — so a mode it calls unmeasurable is
-unmeasurable for every solver; one it calls measurable may still be lost by a real one.
+SNR is ``|α_k| / √[F_K⁻¹]_kk`` for the true coefficient ``α_k``.
+
+What the bound proves, and what it does not. It bounds the variance of **unbiased** estimators
+of the modes, given the model: Φ known exactly (an oracle), the noise Gaussian with these
+variances, every mode above ``K`` known. A mode with SNR < 1 cannot be told from zero at 1σ by
+any unbiased estimator that knows no more than that. It does **not** bound a biased estimator:
+a prior — sparsity in a basis, non-negativity, total variation, a shape model, the set of
+satellites it could be — trades bias for variance and may recover a mode the bound calls
+unmeasurable (it then recovers it from the prior as much as from the light curve, and is as right
+as the prior is). It is optimistic about the model (Φ and the higher modes known), so a mode it
+calls measurable may still be lost by a real solver that has to estimate them; and the SNR is that
+of the truth's own coefficient, not a probability of detection.
 
 Φ unknown, its statistics known: with independent samples the light curve is a sequence of
 draws whose law depends on ``x`` only through the moments of ``φᵀx``; to second order (a
