@@ -212,7 +212,7 @@ def _solve_with(solver: Any, G: Any, y: np.ndarray, sigma: Any, closure: float) 
     ``n_nonzero``, ``method``: the solver's name, ``closure_norm``) plus the solver's own."""
     import torch  # heavy: torch (~1 s); the module imports without it
 
-    from cssat.sparse.nonneg import weighted_system  # heavy: cssat.sparse.nonneg imports torch
+    from cssat.sparse.nonneg import fit_summary, weighted_system  # heavy: cssat.sparse.nonneg imports torch
     from cssat.sparse.problem import Problem  # heavy: cssat.sparse.problem imports torch
 
     if hasattr(solver, "closure"):
@@ -220,11 +220,9 @@ def _solve_with(solver: Any, G: Any, y: np.ndarray, sigma: Any, closure: float) 
     x, sinfo = solver(Problem(G, (G.n_in,), noise_sigma=sigma), torch.as_tensor(y, dtype=torch.float64))
     a = np.asarray(x.detach().cpu().numpy() if hasattr(x, "detach") else x, dtype=np.float64).reshape(-1)
     A, b = weighted_system(G.matrix().numpy(), y, sigma)
-    r = A @ a - b
-    normals = G.normals.detach().cpu().double().numpy()
     info = {k: v for k, v in sinfo.items() if k not in ("solver_chi2", "solver_n_nonzero")}
-    info.update(chi2=float(r @ r), n_nonzero=int((a > 1e-12 * max(float(a.max()), 1e-300)).sum()),
-                method=getattr(solver, "name", type(solver).__name__), closure_norm=float(np.linalg.norm(normals.T @ a)))
+    info.update(fit_summary(A, b, len(y), a), method=getattr(solver, "name", type(solver).__name__),
+                closure_norm=float(np.linalg.norm(G.equalities() @ a)))
     return a, info
 
 

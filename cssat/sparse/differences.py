@@ -16,7 +16,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-__all__ = ["Differences", "ImageGradient", "GraphDifferences", "tv_gradient", "tv_divergence", "grid_differences",
+from cssat._checks import FieldError
+
+__all__ = ["image_shape", "Differences", "ImageGradient", "GraphDifferences", "tv_gradient", "tv_divergence", "grid_differences",
            "knn_differences"]
 
 
@@ -36,6 +38,16 @@ def tv_divergence(p: Tensor) -> Tensor:
     d[:, :, :-1] += p[:, 1, :, :-1]
     d[:, :, 1:] -= p[:, 1, :, :-1]
     return d
+
+
+def image_shape(shape: Sequence[int], n_pixels: int) -> tuple[int, int]:
+    """``shape`` as an image's ``(H, W)`` of ``n_pixels`` pixels, or a :class:`FieldError` naming ``shape``."""
+    if len(tuple(shape)) != 2:
+        raise FieldError("shape", f"total variation works on images (H, W); the unknown has shape {tuple(shape)}")
+    H, W = (int(s) for s in shape)
+    if H * W != n_pixels:
+        raise FieldError("shape", f"{tuple(shape)} does not match the operator's {n_pixels} pixels")
+    return H, W
 
 
 class Differences:

@@ -33,7 +33,7 @@ from cssat.sparse.operators import MatrixOperator
 from cssat.sparse.solvers import fista_l1
 from cssat.sparse.tv_admm import tv_admm, tv_discrepancy
 
-__all__ = ["METHODS", "lam_param", "weighted_system", "nonneg_solve"]
+__all__ = ["METHODS", "lam_param", "weighted_system", "nonneg_solve", "fit_summary"]
 
 METHODS = ("nnls", "nnomp", "l1", "tv")
 #: the TV solve's relative primal residual and change at the end (ADMM)
@@ -98,9 +98,16 @@ def nonneg_solve(A: np.ndarray, b: np.ndarray, n_data: int, *, method: str = "nn
             if differences.shape[1] != A.shape[1]:
                 raise FieldError("differences", f"{differences.shape[1]} columns for {A.shape[1]} unknowns")
             x, info = _nntv(A, b, T, differences, lam, max_iter)
-    r = A[:T] @ x - b[:T]
-    info.update(chi2=float(r @ r), n_nonzero=int((x > 1e-12 * max(float(x.max()), 1e-300)).sum()), method=method)
+    info.update(fit_summary(A, b, T, x), method=method)
     return x, info
+
+
+def fit_summary(A: np.ndarray, b: np.ndarray, n_data: int, x: np.ndarray) -> dict[str, Any]:
+    """``chi2`` — the square norm of the residual on the first ``n_data`` rows of the system
+    (:func:`weighted_system`'s data rows, without its constraints) — and ``n_nonzero``, the
+    entries of ``x`` above ``1e-12 × max x``."""
+    r = A[:n_data] @ x - b[:n_data]
+    return {"chi2": float(r @ r), "n_nonzero": int((x > 1e-12 * max(float(x.max()), 1e-300)).sum())}
 
 
 def _by_discrepancy(solve: Any, A: np.ndarray, b: np.ndarray, T: int) -> tuple[np.ndarray, dict]:
@@ -108,8 +115,7 @@ def _by_discrepancy(solve: Any, A: np.ndarray, b: np.ndarray, T: int) -> tuple[n
     bisection in log₁₀ λ to 0.05 decades, or to χ² within 2 % of ``T``. When even 1e-9
     misfits (a model error, not noise) that solve is returned, ``discrepancy_met`` False."""
     def chi2(x: np.ndarray) -> float:
-        r = A[:T] @ x - b[:T]
-        return float(r @ r)
+        return fit_summary(A, b, T, x)["chi2"]
 
     lo, hi = -9.0, 0.0
     a, info = solve(10.0 ** lo)

@@ -20,7 +20,7 @@ from torch import Tensor
 
 from cssat._checks import FieldError
 from cssat.sparse._io import numpy_io
-from cssat.sparse.differences import tv_divergence, tv_gradient
+from cssat.sparse.differences import image_shape, tv_divergence, tv_gradient
 from cssat.sparse.iterate import Iteration, relative_change, run_iterations
 from cssat.sparse.operators import LinearOperator, as_operator
 from cssat.sparse.tv_admm import relative_weight
@@ -195,15 +195,6 @@ class _ChambollePock(Iteration):
         return float((0.5 * (r * r).sum(1) + self.lam_abs.flatten() * tv).sum())
 
 
-def _image_shape(op: LinearOperator, shape: Sequence[int]) -> tuple[int, int]:
-    if len(tuple(shape)) != 2:
-        raise FieldError("shape", f"total variation works on images (H, W); the unknown has shape {tuple(shape)}")
-    H, W = (int(s) for s in shape)
-    if H * W != op.n_in:
-        raise FieldError("shape", f"{tuple(shape)} does not match the operator's {op.n_in} pixels")
-    return H, W
-
-
 @numpy_io
 def tv_pdhg(
     phi: OperatorLike,
@@ -228,7 +219,7 @@ def tv_pdhg(
     ``callback`` as in :func:`fista_l1`.
     """
     op = as_operator(phi, "phi")
-    H, W = _image_shape(op, shape)
+    H, W = image_shape(shape, op.n_in)
     y2, squeeze = _check(y, op.n_out, lam, max_iter, rtol)
     B = y2.shape[0]
     step = 0.99 / math.sqrt(operator_norm_sq(op, dtype=y2.dtype, device=y2.device) + 8.0)
@@ -291,7 +282,7 @@ def pnp_pgd(
     value per iteration). ``progress`` and ``callback`` as in :func:`fista_l1`.
     """
     op = as_operator(phi, "phi")
-    H, W = _image_shape(op, shape)
+    H, W = image_shape(shape, op.n_in)
     y2, squeeze = _rows(y, op.n_out)
     sigmas = [float(s) for s in sigmas]
     if not sigmas or any(not (math.isfinite(s) and s >= 0) for s in sigmas):

@@ -28,9 +28,9 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
+from cssat.sparse.differences import Differences, ImageGradient, image_shape
 from cssat.sparse.iterate import Iteration, RunInfo, run_iterations
 from cssat.sparse.operators import LinearOperator, as_operator
-from cssat.sparse.differences import Differences, ImageGradient
 
 if TYPE_CHECKING:
     from cssat._types import OperatorLike
@@ -159,9 +159,7 @@ def _differences(op: LinearOperator, shape: Sequence[int] | Differences) -> tupl
     if isinstance(shape, Differences):
         D, out = shape, (shape.n,)
     else:
-        out = tuple(int(s) for s in shape)
-        if len(out) != 2 or out[0] * out[1] != op.n_in:
-            raise FieldError("shape", f"{tuple(shape)} does not match the operator's {op.n_in} pixels")
+        out = image_shape(shape, op.n_in)
         D = ImageGradient(out)
     if D.n != op.n_in:
         raise FieldError("differences", f"{D.n} columns for the operator's {op.n_in} unknowns")
