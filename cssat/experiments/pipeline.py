@@ -66,12 +66,14 @@ def _node(cfg: Any, key: str) -> Any:
     return cfg.get(key) if hasattr(cfg, "get") else None
 
 
-def plan(cfg: Any, run: Run) -> Plan:
-    """Build every stage of ``cfg`` and check the run fits in memory, before any work."""
+def plan(cfg: Any, run: Run, forward: Any = None) -> Plan:
+    """Build every stage of ``cfg`` and check the run fits in memory, before any work; ``forward``:
+    the ``forward`` group's sensing model when the caller has built it already."""
     import torch  # heavy: torch (~1 s); the module imports without it
 
     target = build(cfg.target, "target")
-    forward = build(cfg.forward, "forward") if _node(cfg, "forward") is not None else PixelSensing()
+    if forward is None:
+        forward = build(cfg.forward, "forward") if _node(cfg, "forward") is not None else PixelSensing()
     geometry = build(cfg.geometry, "geometry") if _node(cfg, "geometry") is not None else Geometry()
     atmosphere = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs())
     if getattr(atmosphere, "emitters", "pixels") != "pixels":
@@ -222,8 +224,12 @@ class ImagePipeline(ForwardModel):
     name = "image"
     timed_inside = ("measure", "estimate", "solve")
 
+    def __init__(self, sensing: Any = None):
+        """``sensing``: the ``forward`` group's image model, already built (None: built by :func:`plan`)."""
+        self.sensing = sensing
+
     def plan(self, cfg: Any, run: Run) -> None:
-        self.p = plan(cfg, run)
+        self.p = plan(cfg, run, self.sensing)
 
     def measure(self, run: Run) -> None:
         self.res = execute(self.p, run)

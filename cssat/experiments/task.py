@@ -28,5 +28,5 @@ def run(cfg: Any, out_dir: Any) -> dict[str, Any]:
         node = cfg.get("forward")
         model = build(node, "forward") if node is not None else None
     if not isinstance(model, ForwardModel):  # an image sensing model (pixels, a moving scene): the image stages
-        model = ImagePipeline()
+        model = ImagePipeline(model)
     return run_model(model, cfg, run_)

@@ -33,6 +33,7 @@ import logging
 from typing import Any
 
 import numpy as np
+import torch
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 from cssat.experiments.build import build, build_model, build_solver, validate_solver
@@ -43,6 +44,10 @@ from cssat.experiments.forward.egi_score import (EGI_MATCH_DEG, EGI_WEIGHT_SHARE
 from cssat.experiments.forward.nights import (check_constrained, check_search, check_size, night_index, night_mask,
                                               nights_settings, span_seconds)
 from cssat.experiments.scene import build_scenario, check_elements, read_observations
+from cssat.inversion import estimate_spin, estimate_tumbling, estimate_tumbling_periods
+from cssat.inversion.tumble import check_tumbling_options
+from cssat.optics.lightcurve import simulate_light_curve
+from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
 from cssat.scene.attitude import nadir_pointing_frame, to_body
 from cssat.scene.attitudes import Spin, Tumbling
 
@@ -70,8 +75,6 @@ class EGILightCurve(ForwardModel):
     timed_inside = ("measure", "estimate", "solve")
 
     def plan(self, cfg: Any, run: Run) -> None:
-        from cssat.inversion.tumble import check_tumbling_options  # heavy: cssat.inversion.tumble imports torch
-
         self.cfg = cfg
         self.n_nights, self.n_fit, self.sun_alt, self.min_el = nights_settings(cfg)
         inv = self.inv = cfg.get("inversion") or {}
@@ -91,12 +94,12 @@ class EGILightCurve(ForwardModel):
                                        "the sphere's normals: solver=nnls|nnomp|nnl1|nntv (nntv: TV on the sphere)")
         self.closure = float_param(inv.get("closure", 1.0), "inversion.closure", 0.0)
         self.search = {k: inv[k] for k in SEARCH_KEYS if inv.get(k) is not None}
-        check_search(self.search)  # the spin search's settings, before any work, with their full keys
         self.mesh = build_model(cfg.model)
         self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         self.observed = read_observations(cfg)
-        if self.observed is None:  # a measured file's span is checked once its usable nights are (measure)
-            check_search(self.search, span_seconds(cfg, None, self.n_nights))
+        # the spin search's settings, before any work, with their full keys; the longest period against a
+        # simulation's span here, against a measured file's once its usable nights are known (measure)
+        check_search(self.search, span_seconds(cfg, None, self.n_nights) if self.observed is None else None)
         self.auto = spin_mode == "auto"
         self.spin_mode = self._resolve(spin_mode)
         check_size(cfg, self.n_nights, len(self.mesh.faces) if hasattr(self.mesh, "faces") else 0, self.spin_mode != "known",
@@ -147,7 +150,6 @@ class EGILightCurve(ForwardModel):
         self.night = night = night_index(t)
         self.scenario, self.keep = scenario, keep
         self.metrics.update(n_samples=int(keep.sum()), n_nights_observed=int(night.max() + 1))
-
         validate_solver(self.solver, int(keep.sum()), self.n_normals)
         if observed is not None:
             check_constrained(observed, t, night)
@@ -158,11 +160,6 @@ class EGILightCurve(ForwardModel):
 
     def _light_curve(self, run: Run) -> None:
         """The light curve per unit irradiance and range, its 1σ, the fitted and held-out nights."""
-        import torch  # heavy: torch (~1 s); the module imports without it
-
-        from cssat.optics.lightcurve import simulate_light_curve  # heavy: cssat.optics.lightcurve imports torch
-        from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2  # heavy: cssat.optics.photometry imports torch
-
         sc, keep, noise, observed = self.scenario, self.keep, self.noise, self.observed
         self.unit = unit = ((sc.range_km * 1e3) ** 2 / SOLAR_IRRADIANCE_W_M2)[keep]  # W/m² → per unit irradiance and range
         self.sun_in, self.obs_in = sc.sun_dir[keep], sc.obs_dir[keep]
@@ -201,8 +198,6 @@ class EGILightCurve(ForwardModel):
 
     def _two_periods(self) -> None:
         """One period or two: a tumbling (non-principal-axis) light curve has two fundamental frequencies."""
-        from cssat.inversion import estimate_tumbling_periods  # heavy: cssat.inversion imports torch
-
         fit, sigma, inv = self.fit, self.sigma, self.inv
         try:
             tp = estimate_tumbling_periods(self.t[fit], self.y[fit], sigma=None if sigma is None else sigma[fit],
@@ -219,8 +214,6 @@ class EGILightCurve(ForwardModel):
 
     def _attitude(self) -> None:
         """The frames of the fitted attitude, and the body-frame Sun and observer: the EGI operator's geometry."""
-        from cssat.inversion import estimate_spin, estimate_tumbling  # heavy: cssat.inversion imports torch
-
         fit, sigma, spin_mode = self.fit, self.sigma, self.spin_mode
         if spin_mode == "known" and self.true_frames is None:
             raise FieldError("inversion.spin", "'known' needs an attitude model (attitude=...) for a measured light curve")

@@ -39,6 +39,7 @@ import math
 from typing import Any
 
 import numpy as np
+import torch
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 from cssat.experiments.build import build, build_model, build_solver, validate_solver
@@ -47,6 +48,9 @@ from cssat.experiments.files import write_npz
 from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.resources import check_memory
 from cssat.experiments.scene import build_scenario
+from cssat.occultation import (bar_target, edge_width, feature_contrast, fit_shapes, invert_linear, invert_silhouette,
+                               iou, noisy, pattern_kernel, photons, record, shadow, shadow_track, silhouette, smooth,
+                               star_direction)
 from cssat.plots import save_figure
 from cssat.plots.occultation import occultation_figures
 from cssat.scene.attitude import nadir_pointing_frame
@@ -151,8 +155,6 @@ class Shadow(ForwardModel):
         body frame; the exposure against the grid and the memory, before the shadow is computed."""
         from omegaconf import OmegaConf, open_dict  # heavy: omegaconf; library code, importable without Hydra
 
-        from cssat.occultation import shadow_track, star_direction  # heavy: cssat.occultation imports torch
-
         cfg, star = self.cfg, self.cfg.get("star") or {}
         cfg2 = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
         with open_dict(cfg2):
@@ -200,14 +202,8 @@ class Shadow(ForwardModel):
     def _shadow(self) -> None:
         """The silhouette (the truth), its ground shadow and that shadow seen through an aperture, an
         exposure and the star's disk."""
-        import torch  # heavy: torch (~1 s); the module imports without it
-
-        from cssat.occultation import pattern_kernel, shadow, silhouette, smooth  # heavy: cssat.occultation imports torch
-
         size, pixel, v, z = self.size, self.pixel, self.v, self.z
         if self.target == "bars":
-            from cssat.occultation import bar_target  # heavy: cssat.occultation imports torch
-
             self.truth = bar_target(size, pixel, self.bar_m)
         else:
             self.truth = silhouette(self.mesh, self.view, pixel, size)
@@ -225,10 +221,6 @@ class Shadow(ForwardModel):
 
     def _record(self, run: Run) -> None:
         """The telescopes placed across the track (a seeded ``fill`` of the slots) and their noisy series."""
-        import torch  # heavy: torch (~1 s); the module imports without it
-
-        from cssat.occultation import noisy, photons, record  # heavy: cssat.occultation imports torch
-
         v, speed, n_slots, D, t_exp = self.v, self.speed, self.n_slots, self.D, self.t_exp
         u = v / speed
         across = np.array([-u[1], u[0]])
@@ -247,8 +239,6 @@ class Shadow(ForwardModel):
                             photons_per_exposure=photons(self.mag, D, t_exp), star_magnitude=self.mag, aperture_m=D)
 
     def solve(self, run: Run) -> None:
-        from cssat.occultation import invert_linear, iou  # heavy: cssat.occultation imports torch
-
         self.geo = (self.y, self.sig, (self.size, self.size), self.pixel, self.lams, self.z, self.pos, self.v, self.times)
         with run.stage("invert_linear"):
             self.linear = None
@@ -261,15 +251,11 @@ class Shadow(ForwardModel):
 
     def _fit(self, run: Run) -> None:
         """The non-linear fit from the linear estimate, then the union of shapes where it fits to the noise."""
-        from cssat.occultation import invert_silhouette, iou  # heavy: cssat.occultation imports torch
-
         m, info = invert_silhouette(*self.geo, kernel=self.k, tv=self.tv_weight, iters=self.iters, n_starts=self.n_starts,
                                     seed=run.seed, init=self.linear, ground=self.ground)
         self.metrics.update(iou_pixels=iou(m, self.truth), chi2_per_sample_pixels=info["chi2_per_sample"])
         used, self.shapes = "pixels", None
         if self.prior != "pixels":
-            from cssat.occultation import fit_shapes  # heavy: cssat.occultation imports torch
-
             try:
                 ms, params, sinfo = fit_shapes(*self.geo, init_mask=m, kernel=self.k, ground=self.ground, iters=self.shape_iters)
                 n_y = int(self.y.numel())
@@ -288,8 +274,6 @@ class Shadow(ForwardModel):
         self.m, self.info = m, info
 
     def score(self, run: Run) -> dict[str, Any]:
-        from cssat.occultation import edge_width, feature_contrast, iou  # heavy: cssat.occultation imports torch
-
         size, m, truth, pixel = self.size, self.m, self.truth, self.pixel
         gy, gx = (self.I.shape[-2] - size) // 2, (self.I.shape[-1] - size) // 2
         self.geometric = np.clip(1 - self.Is.numpy()[gy:gy + size, gx:gx + size], 0, 1)  # on the silhouette's grid
