@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import pytest
 
-OCC = ["experiment=occultation", "silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5"]
-INV = ["experiment=inversion", "nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known",
-       "inversion.n_normals=64"]
+from cssat.smoke import TINY
+
+OCC = ["experiment=occultation", *TINY["occultation"]]  # the smoke run's tiny sizes
+INV = ["experiment=inversion", *TINY["inversion"]]
 
 
 @pytest.mark.parametrize("base, bad, field", [
