@@ -14,7 +14,14 @@ from typing import Any
 
 from cssat._checks import FieldError, FieldTypeError
 
-__all__ = ["build", "build_solver", "build_denoiser", "build_model"]
+__all__ = ["build", "build_solver", "build_denoiser", "build_model", "settings"]
+
+
+def settings(node: Any) -> dict:
+    """A config group's settings as a plain ``dict`` (interpolations resolved; ``None``: empty)."""
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
+
+    return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
 
 
 def _is_node(node: Any) -> bool:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from cssat._checks import FieldError, int_param
+from cssat.experiments.build import settings
 from cssat.scene import make_scenario
 from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, _satellite, _skyfield
 
@@ -40,13 +41,9 @@ def read_observations(cfg: Any) -> Any:
     path = cfg.get("observations")
     if not path:
         return None
-    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
-
     from cssat.data import read_light_curve  # heavy: cssat.data imports torch
 
-    opts = cfg.get("observed")
-    opts = OmegaConf.to_container(opts, resolve=True) if OmegaConf.is_config(opts) else dict(opts or {})
-    return read_light_curve(str(path), **opts)
+    return read_light_curve(str(path), **settings(cfg.get("observed")))
 
 
 def check_elements(cfg: Any, lc: Any, max_epoch_days: float = 14.0) -> None:

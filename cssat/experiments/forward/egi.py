@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
-from cssat.experiments.build import build, build_model, build_solver, validate_solver
+from cssat.experiments.build import build, build_model, build_solver, settings, validate_solver
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.forward.egi_score import (EGI_MATCH_DEG, EGI_WEIGHT_SHARE, egi_recovered_share, score_truth, solve_egi,
@@ -62,11 +62,6 @@ SEARCH_KEYS = ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samp
                "max_period_s")
 
 
-def _opts(node: Any) -> dict:
-    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
-
-    return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
-
 
 class EGILightCurve(ForwardModel):
     """The EGI through a scene and an attitude (the module's docstring has the stages)."""
@@ -79,7 +74,7 @@ class EGILightCurve(ForwardModel):
         self.n_nights, self.n_fit, self.sun_alt, self.min_el = nights_settings(cfg)
         inv = self.inv = cfg.get("inversion") or {}
         spin_mode = choice_param(inv.get("spin", "auto"), "inversion.spin", ("auto", "search", "tumbling", "known"))
-        self.tumble = {k: v for k, v in _opts(inv.get("tumbling")).items() if v is not None}
+        self.tumble = {k: v for k, v in settings(inv.get("tumbling")).items() if v is not None}
         with as_field("inversion.tumbling"):  # every option of the tumbling search, before any work
             check_tumbling_options(**self.tumble)
         self.n_normals = int_param(inv.get("n_normals", 2000), "inversion.n_normals", 16, 20000)

@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, bool_param, choice_param, int_param
+from cssat.experiments.build import settings
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_csv, write_npz
 from cssat.experiments.forward.base import ForwardModel
@@ -65,11 +66,6 @@ STAGE_MODES = ("auto", "on", "off")
 CHARACTERISE_KEYS = {"tracks", "min_samples", "drop_penumbra", "min_nights", "max_epoch_days", "figures", "normalise_range"}
 
 
-def _opts(node: Any) -> dict:
-    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
-
-    return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
-
 
 def observed_settings(cfg: Any) -> dict[str, Any]:
     """Every setting of the experiment checked before any work (a FieldError with its full key)."""
@@ -77,17 +73,17 @@ def observed_settings(cfg: Any) -> dict[str, Any]:
 
     if not cfg.get("observations"):
         raise FieldError("observations", "characterise needs a light-curve file: observations=<path>")
-    stages = _opts(cfg.get("stages"))
+    stages = settings(cfg.get("stages"))
     for k in stages:
         if k not in VERDICT_STAGES:
             raise FieldError(f"stages.{k}", f"not a stage; the stages: {', '.join(VERDICT_STAGES)}")
     modes = {k: choice_param(stages.get(k, "auto"), f"stages.{k}", STAGE_MODES) for k in VERDICT_STAGES}
     for node, fn in (("period", estimate_period), ("tumbling", estimate_tumbling_periods)):
         allowed = [p for p in inspect.signature(fn).parameters if p not in ("times_s", "flux", "sigma", "segments")]
-        for k in _opts(cfg.get(node)):
+        for k in settings(cfg.get(node)):
             if k not in allowed:
                 raise FieldError(f"{node}.{k}", f"not an option of {fn.__name__}; its options: {', '.join(allowed)}")
-    ch = _opts(cfg.get("characterise"))
+    ch = settings(cfg.get("characterise"))
     for k in ch:
         if k not in CHARACTERISE_KEYS:
             raise FieldError(f"characterise.{k}", f"not a setting; the settings: {', '.join(sorted(CHARACTERISE_KEYS))}")
@@ -97,8 +93,8 @@ def observed_settings(cfg: Any) -> dict[str, Any]:
             "max_epoch_days": float(ch.get("max_epoch_days", 14.0)), "tracks": ch.get("tracks"),
             "figures": bool_param(ch.get("figures", True), "characterise.figures"),
             "normalise_range": bool_param(ch.get("normalise_range", True), "characterise.normalise_range"),
-            "period": {k: v for k, v in _opts(cfg.get("period")).items() if v is not None},
-            "tumbling": {k: v for k, v in _opts(cfg.get("tumbling")).items() if v is not None}}
+            "period": {k: v for k, v in settings(cfg.get("period")).items() if v is not None},
+            "tumbling": {k: v for k, v in settings(cfg.get("tumbling")).items() if v is not None}}
 
 
 class Observed(ForwardModel):
