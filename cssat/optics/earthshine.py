@@ -28,6 +28,7 @@ the Sun–Earth–satellite angle (:func:`cssat.optics.passbands.lambert_sphere_
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -36,6 +37,9 @@ from torch import Tensor
 from cssat._checks import FieldError, float_param, int_param
 from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, facet_brightness
 from cssat.scene.mesh import Mesh, as_mesh
+
+if TYPE_CHECKING:
+    from cssat._types import Array
 
 __all__ = ["EARTH_RADIUS_KM", "EARTH_ALBEDO", "earth_patches", "earthshine_irradiance", "earthshine_brightness"]
 
@@ -53,7 +57,7 @@ def _positions(x, name: str, T: int | None = None) -> Tensor:
     return t if T is None else t.expand(T, 3)
 
 
-def earth_patches(sat_km, n_theta: int = 32, n_phi: int = 64,
+def earth_patches(sat_km: Array, n_theta: int = 32, n_phi: int = 64,
                   earth_radius_km: float = EARTH_RADIUS_KM) -> tuple[Tensor, Tensor]:
     """The Earth's cap visible from each satellite position: ``(normals (T, K, 3), areas_km2 (T, K))``
     with ``K = n_theta · n_phi`` (Gauss–Legendre in ``cos θ`` on ``[R⊕/r, 1]``, midpoint in azimuth).
@@ -84,7 +88,7 @@ def earth_patches(sat_km, n_theta: int = 32, n_phi: int = 64,
     return n.reshape(T, -1, 3), area.reshape(T, -1)
 
 
-def earthshine_irradiance(sat_km, sun_km, *, albedo: float = EARTH_ALBEDO, irradiance: float = SOLAR_IRRADIANCE_W_M2,
+def earthshine_irradiance(sat_km: Array, sun_km: Array, *, albedo: float = EARTH_ALBEDO, irradiance: float = SOLAR_IRRADIANCE_W_M2,
                           n_theta: int = 32, n_phi: int = 64,
                           earth_radius_km: float = EARTH_RADIUS_KM) -> tuple[Tensor, Tensor]:
     """Eq. E1 for every visible patch: ``(directions (T, K, 3), irradiance (T, K))`` — unit vectors
@@ -107,8 +111,8 @@ def earthshine_irradiance(sat_km, sun_km, *, albedo: float = EARTH_ALBEDO, irrad
     return -d, E
 
 
-def earthshine_brightness(mesh: Mesh, sat_km, sun_km, observer_km, *, rotation=None, albedo: float = EARTH_ALBEDO,
-                          irradiance: float = SOLAR_IRRADIANCE_W_M2, brdf=None, materials=None,
+def earthshine_brightness(mesh: Mesh, sat_km: Array, sun_km: Array, observer_km: Array, *, rotation: Array | None = None, albedo: float = EARTH_ALBEDO,
+                          irradiance: float = SOLAR_IRRADIANCE_W_M2, brdf: Any = None, materials: Any = None,
                           n_theta: int = 32, n_phi: int = 64, earth_radius_km: float = EARTH_RADIUS_KM) -> Tensor:
     """Earthshine each facet sends the observer, ``(T, F)`` W/m² (sum over facets: the total).
 

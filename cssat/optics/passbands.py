@@ -35,6 +35,7 @@ import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -42,6 +43,9 @@ from torch import Tensor
 
 from cssat._checks import FieldError, choice_param, float_param
 from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
+
+if TYPE_CHECKING:
+    from cssat._types import Array
 
 __all__ = ["Passband", "BANDS", "SYSTEMS", "passband", "sun_spectrum", "sun_magnitude", "magnitude", "flux_from_magnitude",
            "ab_magnitude_at", "std_magnitude", "lambert_sphere_phase"]
@@ -164,20 +168,20 @@ def _irr(irradiance: float | None) -> float:
     return SOLAR_IRRADIANCE_W_M2 if irradiance is None else float_param(irradiance, "irradiance", 0.0, None, open_lo=True)
 
 
-def magnitude(flux_w_m2, band: str | Passband = "V", system: str = "Vega", irradiance: float | None = None) -> Tensor:
+def magnitude(flux_w_m2: Array | float, band: str | Passband = "V", system: str = "Vega", irradiance: float | None = None) -> Tensor:
     """Magnitude (Eq. P1) of a flux in W/m² (any shape; float64 tensor, ``+inf`` for zero flux)
     computed for a Sun of total irradiance ``irradiance`` (default 1361 W/m²)."""
     f = torch.as_tensor(flux_w_m2, dtype=torch.float64)
     return sun_magnitude(band, system) - 2.5 * torch.log10(f / _irr(irradiance))
 
 
-def flux_from_magnitude(mag, band: str | Passband = "V", system: str = "Vega", irradiance: float | None = None) -> Tensor:
+def flux_from_magnitude(mag: Array | float, band: str | Passband = "V", system: str = "Vega", irradiance: float | None = None) -> Tensor:
     """The inverse of :func:`magnitude`: ``I₀ 10^(−0.4 (m − m_☉,band))`` in W/m²."""
     m = torch.as_tensor(mag, dtype=torch.float64)
     return _irr(irradiance) * 10.0 ** (-0.4 * (m - sun_magnitude(band, system)))
 
 
-def ab_magnitude_at(flux_w_m2, wavelength_nm: float, convention: str = "sun", irradiance: float | None = None) -> Tensor:
+def ab_magnitude_at(flux_w_m2: Array | float, wavelength_nm: float, convention: str = "sun", irradiance: float | None = None) -> Tensor:
     """AB magnitude at one wavelength (a monochromatic band).
 
     ``convention="sun"``: the Sun's ``f_ν(λ)`` scaled by ``F / I₀`` (grey reflectance, Eq. P1).
@@ -194,14 +198,14 @@ def ab_magnitude_at(flux_w_m2, wavelength_nm: float, convention: str = "sun", ir
     return -2.5 * math.log10(fnu_sun / AB_ZERO_W_M2_HZ) - 2.5 * torch.log10(f / _irr(irradiance))
 
 
-def lambert_sphere_phase(phase_deg) -> Tensor:
+def lambert_sphere_phase(phase_deg: Array | float) -> Tensor:
     """A Lambertian sphere's phase function normalised to 1 at full phase,
     ``p(φ) = (sin φ + (π − φ) cos φ) / π`` (φ the Sun–object–observer angle; Vallerie 1963)."""
     phi = torch.deg2rad(torch.as_tensor(phase_deg, dtype=torch.float64))
     return (torch.sin(phi) + (math.pi - phi) * torch.cos(phi)) / math.pi
 
 
-def std_magnitude(mag, range_km, phase_deg=None, *, ref_range_km: float = 1000.0, ref_phase_deg: float = 90.0,
+def std_magnitude(mag: Array | float, range_km: Array | float, phase_deg: Array | float | None = None, *, ref_range_km: float = 1000.0, ref_phase_deg: float = 90.0,
                   phase_function: str = "lambert_sphere") -> Tensor:
     """A magnitude reduced to ``ref_range_km`` (1000 km) and phase ``ref_phase_deg`` (90°), the
     "standard magnitude" of satellite observers (MMT's ``StdMag``):
