@@ -112,3 +112,46 @@ def test_the_tables_ship_in_the_wheel():
         if f.suffix in (".txt", ".md"):
             assert f'"*{f.suffix}"' in spec, f.name
     assert (root / "cssat/optics/data/__init__.py").is_file()
+
+
+def test_a_light_curves_band_converts_its_magnitudes(tmp_path):
+    from cssat.data import read_light_curve
+
+    f = tmp_path / "lc.csv"
+    f.write_text("time_utc,magnitude,filter\n2020-04-01T21:00:00Z,10.0,r\n2020-04-01T21:00:30Z,11.0,r\n")
+    legacy = read_light_curve(f).fluxes()  # no band: V with the Sun at -26.74, as before
+    assert np.allclose(legacy, 1361.0 * 10 ** (-0.4 * (np.array([10.0, 11.0]) + 26.74)), rtol=1e-12)
+    own = read_light_curve(f, band="file", band_system="AB")  # the file's filter column: SDSS r
+    assert own.band[0].name == "r"
+    expect = 1361.0 * 10 ** (-0.4 * (np.array([10.0, 11.0]) - pb.sun_magnitude("r", "AB")))
+    assert np.allclose(own.fluxes(), expect, rtol=1e-12)
+    assert np.allclose(own.rows([1]).fluxes(), expect[1:], rtol=1e-12)  # kept by a subset
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("time_utc,magnitude,filter\n2020-04-01T21:00:00Z,10.0,V\n2020-04-01T21:00:30Z,11.0,R\n")
+    with pytest.raises(FieldError, match=r"observations.band: band 'file' needs one filter.*\['R', 'V'\]"):
+        read_light_curve(mixed, band="file")
+    with pytest.raises(FieldError, match="observations.band: expected one of"):  # before the (missing) file is read
+        read_light_curve(tmp_path / "absent.csv", band="B")
+    with pytest.raises(FieldError, match="observations.band: band 'clear' has no Vega zero point"):
+        read_light_curve(f, band="clear")
+
+
+def test_earthshine_in_the_simulated_light_curve_is_the_earthshine_term():
+    from cssat.optics import simulate_light_curve
+    from cssat.scene import make_scenario
+    from cssat.optics.earthshine import earthshine_brightness
+    from cssat.scene.attitude import nadir_pointing_frame
+
+    from cssat.scene.mesh import Mesh
+
+    sc = make_scenario(start_utc="2020-04-01T21:00:00", n_steps=2, step_s=600.0)
+    box = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])  # a cube, outward faces
+    faces = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1], [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4],
+             [1, 5, 7], [1, 7, 3]]
+    mesh = Mesh(box, np.array(faces), np.full(12, 0.5), np.full(12, 0.2))
+    assert bool(((mesh.centroids * mesh.normals).sum(1) > 0).all())
+    plain = simulate_light_curve(mesh, sc, shadows=False)
+    lit = simulate_light_curve(mesh, sc, shadows=False, earthshine=True, earth_albedo=0.3)
+    es = earthshine_brightness(mesh, sc.r_sat, sc.r_sun, sc.r_obs, rotation=nadir_pointing_frame(sc.r_sat, sc.v_sat))
+    es = es * torch.as_tensor(sc.elevation_deg > 0, dtype=es.dtype)[:, None]
+    assert float(es.sum()) > 0 and torch.allclose(lit.facets - plain.facets, es, rtol=1e-9, atol=0)

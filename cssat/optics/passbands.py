@@ -48,7 +48,7 @@ if TYPE_CHECKING:
     from cssat._types import Array
 
 __all__ = ["Passband", "BANDS", "SYSTEMS", "passband", "sun_spectrum", "sun_magnitude", "magnitude", "flux_from_magnitude",
-           "ab_magnitude_at", "std_magnitude", "lambert_sphere_phase"]
+           "ab_magnitude_at", "std_magnitude", "lambert_sphere_phase", "resolve_band"]
 
 DATA = Path(__file__).parent / "data"
 C_M_S = 299_792_458.0
@@ -231,3 +231,38 @@ def std_magnitude(mag: Array | float, range_km: Array | float, phase_deg: Array 
         raise FieldError("phase_deg", "must be in [0, 180] degrees")
     ref = float(lambert_sphere_phase(float_param(ref_phase_deg, "ref_phase_deg", 0.0, 180.0, open_lo=True)))
     return out + 2.5 * torch.log10(lambert_sphere_phase(ph) / ref)
+
+
+_FILTER_NAMES = {"V": "V", "R": "R", "RC": "R", "G": "g", "G'": "g", "SDSS_G": "g", "R'": "r", "SDSS_R": "r", "I": "i",
+                 "I'": "i", "SDSS_I": "i", "CLEAR": "clear", "C": "clear", "CR": "clear", "CLR": "clear", "W": "clear"}
+
+
+def resolve_band(band: str | Passband | None, system: str = "Vega", filters: np.ndarray | None = None,
+                 field: str = "band") -> tuple[Passband, str] | None:
+    """A config's ``band`` and ``system`` checked before any work: ``None`` (cssat's legacy V with
+    ``m_☉ = −26.74``), a built-in band name, a path to a measured filter file (two columns λ[nm] T,
+    photon-counting), or ``"file"``: the one band a light curve's filter column names (``filters``;
+    ``V R Rc g r i`` — SDSS's ``g r i`` are lower case — ``Clear C CR``). Returns ``(Passband, system)``."""
+    if band is None:
+        return None
+    system = choice_param(system, f"{field}_system" if field != "band" else "system", SYSTEMS)
+    if isinstance(band, str) and band == "file":
+        names = sorted({str(f).strip() for f in (filters if filters is not None else [])} - {""})
+        if len(names) != 1:
+            raise FieldError(field, f"band 'file' needs one filter in the file's filter column, found {names or 'none'}"
+                                    f" (name the band instead, one of {list(BANDS)})")
+        key = names[0] if names[0] in ("g", "r", "i") else _FILTER_NAMES.get(names[0].upper())
+        if key is None:
+            raise FieldError(field, f"the file's filter {names[0]!r} is none of {sorted(_FILTER_NAMES)} (name the band, "
+                                    "or give a measured filter file)")
+        band = key
+    if isinstance(band, (str, Path)) and str(band) not in BANDS and Path(str(band)).suffix:
+        pb = Passband.from_file(band)
+    else:
+        try:
+            pb = passband(band)
+        except FieldError as err:
+            raise FieldError(field, err.detail) from None
+    if system == "Vega" and pb.vega_ab is None:
+        raise FieldError(field, f"band {pb.name!r} has no Vega zero point: set its system to AB")
+    return pb, system
