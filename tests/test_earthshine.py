@@ -83,3 +83,25 @@ def test_the_body_rotation_is_applied():
     assert body.sum().item() == pytest.approx(inertial.sum().item(), rel=1e-10)
     with pytest.raises(FieldError, match="rotation"):
         earthshine_brightness(_plate([-1, 0, 0]), sat, sun, obs, rotation=np.eye(2))
+
+
+def test_a_lambert_brdf_object_reflects_earthshine_as_the_diffuse_term():
+    from cssat.optics import Lambert
+
+    sat, sun, obs = np.array([R + 1200.0, 0.0, 500.0]), np.array([FAR_SUN, 0.3 * FAR_SUN, 0.0]), np.array([R, 200.0, 0.0])
+    plate = _plate([-1.0, 0.2, 0.0], cd=0.35)
+    diffuse = earthshine_brightness(plate, sat, sun, obs, n_theta=8, n_phi=16)
+    lambert = earthshine_brightness(plate, sat, sun, obs, brdf=Lambert(0.35), n_theta=8, n_phi=16)
+    assert diffuse.sum().item() > 0 and torch.allclose(lambert, diffuse, rtol=1e-12, atol=0)
+
+
+@pytest.mark.cuda
+def test_earthshine_and_magnitudes_follow_the_device():
+    from cssat.optics import magnitude
+
+    sat = torch.tensor([R + 1200.0, 0.0, 500.0], dtype=torch.float64)
+    sun, obs = torch.tensor([FAR_SUN, 0.3 * FAR_SUN, 0.0], dtype=torch.float64), torch.tensor([R, 200.0, 0.0], dtype=torch.float64)
+    cpu = earthshine_brightness(_plate([-1.0, 0.2, 0.0]), sat, sun, obs, n_theta=8, n_phi=16)
+    gpu = earthshine_brightness(_plate([-1.0, 0.2, 0.0]), sat.cuda(), sun.cuda(), obs.cuda(), n_theta=8, n_phi=16)
+    assert gpu.device.type == "cuda" and torch.allclose(gpu.cpu(), cpu, rtol=1e-10)
+    assert magnitude(gpu.sum(1), "g", "AB").device.type == "cuda"

@@ -68,16 +68,17 @@ def earth_patches(sat_km: Array, n_theta: int = 32, n_phi: int = 64,
     if bool((r <= earth_radius_km).any()):
         raise FieldError("sat_km", f"satellite inside the Earth (|x| <= {earth_radius_km} km)")
     z = x / r[:, None]
-    helper = torch.where((z[:, 2].abs() < 0.9)[:, None], torch.tensor([0.0, 0.0, 1.0], dtype=x.dtype),
-                         torch.tensor([1.0, 0.0, 0.0], dtype=x.dtype))
+    dev = x.device
+    helper = torch.where((z[:, 2].abs() < 0.9)[:, None], torch.tensor([0.0, 0.0, 1.0], dtype=x.dtype, device=dev),
+                         torch.tensor([1.0, 0.0, 0.0], dtype=x.dtype, device=dev))
     e1 = torch.linalg.cross(helper, z)
     e1 = e1 / torch.linalg.vector_norm(e1, dim=1, keepdim=True)
     e2 = torch.linalg.cross(z, e1)
     g, w = np.polynomial.legendre.leggauss(n_theta)
     u0 = (earth_radius_km / r)[:, None]  # (T, 1) cos θ_max
-    u = u0 + (1 - u0) * torch.as_tensor((g + 1) / 2, dtype=x.dtype)  # (T, n_theta)
-    wu = (1 - u0) * torch.as_tensor(w / 2, dtype=x.dtype)
-    psi = (torch.arange(n_phi, dtype=x.dtype) + 0.5) * (2 * np.pi / n_phi)
+    u = u0 + (1 - u0) * torch.as_tensor((g + 1) / 2, dtype=x.dtype, device=dev)  # (T, n_theta)
+    wu = (1 - u0) * torch.as_tensor(w / 2, dtype=x.dtype, device=dev)
+    psi = (torch.arange(n_phi, dtype=x.dtype, device=dev) + 0.5) * (2 * np.pi / n_phi)
     sin_t = (1 - u**2).clamp_min(0).sqrt()
     cp, sp = torch.cos(psi), torch.sin(psi)
     n = (u[:, :, None, None] * z[:, None, None, :]
@@ -93,11 +94,12 @@ def earthshine_irradiance(sat_km: Array, sun_km: Array, *, albedo: float = EARTH
                           earth_radius_km: float = EARTH_RADIUS_KM) -> tuple[Tensor, Tensor]:
     """Eq. E1 for every visible patch: ``(directions (T, K, 3), irradiance (T, K))`` — unit vectors
     from the satellite to each patch (the frame of ``sat_km``, e.g. GCRS) and the irradiance in W/m²
-    each patch gives a surface facing it. Their sum is the irradiance on a sphere's cross-section."""
+    each patch gives a surface facing it (float64, on the device of ``sat_km``). Their sum is the
+    irradiance on a sphere's cross-section."""
     albedo = float_param(albedo, "albedo", 0.0, 1.0)
     x = _positions(sat_km, "sat_km")
     T = x.shape[0]
-    s = _positions(sun_km, "sun_km", T)
+    s = _positions(sun_km, "sun_km", T).to(x.device)
     n, dA = earth_patches(x, n_theta, n_phi, earth_radius_km)
     p = n * earth_radius_km
     sun_dir = s[:, None, :] - p
@@ -123,7 +125,7 @@ def earthshine_brightness(mesh: Mesh, sat_km: Array, sun_km: Array, observer_km:
     mesh = as_mesh(mesh)
     x = _positions(sat_km, "sat_km")
     T = x.shape[0]
-    obs = _positions(observer_km, "observer_km", T)
+    obs = _positions(observer_km, "observer_km", T).to(x.device)
     dirs, E = earthshine_irradiance(x, sun_km, albedo=albedo, irradiance=irradiance, n_theta=n_theta, n_phi=n_phi,
                                     earth_radius_km=earth_radius_km)
     v = obs - x
@@ -132,7 +134,7 @@ def earthshine_brightness(mesh: Mesh, sat_km: Array, sun_km: Array, observer_km:
         raise FieldError("observer_km", "the observer is at the satellite")
     v = v / rng[:, None]
     if rotation is not None:
-        Rm = torch.as_tensor(rotation, dtype=torch.float64)
+        Rm = torch.as_tensor(rotation, dtype=torch.float64, device=x.device)
         Rm = Rm[None] if Rm.ndim == 2 else Rm
         if Rm.shape[-2:] != (3, 3) or Rm.shape[0] not in (1, T):
             raise FieldError("rotation", f"expected (3, 3) or ({T}, 3, 3), got {tuple(Rm.shape)}")
@@ -140,7 +142,7 @@ def earthshine_brightness(mesh: Mesh, sat_km: Array, sun_km: Array, observer_km:
         v = torch.einsum("tij,tj->ti", Rm.expand(T, 3, 3), v)
     if brdf is None:
         mesh = dataclasses.replace(mesh, cs=np.zeros(len(mesh)))
-    out = torch.zeros(T, len(mesh), dtype=torch.float64)
+    out = torch.zeros(T, len(mesh), dtype=torch.float64, device=x.device)
     for t in range(T):
         keep = E[t] > 0
         if not bool(keep.any()):
