@@ -61,6 +61,12 @@ def test_a_measured_filter_file_is_used(tmp_path):
     assert pb.sun_magnitude(pb.Passband.from_file(red, photon=False), "AB") < pb.sun_magnitude("V", "AB") - 0.1
     with pytest.raises(FieldError, match="system.*no Vega zero point"):
         pb.sun_magnitude(pb.Passband.from_file(red), "Vega")
+    tail = tmp_path / "qe.txt"  # a QE curve to 1200 nm: its faint tail past the solar table is cut, a big one refused
+    tail.write_text("400 0.5\n700 0.9\n1090 0.2\n1200 0.001\n")
+    assert pb.Passband.from_file(tail).throughput[-1] == 0.0
+    tail.write_text("400 0.5\n700 0.9\n1100 0.8\n1300 0.8\n")
+    with pytest.raises(FieldError, match="passband: qe: .* outside the solar spectrum"):
+        pb.Passband.from_file(tail)
     bad = tmp_path / "bad.txt"
     bad.write_text("500 1\n490 x\n")
     with pytest.raises(FieldError, match="passband"):
