@@ -41,6 +41,7 @@ CASES = [
     ([*LIGHT, "scenario.observer.alt_m=-1e7"], "scenario.observer.alt_m"),
     ([*LIGHT, "scenario.observer.lat_deg=100"], "scenario.observer.lat_deg"),
     ([*LIGHT, "scenario.n_steps=0"], "scenario.n_steps"),
+    ([*LIGHT, "magnitudes.band=B"], "magnitudes.band"),
     ([*LIGHT, f"scenario.tle=['{checksum(GOOD_L1[:18] + '20X92.00000000' + GOOD_L1[32:])}','{GOOD_L2}']"], "scenario.tle.line1"),
     ([*LIGHT, f"scenario.tle=['{GOOD_L1[:-1] + '0'}','{GOOD_L2}']"], "scenario.tle.line1"),
     ([*SIM3, "denoiser3d.n_iter=0"], "denoiser3d.n_iter"),

@@ -73,6 +73,7 @@ class ObservedLightCurve:
     penumbra: np.ndarray | None = None
     magnitude_system: str = "apparent"
     meta: dict = field(default_factory=dict)
+    band: Any = None  # (Passband, system) of cssat.optics.passbands.resolve_band; None: V with m_Sun = -26.74
 
     def rows(self, index: Any) -> ObservedLightCurve:
         """The light curve of the samples ``index`` (a mask or indices), metadata kept."""
@@ -174,9 +175,13 @@ class ObservedLightCurve:
         return len(self.times_utc)
 
     def magnitudes(self) -> np.ndarray:
-        """The values as magnitudes (a flux in W/m² through the Sun's V magnitude)."""
+        """The values as magnitudes (a flux in W/m² through the Sun's magnitude in ``band``; V by default)."""
         if self.kind == "magnitude":
             return self.values
+        if self.band is not None:
+            from cssat.optics.passbands import magnitude  # heavy: cssat.optics imports torch
+
+            return magnitude(self.values, *self.band).numpy()
         from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V  # heavy: cssat.optics.photometry imports torch
 
         with np.errstate(divide="ignore"):
@@ -186,6 +191,10 @@ class ObservedLightCurve:
         """The values as flux in W/m² (a V magnitude through the Sun's: ``I₀ 10^(−0.4 (V − V_☉))``)."""
         if self.kind == "flux":
             return self.values
+        if self.band is not None:  # the Sun's magnitude in the light curve's own band (Eq. P1 of cssat.optics.passbands)
+            from cssat.optics.passbands import flux_from_magnitude  # heavy: cssat.optics imports torch
+
+            return flux_from_magnitude(self.values, *self.band).numpy()
         from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V  # heavy: cssat.optics.photometry imports torch
 
         return SOLAR_IRRADIANCE_W_M2 * 10.0 ** (-0.4 * (self.values - SUN_MAGNITUDE_V))
@@ -220,7 +229,7 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
                      kind: str = "magnitude", time_format: str = "iso", time_scale: str = "utc",
                      filter_col: str | None = "filter", observer_col: str | None = "observer",
                      track_col: str | None = "track", format: str | None = None, object: Any = None,
-                     duplicates: str = "refuse") -> ObservedLightCurve:
+                     duplicates: str = "refuse", band: Any = None, band_system: str = "Vega") -> ObservedLightCurve:
     """Read a measured light curve from a file (or an astropy ``Table``/``QTable``/``TimeSeries``).
 
     ``format``: one of :data:`~cssat.data.formats.FORMATS` (default: by content — an ALCDEF
@@ -232,7 +241,9 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     astropy); ``value_col`` (default cssat's ``magnitude``/``flux_W_m2`` for ``kind``; MMT's
     ``Mag`` or ``StdMag``), ``error_col`` (its 1σ), ``filter_col``/``observer_col``/
     ``track_col`` where present. ``object``: the NORAD id or name to keep from a file of
-    several (SCORE). ``duplicates``: equal time stamps are refused (``"refuse"``) or averaged
+    several (SCORE). ``band``/``band_system``: the magnitudes' band for flux↔magnitude (None:
+    V with the Sun at −26.74; a band name, a measured filter file, or ``"file"``: the file's own
+    filter column; :func:`cssat.optics.passbands.resolve_band`). ``duplicates``: equal time stamps are refused (``"refuse"``) or averaged
     (``"merge"``: the mean value, the errors combined). MMT, SCORE and ALCDEF rows are sorted by
     time; other files must increase.
 
@@ -246,6 +257,13 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     time_format = choice_param(time_format, "time_format", TIME_FORMATS)
     time_scale = choice_param(time_scale, "time_scale", F.TIME_SCALES)
     duplicates = choice_param(duplicates, "duplicates", DUPLICATES)
+    if band is not None:
+        from cssat.optics.passbands import resolve_band  # heavy: cssat.optics imports torch
+
+        if band != "file":
+            resolve_band(band, band_system, field="observations.band")  # refused before the file is read
+        else:
+            choice_param(band_system, "observations.band_system", ("AB", "Vega"))
     if format is not None:
         format = choice_param(str(format).lower(), "format", F.FORMATS)
     if hasattr(path, "colnames"):  # an astropy table in memory
@@ -301,6 +319,8 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     tcol = "+".join(time_col) if isinstance(time_col, (list, tuple)) else (time_col or ("time_utc" if fmt == "csv" else "time"))
     vcol = value_col or lc.meta.get("value_col") or DEFAULT_VALUE[kind]
     ecol = error_col or lc.meta.get("error_col") or DEFAULT_ERROR[kind]
+    if band is not None:
+        lc.band = resolve_band(band, band_system, lc.filters, field="observations.band")
     return _finish(lc, fmt, duplicates, vcol, tcol, ecol)
 
 

@@ -2,7 +2,9 @@
 Knows nothing of compressed sensing; the atmosphere (Eq. 11–12) lives in :mod:`cssat.physics`."""
 
 from cssat.optics.brdf import BRDF, AshikhminShirley, BlinnPhong, CookTorrance, Lambert, PaperBRDF, Phong
+from cssat.optics.earthshine import earthshine_brightness, earthshine_irradiance
 from cssat.optics.lightcurve import LightCurve, simulate_light_curve
+from cssat.optics.passbands import Passband, ab_magnitude_at, magnitude, std_magnitude, sun_magnitude
 from cssat.optics.photometry import (
     SOLAR_IRRADIANCE_W_M2,
     apparent_magnitude,
@@ -21,6 +23,13 @@ __all__ = [
     "AshikhminShirley",
     "PaperBRDF",
     "LightCurve",
+    "Passband",
+    "ab_magnitude_at",
+    "earthshine_brightness",
+    "earthshine_irradiance",
+    "magnitude",
+    "std_magnitude",
+    "sun_magnitude",
     "SOLAR_IRRADIANCE_W_M2",
     "apparent_magnitude",
     "check_unit",

@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError
+from cssat.optics.earthshine import earthshine_brightness
 from cssat.optics.photometry import facet_brightness
 from cssat.scene.attitude import nadir_pointing_frame, to_body
 from cssat.scene.mesh import Mesh, as_mesh
@@ -36,12 +37,14 @@ class LightCurve:
 
 
 def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, attitude: Any = None,
-                         **kwargs: Any) -> LightCurve:
+                         earthshine: bool = False, earth_albedo: float = 0.3, **kwargs: Any) -> LightCurve:
     """The atmosphere-free light curve of ``mesh`` in ``scenario``: Eq. 8–9 per facet with self-
     and observer-shadowing (``shadows``), the Earth's shadow (``scenario.sunlit``) and the
     observer's horizon (zero below it). ``attitude``: a :mod:`cssat.scene.attitudes` object
     (``frames(scenario)``) or body frames ``(T, 3, 3)``; default the paper's three-axis
-    stabilised (nadir-pointing) attitude."""
+    stabilised (nadir-pointing) attitude. ``earthshine``: add the sunlight the Earth (Lambertian,
+    albedo ``earth_albedo``) reflects onto the facets (:mod:`cssat.optics.earthshine`; off by
+    default — the paper's model has none)."""
     mesh = as_mesh(mesh)
     if attitude is None:
         frame = nadir_pointing_frame(scenario.r_sat, scenario.v_sat)
@@ -55,5 +58,9 @@ def simulate_light_curve(mesh: Mesh, scenario: Scenario, shadows: bool = True, a
     obs = to_body(frame, scenario.obs_dir)
     b = facet_brightness(mesh, sun, obs, range_km=scenario.range_km, sun_range_km=scenario.sun_range_km,
                          sunlit=scenario.sunlit, shadows=shadows, **kwargs)
+    if earthshine:
+        b = b + earthshine_brightness(mesh, scenario.r_sat, scenario.r_sun, scenario.r_obs, rotation=frame,
+                                      albedo=earth_albedo, brdf=kwargs.get("brdf"),
+                                      materials=kwargs.get("materials")).to(b.dtype)
     b = b * torch.as_tensor(scenario.elevation_deg > 0, dtype=b.dtype)[:, None]
     return LightCurve(b, sun, obs)

@@ -75,6 +75,12 @@ class SceneLightCurve(ForwardModel):
         self.mesh = build_model(cfg.model)
         self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         self.shadows = bool_param(cfg.get("shadows", True), "shadows")
+        self.earthshine = bool_param(cfg.get("earthshine", False), "earthshine")
+        self.earth_albedo = float_param(cfg.get("earth_albedo", 0.3), "earth_albedo", 0.0, 1.0)
+        from cssat.optics.passbands import resolve_band  # heavy: cssat.optics imports torch
+
+        mags = cfg.get("magnitudes") or {}
+        self.band = resolve_band(mags.get("band"), mags.get("system", "Vega"), field="magnitudes.band")
         self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
         self.observed = read_observations(cfg)
         self.times = self.observed.times_utc if self.observed is not None else None
@@ -91,7 +97,7 @@ class SceneLightCurve(ForwardModel):
             self.scenario = build_scenario(self.cfg, self.times)
         with run.stage("light_curve"):
             self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=self.shadows, attitude=self.attitude,
-                                           brdf=self.brdf)
+                                           brdf=self.brdf, earthshine=self.earthshine, earth_albedo=self.earth_albedo)
             self.flux = self.lc.flux
         with run.stage("render"):  # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
             self.fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)
@@ -121,16 +127,18 @@ class SceneLightCurve(ForwardModel):
         """Nothing is reconstructed: the light curves are the result."""
 
     def score(self, run: Run) -> dict[str, Any]:
-        from cssat.optics import apparent_magnitude  # heavy: cssat.optics imports torch
+        from cssat.optics import apparent_magnitude, magnitude  # heavy: cssat.optics imports torch
 
-        self.mag, self.mag_f, self.mag_p = (apparent_magnitude(v).numpy()
-                                            for v in (self.flux, self.facetwise.abs(), self.pixelwise.abs()))
+        to_mag = apparent_magnitude if self.band is None else (lambda v: magnitude(v, *self.band))
+        self.mag, self.mag_f, self.mag_p = (to_mag(v).numpy() for v in (self.flux, self.facetwise.abs(), self.pixelwise.abs()))
         self.marks = _mark_steps(self.flux.numpy(), self.n_marks)
         atm, attitude, brdf = self.atm, self.attitude, self.brdf
         return {**_metrics(self.scenario, self.mesh, self.flux, self.images, self.mag, self.mag_f, self.mag_p),
                 "image_size": self.size, **atm.describe(),
                 **(attitude.describe() if attitude is not None else {"attitude": "nadir"}),
-                **(brdf.describe() if brdf is not None else {"brdf": "mesh"}), **self.noise.describe(), "seed": run.seed}
+                **(brdf.describe() if brdf is not None else {"brdf": "mesh"}), **self.noise.describe(), "seed": run.seed,
+                **({"magnitude_band": f"{self.band[0].name} ({self.band[1]})"} if self.band is not None else {}),
+                **({"earthshine_albedo": self.earth_albedo} if self.earthshine else {})}
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
         sc, flux, mag, marks, images = self.scenario, self.flux, self.mag, self.marks, self.images
