@@ -105,3 +105,26 @@ def test_earthshine_and_magnitudes_follow_the_device():
     gpu = earthshine_brightness(_plate([-1.0, 0.2, 0.0]), sat.cuda(), sun.cuda(), obs.cuda(), n_theta=8, n_phi=16)
     assert gpu.device.type == "cuda" and torch.allclose(gpu.cpu(), cpu, rtol=1e-10)
     assert magnitude(gpu.sum(1), "g", "AB").device.type == "cuda"
+
+
+def test_auto_earthshine_is_on_in_leo_and_off_at_geo():
+    """``earthshine="auto"``: a LEO light curve (ISS-like orbit, 400 km) gains the earthshine term
+    computed directly; a GEO one is the shadowless Eq. 8–9 light curve unchanged."""
+    from cssat.optics import simulate_light_curve
+    from cssat.optics.lightcurve import earthshine_matters
+    from cssat.scene import box, make_scenario
+
+    leo = make_scenario(("1 25544U 98067A   20092.00000000  .00016717  00000-0  10270-2 0  9997",
+                         "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.72125391 56354"),
+                        start_utc="2020-04-01T00:00:00", n_steps=288, step_s=300)
+    geo = make_scenario(n_steps=288, step_s=300)
+    assert earthshine_matters(leo) and not earthshine_matters(geo)
+    mesh = box([2.0, 1.0, 1.0], cd=0.5, cs=0.0)
+    frames = np.broadcast_to(np.eye(3), (288, 3, 3)).copy()
+    off, auto = (simulate_light_curve(mesh, leo, shadows=False, attitude=frames, earthshine=e).facets for e in (False, "auto"))
+    es = earthshine_brightness(mesh, leo.r_sat, leo.r_sun, leo.r_obs, rotation=frames)
+    es = es * torch.as_tensor(leo.elevation_deg > 0, dtype=es.dtype)[:, None]
+    assert float(es.sum()) > 0  # the satellite is up and earthlit at some step
+    torch.testing.assert_close(auto - off, es.to(auto.dtype))
+    g_off, g_auto = (simulate_light_curve(mesh, geo, shadows=False, attitude=frames, earthshine=e).flux for e in (False, "auto"))
+    assert torch.equal(g_off, g_auto)

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import bool_param, float_param, int_param
+from cssat._checks import bool_param, choice_param, float_param, int_param
 from cssat.experiments.build import build, build_model
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_csv, write_npz
@@ -75,7 +75,7 @@ class SceneLightCurve(ForwardModel):
         self.mesh = build_model(cfg.model)
         self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         self.shadows = bool_param(cfg.get("shadows", True), "shadows")
-        self.earthshine = bool_param(cfg.get("earthshine", False), "earthshine")
+        self.earthshine = choice_param(cfg.get("earthshine", False), "earthshine", [True, False, "auto"])
         self.earth_albedo = float_param(cfg.get("earth_albedo", 0.3), "earth_albedo", 0.0, 1.0)
         from cssat.optics.passbands import resolve_band  # heavy: cssat.optics imports torch
 
@@ -99,6 +99,10 @@ class SceneLightCurve(ForwardModel):
             self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=self.shadows, attitude=self.attitude,
                                            brdf=self.brdf, earthshine=self.earthshine, earth_albedo=self.earth_albedo)
             self.flux = self.lc.flux
+            if self.earthshine == "auto":
+                from cssat.optics.lightcurve import earthshine_matters  # heavy: cssat.optics imports torch
+
+                self.earthshine = earthshine_matters(self.scenario)
         with run.stage("render"):  # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
             self.fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)
             self.images = render(self.mesh, self.lc.sun, self.lc.observer, self.size, fov_m=self.fov_m,
