@@ -102,10 +102,8 @@ def test_the_solver_group_solves_the_egi(tmp_path):
     t = run_experiment(cfg_of(*EGI_TINY, "solver=nntv", "solver.lam=1e-2"), tmp_path / "nntv")
     b = np.load(tmp_path / "nntv" / "arrays.npz")
     assert t["status"] == "ok" and t["inversion_method"] == "nntv" and (b["areas"] >= 0).all()
-    from hydra.utils import instantiate
-
-    brdf = instantiate(cfg_of(*EGI_TINY).brdf)  # the experiment's surface (an albedo scales the areas, not χ²)
-    r = (egi_operator(b["sun_body"][fit], b["obs_body"][fit], b["normals"], brdf).matrix().numpy() @ b["areas"] - b["flux"][fit])
+    assert t["inversion_brdf"] == "lambert"  # the surface the inversion assumes: Lambert (albedo 1), whatever the truth's
+    r = (egi_operator(b["sun_body"][fit], b["obs_body"][fit], b["normals"]).matrix().numpy() @ b["areas"] - b["flux"][fit])
     assert float(((r / b["sigma"][fit]) ** 2).sum()) == pytest.approx(t["inversion_chi2"], rel=1e-6)
     assert not (b["areas"].size == int((ref > 0).sum()) and np.allclose(np.sort(b["areas"]), np.sort(ref[ref > 0])))
 
@@ -133,6 +131,7 @@ def test_total_variation_refuses_an_unknown_that_is_not_an_image():
     # an image-only solver on the EGI (was an unpacking traceback)
     (EGI_TINY, ["solver=tv"], r"solver: tv works on images; .*solver=nnls\|nnomp\|nnl1\|nntv"),
     (EGI_TINY, ["solver=pnp"], r"solver: pnp works on images; .*solver=nnls\|nnomp\|nnl1\|nntv"),
+    (EGI_TINY, ["inversion.brdf=phong"], r"inversion\.brdf: expected one of \[.lambert., .simulated.\]"),
     # settings read without a check: any truthy shadows, a star's RA without its Dec
     (EGI_TINY, ["shadows=maybe"], r"shadows: expected true or false"),
     (["experiment=lightcurve", "scenario.n_steps=3", "render.size=8"], ["shadows=1"], r"shadows: expected true or false"),

@@ -101,10 +101,17 @@ class EGILightCurve(ForwardModel):
                    self.n_normals)
         self.shadows = bool_param(cfg.get("shadows", True), "shadows")
         self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
+        # the surface the inversion assumes: Lambert, whatever the truth's (a real satellite's materials are
+        # unknown), or the simulated one — the in-class oracle
+        as_simulated = choice_param(inv.get("brdf", "lambert"), "inversion.brdf", ["lambert", "simulated"]) == "simulated"
+        self.model_brdf = self.brdf if as_simulated else None
         self.noise = build(cfg.get("noise"), "noise")
         if self.observed is not None:
             check_elements(cfg, self.observed)
         self.metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": self.mesh.name, "seed": run.seed}
+        if self.observed is None:  # what the truth had and what the inversion assumed: in class only when both agree
+            self.metrics.update(truth_brdf=self.brdf.name if self.brdf is not None else "mesh", truth_shadows=self.shadows,
+                                inversion_brdf=self.model_brdf.name if self.model_brdf is not None else "lambert")
 
     def _resolve(self, spin_mode: str) -> str:
         """``auto``: a spin attitude is searched as one, a tumbling one as one, a file as a spin (the
@@ -213,7 +220,7 @@ class EGILightCurve(ForwardModel):
         if spin_mode == "known" and self.true_frames is None:
             raise FieldError("inversion.spin", "'known' needs an attitude model (attitude=...) for a measured light curve")
         args = (self.t[fit], self.y[fit], self.sun_in[fit], self.obs_in[fit])
-        kw = dict(sigma=None if sigma is None else sigma[fit], brdf=self.brdf, frame=getattr(self.attitude, "frame", "ecliptic"))
+        kw = dict(sigma=None if sigma is None else sigma[fit], brdf=self.model_brdf, frame=getattr(self.attitude, "frame", "ecliptic"))
         self.sol = sol = None
         if spin_mode == "search":
             self.sol = sol = estimate_spin(*args, **kw, n_normals=self.search_normals, **self.search)

@@ -53,9 +53,9 @@ def solve_egi(f: Any) -> None:
     from cssat.inversion import egi_operator, invert_convex, observability  # heavy: cssat.inversion imports torch
 
     fit, held, sigma, y = f.fit, f.held, f.sigma, f.y
-    f.res = res = invert_convex(y[fit], f.sun_b[fit], f.obs_b[fit], brdf=f.brdf or "lambert", n_normals=f.n_normals,
+    f.res = res = invert_convex(y[fit], f.sun_b[fit], f.obs_b[fit], brdf=f.model_brdf or "lambert", n_normals=f.n_normals,
                                 sigma=None if sigma is None else sigma[fit], closure=f.closure, solver=f.solver)
-    f.model_unit = (egi_operator(f.sun_b, f.obs_b, res.normals, f.brdf).matrix().numpy() @ res.areas if res.areas.size
+    f.model_unit = (egi_operator(f.sun_b, f.obs_b, res.normals, f.model_brdf).matrix().numpy() @ res.areas if res.areas.size
                     else np.zeros_like(f.t))
     resid = y - f.model_unit
     noise_fit = _rms(sigma, fit) if sigma is not None else None
@@ -68,7 +68,7 @@ def solve_egi(f: Any) -> None:
                      shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
                      **{f"inversion_{k}": v for k, v in res.info.items() if isinstance(v, (int, float, str)) or v is None})
     f.grid = _grid(f.n_normals)
-    f.obs_info = observability(f.sun_b[fit], f.obs_b[fit], f.grid, brdf=f.brdf)
+    f.obs_info = observability(f.sun_b[fit], f.obs_b[fit], f.grid, brdf=f.model_brdf)
     f.metrics.update(observability_rank=f.obs_info["effective_rank"],
                      observability_seen_share=float(f.obs_info["seen"].mean()))
 
