@@ -155,7 +155,10 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     with the EGI model of :func:`~cssat.inversion.egi_operator` (no shadowing).
 
     1. The synodic period ``P₀`` (``period_s``, or :func:`estimate_period` between
-       ``min_period_s`` and ``max_period_s``); both ``P₀`` and ``2 P₀`` are candidates.
+       ``min_period_s`` and ``max_period_s``); both ``P₀`` and ``2 P₀`` are candidates, and
+       ``P₀/2``, ``P₀/4`` when ``P₀`` is a multiple of the periodogram's peak (down to the peak's
+       period): over nights of drifting geometry a multiple can fit a high-SNR curve's drift better
+       than its true period, and the spin model, which follows the geometry, decides.
     2. Coarse search: for each of ``n_poles`` poles on a Fibonacci grid of the whole sphere
        (the sense of rotation is the pole's: the period stays positive), a scan of the sidereal
        frequency ``f = 1/P + δ`` in steps of ``1/(20 span)``, each spin scored by the NNLS EGI
@@ -196,6 +199,11 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     fine = _Fit(*subset(int_param(max_samples, "max_samples", 16)),
                 fibonacci_sphere(int_param(n_normals, "n_normals", 16)).numpy(), brdf, frame)
     cands = [1.0 / P0] + ([0.5 / P0] if 2 * P0 <= max_period_s or period_s is not None else [])
+    # a period chosen as a multiple of the periodogram's peak may be a drift's: over nights of changing
+    # geometry a high-SNR light curve is not strictly periodic, and 2 or 4 cycles fit its drift better.
+    # The spin model, which follows the geometry, arbitrates: P₀/2 and P₀/4 down to the peak's period
+    peak_P = synodic.get("f0_period_s") if period_s is None else None
+    cands += [k / P0 for k in (2, 4) if peak_P and P0 / k >= 0.99 * peak_P and P0 / k >= min_period_s]
     table = _coarse_scan(coarse, t, S, O, n_poles, cands)
     # the coarse grid's bias is as large as the χ² differences between poles: each pole's best
     # spin is scored again on the fine grid of normals before the starts are chosen
