@@ -9,10 +9,11 @@ import numpy as np
 
 def _crb_period(P: float, A: float, sigma: float, dt: float, N: int) -> float:
     """The Cramér–Rao 1σ of the period of ``A sin(2π t/P + φ)`` sampled ``N`` times every ``dt`` s
-    in white noise ``sigma``, amplitude, phase and offset unknown (Rife & Boorstyn 1974; Kay,
-    *Fundamentals of Statistical Signal Processing I*, eq. 3.41): the angular frequency per sample
-    has ``var ω = 12 / (η N (N² − 1))`` with the SNR ``η = A² / (2 σ²)``, so
-    ``σ_f = √(6 σ²/(π² A² N (N² − 1))) / dt`` Hz and ``σ_P = P² σ_f``."""
+    in white noise ``sigma``, amplitude and phase unknown: with the phase referred to the record's
+    centre the Fisher information of the angular frequency per sample ``ω`` decouples from ``A``
+    and ``φ`` and is ``(A²/σ²) Σₙ (n − n̄)² sin² ≈ (A²/2σ²) N (N² − 1)/12``, so
+    ``var ω = 12 / (η N (N² − 1))`` with ``η = A²/(2σ²)``, ``σ_f = σ_ω/(2π dt)`` Hz and
+    ``σ_P = P² σ_f``."""
     var_omega = 12.0 / ((A * A / (2 * sigma * sigma)) * N * (N * N - 1))
     return P * P * math.sqrt(var_omega) / (2 * math.pi * dt)
 
