@@ -37,6 +37,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import multiprocessing as mp  # noqa: E402
+import sys  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -171,12 +172,20 @@ def main() -> None:
     args = p.parse_args()
     fn = {"period": period_case, "glint": _glint_case, "spin": spin_case}[args.part]
     seeds = range(args.first, args.first + args.seeds)
+    rows: list[dict] = []
+
+    def keep(rs: list[dict]) -> None:  # one line a seed on stderr: a long run shows its progress
+        rows.extend(rs)
+        print(f"[{len(rows)}] " + json.dumps(rs, default=float), file=sys.stderr, flush=True)
+
     if args.workers > 1:
         with mp.get_context("spawn").Pool(args.workers, initializer=_init) as pool:
-            rows = [r for rs in pool.imap_unordered(fn, seeds) for r in rs]
+            for rs in pool.imap_unordered(fn, seeds):
+                keep(rs)
     else:
         _init()
-        rows = [r for s in seeds for r in fn(s)]
+        for s in seeds:
+            keep(fn(s))
     report(args.part, rows)
     if args.json:
         with open(args.json, "w") as fh:
