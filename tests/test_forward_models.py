@@ -104,7 +104,8 @@ def test_the_solver_group_solves_the_egi(tmp_path):
     assert t["status"] == "ok" and t["inversion_method"] == "nntv" and (b["areas"] >= 0).all()
     from hydra.utils import instantiate
 
-    brdf = instantiate(cfg_of(*EGI_TINY).brdf)  # the experiment's surface (an albedo scales the areas, not χ²)
+    surface = cfg_of(*EGI_TINY).brdf  # the experiment's surface (an albedo scales the areas, not χ²); brdf=mesh
+    brdf = instantiate(surface) if surface.get("_target_") else None  # (the default) is inverted as Lambert, albedo 1
     r = (egi_operator(b["sun_body"][fit], b["obs_body"][fit], b["normals"], brdf).matrix().numpy() @ b["areas"] - b["flux"][fit])
     assert float(((r / b["sigma"][fit]) ** 2).sum()) == pytest.approx(t["inversion_chi2"], rel=1e-6)
     assert not (b["areas"].size == int((ref > 0).sum()) and np.allclose(np.sort(b["areas"]), np.sort(ref[ref > 0])))

@@ -16,7 +16,8 @@ sidereal period by :func:`~cssat.inversion.estimate_spin` —, ``tumbling`` — 
 by :func:`~cssat.inversion.estimate_tumbling` —, ``known`` — the true attitude, an **oracle** —,
 or ``auto``: search for a ``spin`` attitude or a measured file, tumbling for a ``tumbling``
 attitude, known otherwise); ``solve`` — the EGI on ``inversion.n_normals`` normals and its
-convex shape (:func:`~cssat.inversion.invert_convex`), the held-out nights predicted, the
+convex shape (:func:`~cssat.inversion.invert_convex`) — or with ``inversion.shape=parametric`` a
+shadowed box-wing fitted from it (:mod:`~cssat.experiments.forward.egi_parametric`) —, the held-out nights predicted, the
 observability of the fitted geometry; ``score`` — against the truth (none for a file);
 ``write`` — ``arrays.npz``, ``shape.obj`` (metres), ``egi.csv``, ``lightcurve.csv`` and the
 figures ``inversion_lightcurve``, ``inversion_egi``, ``inversion_shapes``,
