@@ -16,7 +16,8 @@ sidereal period by :func:`~cssat.inversion.estimate_spin` —, ``tumbling`` — 
 by :func:`~cssat.inversion.estimate_tumbling` —, ``known`` — the true attitude, an **oracle** —,
 or ``auto``: search for a ``spin`` attitude or a measured file, tumbling for a ``tumbling``
 attitude, known otherwise); ``solve`` — the EGI on ``inversion.n_normals`` normals and its
-convex shape (:func:`~cssat.inversion.invert_convex`), the held-out nights predicted, the
+convex shape (:func:`~cssat.inversion.invert_convex`) — or with ``inversion.shape=parametric`` a
+shadowed box-wing fitted from it (:mod:`~cssat.experiments.forward.egi_parametric`) —, the held-out nights predicted, the
 observability of the fitted geometry; ``score`` — against the truth (none for a file);
 ``write`` — ``arrays.npz``, ``shape.obj`` (metres), ``egi.csv``, ``lightcurve.csv`` and the
 figures ``inversion_lightcurve``, ``inversion_egi``, ``inversion_shapes``,
@@ -39,6 +40,7 @@ from cssat._checks import FieldError, bool_param, choice_param, float_param, int
 from cssat.experiments.build import build, build_model, build_solver, settings, validate_solver
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.forward.base import ForwardModel
+from cssat.experiments.forward.egi_parametric import check_shape_settings, score_parametric, solve_parametric, write_parametric
 from cssat.experiments.forward.egi_score import (EGI_MATCH_DEG, EGI_WEIGHT_SHARE, egi_recovered_share, score_truth, solve_egi,
                                                  write_egi)
 from cssat.experiments.forward.nights import (check_constrained, check_search, check_size, night_index, night_mask,
@@ -88,6 +90,7 @@ class EGILightCurve(ForwardModel):
             raise FieldError("solver", f"{getattr(self.solver, 'name', 'this solver')} works on images; the EGI is areas on "
                                        "the sphere's normals: solver=nnls|nnomp|nnl1|nntv (nntv: TV on the sphere)")
         self.closure = float_param(inv.get("closure", 1.0), "inversion.closure", 0.0)
+        self.shape_opts = check_shape_settings(inv)
         self.search = {k: inv[k] for k in SEARCH_KEYS if inv.get(k) is not None}
         self.mesh = build_model(cfg.model)
         self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
@@ -240,13 +243,18 @@ class EGILightCurve(ForwardModel):
     def solve(self, run: Run) -> None:
         with run.stage("invert"):
             solve_egi(self)
+            if self.shape_opts["shape"] == "parametric":
+                solve_parametric(self)
 
     def score(self, run: Run) -> dict[str, Any]:
         self.truth = score_truth(self) if self.observed is None and self.true_frames is not None else {}
+        if self.truth:
+            score_parametric(self, self.frames[0] @ self.true_frames[0].T)
         return self.metrics
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
         write_egi(self, run)
+        write_parametric(self, run.out_dir)
 
     def headline(self, metrics: dict[str, Any]) -> str:
         return ("inversion: {} samples over {} nights, {}{}, EGI {} normals, held-out rms {}× noise".format(

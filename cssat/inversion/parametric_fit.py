@@ -1,0 +1,106 @@
+"""Fitting the parametric box-wing (:mod:`cssat.inversion.parametric`) to a light curve, started
+from the convex EGI solution (issue 36 point 2).
+
+The fit minimises a robust (soft-L1) loss of the noise-normalised residuals
+``r_t = (y_t − m_t(p)) / σ_t``: ``Σ 2 (sqrt(1 + (r_t/k)²) − 1) k²`` with ``k = huber`` (a glint
+many σ above the diffuse model costs linearly, not quadratically). Outer iterations recast the
+Embree visibility at the current parameters; inner iterations are L-BFGS-B steps (scipy, the
+gradient by torch autograd) with it fixed.
+Sizes and albedos are fitted as logarithms (kept positive), the hinge as an angle, the gap as
+``softplus``.
+
+ASSUMPTIONS (beyond the model's): the body frame is the attitude's (known or estimated by
+:func:`cssat.inversion.estimate_spin`) and the bus is aligned with its axes, the panels along
+±y; flux scales as ``C_d × area``, so size and albedo are separated only through the shadows'
+geometry and the bus/panel ratios — an absolute size needs an albedo prior (``cd0``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import torch
+
+from cssat._checks import FieldError, float_param, int_param
+from cssat.inversion.parametric import PARAM_NAMES, box_wing_light_curve, box_wing_visibility
+
+__all__ = ["box_wing_start", "fit_box_wing"]
+
+
+def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.3, aspect: float = 3.75) -> np.ndarray:
+    """A starting box-wing ``p (9,)`` from an EGI (``normals (K, 3)``, ``areas (K,)`` in m² × albedo):
+    the panel normal is the heaviest axis (antipodal areas pooled) perpendicular to y within 30°,
+    which gives the hinge; the panels take that direction's area (one side), the rest is a cubic
+    bus; sizes are ``area / cd0``; a panel's length is ``aspect`` × its width."""
+    N, a = np.asarray(normals, dtype=np.float64), np.asarray(areas, dtype=np.float64)
+    if N.ndim != 2 or N.shape[1] != 3 or a.shape != (len(N),) or a.sum() <= 0:
+        raise FieldError("areas", f"expected K normals (K, 3) and K areas with a positive sum, got {N.shape}, {a.shape}")
+    cd0 = float_param(cd0, "cd0", 0.0, 1.0, open_lo=True)
+    cos = np.abs(N @ N.T)
+    pooled = (cos >= math.cos(math.radians(15))) @ a
+    side = np.abs(N[:, 1]) <= math.sin(math.radians(30))
+    k = int(np.argmax(np.where(side, pooled, -1)))
+    n = N[k] * np.sign(N[k, 0] if abs(N[k, 0]) > 1e-9 else 1.0)
+    hinge = math.atan2(-n[2], n[0])
+    total = a.sum() / cd0
+    panel_one_side = min(0.45 * pooled[k] / cd0, 0.8 * total / 2)
+    width = math.sqrt(max(panel_one_side / panels / aspect, 1e-6))
+    h = math.sqrt(max(total - 2 * panel_one_side, 0.05 * total) / 24)
+    return np.array([h, h, h, aspect * width, width, hinge, 0.5 * h, cd0, cd0])
+
+
+def _to_p(z: torch.Tensor) -> torch.Tensor:
+    """The free variables ``z`` (log sizes, hinge, softplus⁻¹ gap, log albedos) as ``p``."""
+    return torch.cat([z[:5].exp(), z[5:6], torch.nn.functional.softplus(z[6:7]), z[7:].exp()])
+
+
+def _to_z(p: np.ndarray) -> torch.Tensor:
+    g = max(float(p[6]), 1e-6)
+    gap = g + math.log(-math.expm1(-g))  # softplus⁻¹
+    return torch.as_tensor(np.r_[np.log(p[:5]), p[5], gap, np.log(p[7:])], dtype=torch.float64)
+
+
+def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None, panels: int = 2, divisions: int = 4,
+                 outer: int = 5, inner: int = 40, huber: float = 3.0) -> tuple[np.ndarray, dict[str, Any]]:
+    """The box-wing ``p (9,)`` fitting ``y (T,)`` (flux per unit irradiance at 1 m, i.e. m²) at
+    body-frame ``sun, observer (T, 3)``, from ``p0 (9,)``; ``sigma (T,)`` the 1σ (None: ones).
+    Returns ``(p, info)`` with ``info``: ``loss``, ``rms_over_noise`` (the fit's χ-rms) and
+    ``params`` (a name → value dict)."""
+    outer = int_param(outer, "outer", 1, 100)
+    inner = int_param(inner, "inner", 1, 1000)
+    huber = float_param(huber, "huber", 0.0, open_lo=True)
+    yt = torch.as_tensor(np.asarray(y, dtype=np.float64))
+    sg = torch.ones_like(yt) if sigma is None else torch.as_tensor(np.asarray(sigma, dtype=np.float64))
+    if sg.shape != yt.shape or bool((sg <= 0).any()):
+        raise FieldError("sigma", f"expected {tuple(yt.shape)} positive values, got {tuple(sg.shape)}")
+    S, V = np.asarray(sun, dtype=np.float64), np.asarray(observer, dtype=np.float64)
+    kw = dict(panels=panels, divisions=divisions, range_km=1e-3, irradiance=1.0)
+    from scipy.optimize import minimize  # heavy: scipy.optimize (torch.optim would import torch._dynamo, ~4 s)
+
+    def loss_of(z, vis):
+        r = (yt - box_wing_light_curve(_to_p(z), S, V, vis, **kw)) / sg
+        return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
+
+    def value_and_grad(x, vis):
+        z = torch.as_tensor(x, dtype=torch.float64).requires_grad_(True)
+        loss = loss_of(z, vis)
+        (g,) = torch.autograd.grad(loss, z)
+        return float(loss.detach()), g.numpy()
+
+    z = _to_z(np.asarray(p0, dtype=np.float64))
+    best = (math.inf, z)
+    for _ in range(outer):
+        vis = box_wing_visibility(_to_p(z), S, V, panels=panels, divisions=divisions)
+        sol = minimize(value_and_grad, z.numpy(), args=(vis,), jac=True, method="L-BFGS-B", options={"maxiter": inner})
+        z = torch.as_tensor(sol.x, dtype=torch.float64)
+        with torch.no_grad():  # score with the visibility recast at the new parameters
+            val = float(loss_of(z, box_wing_visibility(_to_p(z), S, V, panels=panels, divisions=divisions)))
+        if val < best[0]:
+            best = (val, z)
+    p = _to_p(best[1]).numpy()
+    vis = box_wing_visibility(p, S, V, panels=panels, divisions=divisions)
+    r = (yt - box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw)) / sg
+    return p, {"loss": best[0], "rms_over_noise": float(torch.sqrt((r**2).mean())),
+               "params": dict(zip(PARAM_NAMES, map(float, p)))}
