@@ -58,24 +58,25 @@ def fold_dispersion(t: np.ndarray, y: np.ndarray, sigma: np.ndarray | None, min_
     ``median S − 1 ≤ 10/√n``), ``variation`` (the median of ``median_f S − 1``: the signal's
     variance over the noise's) and ``windows`` (how many counted).
 
-    Assumptions: positive ``y`` is a flux: it is folded as ``ln y`` (glints and shadows on a
-    common scale) and samples above ``glint_factor`` × the window's median are dropped as
-    specular glints, which a 30 s cadence samples too sparsely to fold; otherwise ``y`` is a
-    magnitude, folded as it is. Within a window the geometry (phase angle, aspect) changes little
+    Assumptions: ``y`` of positive median is a flux: it is folded as ``ln max(y, σ)`` (glints
+    and shadows on a common scale; a sample below its noise weighs as an error of order 1) and
+    samples above ``glint_factor`` × the window's median are dropped as specular glints, which a
+    30 s cadence samples too sparsely to fold; otherwise ``y`` is a magnitude, folded as it is. Within a window the geometry (phase angle, aspect) changes little
     (GEO: ≈ 30° an hour or two), so a principal-axis spinner's curve is periodic there up to a
     slow trend; the synodic–sidereal shift is below the grid's resolution."""
     t = np.asarray(t, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
     s = (np.full_like(y, light_curve_scatter(t, y)) if sigma is None
          else np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape))
-    flux = bool((y > 0).all())
-    v, sv = (np.log(y), s / y) if flux else (y, s)
+    flux = bool(np.median(y) > 0)
+    yf = np.maximum(y, s)  # a flux at or below its noise: ln y's error is of order 1 (weighted as such)
+    v, sv = (np.log(yf), s / yf) if flux else (y, s)
     var = np.maximum(sv, 1e-300) ** 2
     W = max(float(window_s), 2.0 * float(max_period_s))
     scores, variation = [], []
     for j in _windows(t, W, 40):
         if flux:
-            j = j[y[j] < glint_factor * np.median(y[j])]
+            j = j[y[j] < glint_factor * max(float(np.median(y[j])), float(np.median(s[j])))]
         if len(j) < 40:
             continue
         tt = t[j] - t[j][0]
