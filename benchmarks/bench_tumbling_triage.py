@@ -108,11 +108,11 @@ def main() -> None:
         de = sum(r["tumbling"] for r in tu)
         print(f"{'all' if nights is None else nights:>6} {f'{fa}/{len(sp)} ({100 * fa / max(len(sp), 1):.0f} %)':>26s} "
               f"{f'{de}/{len(tu)} ({100 * de / max(len(tu), 1):.0f} %)':>20s}")
-    for kind in ("spin", "tumble"):
+    for kind, name in (("spin", "spinners"), ("tumble", "tumblers")):
         ap = np.array([r["aperiodic"] for r in rows if r["kind"] == kind and r["tumbling"] is not None])
         ap = ap[np.isfinite(ap)]
         if ap.size:
-            print(f"aperiodic fraction, {kind}ners: min {ap.min():.3f}, median {np.median(ap):.3f}, max {ap.max():.3f}")
+            print(f"aperiodic fraction, {name}: min {ap.min():.3f}, median {np.median(ap):.3f}, max {ap.max():.3f}")
     refused = sum(r["tumbling"] is None for r in rows)
     if refused:
         print(f"no verdict (too few samples): {refused}")
