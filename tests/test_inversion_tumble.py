@@ -230,3 +230,14 @@ def test_the_tumbling_verdict_does_not_cry_wolf():
         assert out["tumbling"] is truth, (truth, out["aperiodic"], out["why"])
     with pytest.raises(FieldError, match="aperiodic_threshold"):
         estimate_tumbling_periods(t, tumbler, aperiodic_threshold=1.5, **opts)
+
+
+@pytest.mark.parametrize("key, value", [("aperiodic_threshold", 0.0), ("aperiodic_threshold", 2.0), ("window_s", -1.0)])
+def test_the_characterise_tumbling_options_are_checked_before_work(key, value):
+    from omegaconf import OmegaConf
+
+    from cssat.experiments.forward.observed import observed_settings
+
+    cfg = OmegaConf.create({"observations": "lc.csv", "tumbling": {key: value}})
+    with pytest.raises(FieldError, match=f"tumbling.{key}"):
+        observed_settings(cfg)
