@@ -210,3 +210,39 @@ def test_the_tumbling_options_are_checked_before_work(tmp_path):
             run_experiment(_cfg("experiment=inversion", *bad), tmp_path / "bad2")
         assert json.loads((tmp_path / "bad2" / "metrics.json").read_text())["status"] == "failed"
         assert not (tmp_path / "bad2" / "arrays.npz").exists()
+
+
+def test_the_tumbling_verdict_does_not_cry_wolf():
+    """Issue 36, point 8: a spinner's curve — one periodic signal (two harmonics) times a slow
+    drift of the geometry (a third of its level over the night), with a specular glint of 20× at
+    one phase in some cycles only — is NOT called tumbling; a sum of two periodic signals of
+    incommensurate periods (ratio the golden mean) IS; a bad threshold is refused by name."""
+    from cssat.inversion import estimate_tumbling_periods
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 4 * 3600.0, 30.0)  # one 4-h night at a 30 s cadence
+    ph = 2 * np.pi * t / 517.0
+    drift = 1.0 + 0.35 * t / t[-1] - 0.2 * (t / t[-1]) ** 2
+    spinner = (1.0 + 0.3 * np.cos(ph) + 0.15 * np.sin(2 * ph + 0.4)) * drift
+    glint = (np.abs(((t / 517.0) % 1.0) - 0.25) < 0.03) & (rng.random(t.size) < 0.5)
+    spinner = spinner * np.where(glint, 20.0, 1.0)
+    golden = 0.5 * (1 + math.sqrt(5))
+    tumbler = 1.0 + 0.3 * np.cos(ph) + 0.25 * np.cos(ph / golden + 1.0) + 0.1 * np.cos(2 * ph / golden)
+    opts = {"min_period_s": 120.0, "max_period_s": 3000.0}
+    for y, truth in ((spinner, False), (tumbler, True)):
+        sig = 0.005 * np.ones_like(y)
+        out = estimate_tumbling_periods(t, y + sig * rng.standard_normal(y.size), sigma=sig, **opts)
+        assert out["tumbling"] is truth, (truth, out["aperiodic"], out["why"])
+    with pytest.raises(FieldError, match="aperiodic_threshold"):
+        estimate_tumbling_periods(t, tumbler, aperiodic_threshold=1.5, **opts)
+
+
+@pytest.mark.parametrize("key, value", [("aperiodic_threshold", 0.0), ("aperiodic_threshold", 2.0), ("window_s", -1.0)])
+def test_the_characterise_tumbling_options_are_checked_before_work(key, value):
+    from omegaconf import OmegaConf
+
+    from cssat.experiments.forward.observed import observed_settings
+
+    cfg = OmegaConf.create({"observations": "lc.csv", "tumbling": {key: value}})
+    with pytest.raises(FieldError, match=f"tumbling.{key}"):
+        observed_settings(cfg)

@@ -208,12 +208,12 @@ class EGILightCurve(ForwardModel):
             tp = estimate_tumbling_periods(self.t[fit], self.y[fit], sigma=None if sigma is None else sigma[fit],
                                            min_period_s=float(inv.get("min_period_s") or 60.0),
                                            max_period_s=float(inv.get("max_period_s") or 86400.0))
-            self.metrics.update(lc_tumbling=tp["tumbling"], lc_delta_bic=tp["delta_bic"],
+            self.metrics.update(lc_tumbling=tp["tumbling"], lc_delta_bic=tp["delta_bic"], lc_aperiodic=tp["aperiodic"],
                                 lc_periods_s=[float(p) for p in tp["periods_s"]], lc_single_period_s=tp["single_period_s"])
             if tp["tumbling"] and self.spin_mode == "search" and (not self.auto or self.observed is not None):
-                log.warning("inversion: the light curve has two fundamental periods (%.1f s, %.1f s; ΔBIC %.0f): it looks "
-                            "tumbling, and the spin search assumes a principal-axis rotation (inversion.spin=tumbling "
-                            "searches a torque-free tumbling state)", *tp["periods_s"], tp["delta_bic"])
+                log.warning("inversion: no single period folds the light curve (aperiodic fraction %.3f; two periods "
+                            "%.1f s, %.1f s): it looks tumbling, and the spin search assumes a principal-axis rotation "
+                            "(inversion.spin=tumbling searches a torque-free tumbling state)", tp["aperiodic"], *tp["periods_s"])
         except FieldError as e:  # too few samples or no second frequency: the period analysis is skipped
             log.info("inversion: no two-period analysis (%s)", e)
 

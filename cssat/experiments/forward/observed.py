@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, bool_param, choice_param, int_param
+from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 from cssat.experiments.build import settings
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_csv, write_npz
@@ -83,6 +83,11 @@ def observed_settings(cfg: Any) -> dict[str, Any]:
         for k in settings(cfg.get(node)):
             if k not in allowed:
                 raise FieldError(f"{node}.{k}", f"not an option of {fn.__name__}; its options: {', '.join(allowed)}")
+    tum = settings(cfg.get("tumbling"))
+    if tum.get("aperiodic_threshold") is not None:
+        float_param(tum["aperiodic_threshold"], "tumbling.aperiodic_threshold", 0.0, 1.0, open_lo=True)
+    if tum.get("window_s") is not None:
+        float_param(tum["window_s"], "tumbling.window_s", 0.0, open_lo=True)
     ch = settings(cfg.get("characterise"))
     for k in ch:
         if k not in CHARACTERISE_KEYS:

@@ -141,7 +141,8 @@ def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray,
                 raise err.within("tumbling") from None
             m["stage_tumbling"] = f"skipped: {err.detail}"
             return
-    m.update(tumbling=bool(tp["tumbling"]), tumbling_delta_bic=tp["delta_bic"], tumbling_why=tp.get("why"))
+    m.update(tumbling=bool(tp["tumbling"]), tumbling_delta_bic=tp["delta_bic"], tumbling_aperiodic=tp["aperiodic"],
+             tumbling_why=tp.get("why"))
     if tp["tumbling"]:
         m["tumbling_periods_s"] = [float(p) for p in tp["periods_s"]]
     m["stage_tumbling"] = "ok"
