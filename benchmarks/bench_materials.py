@@ -6,7 +6,8 @@ element set, the station at 51.17° N 10.45° E, nights from 2020-04-01: Sun bel
 self-shadowing. For ``astra_defunct`` + ``spin_defunct`` (the inversion's default) and
 ``astra_like`` + ``nadir`` (a working, Sun-tracking satellite's attitude), each with
 ``model.material=uniform`` (every facet cd 0.8, cs 0.2) and ``satellite`` (cssat/scene/materials.py),
-prints the median V, its 10th percentile and the brightest sample (a glint)::
+prints the median V, its 10th percentile, the brightest sample (a glint) and each material's median
+share of the flux::
 
     PYTHONPATH=$PWD python benchmarks/bench_materials.py [--nights 3] [--step-s 60]
 """
@@ -44,11 +45,17 @@ def main() -> None:
             sc = build_scenario(cfg, times)
             keep = night_mask(sc, float(cfg.nights.sun_alt_max_deg), float(cfg.nights.min_elevation_deg))
             sc = type(sc)(**{k: (getattr(sc, k)[keep] if k != "name" else sc.name) for k in sc.__dataclass_fields__})
-            flux = simulate_light_curve(build_model(cfg.model), sc, shadows=False,
-                                        attitude=build(cfg.attitude, "attitude"), brdf=None).flux
+            mesh = build_model(cfg.model)
+            facets = simulate_light_curve(mesh, sc, shadows=False, attitude=build(cfg.attitude, "attitude"), brdf=None).facets
+            flux = facets.sum(1)
             v = apparent_magnitude(flux[flux > 0]).numpy()
             print(f"{model:14s} {attitude:13s} {material:10s} {len(v):5d} samples: V median {np.median(v):6.2f}, "
                   f"10th pct {np.percentile(v, 10):6.2f}, brightest {v.min():6.2f}, faintest {v.max():6.2f}")
+            if mesh.part is not None:  # each material's median share of the flux
+                lit = flux > 0
+                shares = {n: float(np.median((facets[lit][:, torch.as_tensor(mesh.part == i)].sum(1) / flux[lit]).numpy()))
+                          for i, n in enumerate(mesh.part_names)}
+                print("    median share of the flux: " + ", ".join(f"{n} {x:.3f}" for n, x in shares.items()))
 
 
 if __name__ == "__main__":
