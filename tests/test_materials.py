@@ -76,3 +76,15 @@ def test_material_errors():
     with pytest.raises(FieldError, match="^material: expected one of"):
         paint(box((1, 1, 1)), "chrome")
     assert np.all(get_model("tess_like", cd=0.5).cd == 0.5)  # cd alone: the old uniform model
+
+
+def test_a_brdf_per_material():
+    from cssat.optics import Lambert
+
+    m = tess_like()
+    s, v = np.array([0.6, 0.0, 0.8]), np.array([0.0, 0.6, 0.8])
+    got = facet_brightness(m, s[None], v[None], irradiance=1.0, brdf={"mli": Lambert(0.2), "default": Lambert(0.5)}).numpy()[0]
+    albedo = np.where(np.array(m.part_names)[m.part] == "mli", 0.2, 0.5)
+    sn, vn = m.normals @ s, m.normals @ v
+    want = np.where((sn > 0) & (vn > 0), m.areas * albedo / math.pi * sn * vn, 0.0) / 1e6
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-300)
