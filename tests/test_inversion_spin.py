@@ -132,7 +132,7 @@ def test_the_frozen_arrays_turn_the_panels_normals():
     from cssat.inversion import egi
     from cssat.scene import get_model
 
-    n, a = egi(get_model("astra_like", array_angle_deg=30.0))
+    n, a = egi(get_model("astra_like", array_angle_deg=30.0, material="uniform"))  # geometry: one material
     big = n[np.argsort(-a)[:2]]  # the arrays' two faces, 8 panels × 2.2 × 2.4 m² each side
     assert np.allclose(np.abs(big), [math.cos(math.radians(30)), 0.0, math.sin(math.radians(30))], atol=1e-9)
     assert np.allclose(get_model("astra_like", array_angle_deg=0.0).vertices, get_model("astra_like").vertices)

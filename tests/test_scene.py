@@ -109,7 +109,7 @@ def test_box_and_dish_geometry():
 
 
 def test_procedural_models():
-    a = astra_like()
+    a = astra_like(material="uniform")  # the paper's single material (the default dresses the parts: test_materials)
     assert len(a) == 4028
     assert np.all(a.cd == 0.8) and np.all(a.cs == 0.2)
     assert 10 < a.radius < 15 and np.all(a.areas > 0)

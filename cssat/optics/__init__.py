@@ -2,6 +2,7 @@
 Knows nothing of compressed sensing; the atmosphere (Eq. 11–12) lives in :mod:`cssat.physics`."""
 
 from cssat.optics.brdf import BRDF, AshikhminShirley, BlinnPhong, CookTorrance, Lambert, PaperBRDF, Phong
+from cssat.optics.brdf_table import ABG, Binomial, fit_brdf, fit_brdf_file, read_brdf_table, write_brdf_table
 from cssat.optics.earthshine import earthshine_brightness, earthshine_irradiance
 from cssat.optics.lightcurve import LightCurve, simulate_light_curve
 from cssat.optics.passbands import Passband, ab_magnitude_at, magnitude, std_magnitude, sun_magnitude
@@ -22,6 +23,12 @@ __all__ = [
     "CookTorrance",
     "AshikhminShirley",
     "PaperBRDF",
+    "ABG",
+    "Binomial",
+    "fit_brdf",
+    "fit_brdf_file",
+    "read_brdf_table",
+    "write_brdf_table",
     "LightCurve",
     "Passband",
     "ab_magnitude_at",

@@ -238,12 +238,23 @@ def load_mesh(
 
 
 def merge(meshes: Sequence[Mesh], name: str = "") -> Mesh:
-    """One mesh from several, keeping each facet's material."""
+    """One mesh from several, keeping each facet's material and, when any of them has parts,
+    their parts (merged by name; a mesh without parts joins as the part ``"default"``)."""
     verts, faces, cd, cs, off = [], [], [], [], 0
+    names: list = []
+    parts = []
     for m in meshes:
         verts.append(m.vertices)
         faces.append(m.faces + off)
         cd.append(m.cd)
         cs.append(m.cs)
         off += len(m.vertices)
-    return Mesh(np.concatenate(verts), np.concatenate(faces), np.concatenate(cd), np.concatenate(cs), name=name)
+        own = list(m.part_names) if m.part is not None else ["default"]
+        idx = np.zeros(len(m), np.int64) if m.part is None else m.part
+        for n in own:
+            if n not in names:
+                names.append(n)
+        parts.append(np.array([names.index(n) for n in own], dtype=np.int64)[idx] if len(m) else idx)
+    any_parts = any(m.part is not None for m in meshes)
+    return Mesh(np.concatenate(verts), np.concatenate(faces), np.concatenate(cd), np.concatenate(cs), name=name,
+                part=np.concatenate(parts) if any_parts else None, part_names=tuple(names) if any_parts else ())

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cssat._checks import FieldError, float_param
+from cssat.scene.materials import check_material, paint
 from cssat.scene.mesh import Mesh, load_mesh, merge
 
 if TYPE_CHECKING:
@@ -131,7 +132,35 @@ def cylinder(radius: float, length: float, center: Sequence[float], axis: Sequen
 # ---------------------------------------------------------------- procedural spacecraft
 
 
-def astra_like(cd: float = 0.8, cs: float = 0.2, array_angle_deg: float = 0.0) -> Mesh:
+def _dress(material: str | None, cd: float | None, cs: float | None) -> tuple[bool, float, float]:
+    """``(real, cd, cs)``: whether the parts wear their real materials (:mod:`cssat.scene.materials`)
+    or every facet the uniform ``cd``/``cs``. ``material`` None: real unless ``cd`` or ``cs`` is
+    given (the old calls keep their uniform model); ``"uniform"``: ``cd``, ``cs`` (default 0.8, 0.2)."""
+    check_material(material)
+    if material is None:
+        material = "uniform" if cd is not None or cs is not None else "satellite"
+    if material == "satellite":
+        for fname, val in (("cd", cd), ("cs", cs)):
+            if val is not None:
+                raise FieldError(fname, f"a uniform {fname} ({val!r}) needs material='uniform'; material='satellite' "
+                                        "takes each part's from cssat.scene.materials")
+        return True, 0.8, 0.2
+    return False, 0.8 if cd is None else float(cd), 0.2 if cs is None else float(cs)
+
+
+def _assemble(pieces: list, real: bool, name: str) -> Mesh:
+    """Merge ``(mesh, material names)`` pieces, each painted with its materials when ``real``."""
+    return merge([paint(m, names) if real else m for m, names in pieces], name=name)
+
+
+def _halves(mesh: Mesh, first: str, second: str) -> list:
+    """Per-facet names of a two-sided part: ``first`` on its front facets, ``second`` on its back."""
+    h = len(mesh) // 2
+    return [first] * h + [second] * (len(mesh) - h)
+
+
+def astra_like(cd: float | None = None, cs: float | None = None, array_angle_deg: float = 0.0,
+               material: str | None = None) -> Mesh:
     """A procedural GEO communications satellite like Astra 1KR (paper Fig. 3b), 4,028 facets
     like the paper's model.
 
@@ -145,61 +174,86 @@ def astra_like(cd: float = 0.8, cs: float = 0.2, array_angle_deg: float = 0.0) -
     arrays track the Sun; a defunct one's are frozen at some angle — which also breaks the
     bus's symmetry under a half turn about its axes (a Lambertian light curve of the symmetric
     model repeats every half rotation, so its period is ambiguous).
+
+    Materials (``material="satellite"``, the default unless ``cd``/``cs`` are given; parts named
+    by material, :mod:`cssat.scene.materials`): the bus in MLI with OSR radiators on its ±y
+    (north/south) faces, solar cells on the wings' side facing ``(−cos θ, 0, sin θ)`` (θ the
+    array angle: +z, the Sun at local midnight, at 90°) and CFRP on their backs, reflectors behind
+    germanium-coated Kapton sunshields (CFRP behind), aluminium yokes and plate. ``material="uniform"``: every facet
+    ``cd``, ``cs`` (default 0.8, 0.2, the paper's).
     """
+    real, cd, cs = _dress(material, cd, cs)
     ang = math.radians(float_param(array_angle_deg, "array_angle_deg", -360.0, 360.0))
     v = 2.4 * np.array([math.sin(ang), 0.0, math.cos(ang)])
-    parts = [box((2.6, 2.4, 3.6), divisions=4, cd=cd, cs=cs)]
+    bus = box((2.6, 2.4, 3.6), divisions=4, cd=cd, cs=cs)
+    pieces = [(bus, np.where(np.abs(bus.normals[:, 1]) > 0.9, "osr", "mli"))]
     for side in (1, -1):
-        yoke = box((0.08, 1.5, 0.08), center=(0, side * (1.2 + 0.75), 0), cd=cd, cs=cs)
-        parts.append(yoke)
+        pieces.append((box((0.08, 1.5, 0.08), center=(0, side * (1.2 + 0.75), 0), cd=cd, cs=cs), "aluminium"))
         for k in range(4):
             y0 = 2.7 + 2.3 * k if side > 0 else -(2.7 + 2.3 * k + 2.2)
-            parts.append(panel((0, 2.2, 0), v, np.array([0.0, y0, 0.0]) - v / 2, divisions=(2, 2), cd=cd, cs=cs))
-        parts.append(dish(1.15, 0.35, center=(side * 1.65, 0, 0.6), axis=(side * 0.35, 0, 1.0),
-                          rings=12, segments=40, cd=cd, cs=cs))
+            p = panel((0, 2.2, 0), v, np.array([0.0, y0, 0.0]) - v / 2, divisions=(2, 2), cd=cd, cs=cs)
+            pieces.append((p, _halves(p, "panel_back", "solar_cell")))
+        d = dish(1.15, 0.35, center=(side * 1.65, 0, 0.6), axis=(side * 0.35, 0, 1.0), rings=12, segments=40, cd=cd, cs=cs)
+        pieces.append((d, _halves(d, "ge_kapton", "panel_back")))
     # a two-sided telemetry plate on the anti-Earth face (4 facets): 4,028 facets in all
-    parts.append(panel((0.5, 0, 0), (0, 0.5, 0), (-0.25, -0.25, -1.85), cd=cd, cs=cs))
-    return merge(parts, name="astra_like")
+    pieces.append((panel((0.5, 0, 0), (0, 0.5, 0), (-0.25, -0.25, -1.85), cd=cd, cs=cs), "aluminium"))
+    return _assemble(pieces, real, "astra_like")
 
 
-def tess_like(cd: float = 0.8, cs: float = 0.2) -> Mesh:
+def tess_like(cd: float | None = None, cs: float | None = None, material: str | None = None) -> Mesh:
     """A procedural spacecraft like NASA's TESS (the paper's target), in metres: a 1.2 × 1.2 ×
     1.0 m bus, four camera lens hoods in a 2 × 2 block with a sunshade on the +z side, two
-    solar-array wings along ±y, and a high-gain antenna dish below the bus."""
-    parts = [box((1.2, 1.2, 1.0), divisions=4, cd=cd, cs=cs)]
+    solar-array wings along ±y, and a high-gain antenna dish below the bus. Materials as
+    :func:`astra_like`'s (``material``): an MLI bus, black lens hoods, a white camera deck, solar
+    cells on the wings' +x side (CFRP behind), a white dish on an aluminium mast."""
+    real, cd, cs = _dress(material, cd, cs)
+    pieces = [(box((1.2, 1.2, 1.0), divisions=4, cd=cd, cs=cs), "mli")]
     for ix in (-1, 1):
         for iy in (-1, 1):
-            parts.append(cylinder(0.2, 0.6, center=(0.26 * ix, 0.26 * iy, 0.85), axis=(0, 0, 1), segments=24, cd=cd, cs=cs))
-    parts.append(box((1.3, 1.3, 0.08), center=(0, 0, 0.56), divisions=3, cd=cd, cs=cs))  # camera deck
+            pieces.append((cylinder(0.2, 0.6, center=(0.26 * ix, 0.26 * iy, 0.85), axis=(0, 0, 1), segments=24, cd=cd, cs=cs),
+                           "black_paint"))
+    pieces.append((box((1.3, 1.3, 0.08), center=(0, 0, 0.56), divisions=3, cd=cd, cs=cs), "white_paint"))  # camera deck
     for side in (1, -1):
         for k in range(2):
             y0 = 0.7 + 1.05 * k if side > 0 else -(0.7 + 1.05 * k + 1.0)
-            parts.append(panel((0, 1.0, 0), (0, 0, 1.3), (0, y0, -0.65), divisions=(3, 4), cd=cd, cs=cs))
-    parts.append(dish(0.35, 0.1, center=(0, 0, -0.75), axis=(0, 0, -1), rings=6, segments=24, cd=cd, cs=cs))
-    parts.append(cylinder(0.05, 0.25, center=(0, 0, -0.625), axis=(0, 0, 1), segments=8, cd=cd, cs=cs))
-    return merge(parts, name="tess_like")
+            p = panel((0, 1.0, 0), (0, 0, 1.3), (0, y0, -0.65), divisions=(3, 4), cd=cd, cs=cs)
+            pieces.append((p, _halves(p, "solar_cell", "panel_back")))
+    d = dish(0.35, 0.1, center=(0, 0, -0.75), axis=(0, 0, -1), rings=6, segments=24, cd=cd, cs=cs)
+    pieces.append((d, _halves(d, "white_paint", "panel_back")))
+    pieces.append((cylinder(0.05, 0.25, center=(0, 0, -0.625), axis=(0, 0, 1), segments=8, cd=cd, cs=cs), "aluminium"))
+    return _assemble(pieces, real, "tess_like")
 
 
 #: procedural models by name
 MODELS = {"astra_like": astra_like, "tess_like": tess_like}
 
 
-def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float = 0.8, cs: float = 0.2,
-              array_angle_deg: float | None = None) -> Mesh:
+def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float | None = None,
+              cs: float | None = None, array_angle_deg: float | None = None, material: str | None = None) -> Mesh:
     """A satellite model from config: a procedural one by ``name`` (``astra_like``, ``tess_like``)
     or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``). ``scale``
     multiplies a procedural model too (its native size is metres); the result must be a satellite:
     at most :data:`MAX_RADIUS_M` from its centre to its farthest vertex. ``array_angle_deg``: the
-    ``astra_like`` model's solar-array angle (null: 0; an error for the other models)."""
+    ``astra_like`` model's solar-array angle (null: 0; an error for the other models).
+
+    ``material``: ``"satellite"`` dresses a procedural model's parts in real materials
+    (:mod:`cssat.scene.materials`; the default unless ``cd``/``cs`` are given), ``"uniform"``
+    gives every facet ``cd``/``cs`` (default 0.8/0.2, the paper's). A file takes ``cd``/``cs``
+    (default 0.8/0.2) where it has no ``cd``/``cs`` face attributes; ``"satellite"`` is an error
+    for it (its parts are not known to be of any material)."""
+    check_material(material)
     for fname, val in (("cd", cd), ("cs", cs)):
-        if not (isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val) and val >= 0):
+        if val is not None and not (isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val) and val >= 0):
             raise FieldError(fname, f"must be a number >= 0, got {val!r}")
     if not (isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0):
         raise FieldError("scale", f"must be a number > 0 (the model's units in metres), got {scale!r}")
     if name == "file":
         if not path:
             raise FieldError("path", "required when name is 'file' (model.path=<a mesh file>)")
-        mesh = load_mesh(path, scale=scale, cd=cd, cs=cs)
+        if material == "satellite":
+            raise FieldError("material", "'satellite' dresses the procedural models' parts; a file takes "
+                                         "'uniform' (or null) and its own cd/cs face attributes")
+        mesh = load_mesh(path, scale=scale, cd=0.8 if cd is None else cd, cs=0.2 if cs is None else cs)
     elif name not in MODELS:
         raise FieldError("name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
     else:
@@ -208,9 +262,10 @@ def get_model(name: str = "astra_like", path: str | None = None, scale: float = 
             if name != "astra_like":
                 raise FieldError("array_angle_deg", f"only the astra_like model has solar arrays to turn, not {name!r}")
             extra["array_angle_deg"] = array_angle_deg
-        mesh = MODELS[name](cd=cd, cs=cs, **extra)
+        mesh = MODELS[name](cd=cd, cs=cs, material=material, **extra)
         if scale != 1.0:
-            mesh = Mesh(mesh.vertices * float(scale), mesh.faces, mesh.cd, mesh.cs, name=mesh.name)
+            mesh = Mesh(mesh.vertices * float(scale), mesh.faces, mesh.cd, mesh.cs, name=mesh.name, part=mesh.part,
+                        part_names=mesh.part_names)
     if not mesh.radius <= MAX_RADIUS_M:
         raise FieldError("scale", f"the model reaches {mesh.radius:.3g} m from its centre; a satellite is at most "
                                   f"{MAX_RADIUS_M:g} m (is model.scale in metres per file unit?)")

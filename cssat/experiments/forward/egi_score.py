@@ -14,6 +14,7 @@ from cssat.experiments.context import Run
 from cssat.experiments.files import write_csv, write_npz
 from cssat.plots import save_figure
 from cssat.scene.attitudes import Spin, Tumbling
+from cssat.scene.mesh import Mesh
 
 __all__ = ["solve_egi", "score_truth", "write_egi", "egi_recovered_share", "EGI_WEIGHT_SHARE", "EGI_MATCH_DEG"]
 
@@ -80,7 +81,10 @@ def score_truth(f: Any) -> dict[str, np.ndarray]:
     from cssat.inversion.shape import convex_iou  # heavy: cssat.inversion.shape imports torch
 
     res, metrics, attitude, sol = f.res, f.metrics, f.attitude, f.sol
-    tn, ta = egi(f.mesh)
+    mesh = f.mesh
+    if f.brdf is not None:  # one BRDF object reflects every facet alike (cd unused): the true EGI is the bare areas
+        mesh = Mesh(mesh.vertices, mesh.faces, 1.0, 0.0, name=mesh.name)
+    tn, ta = egi(mesh)
     to_fit = f.frames[0] @ f.true_frames[0].T  # the true body normals in the fitted body frame at t = 0
     tn_fit = tn @ to_fit.T
     metrics["egi_recovered_share"] = egi_recovered_share(tn_fit, ta, res.normals, res.areas)
