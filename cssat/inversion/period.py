@@ -277,15 +277,17 @@ class _Aliases:
         """The least-RSS frequency (Hz) of the ``m``-harmonic series within ``f0 ± 0.5/longest``
         (``longest``: the longest stretch, s) and its RSS, else ``(f0, rss0)``: across gaps the RSS
         in frequency is a comb of fringes ``1/gap`` apart, and the periodogram's peak may pick a
-        neighbour of the best (a cycle miscounted across the gap). A grid of ``step / m``, its 5
-        lowest minima refined; only when the track spans over 1.5 stretches."""
+        neighbour of the best (a cycle miscounted across the gap). A grid of ``step / min(m, 2)`` of
+        the 2-harmonic RSS, its 5 lowest minima refined with ``m``; only when the track spans over
+        1.5 stretches."""
         cv = self.cv
         if float(cv.t[-1] - cv.t[0]) < 1.5 * self.longest:
             return f0, rss0
-        h = self.step / m
+        ms = min(m, 2)  # the comb is found with the first two harmonics, its minima refined with all m
+        h = self.step / ms
         n = int(0.5 / (self.longest * h))
         grid = f0 + h * np.arange(-n, n + 1)
-        rss = np.array([cv.rss(f, m) for f in grid])
+        rss = np.array([cv.rss(f, ms) for f in grid])
         low = np.flatnonzero(np.r_[True, rss[1:] <= rss[:-1]] & np.r_[rss[:-1] <= rss[1:], True])
         best = (f0, rss0)
         for i in low[np.argsort(rss[low])][:5]:  # the grid is coarse for a deep fringe: refine the 5 lowest
