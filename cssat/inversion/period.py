@@ -30,9 +30,11 @@ photometry) with its defaults:
    (``best_period_s`` keeps the best candidate): no significant period is an answer.
 5. **Uncertainties.** ``period_err_s`` from the curvature of χ² in frequency (Δχ² = 1),
    with ``sigma`` scaled by √(χ²/ν) when the model does not fit to the noise, else with the
-   residual's own scatter. ``chi2_per_sample`` is χ²/ν against ``sigma``, or, without it,
-   against the point-to-point scatter of the track (``1.4826 MAD(Δy)/√2``); > 3 sets
-   ``model_fits`` false and warns (a glinting or changing curve the Fourier series misses).
+   residual's own scatter (its coverage: ``benchmarks/bench_coverage.py``; across gaps the
+   least-χ² fringe is searched for, :meth:`_Aliases.fringes`). ``chi2_per_sample`` is χ²/ν
+   against ``sigma``, or, without it, against the point-to-point scatter of the track
+   (``1.4826 MAD(Δy)/√2``); > 3 sets ``model_fits`` false and warns (a glinting or changing
+   curve the Fourier series misses).
 
 The period found is the *synodic* one, that of the light curve (see :mod:`cssat.inversion.spin`).
 Assumptions: a strictly periodic signal plus noise that is white on the scale of the cadence;
