@@ -30,9 +30,11 @@ photometry) with its defaults:
    (``best_period_s`` keeps the best candidate): no significant period is an answer.
 5. **Uncertainties.** ``period_err_s`` from the curvature of χ² in frequency (Δχ² = 1),
    with ``sigma`` scaled by √(χ²/ν) when the model does not fit to the noise, else with the
-   residual's own scatter. ``chi2_per_sample`` is χ²/ν against ``sigma``, or, without it,
-   against the point-to-point scatter of the track (``1.4826 MAD(Δy)/√2``); > 3 sets
-   ``model_fits`` false and warns (a glinting or changing curve the Fourier series misses).
+   residual's own scatter (its coverage: ``benchmarks/bench_coverage.py``; across gaps the
+   least-χ² fringe is searched for, :meth:`_Aliases.fringes`). ``chi2_per_sample`` is χ²/ν
+   against ``sigma``, or, without it, against the point-to-point scatter of the track
+   (``1.4826 MAD(Δy)/√2``); > 3 sets ``model_fits`` false and warns (a glinting or changing
+   curve the Fourier series misses).
 
 The period found is the *synodic* one, that of the light curve (see :mod:`cssat.inversion.spin`).
 Assumptions: a strictly periodic signal plus noise that is white on the scale of the cadence;
@@ -106,12 +108,15 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     step = 1.0 / (spp * span)
     check_grid(int((f_hi - f_lo) / step) + 1, span, lo, "max_period_s" if min_period_s is None else "min_period_s")
     freq, power, peaks = _periodogram_peaks(t, cv.yp / w, None if sigma is None else 1.0 / w, f_lo, f_hi, spp, span, n_peaks)
-    search = _Aliases(cv, lo, hi, step, max_harmonics, f_harm)
+    search = _Aliases(cv, lo, hi, step, max_harmonics, f_harm, longest)
     cands = search.of_peaks(peaks, m_fixed)
     if not cands:
         raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
                          f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
     best = search.settle(_best_of_families(cands, len(peaks)), cands)
+    f_b, r_b = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])
+    if r_b < best["rss"]:
+        best = {**best, "period_s": 1.0 / f_b, "rss": r_b, "bic": cv.bic(r_b, best["n_harmonics"])}
     m = best["n_harmonics"]
     fb, rss = 1.0 / best["period_s"], best["rss"]
     N = len(t)
@@ -215,8 +220,9 @@ class _Aliases:
 
     cap = 24  # harmonics of the longest candidate (49 columns)
 
-    def __init__(self, cv: Any, lo: float, hi: float, step: float, max_harmonics: int, f_harm: float):
+    def __init__(self, cv: Any, lo: float, hi: float, step: float, max_harmonics: int, f_harm: float, longest: float):
         self.cv, self.lo, self.hi, self.step, self.max_harmonics, self.f_harm = cv, lo, hi, step, max_harmonics, f_harm
+        self.longest = longest  # the longest contiguous stretch (s), for fringes()
 
     def harmonics_at(self, f: float) -> int:
         """The highest harmonic of ``f`` under the finer steps' Nyquist."""
@@ -230,7 +236,8 @@ class _Aliases:
         cands = []  # one dict per (peak, k)
         for j, f in enumerate(peaks):
             m0 = m_fixed or cv.best_m(f, min(max_harmonics, self.harmonics_at(f)))
-            f_ref, _ = cv.refine(f, m0, self.step)
+            f_ref, r_ref = cv.refine(f, m0, self.step)
+            f_ref, _ = self.fringes(f_ref, m0, r_ref)
             for k in (1, 2, 3, 4):
                 P = k / f_ref
                 if not self.lo <= P <= self.hi:
@@ -266,6 +273,29 @@ class _Aliases:
                 break
             cands.append(win)
             best = win
+        return best
+
+    def fringes(self, f0: float, m: int, rss0: float) -> tuple[float, float]:
+        """The least-RSS frequency (Hz) of the ``m``-harmonic series within ``f0 ± 0.5/longest``
+        (``longest``: the longest stretch, s) and its RSS, else ``(f0, rss0)``: across gaps the RSS
+        in frequency is a comb of fringes ``1/gap`` apart, and the periodogram's peak may pick a
+        neighbour of the best (a cycle miscounted across the gap). A grid of ``step / min(m, 2)`` of
+        the 2-harmonic RSS, its 5 lowest minima refined with ``m``; only when the track spans over
+        1.5 stretches."""
+        cv = self.cv
+        if float(cv.t[-1] - cv.t[0]) < 1.5 * self.longest:
+            return f0, rss0
+        ms = min(m, 2)  # the comb is found with the first two harmonics, its minima refined with all m
+        h = self.step / ms
+        n = int(0.5 / (self.longest * h))
+        grid = f0 + h * np.arange(-n, n + 1)
+        rss = np.array([cv.rss(f, ms) for f in grid])
+        low = np.flatnonzero(np.r_[True, rss[1:] <= rss[:-1]] & np.r_[rss[:-1] <= rss[1:], True])
+        best = (f0, rss0)
+        for i in low[np.argsort(rss[low])][:5]:  # the grid is coarse for a deep fringe: refine the 5 lowest
+            f, r = cv.refine(float(grid[i]), m, h)
+            if r < best[1] and self.lo <= 1 / f <= self.hi:
+                best = (f, r)
         return best
 
     def alternatives(self, best: dict[str, Any], period: float, cands: list[dict[str, Any]], n_peaks: int,
