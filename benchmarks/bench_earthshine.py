@@ -2,7 +2,7 @@
 
 The inversion's defaults (conf/experiment/inversion.yaml): the synthetic Astra 1KR element set,
 the station at 51.17° N 10.45° E, model ``astra_defunct``, attitude ``spin_defunct``, BRDF
-``lambert``, nights from 2020-04-01 (Sun below −12°, object above 20°). This script simulates the
+``lambert`` (given: the experiment's default is now ``mesh``), nights from 2020-04-01 (Sun below −12°, object above 20°). This script simulates the
 first ``--nights`` nights at ``--step-s`` with and without earthshine (Earth: Lambertian, albedo
 0.3; cssat.optics.earthshine) and prints the earthshine fraction of the total and its effect in
 magnitudes::
@@ -23,22 +23,14 @@ def main() -> None:
     ap.add_argument("--step-s", type=float, default=600.0)
     args = ap.parse_args()
     import torch  # heavy: torch, the script's work
-    from hydra import compose, initialize_config_module  # heavy: hydra, to read the shipped configs
+    from _nights import night_scenario
 
     from cssat.experiments.build import build, build_model  # heavy: the experiments' builders
-    from cssat.experiments.forward.nights import night_mask  # heavy: the inversion's nights
-    from cssat.experiments.scene import build_scenario  # heavy: skyfield scenarios
     from cssat.optics import simulate_light_curve  # heavy: imports torch
 
     torch.set_num_threads(1)
-    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
-        cfg = compose("config", overrides=["experiment=inversion"])
-    start = np.datetime64(str(cfg.scenario.start_utc))
-    n = int(args.nights * 86400 / args.step_s)
-    times = start + (np.arange(n) * args.step_s * 1e6).astype("timedelta64[us]")
-    sc = build_scenario(cfg, times)
-    keep = night_mask(sc, float(cfg.nights.sun_alt_max_deg), float(cfg.nights.min_elevation_deg))
-    sc = type(sc)(**{k: (getattr(sc, k)[keep] if k != "name" else sc.name) for k in sc.__dataclass_fields__})
+    # the inversion's geometry with a Lambert surface (albedo 0.5), as measured in BENCHMARKS.md
+    cfg, sc, n = night_scenario(["experiment=inversion", "brdf=lambert"], args.nights, args.step_s)
     mesh = build_model(cfg.model)
     attitude = build(cfg.attitude, "attitude")
     brdf = build(cfg.brdf, "brdf")

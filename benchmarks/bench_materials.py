@@ -25,11 +25,9 @@ def main() -> None:
     ap.add_argument("--step-s", type=float, default=60.0)
     args = ap.parse_args()
     import torch  # heavy: torch, the script's work
-    from hydra import compose, initialize_config_module  # heavy: hydra, to read the shipped configs
+    from _nights import night_scenario
 
     from cssat.experiments.build import build, build_model  # heavy: the experiments' builders
-    from cssat.experiments.forward.nights import night_mask  # heavy: the inversion's nights
-    from cssat.experiments.scene import build_scenario  # heavy: skyfield scenarios
     from cssat.optics import apparent_magnitude, simulate_light_curve  # heavy: imports torch
 
     torch.set_num_threads(1)
@@ -37,14 +35,7 @@ def main() -> None:
         for material in ("uniform", "satellite"):
             over = ["experiment=inversion", "brdf=mesh", f"model={model}", f"attitude={attitude}",
                     f"model.material={material}"]
-            with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
-                cfg = compose("config", overrides=over)
-            start = np.datetime64(str(cfg.scenario.start_utc))
-            n = int(args.nights * 86400 / args.step_s)
-            times = start + (np.arange(n) * args.step_s * 1e6).astype("timedelta64[us]")
-            sc = build_scenario(cfg, times)
-            keep = night_mask(sc, float(cfg.nights.sun_alt_max_deg), float(cfg.nights.min_elevation_deg))
-            sc = type(sc)(**{k: (getattr(sc, k)[keep] if k != "name" else sc.name) for k in sc.__dataclass_fields__})
+            cfg, sc, _ = night_scenario(over, args.nights, args.step_s)
             mesh = build_model(cfg.model)
             facets = simulate_light_curve(mesh, sc, shadows=False, attitude=build(cfg.attitude, "attitude"), brdf=None).facets
             flux = facets.sum(1)
