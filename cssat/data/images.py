@@ -29,8 +29,9 @@ TESS_VIEW = {"sun": (0.4, -0.7, 0.6), "observer": (0.8, -0.5, 0.3)}
 
 
 def render_tess(size: int) -> np.ndarray:
-    """The procedural TESS-like model rendered at ``size × size`` by :func:`render_exposed`."""
-    return render_exposed(tess_like(), size)
+    """The procedural TESS-like model in the paper's single material (Eq. 8: C_d 0.8, C_s 0.2) rendered at
+    ``size × size`` by :func:`render_exposed` — the paper's target image."""
+    return render_exposed(tess_like(material="uniform"), size)
 
 
 def render_exposed(mesh: Mesh | trimesh.Trimesh, size: int, view: dict = TESS_VIEW) -> np.ndarray:

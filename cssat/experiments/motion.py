@@ -45,7 +45,7 @@ def scene_frames(m: int, size: int, *, start_utc: str, step_s: float, tle: Any =
 
     from cssat.optics import default_fov, render, simulate_light_curve  # heavy: cssat.optics imports torch
 
-    mesh = tess_like()
+    mesh = tess_like(material="uniform")  # the paper's single material, as its target image
     sc = make_scenario(tle=ASTRA_1KR_SYNTHETIC_TLE if tle is None else tle, start_utc=start_utc, n_steps=m, step_s=step_s,
                        lat_deg=lat_deg, lon_deg=lon_deg, alt_m=alt_m)
     lc = simulate_light_curve(mesh, sc, shadows=shadows)
