@@ -96,13 +96,13 @@ class SceneLightCurve(ForwardModel):
         with run.stage("scene"):
             self.scenario = build_scenario(self.cfg, self.times)
         with run.stage("light_curve"):
-            self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=self.shadows, attitude=self.attitude,
-                                           brdf=self.brdf, earthshine=self.earthshine, earth_albedo=self.earth_albedo)
-            self.flux = self.lc.flux
-            if self.earthshine == "auto":
+            if self.earthshine == "auto":  # decided once, here: the metrics report what was simulated
                 from cssat.optics.lightcurve import earthshine_matters  # heavy: cssat.optics imports torch
 
                 self.earthshine = earthshine_matters(self.scenario)
+            self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=self.shadows, attitude=self.attitude,
+                                           brdf=self.brdf, earthshine=self.earthshine, earth_albedo=self.earth_albedo)
+            self.flux = self.lc.flux
         with run.stage("render"):  # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
             self.fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)
             self.images = render(self.mesh, self.lc.sun, self.lc.observer, self.size, fov_m=self.fov_m,
