@@ -104,6 +104,7 @@ class _Curve:
         self.yp = yw - self.Q @ (self.Q.T @ yw)
         self.rss0 = float(self.yp @ self.yp)
         self.floor = self.rss0 * 1e-12 + 1e-300  # round-off ties, not random picks
+        self.c = 1.0  # the overdispersion ĉ that divides a known-σ χ² in bic() (quasi-likelihood)
 
     def _xp(self, f: float, m: int) -> np.ndarray:
         X = _design(self.t, f, m) * self.w[:, None]
@@ -118,7 +119,7 @@ class _Curve:
     def bic(self, rss: float, m: int) -> float:
         p = 2 * m + self.q
         r = rss + self.floor
-        return (r if self.known else self.N * math.log(r / self.N)) + p * math.log(self.N)
+        return (r / self.c if self.known else self.N * math.log(r / self.N)) + p * math.log(self.N)
 
     def score(self, f: float, m: int) -> dict[str, Any]:
         rss = self.rss(f, m)

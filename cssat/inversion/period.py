@@ -16,8 +16,12 @@ photometry) with its defaults:
    squares of an ``m``-harmonic Fourier series (``m`` by BIC), then the candidate periods
    ``k/f`` (``k = 1…4``) are scored with ``k m`` harmonics (all reach the same highest
    frequency, so the longer period's model nests the shorter one's) by the Bayesian information
-   criterion ``BIC = N ln(RSS/N) + p ln N`` (or ``χ² + p ln N`` when ``sigma`` is given): the
-   longer period wins only when its extra (odd) harmonics pay for themselves. The chosen
+   criterion ``BIC = N ln(RSS/N) + p ln N`` (or ``χ²/ĉ + p ln N`` when ``sigma`` is given, with
+   ``ĉ = max(1, χ²/ν)`` of the best-fitting peak candidate: a quasi-likelihood BIC, so that a
+   curve no series fits to its σ — glints, geometry drifting over nights — does not buy
+   harmonics with a multiple of its period: on the inversion experiment's three nights of a
+   glinting box-wing the plain χ² chose 4P or 6P): the longer period wins only when its extra
+   (odd) harmonics pay for themselves. The chosen
    period's ``P/4, P/2, 2P`` and the other peaks' best periods are the ``alternatives``, each
    with its χ², χ²/N and ΔBIC; ``why`` says in words why the chosen one won.
 4. **A verdict.** ``fap``: the false-alarm probability of the chosen model against a constant
@@ -113,6 +117,10 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     if not cands:
         raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
                          f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
+    if sigma is not None:  # quasi-likelihood: χ² in units of the best candidate's χ²/ν when no series fits to σ
+        cv.c = max(1.0, min(c["rss"] / max(len(t) - 2 * c["n_harmonics"] - cv.q, 1) for c in cands))
+        for c in cands:
+            c["bic"] = cv.bic(c["rss"], c["n_harmonics"])
     best = search.settle(_best_of_families(cands, len(peaks)), cands)
     f_b, r_b = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])
     if r_b < best["rss"]:
