@@ -131,7 +131,9 @@ def test_total_variation_refuses_an_unknown_that_is_not_an_image():
     # an image-only solver on the EGI (was an unpacking traceback)
     (EGI_TINY, ["solver=tv"], r"solver: tv works on images; .*solver=nnls\|nnomp\|nnl1\|nntv"),
     (EGI_TINY, ["solver=pnp"], r"solver: pnp works on images; .*solver=nnls\|nnomp\|nnl1\|nntv"),
-    (EGI_TINY, ["inversion.brdf=phong"], r"inversion\.brdf: expected one of \[.lambert., .simulated.\]"),
+    (EGI_TINY, ["inversion.brdf=phong"], r"inversion\.brdf: expected one of \[.lambert., .lobes., .simulated.\]"),
+    (EGI_TINY, ["inversion.brdf=lobes", "inversion.lobes=[0.5]"], r"inversion\.lobes: expected a list of Blinn–Phong exponents"),
+    (EGI_TINY, ["inversion.brdf=lobes", "inversion.lobes=abc"], r"inversion\.lobes: expected a list .* got 'abc'"),
     # settings read without a check: any truthy shadows, a star's RA without its Dec
     (EGI_TINY, ["shadows=maybe"], r"shadows: expected true or false"),
     (["experiment=lightcurve", "scenario.n_steps=3", "render.size=8"], ["shadows=1"], r"shadows: expected true or false"),

@@ -197,8 +197,19 @@ class ConvexInversion:
     fewer than 4 normals carry area), the light curve's ``residual (T,)`` (flux − fit) and the
     solver's and the Minkowski step's ``info``."""
 
-    def __init__(self, normals: np.ndarray, areas: np.ndarray, mesh: Any, residual: np.ndarray, info: dict):
+    def __init__(self, normals: np.ndarray, areas: np.ndarray, mesh: Any, residual: np.ndarray, info: dict,
+                 lobe_areas: np.ndarray | None = None, brdf: Any = None):
         self.normals, self.areas, self.mesh, self.residual, self.info = normals, areas, mesh, residual, info
+        self.lobe_areas, self.brdf = lobe_areas, brdf
+
+    def predict(self, sun_body: Any, obs_body: Any) -> np.ndarray:
+        """The fitted light curve ``(T,)`` (the flux's units) for body-frame ``sun_body``,
+        ``obs_body (T, 3)``: e.g. a night held out of the fit."""
+        from cssat.inversion.egi import egi_operator, weights  # heavy: cssat.inversion.egi imports torch
+
+        if not self.areas.size:
+            return np.zeros(len(np.asarray(sun_body)))
+        return egi_operator(sun_body, obs_body, self.normals, self.brdf).matrix().numpy() @ weights(self.areas, self.lobe_areas)
 
     def __repr__(self) -> str:
         return f"ConvexInversion({len(self.areas)} normals, area {self.areas.sum():.4g}, rms residual " \
@@ -239,16 +250,18 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     config group's) on the EGI operator, instead of ``method`` —, with ``refine`` its atoms moved off the grid
     (:func:`~cssat.inversion.recover.refine_egi`: neighbours within 1.5 grid spacings merged,
     directions and areas fitted by least squares; ``None``: for the sparse methods, not for
-    ``tv``, whose EGI is a density on the grid rather than a few facets), then :func:`minkowski`. ``brdf``: a
-    :mod:`cssat.optics.brdf` object or its name (default parameters, albedo 1 for Lambert)."""
-    from cssat.inversion.egi import egi_operator, fibonacci_sphere  # heavy: cssat.inversion.egi imports torch
+    ``tv``, whose EGI is a density on the grid rather than a few facets; not for ``Lobes``), then
+    :func:`minkowski`. ``brdf``: a :mod:`cssat.optics.brdf` object or its name (default parameters,
+    albedo 1 for Lambert), or ``"lobes"``/a :class:`~cssat.inversion.egi.Lobes` (an EGI per
+    scattering lobe; the shape from their sum)."""
+    from cssat.inversion.egi import Lobes, egi_operator, fibonacci_sphere, split_lobes  # heavy: imports torch
     from cssat.inversion.recover import recover_egi  # heavy: cssat.inversion.recover imports torch
     from cssat.optics.brdf import BRDFS, Lambert  # heavy: cssat.optics.brdf imports torch
 
     if isinstance(brdf, str):
-        if brdf not in BRDFS:
-            raise FieldError("brdf", f"expected one of {sorted(BRDFS)} or a BRDF object, got {brdf!r}")
-        brdf = Lambert(1.0) if brdf == "lambert" else BRDFS[brdf]()
+        if brdf not in BRDFS and brdf != "lobes":
+            raise FieldError("brdf", f"expected one of {sorted([*BRDFS, 'lobes'])} or a BRDF object, got {brdf!r}")
+        brdf = Lambert(1.0) if brdf == "lambert" else Lobes() if brdf == "lobes" else BRDFS[brdf]()
     N = fibonacci_sphere(n_normals)
     G = egi_operator(sun_body, obs_body, N, brdf)
     y = np.asarray(flux, dtype=np.float64).reshape(-1)
@@ -263,12 +276,13 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
         method = "tv" if info["method"] == "nntv" else info["method"]
     else:
         a, info = recover_egi(G, y, sigma=sigma, method=method, closure=closure, **recover_options)
-    keep = a > 1e-9 * max(float(a.max()), 1e-300)
-    normals, areas = N.numpy()[keep], a[keep]
+    normals, areas, lobe_areas, keep = split_lobes(a, N.numpy(), brdf)
     Gm = G.matrix().numpy()
     model = Gm @ a
     if refine is None:
-        refine = method != "tv"
+        refine = method != "tv" and lobe_areas is None
+    elif refine and lobe_areas is not None:
+        raise FieldError("refine", "the atoms' refinement moves one BRDF's EGI; not for an EGI per lobe (brdf=Lobes)")
     if refine and keep.any():
         from cssat.inversion.recover import refine_egi  # heavy: cssat.inversion.recover imports torch
 
@@ -283,7 +297,7 @@ def invert_convex(flux: Any, sun_body: Any, obs_body: Any, *, brdf: Any = "lambe
     if keep.sum() >= 4:
         mesh, minfo = minkowski(normals, areas)
         info.update({f"minkowski_{k}": v for k, v in minfo.items()})
-    return ConvexInversion(normals, areas, mesh, y - model, info)
+    return ConvexInversion(normals, areas, mesh, y - model, info, lobe_areas, brdf)
 
 
 def convex_iou(a: Any, b: Any, *, match_volume: bool = True, align_centroids: bool = True) -> float:

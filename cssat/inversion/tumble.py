@@ -50,12 +50,12 @@ class TumblingSolution:
 
     def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
         """The fitted light curve ``(T,)`` at ``times_s`` for inertial ``sun``/``obs (T, 3)``."""
-        from cssat.inversion.egi import egi_operator  # heavy: cssat.inversion.egi imports torch
+        from cssat.inversion.egi import egi_operator, weights  # heavy: cssat.inversion.egi imports torch
 
         R = self.frames(times_s)
         G = egi_operator(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
                          self.normals, self.brdf).matrix().numpy()
-        return G @ self.areas
+        return G @ weights(self.areas, getattr(self, "lobe_areas", None))
 
     def describe(self) -> dict[str, Any]:
         out = self.state.describe()
@@ -175,7 +175,11 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     alts = _alternatives(cur[1:], x, chi2, red, state)
     full = _TFit(t, y, w, S, O, fine_N, brdf)
     resid = y - full.matrix(state) @ a
-    return TumblingSolution(state=state, normals=fine_N[sup], areas=a[sup], chi2=float(chi2), reduced_chi2=float(red),
+    from cssat.inversion.egi import split_lobes  # heavy: cssat.inversion.egi imports torch
+
+    normals, areas, lobe_areas, _ = split_lobes(a, fine_N, brdf)
+    return TumblingSolution(state=state, normals=normals, areas=areas, lobe_areas=lobe_areas, chi2=float(chi2),
+                            reduced_chi2=float(red),
                             residual=resid, errors=errors, lattice_hz=np.asarray(lattice),
                             frequency_pairs=[(1 / fw, 1 / fp) for fw, fp in pairs], alternatives=alts,
                             ambiguous=any(al["delta_chi2"] < 9 and al["separation_deg"] > 10 for al in alts), brdf=brdf,

@@ -104,10 +104,21 @@ class EGILightCurve(ForwardModel):
                    self.n_normals)
         self.shadows = bool_param(cfg.get("shadows", True), "shadows")
         self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
-        # the surface the inversion assumes: Lambert, whatever the truth's (a real satellite's materials are
-        # unknown), or the simulated one — the in-class oracle
-        as_simulated = choice_param(inv.get("brdf", "lambert"), "inversion.brdf", ["lambert", "simulated"]) == "simulated"
-        self.model_brdf = self.brdf if as_simulated else None
+        # the surface the inversion assumes, whatever the truth's (a real satellite's materials are unknown):
+        # Lambert, an EGI per scattering lobe (diffuse + Blinn–Phong lobes: glints, mixed materials), or the
+        # simulated one — the in-class oracle
+        assumed = choice_param(inv.get("brdf", "lambert"), "inversion.brdf", ["lambert", "lobes", "simulated"])
+        lobes = inv.get("lobes", [100.0])
+        if assumed == "lobes":
+            from cssat.inversion.egi import Lobes  # heavy: cssat.inversion.egi imports torch
+
+            try:
+                self.model_brdf = Lobes(list(lobes) if not isinstance(lobes, (int, float, str)) else lobes)
+            except (FieldError, TypeError, ValueError) as e:
+                raise FieldError("inversion.lobes", f"expected a list of Blinn–Phong exponents in [1, 1e5] (e.g. [100]), "
+                                                    f"got {lobes!r}") from e
+        else:
+            self.model_brdf = self.brdf if assumed == "simulated" else None
         self.noise = build(cfg.get("noise"), "noise")
         if self.observed is not None:
             check_elements(cfg, self.observed)
@@ -228,6 +239,10 @@ class EGILightCurve(ForwardModel):
         if spin_mode == "search":
             self.sol = sol = estimate_spin(*args, **kw, n_normals=self.search_normals, **self.search)
             frames = sol.frames(self.t)
+            if sol.model_fits is False:
+                log.warning("inversion: the spin model misses the light curve by more than its noise (reduced χ² %.3g): "
+                            "shadows, glints or materials it does not have; the pole's 1σ (%.2g°) counts that misfit as "
+                            "white noise and can miss a pole it moved by tens of degrees", sol.reduced_chi2, sol.pole_err_deg)
             self.metrics.update(sol.describe())
             self.metrics["spin_synodic_period_s"] = float(sol.synodic["period_s"])
         elif spin_mode == "tumbling":

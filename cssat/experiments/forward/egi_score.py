@@ -51,13 +51,13 @@ def solve_egi(f: Any) -> None:
     """The EGI on ``inversion.n_normals`` normals by the ``solver`` group's solver and its convex
     shape from the fitted samples (:func:`~cssat.inversion.invert_convex`), the model over every sample, the fit and held-out
     residuals against the noise, and the observability of the fitted geometry."""
-    from cssat.inversion import egi_operator, invert_convex, observability  # heavy: cssat.inversion imports torch
+    from cssat.inversion import invert_convex, observability  # heavy: cssat.inversion imports torch
+    from cssat.inversion.egi import Lobes  # heavy: cssat.inversion.egi imports torch
 
     fit, held, sigma, y = f.fit, f.held, f.sigma, f.y
     f.res = res = invert_convex(y[fit], f.sun_b[fit], f.obs_b[fit], brdf=f.model_brdf or "lambert", n_normals=f.n_normals,
                                 sigma=None if sigma is None else sigma[fit], closure=f.closure, solver=f.solver)
-    f.model_unit = (egi_operator(f.sun_b, f.obs_b, res.normals, f.model_brdf).matrix().numpy() @ res.areas if res.areas.size
-                    else np.zeros_like(f.t))
+    f.model_unit = res.predict(f.sun_b, f.obs_b)
     resid = y - f.model_unit
     noise_fit = _rms(sigma, fit) if sigma is not None else None
     noise_held = _rms(sigma, held) if sigma is not None else None
@@ -69,7 +69,8 @@ def solve_egi(f: Any) -> None:
                      shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
                      **{f"inversion_{k}": v for k, v in res.info.items() if isinstance(v, (int, float, str)) or v is None})
     f.grid = _grid(f.n_normals)
-    f.obs_info = observability(f.sun_b[fit], f.obs_b[fit], f.grid, brdf=f.model_brdf)
+    # the observability of the EGI on the grid: for an EGI per lobe, of its diffuse one (the geometry's)
+    f.obs_info = observability(f.sun_b[fit], f.obs_b[fit], f.grid, brdf=None if isinstance(f.model_brdf, Lobes) else f.model_brdf)
     f.metrics.update(observability_rank=f.obs_info["effective_rank"],
                      observability_seen_share=float(f.obs_info["seen"].mean()))
 
