@@ -294,3 +294,39 @@ def test_a_tumbler_s_two_periods_from_its_light_curve():
     assert ok, (fit, truth)
     t2, y2, sig2, *_ = _tumbler([0.0, 0.0, 0.02])  # about the axis of largest inertia: a principal-axis spin
     assert not estimate_tumbling_periods(t2, y2, sigma=sig2, min_period_s=60.0, max_period_s=3000.0)["tumbling"]
+
+
+
+
+def test_the_nights_split_is_the_standard_error_of_their_mean():
+    """``_night_split`` with a stand-in search that returns a known pole for each night: three
+    stretches (a 10-sample one is too short to be a group), σ² = Σ θᵢ² / (g(g−1)) with θᵢ the
+    angles from the poles' mean direction (written out here), the period's the same; a stretch the
+    search refuses is dropped; one night gives none."""
+    from types import SimpleNamespace
+
+    from cssat._checks import FieldError
+    from cssat.inversion.spin_errors import _night_split, _pole_vector
+
+    t = np.concatenate([d * 86400.0 + np.arange(100) * 30.0 for d in range(3)] + [[3 * 86400.0 + 30.0 * k for k in range(10)]])
+    poles = {0: (10.0, 20.0, 600.0), 1: (14.0, 22.0, 600.5), 2: (60.0, -10.0, 599.0)}
+
+    def search(tt, *args, **kw):
+        (night,) = {int(x // 86400.0) for x in tt}
+        if night == 2 and kw.get("refuse"):
+            raise FieldError("flux", "too little")
+        lon, lat, P = poles[night]
+        return SimpleNamespace(pole_lon_deg=lon, pole_lat_deg=lat, period_s=P)
+
+    S = np.tile([1.0, 0.0, 0.0], (len(t), 1))
+    r = _night_split(search, t, np.ones(len(t)), S, S, {"sigma": None}, 10.0, 20.0)
+    V = np.array([_pole_vector(lo, la) for lo, la, _ in poles.values()])
+    m = V.sum(0) / np.linalg.norm(V.sum(0))
+    theta = np.degrees(np.arccos(V @ m))
+    P = np.array([p[2] for p in poles.values()])
+    assert r["split_pole_err_deg"] == pytest.approx(np.sqrt(np.sum(theta ** 2) / 6), rel=1e-12)
+    assert r["split_period_err_s"] == pytest.approx(np.sqrt(np.sum((P - P.mean()) ** 2) / 6), rel=1e-12)
+    assert len(r["split_poles"]) == 3 and r["split_poles"][0]["separation_deg"] == pytest.approx(0.0, abs=1e-6)
+    assert len(_night_split(search, t, np.ones(len(t)), S, S, {"sigma": None, "refuse": True}, 10.0, 20.0)["split_poles"]) == 2
+    one = t < 86400.0
+    assert _night_split(search, t[one], np.ones(100), S[one], S[one], {"sigma": None}, 10.0, 20.0) is None

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat._checks import FieldError, int_param
+from cssat._checks import FieldError, float_param, int_param
 from cssat.optics.brdf import Lambert
 from cssat.scene import as_mesh
 from cssat.sparse.differences import knn_differences
@@ -72,8 +72,6 @@ class Lobes:
         vals = [shininess] if np.isscalar(shininess) else list(shininess)
         if not vals:
             raise FieldError("shininess", "expected one or more lobe exponents (e.g. [100]), got none")
-        from cssat._checks import float_param
-
         self.shininess = tuple(float_param(v, "shininess", 1.0, 1e5) for v in vals)
         self.floor = float_param(floor, "floor", 0.0, 0.99)
 

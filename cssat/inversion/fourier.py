@@ -121,6 +121,13 @@ class _Curve:
         r = rss + self.floor
         return (r / self.c if self.known else self.N * math.log(r / self.N)) + p * math.log(self.N)
 
+    def overdispersion(self, cands: list[dict[str, Any]]) -> None:
+        """Set ``c`` (ĉ, the divisor of a known-σ χ² in :meth:`bic`) to the least χ²/ν of
+        ``cands`` (dicts with ``rss``, ``n_harmonics``), at least 1, and rescore their ``bic``."""
+        self.c = max(1.0, min(c["rss"] / max(self.N - 2 * c["n_harmonics"] - self.q, 1) for c in cands))
+        for c in cands:
+            c["bic"] = self.bic(c["rss"], c["n_harmonics"])
+
     def score(self, f: float, m: int) -> dict[str, Any]:
         rss = self.rss(f, m)
         return {"period_s": 1.0 / f, "n_harmonics": m, "rss": rss, "bic": self.bic(rss, m)}

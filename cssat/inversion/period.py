@@ -16,12 +16,10 @@ photometry) with its defaults:
    squares of an ``m``-harmonic Fourier series (``m`` by BIC), then the candidate periods
    ``k/f`` (``k = 1…4``) are scored with ``k m`` harmonics (all reach the same highest
    frequency, so the longer period's model nests the shorter one's) by the Bayesian information
-   criterion ``BIC = N ln(RSS/N) + p ln N`` (or ``χ²/ĉ + p ln N`` when ``sigma`` is given, with
-   ``ĉ = max(1, χ²/ν)`` of the best-fitting peak candidate: a quasi-likelihood BIC, so that a
-   curve no series fits to its σ — glints, geometry drifting over nights — does not buy
-   harmonics with a multiple of its period: on the inversion experiment's three nights of a
-   glinting box-wing the plain χ² chose 4P or 6P): the longer period wins only when its extra
-   (odd) harmonics pay for themselves. The chosen
+   criterion ``BIC = N ln(RSS/N) + p ln N`` (or ``χ²/ĉ + p ln N`` when ``sigma`` is given,
+   ``ĉ = max(1, χ²/ν)`` of the best peak candidate: quasi-likelihood, so a drifting or glinting
+   curve does not buy harmonics with 4P): a longer period wins only when its extra (odd)
+   harmonics pay for themselves. The chosen
    period's ``P/4, P/2, 2P`` and the other peaks' best periods are the ``alternatives``, each
    with its χ², χ²/N and ΔBIC; ``why`` says in words why the chosen one won.
 4. **A verdict.** ``fap``: the false-alarm probability of the chosen model against a constant
@@ -54,6 +52,7 @@ import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
 from cssat.inversion.fourier import _Curve, _vector, check_grid, frame_step, light_curve_scatter, stretches
+from cssat.inversion.period_verdict import _constant, _warnings, _why
 
 __all__ = ["estimate_period", "light_curve_scatter"]
 
@@ -118,9 +117,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
                          f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
     if sigma is not None:  # quasi-likelihood: χ² in units of the best candidate's χ²/ν when no series fits to σ
-        cv.c = max(1.0, min(c["rss"] / max(len(t) - 2 * c["n_harmonics"] - cv.q, 1) for c in cands))
-        for c in cands:
-            c["bic"] = cv.bic(c["rss"], c["n_harmonics"])
+        cv.overdispersion(cands)
     best = search.settle(_best_of_families(cands, len(peaks)), cands)
     f_b, r_b = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])
     if r_b < best["rss"]:
@@ -360,49 +357,3 @@ def _period_error(cv: Any, best: dict[str, Any], step: float, chi2_n: float, nu:
     sig_f = max(math.sqrt(2.0 * noise2 / curv) if curv > 0 else float("inf"), step * 1e-5)  # ≥ the refinement's tolerance
     period = 1.0 / fb
     return period, sig_f * period ** 2
-
-
-def _warnings(period: float, lo: float, hi: float, longest: float, step: float, alts: list[dict[str, Any]], chi2_n: float,
-              m: int) -> tuple[list[str], bool]:
-    """The verdict's warnings (too few cycles in the ``longest`` stretch, the period on an edge of
-    ``[lo, hi]``, an alias within ΔBIC 6, a misfit ``chi2_n`` of the ``m``-harmonic series) and
-    whether the model fits (χ²/ν ≤ 3)."""
-    warns = []
-    n_cycles = longest / period
-    if n_cycles < 2:
-        warns.append(f"the longest stretch holds {n_cycles:.2g} cycles of {period:.6g} s (< 2): weakly constrained")
-    if min(abs(period - lo), abs(period - hi)) < 2 * period ** 2 * step:
-        warns.append(f"the period {period:.6g} s sits on an edge of the search [{lo:.6g}, {hi:.6g}] s")
-    close = [a for a in alts if a["relation"] != "peak" and a["delta_bic"] < 6.0]
-    if close:
-        warns.append("a close call: " + ", ".join(f"{a['relation']} ({a['period_s']:.6g} s) is within ΔBIC "
-                                                  f"{a['delta_bic']:.2g} of the chosen period" for a in close))
-    model_fits = bool(chi2_n <= 3.0)
-    if not model_fits:
-        warns.append(f"χ²/N = {chi2_n:.3g}: the {m}-harmonic series does not fit to the noise (glints, a changing "
-                     "curve, or underestimated errors); the period may be an alias")
-    return warns, model_fits
-
-
-def _why(best: dict[str, Any], alts: list[dict[str, Any]]) -> str:
-    """One sentence: why the chosen period beat its aliases."""
-    parts = []
-    for a in alts:
-        if a["relation"] == "peak":
-            continue
-        verdict = "worse" if a["delta_bic"] > 0 else "better"
-        parts.append(f"{a['relation']} ({a['period_s']:.6g} s) {verdict} by ΔBIC {abs(a['delta_bic']):.3g}")
-    head = (f"{best['k']:g}× the periodogram's peak period with {best['n_harmonics']} harmonics (its odd harmonics pay for "
-            "their parameters)" if best["k"] > 1 else f"the periodogram's peak period with {best['n_harmonics']} harmonics")
-    return head + ("; " + ", ".join(parts) if parts else "")
-
-
-def _constant(t: np.ndarray) -> dict[str, Any]:
-    """The verdict on a light curve without any variation."""
-    nan = float("nan")
-    return {"period_s": nan, "period_err_s": nan, "periodic": False, "fap": 1.0, "repeat": nan, "best_period_s": nan,
-            "best_period_err_s": nan, "alternatives": [], "why": "the values do not vary", "n_harmonics": 0, "chi2": 0.0,
-            "chi2_per_sample": 0.0, "model_fits": True, "n_cycles": 0.0, "min_period_s": nan, "max_period_s": nan,
-            "f0_period_s": nan, "doubled": False, "warnings": ["constant light curve"], "noise_sigma": 0.0,
-            "n_samples": int(len(t)), "rss": 0.0, "n_nuisance": 1,
-            "periodogram": {"frequency_hz": np.zeros(0), "power": np.zeros(0)}}

@@ -61,7 +61,7 @@ log = logging.getLogger("cssat")
 MOVED_TO_SOLVER = ("method", "lam", "n_nonzero", "tv_neighbours")
 #: the spin search's settings read from the ``inversion`` group
 SEARCH_KEYS = ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples", "min_period_s",
-               "max_period_s")
+               "max_period_s", "split_nights")
 
 
 

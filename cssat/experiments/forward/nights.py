@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, float_param, int_param
+from cssat._checks import FieldError, bool_param, float_param, int_param
 from cssat.experiments.resources import check_memory
 
 __all__ = ["night_mask", "night_index", "check_search", "span_seconds", "check_size", "check_constrained", "MAX_STEPS",
@@ -46,6 +46,8 @@ def check_search(search: dict[str, Any], span_s: float | None = None) -> None:
                     ("max_samples", 16)):
         if key in search:
             int_param(search[key], f"inversion.{key}", lo, 10**6)
+    if "split_nights" in search:
+        search["split_nights"] = bool_param(search["split_nights"], "inversion.split_nights")
     lo = float_param(search.get("min_period_s", 60.0), "inversion.min_period_s", 0.0, open_lo=True)
     hi = float_param(search.get("max_period_s", 86400.0), "inversion.max_period_s", lo, open_lo=True)
     if span_s is not None and hi > span_s:
