@@ -175,7 +175,7 @@ def egi_operator(sun_body: Any, obs_body: Any, normals: Any, brdf: Any = None) -
         raise FieldError("obs_body", f"{O.shape[0]} observer directions for {S.shape[0]} Sun directions")
     cos2 = (S @ N.T).clamp_min(0) * (O @ N.T).clamp_min(0)
     if isinstance(brdf, Lobes):
-        nh = (torch.nn.functional.normalize(S + O, dim=-1, eps=1e-300) @ N.T).clamp_min(0)
+        nh = (torch.nn.functional.normalize(S + O, dim=-1, eps=1e-30) @ N.T).clamp_min(0)
         lobes = [b.evaluate(N[None], S[:, None], O[:, None]) * cos2 for b in brdf.brdfs()]
         lobes[1:] = [g * (nh >= brdf._cut(n)) for g, n in zip(lobes[1:], brdf.shininess)]
         G = torch.cat(lobes, 1)
