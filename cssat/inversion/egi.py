@@ -34,7 +34,7 @@ from cssat.scene import as_mesh
 from cssat.sparse.differences import knn_differences
 from cssat.sparse.operators import MatrixOperator
 
-__all__ = ["EGIOperator", "Lobes", "egi", "egi_operator", "fibonacci_sphere", "geometry_matrix", "split_lobes"]
+__all__ = ["EGIOperator", "Lobes", "egi", "egi_operator", "fibonacci_sphere", "egi_light_curve", "geometry_matrix", "split_lobes"]
 
 
 def fibonacci_sphere(k: int, *, dtype: torch.dtype = torch.float64, device: Any = None) -> Tensor:
@@ -112,8 +112,7 @@ def split_lobes(a: np.ndarray, normals: np.ndarray, brdf: Any, rel: float = 1e-9
     """A solved EGI ``a`` on the grid ``normals (K, 3)``: ``(normals (M, 3), areas (M,),
     lobe_areas ((L+1), M) or None, keep (K,))`` — the normals that carry area (more than ``rel``
     of the largest), their areas (summed over the lobes for :class:`Lobes`: area × total
-    reflectance) and, for :class:`Lobes`, each lobe's. ``egi_operator(s, o, normals, brdf)
-    @ weights(areas, lobe_areas)`` is the fit's light curve."""
+    reflectance) and, for :class:`Lobes`, each lobe's: :func:`egi_light_curve`'s arguments."""
     a = np.asarray(a, dtype=np.float64)
     if isinstance(brdf, Lobes):  # each lobe's own threshold: a lobe's scale says nothing of another's
         A = a.reshape(brdf.n_lobes, len(normals))
@@ -123,9 +122,16 @@ def split_lobes(a: np.ndarray, normals: np.ndarray, brdf: Any, rel: float = 1e-9
     return normals[keep], a[keep], None, keep
 
 
-def weights(areas: np.ndarray, lobe_areas: np.ndarray | None) -> np.ndarray:
-    """The vector that multiplies :func:`egi_operator`'s ``G``: ``areas``, or the lobes' stacked."""
-    return np.asarray(areas if lobe_areas is None else np.asarray(lobe_areas).reshape(-1), dtype=np.float64)
+def egi_light_curve(sun_body: Any, obs_body: Any, normals: np.ndarray, areas: np.ndarray, brdf: Any = None,
+                    lobe_areas: np.ndarray | None = None) -> np.ndarray:
+    """A solved EGI's light curve ``(T,)`` for body-frame ``sun_body``, ``obs_body (T, 3)``:
+    ``G @ areas`` of :func:`egi_operator` on ``normals (M, 3)``, or for :class:`Lobes`
+    ``G @`` the lobes' areas ``lobe_areas ((L+1), M)`` stacked (:func:`split_lobes`' output);
+    zeros without any normal."""
+    if not len(areas):
+        return np.zeros(len(np.asarray(sun_body)))
+    w = np.asarray(areas if lobe_areas is None else np.asarray(lobe_areas).reshape(-1), dtype=np.float64)
+    return egi_operator(sun_body, obs_body, normals, brdf).matrix().numpy() @ w
 
 
 class EGIOperator(MatrixOperator):

@@ -205,11 +205,9 @@ class ConvexInversion:
     def predict(self, sun_body: Any, obs_body: Any) -> np.ndarray:
         """The fitted light curve ``(T,)`` (the flux's units) for body-frame ``sun_body``,
         ``obs_body (T, 3)``: e.g. a night held out of the fit."""
-        from cssat.inversion.egi import egi_operator, weights  # heavy: cssat.inversion.egi imports torch
+        from cssat.inversion.egi import egi_light_curve  # heavy: cssat.inversion.egi imports torch
 
-        if not self.areas.size:
-            return np.zeros(len(np.asarray(sun_body)))
-        return egi_operator(sun_body, obs_body, self.normals, self.brdf).matrix().numpy() @ weights(self.areas, self.lobe_areas)
+        return egi_light_curve(sun_body, obs_body, self.normals, self.areas, self.brdf, self.lobe_areas)
 
     def __repr__(self) -> str:
         return f"ConvexInversion({len(self.areas)} normals, area {self.areas.sum():.4g}, rms residual " \

@@ -50,12 +50,11 @@ class TumblingSolution:
 
     def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
         """The fitted light curve ``(T,)`` at ``times_s`` for inertial ``sun``/``obs (T, 3)``."""
-        from cssat.inversion.egi import egi_operator, weights  # heavy: cssat.inversion.egi imports torch
+        from cssat.inversion.egi import egi_light_curve  # heavy: cssat.inversion.egi imports torch
 
         R = self.frames(times_s)
-        G = egi_operator(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
-                         self.normals, self.brdf).matrix().numpy()
-        return G @ weights(self.areas, getattr(self, "lobe_areas", None))
+        return egi_light_curve(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
+                               self.normals, self.areas, self.brdf, self.lobe_areas)
 
     def describe(self) -> dict[str, Any]:
         out = self.state.describe()
