@@ -122,8 +122,11 @@ class _Curve:
         return (r / self.c if self.known else self.N * math.log(r / self.N)) + p * math.log(self.N)
 
     def overdispersion(self, cands: list[dict[str, Any]]) -> None:
-        """Set ``c`` (ĉ, the divisor of a known-σ χ² in :meth:`bic`) to the least χ²/ν of
-        ``cands`` (dicts with ``rss``, ``n_harmonics``), at least 1, and rescore their ``bic``."""
+        """With known σ, set ``c`` (ĉ, the divisor of the χ² in :meth:`bic`) to the least χ²/ν of
+        ``cands`` (dicts with ``rss``, ``n_harmonics``), at least 1, and rescore their ``bic``;
+        without σ the BIC profiles the scale out already and nothing changes."""
+        if not self.known:
+            return
         self.c = max(1.0, min(c["rss"] / max(self.N - 2 * c["n_harmonics"] - self.q, 1) for c in cands))
         for c in cands:
             c["bic"] = self.bic(c["rss"], c["n_harmonics"])

@@ -116,8 +116,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     if not cands:
         raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
                          f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
-    if sigma is not None:  # quasi-likelihood: χ² in units of the best candidate's χ²/ν when no series fits to σ
-        cv.overdispersion(cands)
+    cv.overdispersion(cands)  # quasi-likelihood: χ² in units of the best candidate's χ²/ν when no series fits to σ
     best = search.settle(_best_of_families(cands, len(peaks)), cands)
     f_b, r_b = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])
     if r_b < best["rss"]:

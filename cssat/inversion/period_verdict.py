@@ -7,12 +7,15 @@ from typing import Any
 
 import numpy as np
 
+#: the χ²/ν above which a model is said not to fit its data: the period's Fourier series
+#: (``model_fits``) and the spin's EGI fit (``SpinSolution.model_fits``)
+MODEL_FITS_CHI2 = 3.0
 
 def _warnings(period: float, lo: float, hi: float, longest: float, step: float, alts: list[dict[str, Any]], chi2_n: float,
               m: int) -> tuple[list[str], bool]:
     """The verdict's warnings (too few cycles in the ``longest`` stretch, the period on an edge of
     ``[lo, hi]``, an alias within ΔBIC 6, a misfit ``chi2_n`` of the ``m``-harmonic series) and
-    whether the model fits (χ²/ν ≤ 3)."""
+    whether the model fits (χ²/ν ≤ :data:`MODEL_FITS_CHI2`)."""
     warns = []
     n_cycles = longest / period
     if n_cycles < 2:
@@ -23,7 +26,7 @@ def _warnings(period: float, lo: float, hi: float, longest: float, step: float, 
     if close:
         warns.append("a close call: " + ", ".join(f"{a['relation']} ({a['period_s']:.6g} s) is within ΔBIC "
                                                   f"{a['delta_bic']:.2g} of the chosen period" for a in close))
-    model_fits = bool(chi2_n <= 3.0)
+    model_fits = bool(chi2_n <= MODEL_FITS_CHI2)
     if not model_fits:
         warns.append(f"χ²/N = {chi2_n:.3g}: the {m}-harmonic series does not fit to the noise (glints, a changing "
                      "curve, or underestimated errors); the period may be an alias")

@@ -17,17 +17,14 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
-from cssat.inversion.egi import egi_operator, fibonacci_sphere, geometry_matrix, split_lobes, weights
+from cssat.inversion.egi import egi_light_curve, fibonacci_sphere, geometry_matrix, split_lobes
 from cssat.inversion.frequencies import estimate_tumbling_periods
 from cssat.inversion.period import estimate_period
+from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.spin_errors import _night_split, _separation_deg, _spin_errors
 from cssat.scene.attitude import spin_frame, to_body
 
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution", "MODEL_FITS_CHI2"]
-
-#: the reduced χ² above which the spin model is said not to fit (``SpinSolution.model_fits``), as
-#: :func:`estimate_period`'s ``model_fits``
-MODEL_FITS_CHI2 = 3.0
 
 
 class SpinSolution:
@@ -61,9 +58,8 @@ class SpinSolution:
         """The fitted model's light curve ``(T,)`` (flux units of the fit) at ``times_s`` for
         inertial ``sun``/``obs (T, 3)`` directions: e.g. a night held out of the fit."""
         R = self.frames(times_s)
-        G = egi_operator(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
-                         self.normals, self.brdf).matrix().numpy()
-        return G @ weights(self.areas, getattr(self, "lobe_areas", None))
+        return egi_light_curve(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
+                               self.normals, self.areas, self.brdf, self.lobe_areas)
 
     def describe(self) -> dict[str, Any]:
         keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "lon_err_deg", "lat_err_deg", "pole_err_deg", "period_err_s",
