@@ -91,22 +91,26 @@ def test_binomial_fit_reproduces_the_table(tmp_path):
     assert np.allclose(fit.B, [[0.5, -1.0]], atol=0.1)
 
 
-def test_table_errors_name_the_field(tmp_path):
+def test_a_missing_table_names_its_path(tmp_path):
     with pytest.raises(FieldError, match="^path: no such file"):
         read_brdf_table(tmp_path / "none.txt")
+
+
+@pytest.mark.parametrize("text, field", [
+    ("# phi_in theta_in phi_out theta_out brdf\n10 180 5 0\n", "^path: .*line 2: expected 5 columns"),
+    ("phi_in theta_in phi_out theta_out brdf\n10 180 95 0 0.1\n", "^phi_out: .*within \\(-90, 90\\)"),
+    ("10 180 5 0 -0.1\n", "^brdf: .*must be > 0"),
+    ("10 180 5 0 0.1\n10 180 x 0 0.1\n", "^path: .*line 2: not numbers"),
+])
+def test_table_errors_name_the_field(tmp_path, text, field):
     bad = tmp_path / "bad.txt"
-    bad.write_text("# phi_in theta_in phi_out theta_out brdf\n10 180 5 0\n")
-    with pytest.raises(FieldError, match="^path: .*line 2: expected 5 columns"):
+    bad.write_text(text)
+    with pytest.raises(FieldError, match=field):
         read_brdf_table(bad)
-    bad.write_text("phi_in theta_in phi_out theta_out brdf\n10 180 95 0 0.1\n")
-    with pytest.raises(FieldError, match="^phi_out: .*within \\(-90, 90\\)"):
-        read_brdf_table(bad)
-    bad.write_text("10 180 5 0 -0.1\n")
-    with pytest.raises(FieldError, match="^brdf: .*must be > 0"):
-        read_brdf_table(bad)
-    bad.write_text("10 180 5 0 0.1\n10 180 x 0 0.1\n")
-    with pytest.raises(FieldError, match="^path: .*line 2: not numbers"):
-        read_brdf_table(bad)
-    bad.write_text("10 180 5 0 0.1\n")
+
+
+def test_an_unknown_model_is_refused(tmp_path):
+    good = tmp_path / "good.txt"
+    good.write_text("10 180 5 0 0.1\n")
     with pytest.raises(FieldError, match="^model: expected one of"):
-        fit_brdf_file(str(bad), "gaussian")
+        fit_brdf_file(str(good), "gaussian")
