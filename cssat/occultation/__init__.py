@@ -15,12 +15,12 @@ such occultations happen.
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
 from cssat.occultation.geometry import bar_target, plane_basis, shadow_track, silhouette, star_direction
-from cssat.occultation.invert import edge_width, feature_contrast, invert_silhouette, iou
+from cssat.occultation.invert import edge_width, feature_contrast, invert_silhouette, iou, registered_iou
 from cssat.occultation.linear import ShadowOperator, invert_linear
 from cssat.occultation.rate import occultation_rate, stars_brighter_than
 from cssat.occultation.shapes import fit_shapes, render_shapes, shapes_from_mask
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
 __all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
-           "invert_silhouette", "iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "fit_shapes", "render_shapes",
+           "invert_silhouette", "iou", "registered_iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "fit_shapes", "render_shapes",
            "shapes_from_mask", "noisy", "pattern_kernel", "photons", "record", "smooth"]

@@ -33,7 +33,7 @@ from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.occultation.fresnel import shadow
 from cssat.occultation.record import record, smooth
 
-__all__ = ["invert_silhouette", "iou", "edge_width", "feature_contrast"]
+__all__ = ["invert_silhouette", "iou", "registered_iou", "edge_width", "feature_contrast"]
 
 
 def iou(a: Any, b: Any, threshold: float = 0.5) -> float:
@@ -42,6 +42,64 @@ def iou(a: Any, b: Any, threshold: float = 0.5) -> float:
     B = np.asarray(b) >= threshold
     union = (A | B).sum()
     return float((A & B).sum() / union) if union else 1.0
+
+
+def _on_grid(mask: np.ndarray, pixel_m: float, shape: tuple[int, int], pixel_to_m: float, shift_m: tuple[float, float]) -> np.ndarray:
+    """``mask (H, W)`` of ``pixel_m`` pixels, bilinearly resampled onto a centred grid ``shape`` of
+    ``pixel_to_m`` pixels, displaced by ``shift_m`` (rows north, columns east; m); 0 outside."""
+    from scipy.ndimage import map_coordinates  # heavy: scipy.ndimage, only for registered_iou()
+
+    H, W = mask.shape
+    r = ((np.arange(shape[0]) + 0.5 - shape[0] / 2) * pixel_to_m - shift_m[0]) / pixel_m + H / 2 - 0.5
+    c = ((np.arange(shape[1]) + 0.5 - shape[1] / 2) * pixel_to_m - shift_m[1]) / pixel_m + W / 2 - 0.5
+    rr, cc = np.meshgrid(r, c, indexing="ij")
+    return map_coordinates(mask, [rr, cc], order=1, mode="constant", cval=0.0)
+
+
+def registered_iou(mask: Any, truth: Any, *, pixel_m: float, truth_pixel_m: float, threshold: float = 0.5,
+                   max_shift_m: float | None = None, subpixel: int = 4) -> dict[str, float]:
+    """IoU of a reconstruction against the truth after registration, scored on the truth's grid:
+    ``mask (H, W)`` on centred pixels of ``pixel_m`` (m) is resampled bilinearly onto the grid of
+    ``truth (Ht, Wt)`` (centred pixels of ``truth_pixel_m``, typically finer: no inverse crime of
+    one shared pixel basis), displaced by the shift that maximises the overlap of the two masks
+    thresholded at ``threshold`` — first the best whole truth pixel by FFT cross-correlation
+    (within ``max_shift_m``, default a quarter of the truth's extent), then a search of ``1/subpixel``
+    of a pixel steps within one pixel of it — and the IoU of the two thresholded masks taken there.
+    Returns ``iou`` (registered), ``iou_unregistered`` (the same resampling, no shift) and
+    ``shift_north_m``, ``shift_east_m`` (the displacement applied to ``mask``). A time or
+    cross-track offset of the shadow's path moves the silhouette as a whole; this score forgives
+    it, so report the path's offsets beside it."""
+    m = np.asarray(mask, dtype=np.float64)
+    T = np.asarray(truth, dtype=np.float64) >= threshold
+    if m.ndim != 2 or T.ndim != 2:
+        raise FieldError("mask", f"expected two 2-D masks, got shapes {m.shape} and {T.shape}")
+    pm = float_param(pixel_m, "pixel_m", 0.0, open_lo=True)
+    pt = float_param(truth_pixel_m, "truth_pixel_m", 0.0, open_lo=True)
+    k = int_param(subpixel, "subpixel", 1, 64)
+    reach = 0.25 * min(T.shape) * pt if max_shift_m is None else float_param(max_shift_m, "max_shift_m", 0.0)
+
+    def score(shift):
+        A = _on_grid(m, pm, T.shape, pt, shift) >= threshold
+        union = (A | T).sum()
+        return float((A & T).sum() / union) if union else 1.0
+
+    A0 = (_on_grid(m, pm, T.shape, pt, (0.0, 0.0)) >= threshold).astype(np.float64)
+    # overlap(d) = Σ_x T(x) A0(x − d): the whole-pixel shift by a circular cross-correlation on a grid padded twice
+    shape = (2 * T.shape[0], 2 * T.shape[1])
+    corr = np.fft.irfft2(np.fft.rfft2(T.astype(np.float64), shape) * np.conj(np.fft.rfft2(A0, shape)), shape)
+    dr = np.fft.fftfreq(shape[0], 1.0 / shape[0])[:, None]
+    dc = np.fft.fftfreq(shape[1], 1.0 / shape[1])[None, :]
+    corr = np.where(np.hypot(dr, dc) * pt <= reach, corr, -np.inf)
+    i, j = np.unravel_index(int(np.argmax(corr)), corr.shape)
+    base = (float(dr[i, 0]) * pt, float(dc[0, j]) * pt)
+    best = (score(base), base)
+    steps = np.arange(-k, k + 1) / k * pt
+    for a in steps:
+        for b in steps:
+            cand = (base[0] + a, base[1] + b)
+            if np.hypot(*cand) <= reach + 1e-12:
+                best = max(best, (score(cand), cand))
+    return {"iou": best[0], "iou_unregistered": score((0.0, 0.0)), "shift_north_m": float(best[1][0]), "shift_east_m": float(best[1][1])}
 
 
 def _signed_distance(truth: np.ndarray, pixel_m: float) -> np.ndarray:
