@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.tumble_fit import _alternatives, _continuation, _errors, _refine
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
@@ -32,7 +33,9 @@ log = logging.getLogger("cssat")
 class TumblingSolution:
     """What :func:`estimate_tumbling` returns: ``state`` (:class:`TumblingState`, the body frame
     its principal frame), ``normals (K, 3)``/``areas (K,)`` (the EGI in that frame, those with
-    area), ``chi2``, ``reduced_chi2``, ``residual (T,)`` (flux − fit on every sample), ``errors``
+    area), ``chi2``, ``reduced_chi2``, ``model_fits`` (with ``sigma``: the reduced χ² at most
+    :data:`~cssat.inversion.period_verdict.MODEL_FITS_CHI2`, else None; false means the 1σ count
+    the model's misfit — glints, shadows, materials it lacks — as white noise), ``residual (T,)`` (flux − fit on every sample), ``errors``
     (1σ of ``i1, i2, P_omega_s, P_phi_s, t0_s, L_lon_deg, L_lat_deg, phi0_deg`` and
     ``L_err_deg``, the angular 1σ of ``L``: the formal Gauss–Newton 1σ on the state and the
     support's areas, scaled by the reduced χ² when above 1, added in quadrature to the shift of the
@@ -58,7 +61,8 @@ class TumblingSolution:
 
     def describe(self) -> dict[str, Any]:
         out = self.state.describe()
-        out.update(tumble_chi2=self.chi2, tumble_reduced_chi2=self.reduced_chi2, tumble_ambiguous=self.ambiguous,
+        out.update(tumble_chi2=self.chi2, tumble_reduced_chi2=self.reduced_chi2, tumble_model_fits=self.model_fits,
+                   tumble_ambiguous=self.ambiguous,
                    **{f"tumble_err_{k}": v for k, v in self.errors.items()})
         return out
 
@@ -178,7 +182,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
 
     normals, areas, lobe_areas, _ = split_lobes(a, fine_N, brdf)
     return TumblingSolution(state=state, normals=normals, areas=areas, lobe_areas=lobe_areas, chi2=float(chi2),
-                            reduced_chi2=float(red),
+                            reduced_chi2=float(red), model_fits=bool(red <= MODEL_FITS_CHI2) if sig is not None else None,
                             residual=resid, errors=errors, lattice_hz=np.asarray(lattice),
                             frequency_pairs=[(1 / fw, 1 / fp) for fw, fp in pairs], alternatives=alts,
                             ambiguous=any(al["delta_chi2"] < 9 and al["separation_deg"] > 10 for al in alts), brdf=brdf,

@@ -239,10 +239,6 @@ class EGILightCurve(ForwardModel):
         if spin_mode == "search":
             self.sol = sol = estimate_spin(*args, **kw, n_normals=self.search_normals, **self.search)
             frames = sol.frames(self.t)
-            if sol.model_fits is False:
-                log.warning("inversion: the spin model misses the light curve by more than its noise (reduced χ² %.3g): "
-                            "shadows, glints or materials it does not have; the pole's 1σ (%.2g°) counts that misfit as "
-                            "white noise and can miss a pole it moved by tens of degrees", sol.reduced_chi2, sol.pole_err_deg)
             self.metrics.update(sol.describe())
             self.metrics["spin_synodic_period_s"] = float(sol.synodic["period_s"])
         elif spin_mode == "tumbling":
@@ -251,6 +247,12 @@ class EGILightCurve(ForwardModel):
             self.metrics.update(sol.describe())
         else:
             frames = self.true_frames
+        if sol is not None and sol.model_fits is False:
+            what = ("the pole's", sol.pole_err_deg) if spin_mode == "search" else ("the angular momentum's", sol.errors["L_err_deg"])
+            log.warning("inversion: the %s model misses the light curve by more than its noise (reduced χ² %.3g): "
+                        "shadows, glints or materials it does not have; %s 1σ (%.2g°) counts that misfit as white "
+                        "noise and can miss the truth by many times itself", "spin" if spin_mode == "search" else "tumbling",
+                        sol.reduced_chi2, *what)
         self.frames = frames
         self.metrics.update(spin=spin_mode, attitude_known=spin_mode == "known")
         self.sun_b, self.obs_b = to_body(frames, self.sun_in), to_body(frames, self.obs_in)
@@ -272,8 +274,10 @@ class EGILightCurve(ForwardModel):
         write_parametric(self, run.out_dir)
 
     def headline(self, metrics: dict[str, Any]) -> str:
-        return ("inversion: {} samples over {} nights, {}{}, EGI {} normals, held-out rms {}× noise".format(
+        typ = metrics.get("heldout_typical_over_noise")
+        return ("inversion: {} samples over {} nights, {}{}, EGI {} normals, held-out rms {}× noise{}".format(
             metrics["n_samples"], metrics["n_nights_observed"],
             repr(self.sol) if self.sol is not None else "attitude known (oracle)",
             f", pole error {metrics['pole_error_deg']:.2f}°" if "pole_error_deg" in metrics else "",
-            metrics["egi_n_normals"], f"{metrics['heldout_rms_over_noise']:.2f}" if metrics.get("heldout_rms_over_noise") else "-"))
+            metrics["egi_n_normals"], f"{metrics['heldout_rms_over_noise']:.2f}" if metrics.get("heldout_rms_over_noise") else "-",
+            f" (typical sample {typ:.2f}×)" if typ is not None else ""))

@@ -12,6 +12,7 @@ import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat._tmpfiles import atomic_write
+from cssat.experiments.forward.egi_score import _rms, _typical
 from cssat.scene.mesh import Mesh
 
 __all__ = ["check_shape_settings", "solve_parametric", "score_parametric", "write_parametric"]
@@ -32,10 +33,6 @@ def check_shape_settings(inv: Any) -> dict[str, Any]:
                 cd0=float_param(par.get("cd0", 0.3), "inversion.parametric.cd0", 0.0, 1.0, open_lo=True))
 
 
-def _rms(x: np.ndarray, m: np.ndarray) -> float | None:
-    return float(np.sqrt(np.mean(x[m] ** 2))) if m.any() else None
-
-
 def solve_parametric(f: Any) -> None:
     """Fit the box-wing on the fitted nights (``f.fit``) and predict every sample; the convex
     model's metrics move to ``convex_*`` and the box-wing's take the headline keys."""
@@ -54,7 +51,8 @@ def solve_parametric(f: Any) -> None:
     f.model_unit = box_wing_light_curve(torch.as_tensor(p), f.sun_b, f.obs_b, vis, range_km=1e-3, irradiance=1.0, **geo).numpy()
     f.param_mesh = box_wing_mesh(p, **geo)
     m = f.metrics
-    for k in ("fit_rms", "fit_rms_over_noise", "heldout_rms", "heldout_rms_over_noise", "heldout_rms_relative"):
+    for k in ("fit_rms", "fit_rms_over_noise", "heldout_rms", "heldout_rms_over_noise", "heldout_rms_relative",
+              "fit_typical_over_noise", "heldout_typical_over_noise"):
         m[f"convex_{k}"] = m.get(k)
     resid = y - f.model_unit
     rf, rh = _rms(resid, fit), _rms(resid, held)
@@ -63,6 +61,7 @@ def solve_parametric(f: Any) -> None:
     m.update(shape="parametric", fit_rms=rf, fit_rms_over_noise=rf / nf if nf else None, heldout_rms=rh,
              heldout_rms_over_noise=rh / nh if nh and held.any() else None,
              heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
+             fit_typical_over_noise=_typical(resid, sigma, fit), heldout_typical_over_noise=_typical(resid, sigma, held),
              **{f"parametric_{k}": v for k, v in info["params"].items()})
 
 

@@ -47,6 +47,13 @@ def _rms(x: np.ndarray, m: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean(x[m] ** 2))) if m.any() else None
 
 
+def _typical(resid: np.ndarray, sigma: np.ndarray | None, m: np.ndarray) -> float | None:
+    """The typical residual over the noise on the samples ``m``: ``median |r/σ| / 0.6745`` (1 for
+    residuals at the noise, Gaussian), which a few unpredicted glints do not dominate as they do
+    the rms; None without ``sigma`` or samples."""
+    return float(np.median(np.abs(resid[m] / sigma[m])) / 0.6745) if sigma is not None and m.any() else None
+
+
 def solve_egi(f: Any) -> None:
     """The EGI on ``inversion.n_normals`` normals by the ``solver`` group's solver and its convex
     shape from the fitted samples (:func:`~cssat.inversion.invert_convex`), the model over every sample, the fit and held-out
@@ -66,6 +73,7 @@ def solve_egi(f: Any) -> None:
                      fit_rms_over_noise=(rms_fit / noise_fit) if noise_fit else None,
                      heldout_rms=rms_held, heldout_rms_over_noise=(rms_held / noise_held) if noise_held and held.any() else None,
                      heldout_rms_relative=(rms_held / float(np.sqrt(np.mean(y[held] ** 2)))) if held.any() else None,
+                     fit_typical_over_noise=_typical(resid, sigma, fit), heldout_typical_over_noise=_typical(resid, sigma, held),
                      shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
                      **{f"inversion_{k}": v for k, v in res.info.items() if isinstance(v, (int, float, str)) or v is None})
     f.grid = _grid(f.n_normals)
