@@ -10,7 +10,8 @@ aperture, exposure and the star's disk, the telescopes' series and their noise;
 :mod:`cssat.occultation.linear`: the linearised (weak-occulter) model as a linear operator for
 cssat's linear solvers; :mod:`cssat.occultation.shapes`: the silhouette as a union of a few
 superellipses (a sparse model) fitted to the series; :mod:`cssat.occultation.rate`: how often
-such occultations happen.
+such occultations happen; :mod:`cssat.occultation.spectrum`: the star's photons through a
+passband as quadrature wavelengths for a polychromatic shadow.
 """
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
@@ -19,8 +20,9 @@ from cssat.occultation.invert import edge_width, feature_contrast, invert_silhou
 from cssat.occultation.linear import ShadowOperator, invert_linear
 from cssat.occultation.rate import occultation_rate, stars_brighter_than
 from cssat.occultation.shapes import fit_shapes, render_shapes, shapes_from_mask
+from cssat.occultation.spectrum import band_wavelengths, teff_from_bv
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
 __all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
            "invert_silhouette", "iou", "registered_iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "fit_shapes", "render_shapes",
-           "shapes_from_mask", "noisy", "pattern_kernel", "photons", "record", "smooth"]
+           "shapes_from_mask", "band_wavelengths", "teff_from_bv", "noisy", "pattern_kernel", "photons", "record", "smooth"]
