@@ -43,7 +43,7 @@ def _string(tt: np.ndarray, v: np.ndarray, var: np.ndarray, f: float) -> float:
 
 
 def fold_dispersion(t: np.ndarray, y: np.ndarray, sigma: np.ndarray | None, min_period_s: float, max_period_s: float,
-                    window_s: float = 7200.0, glint_factor: float = 4.0) -> dict[str, float]:
+                    window_s: float = 5400.0, glint_factor: float = 4.0) -> dict[str, float]:
     """How far a light curve ``y (T,)`` at ``t (T,)`` s (noise ``sigma (T,)`` or None: from second
     differences) is from periodic over short windows. In each window of about
     ``max(window_s, 2 max_period_s)`` inside one night (≥ 40 samples), after a straight line is
