@@ -19,7 +19,7 @@ flux, as before, which on a glinting tumbler is set by a few specular samples up
 median and buries the diffuse curve under the noise — V 16–18 in effect). Each light curve goes through
 :func:`cssat.inversion.estimate_tumbling_periods` (periods 120–3,000 s); the table counts the
 spinners called tumbling (false alarms) and the tumblers detected, by nights, and the range of the
-verdict's statistic (``aperiodic``, the signal fraction no single period folds; threshold 0.066),
+verdict's statistic (``aperiodic``, the signal fraction no single period folds; threshold 0.05),
 and the tumblers' detection by their nutation angle (between the angular momentum and the body axis
 the motion circles — the smallest moment's in the long-axis mode, the largest's in the short-axis
 mode — at the start: near 0° a tumbler is a spinner with a wobble).
