@@ -248,7 +248,7 @@ def test_the_characterise_tumbling_options_are_checked_before_work(key, value):
         observed_settings(cfg)
 
 
-def test_the_typical_residual_is_not_a_glints_own():
+def test_the_typical_residual_ignores_a_glint():
     """The inversion experiments' ``*_typical_over_noise`` (``median |r/σ| / 0.6745``): 1 for
     Gaussian residuals at the noise (the half-normal's median is 0.6745σ), and one unpredicted
     glint of 10⁴σ among 20,000 samples, which multiplies the rms by 70, moves it by under 1 %; None without σ."""
