@@ -514,3 +514,29 @@ def test_the_polychromatic_shadow_against_a_brute_force_sum_over_wavelengths():
     contrast = brute.max() - brute.min()
     assert np.abs(poly - brute).max() < 0.01 * contrast
     assert np.abs(mono - brute).max() > 20 * np.abs(poly - brute).max()
+
+
+def test_ground_and_plane_positions_against_the_projection_by_hand():
+    """The fundamental plane seen from the ground (issue 37, point 5): for a star at 31° altitude
+    (azimuth 120°), a ground offset towards the star's azimuth is sin 31° = 0.515 as long in the
+    plane, one across it unchanged; 25 m along the plane's up-sky axis is 25/sin 31° = 48.5 m on
+    the ground; a random layout goes to the plane and back; the up-sky axis is the zenith's
+    projection; bad input is refused by name."""
+    from cssat._checks import FieldError
+    from cssat.occultation import ground_to_plane, plane_to_ground
+
+    alt, az = 31.0, 120.0
+    a = np.radians(az)
+    towards = np.array([[np.sin(a), np.cos(a)]])
+    across = np.array([[np.cos(a), -np.sin(a)]])
+    assert np.isclose(np.linalg.norm(ground_to_plane(towards, alt, az)), np.sin(np.radians(alt)))
+    assert np.allclose(np.abs(ground_to_plane(across, alt, az)), [[1.0, 0.0]])
+    assert np.isclose(np.linalg.norm(plane_to_ground([[0.0, 25.0]], alt, az)), 25.0 / np.sin(np.radians(alt)))
+    g = np.random.default_rng(0).normal(size=(7, 2)) * 30
+    assert np.allclose(plane_to_ground(ground_to_plane(g, alt, az), alt, az), g)
+    up = ground_to_plane([[0.0, 0.0, 1.0]], alt, az)  # a point 1 m up projects up the sky by cos(alt)
+    assert np.allclose(up, [[0.0, np.cos(np.radians(alt))]])
+    with pytest.raises(FieldError, match="star_alt_deg"):
+        ground_to_plane(g, 0.0, az)
+    with pytest.raises(FieldError, match="enu_m"):
+        ground_to_plane(g[0], alt, az)

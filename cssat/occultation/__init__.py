@@ -15,7 +15,8 @@ passband as quadrature wavelengths for a polychromatic shadow.
 """
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
-from cssat.occultation.geometry import bar_target, plane_basis, shadow_track, silhouette, star_direction
+from cssat.occultation.geometry import (bar_target, ground_to_plane, plane_basis, plane_to_ground, shadow_track, silhouette,
+                                        star_direction)
 from cssat.occultation.invert import edge_width, feature_contrast, invert_silhouette, iou, registered_iou
 from cssat.occultation.linear import ShadowOperator, invert_linear
 from cssat.occultation.rate import occultation_rate, stars_brighter_than
@@ -23,6 +24,6 @@ from cssat.occultation.shapes import fit_shapes, render_shapes, shapes_from_mask
 from cssat.occultation.spectrum import band_wavelengths, teff_from_bv
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 
-__all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "shadow_track", "silhouette", "star_direction",
+__all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "ground_to_plane", "plane_to_ground", "shadow_track", "silhouette", "star_direction",
            "invert_silhouette", "iou", "registered_iou", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "fit_shapes", "render_shapes",
            "shapes_from_mask", "band_wavelengths", "teff_from_bv", "noisy", "pattern_kernel", "photons", "record", "smooth"]

@@ -6,8 +6,9 @@ occulter's shadow moves across it. The satellite's shadow centre, relative to th
 ``s(t) = P (r_sat(t) − r_obs(t))`` with ``P = I − d dᵀ``; its velocity ``ṡ`` (km/s) sets the
 shadow's speed and direction over the ground (≈ 2.6 km/s for a GEO satellite: the star drifts
 at the sidereal rate behind a nearly fixed satellite; on the ground itself the shadow is longer
-by ``1/cos`` of the star's zenith angle — not modelled: telescopes are placed in the fundamental
-plane). Assumptions: a star at infinity (parallel light), the satellite's positions of the
+by ``1/cos`` of the star's zenith angle along the star's azimuth; the experiment still places
+its telescopes in the fundamental plane, :func:`ground_to_plane` and :func:`plane_to_ground`
+convert ground positions). Assumptions: a star at infinity (parallel light), the satellite's positions of the
 scenario (SGP4), the star's catalogue direction (no aberration or proper motion: the shadow
 track is shifted, not changed, by them).
 """
@@ -21,7 +22,7 @@ import numpy as np
 from cssat._checks import FieldError, float_param, int_param
 from cssat.scene import as_mesh
 
-__all__ = ["bar_target", "star_direction", "plane_basis", "shadow_track", "silhouette"]
+__all__ = ["bar_target", "star_direction", "plane_basis", "shadow_track", "silhouette", "ground_to_plane", "plane_to_ground"]
 
 
 def star_direction(ra_deg: float, dec_deg: float) -> np.ndarray:
@@ -43,6 +44,48 @@ def plane_basis(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         n = np.array([1.0, 0.0, 0.0]) - d * d[0]
     n /= np.linalg.norm(n)
     return np.cross(n, d), n
+
+
+def _topocentric(alt_deg: float, az_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The star's direction ``s`` and the plane's basis ``(u, w)`` in local east–north–up: ``u``
+    horizontal, to the right of the star's azimuth seen from the ground; ``w = u × s``, the
+    zenith's projection (up the sky)."""
+    alt = np.radians(float_param(alt_deg, "star_alt_deg", 0.0, 90.0, open_lo=True))
+    az = np.radians(float_param(az_deg, "star_az_deg", -360.0, 360.0))
+    s = np.array([np.cos(alt) * np.sin(az), np.cos(alt) * np.cos(az), np.sin(alt)])
+    u = np.array([np.cos(az), -np.sin(az), 0.0])
+    return s, u, np.cross(u, s)
+
+
+def ground_to_plane(enu_m: Any, star_alt_deg: float, star_az_deg: float) -> np.ndarray:
+    """Telescope offsets on the ground ``enu_m (N, 2)`` (east, north) or ``(N, 3)`` (+ up), m, as
+    fundamental-plane coordinates ``(N, 2)`` (across: horizontal, right of the star's azimuth;
+    up-sky: the zenith's projection), for a star at altitude ``star_alt_deg`` > 0 and azimuth
+    ``star_az_deg`` (from north through east): the projection along the star's light,
+    ``p = g − (g·s) s``. A ground offset towards the star's azimuth shrinks by ``sin(alt)`` in
+    the plane, one across it not at all: telescopes 25 m apart in the plane along the up-sky axis
+    stand ``25/sin(alt)`` m apart on the ground (49 m at 31°)."""
+    g = np.asarray(enu_m, dtype=np.float64)
+    if g.ndim != 2 or g.shape[1] not in (2, 3):
+        raise FieldError("enu_m", f"expected ground offsets of shape (N, 2) or (N, 3), got {g.shape}")
+    if g.shape[1] == 2:
+        g = np.concatenate([g, np.zeros((len(g), 1))], 1)
+    s, u, w = _topocentric(star_alt_deg, star_az_deg)
+    p = g - (g @ s)[:, None] * s
+    return np.stack([p @ u, p @ w], 1)
+
+
+def plane_to_ground(plane_m: Any, star_alt_deg: float, star_az_deg: float) -> np.ndarray:
+    """Where the star's rays through fundamental-plane points ``plane_m (N, 2)`` (across, up-sky;
+    m) meet level ground: east–north offsets ``(N, 2)``, m — the inverse of
+    :func:`ground_to_plane` on flat ground (``g = p + λ s`` with ``g_up = 0``)."""
+    q = np.asarray(plane_m, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != 2:
+        raise FieldError("plane_m", f"expected plane coordinates of shape (N, 2), got {q.shape}")
+    s, u, w = _topocentric(star_alt_deg, star_az_deg)
+    p = q[:, :1] * u + q[:, 1:] * w
+    g = p - (p[:, 2] / s[2])[:, None] * s
+    return g[:, :2]
 
 
 def shadow_track(scenario: Any, d: np.ndarray) -> dict[str, np.ndarray]:
