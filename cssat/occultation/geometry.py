@@ -62,7 +62,7 @@ def ground_to_plane(enu_m: Any, star_alt_deg: float, star_az_deg: float) -> np.n
     fundamental-plane coordinates ``(N, 2)`` (across: horizontal, right of the star's azimuth;
     up-sky: the zenith's projection), for a star at altitude ``star_alt_deg`` > 0 and azimuth
     ``star_az_deg`` (from north through east): the projection along the star's light,
-    ``p = g − (g·s) s``. A ground offset towards the star's azimuth shrinks by ``sin(alt)`` in
+    ``p = g − (g·s) s``, whose coordinates on the plane's basis ``u, w ⟂ s`` are ``g·u, g·w``. A ground offset towards the star's azimuth shrinks by ``sin(alt)`` in
     the plane, one across it not at all: telescopes 25 m apart in the plane along the up-sky axis
     stand ``25/sin(alt)`` m apart on the ground (49 m at 31°)."""
     g = np.asarray(enu_m, dtype=np.float64)
@@ -70,9 +70,8 @@ def ground_to_plane(enu_m: Any, star_alt_deg: float, star_az_deg: float) -> np.n
         raise FieldError("enu_m", f"expected ground offsets of shape (N, 2) or (N, 3), got {g.shape}")
     if g.shape[1] == 2:
         g = np.concatenate([g, np.zeros((len(g), 1))], 1)
-    s, u, w = _topocentric(star_alt_deg, star_az_deg)
-    p = g - (g @ s)[:, None] * s
-    return np.stack([p @ u, p @ w], 1)
+    _, u, w = _topocentric(star_alt_deg, star_az_deg)
+    return np.stack([g @ u, g @ w], 1)
 
 
 def plane_to_ground(plane_m: Any, star_alt_deg: float, star_az_deg: float) -> np.ndarray:

@@ -70,7 +70,8 @@ def registered_iou(mask: Any, truth: Any, *, pixel_m: float, truth_pixel_m: floa
     cross-track offset of the shadow's path moves the silhouette as a whole; this score forgives
     it, so report the path's offsets beside it."""
     m = np.asarray(mask, dtype=np.float64)
-    T = np.asarray(truth, dtype=np.float64) >= threshold
+    t = np.asarray(truth, dtype=np.float64)
+    T = t >= threshold
     if m.ndim != 2 or T.ndim != 2:
         raise FieldError("mask", f"expected two 2-D masks, got shapes {m.shape} and {T.shape}")
     pm = float_param(pixel_m, "pixel_m", 0.0, open_lo=True)
@@ -79,11 +80,10 @@ def registered_iou(mask: Any, truth: Any, *, pixel_m: float, truth_pixel_m: floa
     reach = 0.25 * min(T.shape) * pt if max_shift_m is None else float_param(max_shift_m, "max_shift_m", 0.0)
 
     def score(shift):
-        A = _on_grid(m, pm, T.shape, pt, shift) >= threshold
-        union = (A | T).sum()
-        return float((A & T).sum() / union) if union else 1.0
+        return iou(_on_grid(m, pm, T.shape, pt, shift), t, threshold)
 
-    A0 = (_on_grid(m, pm, T.shape, pt, (0.0, 0.0)) >= threshold).astype(np.float64)
+    m0 = _on_grid(m, pm, T.shape, pt, (0.0, 0.0))
+    A0 = (m0 >= threshold).astype(np.float64)
     # overlap(d) = Σ_x T(x) A0(x − d): the whole-pixel shift by a circular cross-correlation on a grid padded twice
     shape = (2 * T.shape[0], 2 * T.shape[1])
     corr = np.fft.irfft2(np.fft.rfft2(T.astype(np.float64), shape) * np.conj(np.fft.rfft2(A0, shape)), shape)
@@ -99,7 +99,7 @@ def registered_iou(mask: Any, truth: Any, *, pixel_m: float, truth_pixel_m: floa
             cand = (base[0] + a, base[1] + b)
             if np.hypot(*cand) <= reach + 1e-12:
                 best = max(best, (score(cand), cand))
-    return {"iou": best[0], "iou_unregistered": score((0.0, 0.0)), "shift_north_m": float(best[1][0]), "shift_east_m": float(best[1][1])}
+    return {"iou": best[0], "iou_unregistered": iou(m0, t, threshold), "shift_north_m": float(best[1][0]), "shift_east_m": float(best[1][1])}
 
 
 def _signed_distance(truth: np.ndarray, pixel_m: float) -> np.ndarray:

@@ -20,12 +20,11 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
-from cssat.optics.passbands import passband
+from cssat.optics.passbands import C_M_S, passband
 
 __all__ = ["band_wavelengths", "teff_from_bv", "photon_spectrum"]
 
 H_J_S = 6.62607015e-34
-C_M_S = 299792458.0
 K_J_K = 1.380649e-23
 
 

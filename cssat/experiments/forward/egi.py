@@ -248,11 +248,11 @@ class EGILightCurve(ForwardModel):
         else:
             frames = self.true_frames
         if sol is not None and sol.model_fits is False:
-            what = ("the pole's", sol.pole_err_deg) if spin_mode == "search" else ("the angular momentum's", sol.errors["L_err_deg"])
+            kind, what, err = (("spin", "the pole's", sol.pole_err_deg) if spin_mode == "search"
+                               else ("tumbling", "the angular momentum's", sol.errors["L_err_deg"]))
             log.warning("inversion: the %s model misses the light curve by more than its noise (reduced χ² %.3g): "
                         "shadows, glints or materials it does not have; %s 1σ (%.2g°) counts that misfit as white "
-                        "noise and can miss the truth by many times itself", "spin" if spin_mode == "search" else "tumbling",
-                        sol.reduced_chi2, *what)
+                        "noise and can miss the truth by many times itself", kind, sol.reduced_chi2, what, err)
         self.frames = frames
         self.metrics.update(spin=spin_mode, attitude_known=spin_mode == "known")
         self.sun_b, self.obs_b = to_body(frames, self.sun_in), to_body(frames, self.obs_in)
