@@ -144,7 +144,13 @@ def test_total_variation_refuses_an_unknown_that_is_not_an_image():
     # values a "> 0" check lets through: a wavelength of a kilometre (was a traceback), a pixel of
     # 1e300 m (was refused as a 5e302-slot array), a spin period beyond the span (ran 50 s to a pole 160° off)
     (OCC_TINY, ["optics.wavelength_m=1e9"], r"optics\.wavelength_m: must be a finite number in \[1e-07, 3e-05\]"),
-    (OCC_TINY, ["optics.bandwidth_m=1e-6"], r"optics\.bandwidth_m"),
+    (OCC_TINY, ["optics.band=U"], r"optics\.band: expected one of"),
+    (OCC_TINY, ["star.bv=5"], r"star\.bv"),
+    (OCC_TINY, ["event.time_error_s=5"], r"event\.time_error_s"),
+    (OCC_TINY, ["event.oracle=2"], r"event\.oracle: expected one of"),
+    (OCC_TINY, ["+event.typo=1"], r"event\.typo: not a setting of the occultation"),
+    (OCC_TINY, ["array.scintillation=red"], r"array\.scintillation"),
+    (OCC_TINY, ["array.spacing_m=0.1"], r"array\.spacing_m: 0.1 m on the ground is less than one aperture"),
     (OCC_TINY, ["silhouette.pixel_m=1e300"], r"silhouette\.pixel_m: .* more than 1000 m"),
     (EGI_TINY, ["inversion.spin=search", "inversion.max_period_s=1e300", "inversion.min_period_s=1800"],
      r"inversion\.max_period_s: 1e\+300 s is longer than the 172800 s the light curve spans"),

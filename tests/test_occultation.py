@@ -244,7 +244,17 @@ def test_the_occultation_experiment_runs_and_writes_its_results(tmp_path):
                                                        "invert.iters=5", "threads=1"])
     met = run_experiment(cfg, tmp_path / "run")
     assert met["status"] == "ok" and 2.5 < met["shadow_speed_km_s"] < 3.0 and 0 <= met["iou"] <= 1
-    assert met["fresnel_scale_m"] == pytest.approx(np.sqrt(550e-9 * met["distance_km"] * 1e3))
+    # the V band's photon-weighted wavelength for a K giant (B − V 1.1: 4515 K) sets the Fresnel scale
+    assert 545e-9 < met["effective_wavelength_m"] < 565e-9 and met["star_teff_k"] == pytest.approx(4514.8, abs=1)
+    assert met["fresnel_scale_m"] == pytest.approx(np.sqrt(met["effective_wavelength_m"] * met["distance_km"] * 1e3))
+    # the telescopes stand on the ground: a horizontal line shrinks by between sin(altitude) and 1 in the plane
+    alt = np.radians(met["star_altitude_deg"])
+    assert np.sin(alt) - 1e-9 <= met["ground_projection"] <= 1 + 1e-9
+    assert met["array_plane_spacing_m"] == pytest.approx(met["array_ground_spacing_m"] * met["ground_projection"])
+    assert met["airmass"] == pytest.approx(1 / np.sin(alt)) and met["row"] == "realistic" and met["n_wavelengths"] == 8
+    for k in ("time_offset_s", "time_offset_sigma_s", "path_offset_m", "path_offset_sigma_m", "star_diameter_mas",
+              "path_capture_probability", "iou_placed", "scintillation_frozen_sigma"):
+        assert np.isfinite(met[k]), k
     for f in ("arrays.npz", "figures/occultation_shadow.png", "figures/occultation_series.png",
               "figures/occultation_silhouette.png"):
         assert (tmp_path / "run" / f).is_file()

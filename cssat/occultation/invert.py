@@ -33,7 +33,7 @@ from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.occultation.fresnel import shadow
 from cssat.occultation.record import record, smooth
 
-__all__ = ["invert_silhouette", "iou", "registered_iou", "edge_width", "feature_contrast"]
+__all__ = ["invert_silhouette", "iou", "registered_iou", "resample_mask", "edge_width", "feature_contrast"]
 
 
 def iou(a: Any, b: Any, threshold: float = 0.5) -> float:
@@ -44,7 +44,7 @@ def iou(a: Any, b: Any, threshold: float = 0.5) -> float:
     return float((A & B).sum() / union) if union else 1.0
 
 
-def _on_grid(mask: np.ndarray, pixel_m: float, shape: tuple[int, int], pixel_to_m: float, shift_m: tuple[float, float]) -> np.ndarray:
+def resample_mask(mask: np.ndarray, pixel_m: float, shape: tuple[int, int], pixel_to_m: float, shift_m: tuple[float, float]) -> np.ndarray:
     """``mask (H, W)`` of ``pixel_m`` pixels, bilinearly resampled onto a centred grid ``shape`` of
     ``pixel_to_m`` pixels, displaced by ``shift_m`` (rows north, columns east; m); 0 outside."""
     from scipy.ndimage import map_coordinates  # heavy: scipy.ndimage, only for registered_iou()
@@ -80,9 +80,9 @@ def registered_iou(mask: Any, truth: Any, *, pixel_m: float, truth_pixel_m: floa
     reach = 0.25 * min(T.shape) * pt if max_shift_m is None else float_param(max_shift_m, "max_shift_m", 0.0)
 
     def score(shift):
-        return iou(_on_grid(m, pm, T.shape, pt, shift), t, threshold)
+        return iou(resample_mask(m, pm, T.shape, pt, shift), t, threshold)
 
-    m0 = _on_grid(m, pm, T.shape, pt, (0.0, 0.0))
+    m0 = resample_mask(m, pm, T.shape, pt, (0.0, 0.0))
     A0 = (m0 >= threshold).astype(np.float64)
     # overlap(d) = Σ_x T(x) A0(x − d): the whole-pixel shift by a circular cross-correlation on a grid padded twice
     shape = (2 * T.shape[0], 2 * T.shape[1])

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = [
     "Layers", "hufnagel_valley", "bufton_wind", "layers_from_profile", "fried_parameter", "isoplanatic_angle",
     "rytov_index", "young_index", "phase_psd", "aperture_filter", "intensity_psd", "layer_scintillation",
-    "scintillation_index",
+    "scintillation_index", "scintillation_covariance",
 ]
 
 
@@ -210,6 +210,42 @@ def young_index(diameter_m: float, airmass: float = 1.0, exposure_s: float = 1.0
     Fresnel radius."""
     s = 0.09 * (100 * diameter_m) ** (-2 / 3) * airmass ** 1.75 * (2 * exposure_s) ** -0.5 * math.exp(-site_altitude_m / 8000)
     return float((osborn * s) ** 2)
+
+
+def scintillation_covariance(separation_m: ArrayLike, diameter_m: float = 1.0, airmass: float = 1.0,
+                             wavelength_m: float = 550e-9, *, layers: Layers | None = None, site_altitude_m: float = 0.0,
+                             ground_cn2: float = 1.7e-14, rms_wind_m_s: float = 21.0, outer_scale_m: float = 25.0,
+                             h_max_m: float = 25e3, n_heights: int = 400, n_freq: int = 3000) -> np.ndarray:
+    """The covariance of the relative intensities ``δI/I`` that two telescopes of ``diameter_m``
+    a ``separation_m`` apart (any shape; m, in the plane ⟂ the line of sight) record at the same
+    instant (zero exposure), weak turbulence, the frozen pattern of every layer:
+
+        ``C(d) = ∫ dh Cn²(h) ∫₀^∞ 2π f df 4 W_φ(f) sin²(πλ X h f²) |P̂(f)|² J₀(2π f d)``
+
+    — :func:`layer_scintillation`'s integrand with the isotropic average of ``exp(2πi f·d)``,
+    ``2π J₀(2π f d)``, in place of the exposure's (Roddier 1981). ``C(0)`` is
+    :func:`scintillation_index` at ``exposure_s = 0``; ``C(d)/C(0)`` the correlation, which falls
+    over about one aperture (a large aperture) or the largest Fresnel radius ``√(λ X h)`` (a small
+    one). The continuous HV profile (``n_heights`` log-spaced heights from 1 cm), or the discrete
+    ``layers`` when given. ``n_freq`` log-spaced frequencies from 1e-4 cycles/m to 30 / min(D,
+    the smallest Fresnel radius)."""
+    from scipy.special import j0  # heavy: scipy.special, only for scintillation_covariance()
+
+    d = np.asarray(separation_m, dtype=np.float64)
+    lam, X = float(wavelength_m), float(airmass)
+    if layers is None:
+        h = np.geomspace(0.01, h_max_m, int(n_heights))
+        w = hufnagel_valley(h + site_altitude_m, ground_cn2, rms_wind_m_s) * h  # Cn² dh per unit ln h
+        w = w * np.gradient(np.log(h))  # trapezoid-like weights in ln h
+    else:
+        h, w = np.asarray(layers.height_m, dtype=np.float64), np.asarray(layers.cn2dh, dtype=np.float64)
+    r_min = math.sqrt(lam * X * max(float(h[h > 0].min()) if (h > 0).any() else 1.0, 1e-2))
+    f = np.geomspace(1e-4, min(1e6, 30.0 / max(min(diameter_m, r_min), 1e-9)), int(n_freq))
+    G = (w[:, None] * np.sin(np.pi * lam * X * h[:, None] * f * f) ** 2).sum(0)  # Σ_layers Cn² dh sin²(…)
+    base = 2 * np.pi * 4 * phase_psd(f, 1.0, lam, X, outer_scale_m) * aperture_filter(f, diameter_m) * G * f * f
+    flat = d.reshape(-1)
+    out = np.array([_trapezoid(base * j0(2 * np.pi * f * x), np.log(f)) for x in flat])
+    return out.reshape(d.shape)
 
 
 def phase_psd(f: ArrayLike, cn2dh: float, wavelength_m: float = 550e-9, airmass: float = 1.0,

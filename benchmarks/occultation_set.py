@@ -1,0 +1,94 @@
+"""The occultation's headline over a set of silhouettes (issue 37, point 4): ``cssat
+experiment=occultation`` (nothing handed over: offsets, speed, gains and the star's diameter
+estimated; polychromatic V; frozen scintillation) on every silhouette of the set, and the
+idealised rows beside the default one, each over ``--seeds``.
+
+The set: the Astra-like model with its arrays face-on (the default), at 45° and edge-on
+(``astra_like``), the TESS-like procedural model, NASA's TESS mesh (``../shared/models/tess.obj``,
+skipped when absent) at two orientations (inertial attitudes), and bar targets of 1.0 and 0.5 m.
+The rows (``--rows``, on the default silhouette): ``oracle`` (every nuisance handed over),
+``mono`` (a monochromatic pattern at 550 nm, the V band's photons), ``white`` (white
+scintillation only), ``giant`` (a red giant of 2 mas instead of the 0.5 mas K giant). Prints a table (registered IoU, the IoU where the fit placed the silhouette,
+the offsets' errors in units of their 1σ, the star's diameter and its 2σ range, seconds) and the
+median and worst registered IoU over the set; ``--json`` writes every run's metrics.
+
+Run from the repository root (each run ~30–60 s on one core; ``--jobs 2`` runs two at once)::
+
+    python benchmarks/occultation_set.py --seeds 0 1 2 --jobs 2 --json outputs/occultation_set.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+TESS = Path(__file__).resolve().parents[2] / "shared" / "models" / "tess.obj"
+
+SET = {
+    "astra_faceon": [],
+    "astra_45deg": ["model.array_angle_deg=45"],
+    "astra_edgeon": ["model=astra_like"],
+    "tess_like": ["model=tess_like"],
+    "tess_obj_a": ["model=file", f"model.path={TESS}", "attitude=inertial", "attitude.quaternion=[0.0,0.0,0.0,1.0]"],
+    "tess_obj_b": ["model=file", f"model.path={TESS}", "attitude=inertial",
+                   "attitude.quaternion=[0.3826834,0.0,0.0,0.9238795]"],
+    "bars_1.0m": ["silhouette.target=bars", "silhouette.bar_m=1.0"],
+    "bars_0.5m": ["silhouette.target=bars", "silhouette.bar_m=0.5"],
+}
+ROWS = {"oracle": ["event.oracle=true"], "mono": ["optics.band=null"], "white": ["array.scintillation=white"],
+        "giant": ["star.diameter_mas=2.0"]}
+KEYS = ("iou", "iou_placed", "time_offset_error_sigmas", "path_offset_error_sigmas", "star_diameter_mas",
+        "star_diameter_range2_mas", "seconds")
+
+
+def _run(job: tuple[str, list[str], int, str]) -> tuple[str, int, dict]:
+    import tempfile
+
+    from hydra import compose, initialize_config_module
+
+    from cssat.experiments import run_experiment
+
+    name, overrides, seed, extra = job
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        cfg = compose(config_name="config", overrides=["experiment=occultation", *overrides, f"seed={seed}", "threads=1",
+                                                       *extra.split()])
+    with tempfile.TemporaryDirectory() as d:
+        m = run_experiment(cfg, Path(d) / "run")
+    return name, seed, m
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0])
+    ap.add_argument("--set", nargs="*", default=list(SET), help=f"silhouettes (default all: {' '.join(SET)})")
+    ap.add_argument("--rows", nargs="*", default=list(ROWS), help="idealised rows on the default silhouette")
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--extra", default="", help="overrides added to every run (space-separated)")
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args()
+    jobs = [(n, SET[n], s, args.extra) for n in args.set if not (n.startswith("tess_obj") and not TESS.is_file())
+            for s in args.seeds]
+    jobs += [(f"row:{r}", ROWS[r], s, args.extra) for r in args.rows for s in args.seeds]
+    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as ex:
+        results = list(ex.map(_run, jobs))
+    print("| run | seed | " + " | ".join(KEYS) + " |")
+    print("|---|---:|" + "---:|" * len(KEYS))
+    for name, seed, m in results:
+        cells = []
+        for k in KEYS:
+            v = m.get(k)
+            cells.append(f"[{v[0]:.2f}, {v[1]:.2f}]" if isinstance(v, list) else "—" if v is None else f"{v:.3g}")
+        print(f"| {name} | {seed} | " + " | ".join(cells) + " |")
+    ious = [m["iou"] for n, _, m in results if not n.startswith("row:")]
+    if ious:
+        print(f"registered IoU over the set ({len(ious)} runs): median {statistics.median(ious):.3f}, worst {min(ious):.3f}")
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps([{"run": n, "seed": s, **m} for n, s, m in results], indent=1, default=str))
+
+
+if __name__ == "__main__":
+    main()

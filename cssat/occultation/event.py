@@ -1,0 +1,138 @@
+"""A silhouette and the event's nuisances together, from nothing but what an observer knows
+(issue 37, point 1): :func:`invert_event`.
+
+Given: the series and their 1σ, the telescopes' positions in the fundamental plane (from their
+ground positions, :func:`~cssat.occultation.geometry.ground_to_plane`), the predicted shadow
+velocity and distance (the element set), the band's wavelengths and weights (the filter and the
+star's catalogue colour, :func:`~cssat.occultation.spectrum.band_wavelengths`), the apertures
+and the exposure. Not given: where the shadow passed (a time offset along the track, a path
+offset across it), the speed's small error, each telescope's gain (frozen scintillation,
+flat-field), the star's angular diameter (a grid over a stated prior range; the limb darkening
+assumed, not fitted).
+
+Block-coordinate: a first offset from the dips (:func:`~cssat.occultation.nuisance.dip_offset`);
+then ``rounds`` times the silhouette on a grid centred on the current offset (the linear solver
+first in round one, :func:`~cssat.occultation.invert_linear`; the non-linear fit,
+:func:`~cssat.occultation.invert_silhouette`, the series divided by the current gains) and the
+nuisances for that silhouette (:func:`~cssat.occultation.nuisance.fit_nuisances`). The offset
+is reported for the silhouette's centroid (the silhouette's position and the offset are one
+unknown): the grid's centre plus the mask's centroid, with a 1σ that adds in quadrature the χ²
+curvature's, the grey pixels' (:func:`~cssat.occultation.nuisance.mask_centroid`) and, across
+the track, the gaps between telescopes around the silhouette's edges
+(:func:`~cssat.occultation.nuisance.gap_sigma`: rows between telescopes are interpolated, not
+measured).
+The star's diameter: a silhouette's grey edge blurs its shadow as a larger star does (both are
+convolutions, and Fresnel propagation commutes with them), so the silhouette can absorb any
+*smaller* star's missing blur but no larger star's excess: the χ² profile over the diameter grid,
+the silhouette refitted at each (warm-started, ``diameter_iters``), is flat below the star's
+size and rises above it. Reported: the range where the profile is within Δχ² = 4 (scaled by the
+reduced χ² when it exceeds 1) — an upper limit when it starts at 0 — as its midpoint ± a quarter
+of its width (so that ±2σ spans it).
+``known``: any nuisance handed over (the oracle), as ``offset_m``, ``speed_error``, ``gains``,
+``diameter_m``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from cssat._checks import FieldError, int_param
+from cssat.occultation.invert import invert_silhouette
+from cssat.occultation.linear import invert_linear
+from cssat.occultation.nuisance import dip_offset, fit_nuisances, gap_sigma, mask_centroid
+from cssat.occultation.record import pattern_kernel
+
+__all__ = ["invert_event"]
+
+
+def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, wavelength_m: Any, distance_m: float,
+                 positions_m: Any, velocity_m_s: Any, times_s: Any, *, weights: Any = None, aperture_m: float,
+                 exposure_s: float, limb_darkening: float = 0.6, diameters_m: Any = (0.0,), known: dict | None = None,
+                 solver: Any = None, tv: float = 0.3, iters: int = 300, rounds: int = 2, diameter_iters: int | None = None,
+                 ground: Any = None, seed: int = 0) -> tuple[np.ndarray, dict[str, Any]]:
+    """The silhouette ``(H, W)`` on a grid centred on the shadow's fitted offset, and the event's
+    nuisances (the module's docstring): ``series (J, K)``, ``sigma`` as for
+    :func:`~cssat.occultation.invert_silhouette`; ``positions_m (J, 2)`` relative to the
+    predicted shadow centre's track (which passes the plane's origin at t = 0), ``velocity_m_s``
+    the predicted one; ``diameters_m`` the star's diameter grid (m at the satellite's distance).
+    Returns ``(mask, info)``: ``grid_centre_m`` (east, north), ``offset_m`` and ``offset_cov``
+    (the silhouette's centroid), ``speed_error`` (±σ), ``gains`` (±σ), ``diameter_m`` (±σ, the 2σ
+    range ``diameter_range2_m``, the ``diameter_profile``), ``chi2_per_sample``, the rounds'
+    offsets and the linear solver's first estimate ``linear`` (None without a ``solver``)."""
+    y = np.asarray(series, dtype=np.float64)
+    s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape).copy()
+    P = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
+    v = np.asarray(velocity_m_s, dtype=np.float64).reshape(2)
+    speed = float(np.linalg.norm(v))
+    if not speed > 0:
+        raise FieldError("velocity_m_s", "the shadow does not move")
+    rounds = int_param(rounds, "invert.rounds", 1, 20)
+    known = dict(known or {})
+    dias = np.atleast_1d(np.asarray(known.get("diameter_m", diameters_m), dtype=np.float64))
+    est = {"offset_m": np.asarray(known["offset_m"], dtype=np.float64) if "offset_m" in known
+           else dip_offset(y, s, P, v, times_s),
+           "speed_error": float(known.get("speed_error", 0.0)),
+           "gains": np.asarray(known["gains"], dtype=np.float64) if "gains" in known else np.median(y, axis=1),
+           "diameter_m": float(np.median(dias))}
+    history = [est["offset_m"].copy()]
+    mask, nui, linear = None, None, None
+
+    def fit(d_m, init, n_iter):
+        """The silhouette for the current nuisances and a star of ``d_m``: ``(mask, info, geo, kernel)``."""
+        g = est["gains"][:, None]
+        sp = speed * (1 + est["speed_error"])
+        kernel = pattern_kernel(pixel_m, aperture_m=aperture_m, star_diameter_m=d_m, limb_darkening=limb_darkening,
+                                smear_m=sp * exposure_s, smear_dir=v / speed)
+        geo = (y / g, s / g, tuple(shape), pixel_m, wavelength_m, distance_m, P - est["offset_m"], v * sp / speed, times_s)
+        m, info = invert_silhouette(*geo, kernel=kernel, weights=weights, tv=tv, iters=n_iter, seed=seed, init=init,
+                                    ground=ground)
+        return m, info
+
+    for _ in range(rounds):
+        if mask is None and solver is not None:
+            g = est["gains"][:, None]
+            kernel = pattern_kernel(pixel_m, aperture_m=aperture_m, star_diameter_m=est["diameter_m"],
+                                    limb_darkening=limb_darkening, smear_m=speed * exposure_s, smear_dir=v / speed)
+            linear, _ = invert_linear(y / g, s / g, tuple(shape), pixel_m, wavelength_m, distance_m, P - est["offset_m"], v,
+                                      times_s, kernel=kernel, weights=weights, solver=solver, ground=ground)
+        mask, info = fit(est["diameter_m"], mask if mask is not None else linear, iters)
+        if {"offset_m", "speed_error", "gains"} <= set(known):
+            break  # nothing left to fit but the star
+        v_r = v * (1 + est["speed_error"])
+        nui = fit_nuisances(mask, y, s, pixel_m, wavelength_m, distance_m, P, v_r, times_s, offset_m=est["offset_m"],
+                            weights=weights, ground=ground, aperture_m=aperture_m, smear_m=float(np.linalg.norm(v_r)) * exposure_s,
+                            limb_darkening=limb_darkening, diameters_m=[est["diameter_m"]])
+        if "offset_m" not in known:
+            est["offset_m"] = nui["offset_m"]
+        if "speed_error" not in known:
+            est["speed_error"] = (1 + est["speed_error"]) * (1 + nui["speed_error"]) - 1
+        if "gains" not in known:
+            est["gains"] = nui["gains"]
+        history.append(est["offset_m"].copy())
+    dia = {"diameter_sigma_m": 0.0, "diameter_range2_m": [est["diameter_m"]] * 2, "diameter_profile": np.zeros(0)}
+    if "diameter_m" not in known and len(dias) > 1:
+        n_d = int(diameter_iters) if diameter_iters is not None else max(iters // 2, 1)
+        fits = [fit(d, mask, n_d) for d in dias]
+        chi = np.array([f[1]["chi2_per_sample"] for f in fits]) * y.size
+        red = max(1.0, chi.min() / max(y.size - len(P) - 3, 1))
+        ok = np.flatnonzero((chi - chi.min()) / red <= 4.0)
+        lo, hi = float(dias[ok[0]]), float(dias[ok[-1]])
+        est["diameter_m"] = 0.5 * (lo + hi)
+        mask, info = fits[int(np.argmin(np.abs(dias - est["diameter_m"])))]
+        dia = {"diameter_sigma_m": max(0.25 * (hi - lo), 0.25 * float(np.min(np.diff(np.sort(dias))))),
+               "diameter_range2_m": [lo, hi], "diameter_profile": chi}
+    c, c_sig = mask_centroid(mask, pixel_m)
+    across = np.array([-v[1], v[0]]) / speed
+    g_sig = gap_sigma(mask, pixel_m, (P - est["offset_m"]) @ across, across, aperture_m)
+    cov = np.zeros((2, 2)) if nui is None or "offset_m" in known else nui["offset_cov"]
+    cov = cov + (0.0 if "offset_m" in known else 1.0) * (np.diag(c_sig ** 2) + g_sig ** 2 * np.outer(across, across))
+    return mask, {"grid_centre_m": est["offset_m"], "offset_m": est["offset_m"] + c, "centroid_m": c, "offset_cov": cov,
+                  "centroid_sigma_m": c_sig, "gap_sigma_m": g_sig, "speed_error": est["speed_error"],
+                  "speed_error_sigma": 0.0 if nui is None or "speed_error" in known else nui["speed_error_sigma"],
+                  "gains": est["gains"], "gains_sigma": np.zeros(len(P)) if nui is None or "gains" in known else nui["gains_sigma"],
+                  "diameter_m": est["diameter_m"], **dia, "chi2_per_sample": info["chi2_per_sample"],
+                  "chi2_per_dof_nuisances": math.nan if nui is None else nui["chi2_per_dof"],
+                  "offsets_by_round": np.array(history), "known": sorted(known), "linear": linear}
