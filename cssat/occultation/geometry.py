@@ -6,9 +6,9 @@ occulter's shadow moves across it. The satellite's shadow centre, relative to th
 ``s(t) = P (r_sat(t) − r_obs(t))`` with ``P = I − d dᵀ``; its velocity ``ṡ`` (km/s) sets the
 shadow's speed and direction over the ground (≈ 2.6 km/s for a GEO satellite: the star drifts
 at the sidereal rate behind a nearly fixed satellite; on the ground itself the shadow is longer
-by ``1/cos`` of the star's zenith angle along the star's azimuth; the experiment still places
-its telescopes in the fundamental plane, :func:`ground_to_plane` and :func:`plane_to_ground`
-convert ground positions). Assumptions: a star at infinity (parallel light), the satellite's positions of the
+by ``1/cos`` of the star's zenith angle along the star's azimuth; the experiment stands its
+telescopes on level ground and projects them into the plane along the starlight;
+:func:`ground_to_plane` and :func:`plane_to_ground` convert positions). Assumptions: a star at infinity (parallel light), the satellite's positions of the
 scenario (SGP4), the star's catalogue direction (no aberration or proper motion: the shadow
 track is shifted, not changed, by them).
 """

@@ -69,21 +69,27 @@ def scintillation_gains(positions_m: Any, aperture_m: float, exposure_s: float, 
             "correlation": rho}
 
 
-def dip_offset(series: Any, sigma: Any, positions_m: Any, velocity_m_s: Any, times_s: Any, *, nsigma: float = 3.0) -> np.ndarray:
+def dip_offset(series: Any, sigma: Any, positions_m: Any, velocity_m_s: Any, times_s: Any, *, window: int = 9,
+               nsigma: float = 3.0) -> np.ndarray:
     """The shadow's offset ``(2,)`` (east, north; m) from its predicted place, first guess: the
-    weighted centroid of the sampled points ``p_j − v t_k`` (the pattern's frame) with weights
-    ``r² = ((y/ȳ_j − 1)/σ)²`` where ``r`` exceeds ``nsigma`` and ``√(2 ln(100 N))`` (``N``
-    samples: noise alone passes with ~1 % chance; ``ȳ_j`` the series' median: the frozen gain).
-    Raises :class:`FieldError` when fewer than 3 samples pass: the shadow missed the array."""
+    weighted centroid of the sampled points ``p_j − v t_k`` (the pattern's frame). Each sample's
+    ``r² = ((y/ȳ_j − 1)/σ)²`` (``ȳ_j`` the series' median: the frozen gain) is averaged over
+    ``window`` exposures (a matched filter for fringes wider than one exposure); the excess
+    ``e = ⟨r²⟩ − 1`` counts where it exceeds ``nsigma`` and ``√(2 ln(100 N))`` times its noise
+    ``√(2/window)`` (``N`` samples: noise alone passes with ~1 % chance), and weights the centroid.
+    Raises :class:`FieldError` when fewer than 3 samples pass: the shadow missed the array (or is
+    too faint to see)."""
     y = np.asarray(series, dtype=np.float64)
     s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape)
     med = np.median(y, axis=1, keepdims=True)
     r2 = ((y / med - 1) / (s / med)) ** 2
-    z = max(float(nsigma), math.sqrt(2 * math.log(100 * y.size)))  # ~1 % chance that noise alone passes anywhere
-    w = np.where(r2 > z * z, r2, 0.0)
+    k = max(1, min(int(window), y.shape[1]))
+    e = np.apply_along_axis(lambda row: np.convolve(row, np.ones(k) / k, mode="same"), 1, r2) - 1
+    z = max(float(nsigma), math.sqrt(2 * math.log(100 * y.size))) * math.sqrt(2 / k)
+    w = np.where(e > z, e, 0.0)
     if (w > 0).sum() < 3:
         raise FieldError("event", "no telescope recorded the shadow (fewer than 3 samples deviate significantly): the path "
-                                   "missed the array")
+                                  "missed the array, or the shadow is too faint to see")
     P = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
     v = np.asarray(velocity_m_s, dtype=np.float64).reshape(2)
     t = np.asarray(times_s, dtype=np.float64).reshape(-1)
@@ -204,10 +210,11 @@ def fit_nuisances(mask: Any, series: Any, sigma: Any, pixel_m: float, wavelength
     n, J = Y.numel(), Y.shape[0]
     red = max(1.0, prof_a[i] / max(n - J - 3 - 1, 1))
     H = torch.autograd.functional.hessian(lambda x: _profiled(Is, pixel_m, P, v, t, Y, S, x, s0)[0], qb)
-    try:
-        cov = 2 * torch.linalg.inv(H).numpy() * red
-    except RuntimeError:
-        cov = np.full((3, 3), np.inf)
+    Hn = H.numpy()
+    if not (np.isfinite(Hn).all() and np.linalg.eigvalsh(0.5 * (Hn + Hn.T)).min() > 0):
+        cov = np.diag(np.full(3, np.inf))  # not at a minimum, or flat: unconstrained
+    else:
+        cov = 2 * np.linalg.inv(Hn) * red
     with torch.no_grad():
         _, g, b = _profiled(Is, pixel_m, P, v, t, Y, S, qb, s0)
         r = record(Is, pixel_m, P - s0 - qb[:2], v * (1 + 1e-3 * qb[2]), t)

@@ -12,10 +12,11 @@ velocity ``v``: its ``k``-th exposure, starting at ``t_k``, is the pattern avera
 so the series is the pattern convolved with one kernel (aperture ∗ star ∗ smear) and sampled at
 ``p − v (t_k + t_exp/2)``. Then the noise (:func:`noisy`): photon (Poisson) counts of a star of
 V magnitude ``star_mag`` (cssat's V zero point, ``throughput``), Gaussian read noise and the
-atmosphere's scintillation — a multiplicative ``1 + σ_I ε`` per exposure with ``σ_I²`` the
-short-exposure index of :func:`cssat.physics.turbulence.scintillation_index` for that aperture,
-exposure and airmass (independent between exposures and telescopes: the exposures are shorter
-than the scintillation's correlation time only for small apertures, which this neglects).
+atmosphere's scintillation — a gain per telescope frozen over the event (``gains``, drawn by
+:func:`~cssat.occultation.nuisance.scintillation_gains` from the turbulence model: the event is
+shorter than the scintillation's decorrelation time) times a white ``1 + σ_I ε`` per exposure
+(the rest of the short-exposure index; without ``gains``, the whole index of
+:func:`cssat.physics.turbulence.scintillation_index` for that aperture, exposure and airmass).
 """
 
 from __future__ import annotations

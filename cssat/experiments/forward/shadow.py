@@ -113,7 +113,7 @@ class Shadow(ForwardModel):
         self.limb = float_param(star.get("limb_darkening", 0.7), "star.limb_darkening", 0.0, 1.0)
         self.limb_inv = float_param(inv.get("limb_darkening", 0.6), "invert.limb_darkening", 0.0, 1.0)
         self.dia_max = float_param(inv.get("diameter_max_mas", 3.0), "invert.diameter_max_mas", 0.0, 100.0)
-        self.n_dia = int_param(inv.get("n_diameters", 4), "invert.n_diameters", 1, 200)
+        self.n_dia = int_param(inv.get("n_diameters", 7), "invert.n_diameters", 1, 200)
         self.t_err = float_param(event.get("time_error_s", 0.01), "event.time_error_s", 0.0, 1.0)
         self.t_off = None if event.get("time_offset_s") is None else float_param(event.time_offset_s, "event.time_offset_s", -1.0, 1.0)
         self.path_off = None if event.get("path_offset_m") is None else float_param(event.path_offset_m, "event.path_offset_m", -1e4, 1e4)
@@ -157,8 +157,11 @@ class Shadow(ForwardModel):
         self.solver = build_solver(cfg.solver, None, self.size_inv ** 2) if self.init == "linear" else None
         self.mesh = build_model(cfg.model)
         self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
+        idealised = [k for k, on in (("oracle", self.oracle), ("monochromatic", self.band is None),
+                                     ("white scintillation", self.scint == "white"), ("no scintillation", self.scint == "none"))
+                     if on]
         self.metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": self.mesh.name, "seed": run.seed,
-                                        "row": "oracle" if self.oracle else "realistic"}
+                                        "row": " + ".join(idealised) or "realistic"}
 
     def measure(self, run: Run) -> None:
         with run.stage("geometry"):
@@ -311,5 +314,6 @@ class Shadow(ForwardModel):
     def headline(self, metrics: dict[str, Any]) -> str:
         return (f"occultation ({metrics['row']}): {self.mesh.name} at {self.z / 1e3:.0f} km, shadow {self.speed / 1e3:.2f} km/s; "
                 f"{self.n_on} of {self.n_slots} telescopes; IoU {metrics['iou']:.3f} registered "
-                f"({metrics['iou_placed']:.3f} where the fit placed it); time offset {metrics['time_offset_error_sigmas']:+.1f}σ, "
-                f"path {metrics['path_offset_error_sigmas']:+.1f}σ")
+                f"({metrics['iou_placed']:.3f} where the fit placed it); time offset {metrics['time_offset_s'] * 1e3:+.3f} ms "
+                f"(true {metrics['time_offset_true_s'] * 1e3:+.3f}), path {metrics['path_offset_m']:+.2f} m "
+                f"(true {metrics['path_offset_true_m']:+.2f})")

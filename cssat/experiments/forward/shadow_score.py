@@ -115,8 +115,8 @@ def _offsets(m: Any) -> dict[str, Any]:
     d_est, d_sig = info["diameter_m"] / mas_m, info["diameter_sigma_m"] / mas_m
     g_err = info["gains"] - m.gains_true
 
-    def sig(err, s):
-        return float(err / s) if s > 0 else (0.0 if err == 0 else math.copysign(math.inf, err))
+    def sig(err, s):  # None where the quantity was handed over (σ = 0)
+        return float(err / s) if s > 0 else None
 
     return {"time_offset_true_s": t_true, "time_offset_s": t_est, "time_offset_sigma_s": t_sig,
             "time_offset_error_sigmas": sig(t_est - t_true, t_sig),
@@ -126,6 +126,7 @@ def _offsets(m: Any) -> dict[str, Any]:
             "speed_error_true": m.eps_true, "speed_error": info["speed_error"], "speed_error_sigma": info["speed_error_sigma"],
             "star_diameter_true_mas": m.diam_mas, "star_diameter_mas": d_est, "star_diameter_sigma_mas": d_sig,
             "star_diameter_range2_mas": [x / mas_m for x in info["diameter_range2_m"]],
+            "star_diameter_profile_best_mas": info["diameter_profile_best_m"] / mas_m,
             "star_diameter_error_sigmas": sig(d_est - m.diam_mas, d_sig),
             "gain_rms_error": float(np.sqrt(np.mean(g_err ** 2))), "gain_sigma_median": float(np.median(info["gains_sigma"])),
             "gain_true_rms": float(np.sqrt(np.mean((m.gains_true - 1) ** 2))),
