@@ -9,7 +9,7 @@ skipped when absent) at two orientations (inertial attitudes), and bar targets o
 The rows (``--rows``, on the default silhouette): ``oracle`` (every nuisance handed over),
 ``mono`` (a monochromatic pattern at 550 nm, the V band's photons), ``white`` (white
 scintillation only), ``giant`` (a red giant of 2 mas instead of the 0.5 mas K giant),
-``prior_auto`` (pixels or superellipses, the one held-out telescopes prefer). Prints a table (registered IoU, the IoU where the fit placed the silhouette,
+``pixels`` (the pixel TV prior alone, without the held-out choice of superellipses). Prints a table (registered IoU, the IoU where the fit placed the silhouette,
 the linear route's, the offsets' errors in units of their 1σ and the 1σ, the star's diameter
 where the χ² profile is lowest (a diagnostic: the diameter is marginalised), the gains within 2σ,
 the prior used, seconds) and the
@@ -42,8 +42,8 @@ SET = {
     "bars_0.5m": ["silhouette.target=bars", "silhouette.bar_m=0.5"],
 }
 ROWS = {"oracle": ["event.oracle=true"], "mono": ["optics.band=null"], "white": ["array.scintillation=white"],
-        "giant": ["star.diameter_mas=2.0"], "prior_auto": ["invert.prior=auto"]}
-KEYS = ("iou", "iou_placed", "iou_linear", "time_offset_error_sigmas", "path_offset_error_sigmas", "time_offset_sigma_s",
+        "giant": ["star.diameter_mas=2.0"], "pixels": ["invert.prior=pixels"]}
+KEYS = ("iou", "iou_placed", "iou_linear", "iou_pixels", "time_offset_error_sigmas", "path_offset_error_sigmas", "time_offset_sigma_s",
         "path_offset_sigma_m", "star_diameter_profile_best_mas", "gains_within_2sigma", "prior_used", "seconds")
 
 

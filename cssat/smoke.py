@@ -42,7 +42,7 @@ TINY: dict[str, list[str]] = {
     "inversion": ["nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known", "inversion.n_normals=64"],
     "inversion_tumbling": ["nights.n=2", "nights.fit=1", "scenario.step_s=900", "inversion.spin=known",
                            "inversion.n_normals=64"],
-    "occultation": ["silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5"],
+    "occultation": ["silhouette.size=24", "silhouette.pixel_m=0.5", "invert.iters=5", "invert.shape_iters=5"],
     "characterise": [f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]"],
 }
 

@@ -128,7 +128,7 @@ class Shadow(ForwardModel):
         self.fill = float_param(array.get("fill", 0.25), "array.fill", 0.0, 1.0, open_lo=True)
         self.t_exp = float_param(array.get("exposure_s", 2e-4), "array.exposure_s", 0.0, open_lo=True)
         self.init = choice_param(inv.get("init", "linear"), "invert.init", ("linear", "empty"))
-        self.prior = choice_param(inv.get("prior", "pixels"), "invert.prior", ("pixels", "shapes", "auto"))
+        self.prior = choice_param(inv.get("prior", "auto"), "invert.prior", ("auto", "pixels", "shapes"))
         self.throughput = float_param(array.get("throughput", 0.5), "array.throughput", 0.0, 1.0, open_lo=True)
         self.read_noise = float_param(array.get("read_noise_e", 1.0), "array.read_noise_e", 0.0, 1e6)
         scint = array.get("scintillation", "frozen")

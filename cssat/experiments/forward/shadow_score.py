@@ -61,6 +61,8 @@ def solve_event(m: Any, run: Run) -> None:
     g = info["gains"][:, None]
     m.geo = (m.y.numpy() / g, m.sig.numpy() / g, (m.size_inv, m.size_inv), m.pixel, m.lams_inv, m.z, m.pos - info["grid_centre_m"],
              m.v * (1 + info["speed_error"]), m.times)
+    m.metrics["iou_pixels"] = None  # scored in score_event
+    m.pixels_mask = mask
     if m.prior != "pixels":
         with run.stage("prior"):
             mask = _prior(m, mask, run)
@@ -89,8 +91,14 @@ def _prior(m: Any, mask: np.ndarray, run: Run) -> np.ndarray:
             y, s, shape, pix, lams, z, P, v, t = m.geo
             geo_tr = (y[train], s[train], shape, pix, lams, z, P[train], v, t)
             mp, _ = invert_silhouette(*geo_tr, tv=m.tv_weight, iters=m.iters, seed=run.seed, **kw)
-            msh, _, _ = fit_shapes(*geo_tr, init_mask=mp, iters=m.shape_iters, **kw)
+            try:
+                msh, _, _ = fit_shapes(*geo_tr, init_mask=mp, iters=m.shape_iters, **kw)
+            except FieldError:  # no shape to start from on this fold: the shapes cannot be tested, the pixels stay
+                held["shapes"] = math.inf
+                msh = None
             for name, cand in (("pixels", mp), ("shapes", msh)):
+                if cand is None:
+                    continue
                 r = (recorded(torch.as_tensor(cand), pix, lams, z, P[test], v, t, **kw).numpy() - y[test]) / s[test]
                 held[name] += float((r * r).sum())
         m.metrics.update(heldout_chi2_pixels=held["pixels"], heldout_chi2_shapes=held["shapes"])
@@ -152,6 +160,9 @@ def score_event(m: Any) -> dict[str, Any]:
                      gap_contrast=fc["gap_contrast"], thin_pixels=fc["thin_pixels"], gap_pixels=fc["gap_pixels"],
                      truth_pixel_m=pt, inversion_pixel_m=m.pixel, n_wavelengths=len(m.lams),
                      n_wavelengths_inversion=len(m.lams_inv), **_offsets(m))
+    m.metrics["iou_pixels"] = registered_iou(resample_mask(m.pixels_mask, m.pixel, truth.shape, pt, place), truth,
+                                             pixel_m=pt, truth_pixel_m=pt)["iou"]
+    m.metrics["silhouette_recovered"] = bool((np.asarray(m.m) >= 0.5).any())  # else the offsets' 1σ is not to be trusted
     if m.linear is not None:
         m.metrics["iou_linear"] = registered_iou(resample_mask(m.linear, m.pixel, truth.shape, pt, place), truth,
                                                  pixel_m=pt, truth_pixel_m=pt)["iou"]
