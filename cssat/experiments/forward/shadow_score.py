@@ -177,6 +177,7 @@ def write_event(m: Any, run: Run, metrics: dict[str, Any]) -> None:
     write_npz(run.out_dir / "arrays.npz", truth=m.truth, pattern=m.I.numpy(), smoothed=m.Is.numpy(), series=m.y.numpy(),
               sigma=m.sig.numpy(), clean=m.clean.numpy(), positions_m=m.pos, ground_offsets_m=m.ground_offsets, times_s=m.times,
               velocity_m_s=m.v, offset_true_m=m.s_true, gains_true=m.gains_true, gains=m.info["gains"],
+              gains_sigma=m.info["gains_sigma"],
               grid_centre_m=m.info["grid_centre_m"], offset_cov=m.info["offset_cov"], reconstruction=m.m,
               reconstruction_registered=m.registered, diameter_profile=m.info["diameter_profile"], **extra)
     figs = occultation_figures(m.truth, m.I.numpy(), m.y.numpy(), m.registered, m.geometric, m.pixel_t, m.times, metrics)
