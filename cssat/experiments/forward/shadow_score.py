@@ -24,14 +24,12 @@ import math
 from typing import Any
 
 import numpy as np
-import torch
 
 from cssat._checks import FieldError
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_npz
-from cssat.occultation import (edge_width, feature_contrast, fit_shapes, invert_event, invert_silhouette, iou, mask_centroid,
+from cssat.occultation import (edge_width, feature_contrast, fit_shapes, heldout_chi2, invert_event, iou, mask_centroid,
                                pattern_kernel, registered_iou, resample_mask)
-from cssat.occultation.invert import recorded
 from cssat.plots import save_figure
 from cssat.plots.occultation import occultation_figures
 
@@ -82,25 +80,7 @@ def _prior(m: Any, mask: np.ndarray, run: Run) -> np.ndarray:
         return mask
     m.metrics.update(chi2_per_sample_shapes=sinfo["chi2_per_sample"], n_shapes=sinfo["n_shapes"])
     if m.prior == "auto":
-        held = {"pixels": 0.0, "shapes": 0.0}
-        J = len(m.pos)
-        for fold in (0, 1):
-            train, test = np.arange(J) % 2 != fold, np.arange(J) % 2 == fold
-            if not train.any() or not test.any():
-                continue
-            y, s, shape, pix, lams, z, P, v, t = m.geo
-            geo_tr = (y[train], s[train], shape, pix, lams, z, P[train], v, t)
-            mp, _ = invert_silhouette(*geo_tr, tv=m.tv_weight, iters=m.iters, seed=run.seed, **kw)
-            try:
-                msh, _, _ = fit_shapes(*geo_tr, init_mask=mp, iters=m.shape_iters, **kw)
-            except FieldError:  # no shape to start from on this fold: the shapes cannot be tested, the pixels stay
-                held["shapes"] = math.inf
-                msh = None
-            for name, cand in (("pixels", mp), ("shapes", msh)):
-                if cand is None:
-                    continue
-                r = (recorded(torch.as_tensor(cand), pix, lams, z, P[test], v, t, **kw).numpy() - y[test]) / s[test]
-                held[name] += float((r * r).sum())
+        held = heldout_chi2(*m.geo, tv=m.tv_weight, iters=m.iters, shape_iters=m.shape_iters, seed=run.seed, **kw)
         m.metrics.update(heldout_chi2_pixels=held["pixels"], heldout_chi2_shapes=held["shapes"])
         if held["shapes"] >= held["pixels"]:
             return mask
