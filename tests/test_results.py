@@ -42,7 +42,11 @@ def test_a_kill_while_writing_never_leaves_new_arrays_beside_old_metrics(tmp_pat
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     t = time.time()
     while time.time() - t < 120 and proc.poll() is None:  # kill as soon as arrays.npz changes
-        if (d / "arrays.npz").exists() and (d / "arrays.npz").stat().st_mtime_ns != before:
+        try:  # stat once: the file may vanish between an exists() and a stat() (the new run retracting the old)
+            changed = (d / "arrays.npz").stat().st_mtime_ns != before
+        except FileNotFoundError:
+            changed = True  # removed: the new run is replacing it, kill now
+        if changed:
             proc.send_signal(signal.SIGKILL)
             break
         time.sleep(0.002)
