@@ -26,9 +26,9 @@ from cssat.occultation.shapes import fit_shapes, heldout_chi2, render_shapes, sh
 from cssat.occultation.spectrum import band_wavelengths, teff_from_bv
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 from cssat.occultation.nuisance import dip_offset, fit_nuisances, mask_centroid, scintillation_gains
-from cssat.occultation.event import invert_event
+from cssat.occultation.event import event_geometry, invert_event
 
 __all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "ground_to_plane", "plane_to_ground", "shadow_track", "silhouette", "star_direction",
            "invert_silhouette", "iou", "registered_iou", "resample_mask", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "fit_shapes", "heldout_chi2", "render_shapes",
            "shapes_from_mask", "band_wavelengths", "teff_from_bv", "noisy", "pattern_kernel", "photons", "record", "smooth",
-           "dip_offset", "fit_nuisances", "mask_centroid", "scintillation_gains", "invert_event"]
+           "dip_offset", "fit_nuisances", "mask_centroid", "scintillation_gains", "invert_event", "event_geometry"]

@@ -47,7 +47,27 @@ from cssat.occultation.linear import invert_linear
 from cssat.occultation.nuisance import dip_offset, fit_nuisances, gap_sigma, mask_centroid
 from cssat.occultation.record import pattern_kernel
 
-__all__ = ["invert_event"]
+__all__ = ["invert_event", "event_geometry"]
+
+
+def event_geometry(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, wavelength_m: Any, distance_m: float,
+                   positions_m: Any, velocity_m_s: Any, times_s: Any, *, offset_m: Any, gains: Any, speed_error: float,
+                   diameter_m: float, aperture_m: float, exposure_s: float,
+                   limb_darkening: float = 0.6) -> tuple[tuple, np.ndarray]:
+    """The recording as the silhouette's fits see it for the given nuisances: ``(geo, kernel)``
+    with ``geo`` the positional arguments of :func:`~cssat.occultation.invert_silhouette` —
+    the series and 1σ divided by the ``gains (J,)``, the positions less the ``offset_m (2,)``, the
+    velocity scaled by ``1 + speed_error`` — and the averaging kernel (aperture, the star of
+    ``diameter_m``, the exposure's smear at that speed)."""
+    v = np.asarray(velocity_m_s, dtype=np.float64).reshape(2)
+    speed = float(np.linalg.norm(v))
+    g = np.asarray(gains, dtype=np.float64).reshape(-1, 1)
+    kernel = pattern_kernel(pixel_m, aperture_m=aperture_m, star_diameter_m=diameter_m, limb_darkening=limb_darkening,
+                            smear_m=speed * (1 + speed_error) * exposure_s, smear_dir=v / speed)
+    geo = (np.asarray(series, dtype=np.float64) / g, np.asarray(sigma, dtype=np.float64) / g, tuple(shape), pixel_m,
+           wavelength_m, distance_m, np.asarray(positions_m, dtype=np.float64).reshape(-1, 2) - np.asarray(offset_m),
+           v * (1 + speed_error), times_s)
+    return geo, kernel
 
 
 def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, wavelength_m: Any, distance_m: float,
@@ -83,31 +103,28 @@ def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, 
     history = [est["offset_m"].copy()]
     mask, nui, linear = None, None, None
 
-    def fit(d_m, init, n_iter):
-        """The silhouette for the current nuisances and a star of ``d_m``: ``(mask, info, geo, kernel)``."""
-        g = est["gains"][:, None]
-        sp = speed * (1 + est["speed_error"])
-        kernel = pattern_kernel(pixel_m, aperture_m=aperture_m, star_diameter_m=d_m, limb_darkening=limb_darkening,
-                                smear_m=sp * exposure_s, smear_dir=v / speed)
-        geo = (y / g, s / g, tuple(shape), pixel_m, wavelength_m, distance_m, P - est["offset_m"], v * sp / speed, times_s)
-        m, info = invert_silhouette(*geo, kernel=kernel, weights=weights, tv=tv, iters=n_iter, seed=seed, init=init,
-                                    ground=ground)
-        return m, info
+    def geometry():
+        return event_geometry(y, s, shape, pixel_m, wavelength_m, distance_m, P, v, times_s, offset_m=est["offset_m"],
+                              gains=est["gains"], speed_error=est["speed_error"], diameter_m=est["diameter_m"],
+                              aperture_m=aperture_m, exposure_s=exposure_s, limb_darkening=limb_darkening)
+
+    def nuisances(diameters):
+        """The nuisances for the current silhouette and estimates (:func:`fit_nuisances`)."""
+        v_r = v * (1 + est["speed_error"])
+        return fit_nuisances(mask, y, s, pixel_m, wavelength_m, distance_m, P, v_r, times_s, offset_m=est["offset_m"],
+                             weights=weights, ground=ground, aperture_m=aperture_m,
+                             smear_m=float(np.linalg.norm(v_r)) * exposure_s, limb_darkening=limb_darkening,
+                             diameters_m=diameters)
 
     for _ in range(rounds):
+        geo, kernel = geometry()
         if mask is None and solver is not None:
-            g = est["gains"][:, None]
-            kernel = pattern_kernel(pixel_m, aperture_m=aperture_m, star_diameter_m=est["diameter_m"],
-                                    limb_darkening=limb_darkening, smear_m=speed * exposure_s, smear_dir=v / speed)
-            linear, _ = invert_linear(y / g, s / g, tuple(shape), pixel_m, wavelength_m, distance_m, P - est["offset_m"], v,
-                                      times_s, kernel=kernel, weights=weights, solver=solver, ground=ground)
-        mask, info = fit(est["diameter_m"], mask if mask is not None else linear, iters)
+            linear, _ = invert_linear(*geo, kernel=kernel, weights=weights, solver=solver, ground=ground)
+        mask, info = invert_silhouette(*geo, kernel=kernel, weights=weights, tv=tv, iters=iters, seed=seed,
+                                       init=mask if mask is not None else linear, ground=ground)
         if {"offset_m", "speed_error", "gains"} <= set(known):
             break  # nothing left to fit but the star
-        v_r = v * (1 + est["speed_error"])
-        nui = fit_nuisances(mask, y, s, pixel_m, wavelength_m, distance_m, P, v_r, times_s, offset_m=est["offset_m"],
-                            weights=weights, ground=ground, aperture_m=aperture_m, smear_m=float(np.linalg.norm(v_r)) * exposure_s,
-                            limb_darkening=limb_darkening, diameters_m=[est["diameter_m"]])
+        nui = nuisances([est["diameter_m"]])
         if "offset_m" not in known:
             est["offset_m"] = nui["offset_m"]
         if "speed_error" not in known:
@@ -121,18 +138,15 @@ def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, 
         # marginalised over the prior (uniform on the grid's range): its mean ± its standard deviation;
         # the χ² profile for the fitted silhouette is kept as a diagnostic (biased, the module's docstring)
         lo, hi = float(dias.min()), float(dias.max())
-        v_r = v * (1 + est["speed_error"])
-        prof = fit_nuisances(mask, y, s, pixel_m, wavelength_m, distance_m, P, v_r, times_s, offset_m=est["offset_m"],
-                             weights=weights, ground=ground, aperture_m=aperture_m,
-                             smear_m=float(np.linalg.norm(v_r)) * exposure_s, limb_darkening=limb_darkening,
-                             diameters_m=dias)
+        prof = nuisances(dias)
         dia = {"diameter_sigma_m": (hi - lo) / math.sqrt(12), "diameter_range2_m": [lo, hi],
                "diameter_profile": prof["profile"], "diameter_profile_best_m": prof["diameter_m"]}
     c, c_sig = mask_centroid(mask, pixel_m)
     across = np.array([-v[1], v[0]]) / speed
     g_sig = gap_sigma(mask, pixel_m, (P - est["offset_m"]) @ across, across, aperture_m)
-    cov = np.zeros((2, 2)) if nui is None or "offset_m" in known else nui["offset_cov"]
-    cov = cov + (0.0 if "offset_m" in known else 1.0) * (np.diag(c_sig ** 2) + g_sig ** 2 * np.outer(across, across))
+    cov = np.zeros((2, 2))
+    if "offset_m" not in known:  # the χ² curvature's, the grey pixels' and the gaps'
+        cov = (0.0 if nui is None else nui["offset_cov"]) + np.diag(c_sig ** 2) + g_sig ** 2 * np.outer(across, across)
     return mask, {"grid_centre_m": est["offset_m"], "offset_m": est["offset_m"] + c, "centroid_m": c, "offset_cov": cov,
                   "centroid_sigma_m": c_sig, "gap_sigma_m": g_sig, "speed_error": est["speed_error"],
                   "speed_error_sigma": 0.0 if nui is None or "speed_error" in known else nui["speed_error_sigma"],

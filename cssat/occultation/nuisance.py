@@ -97,14 +97,19 @@ def dip_offset(series: Any, sigma: Any, positions_m: Any, velocity_m_s: Any, tim
     return (w[..., None] * pts).sum((0, 1)) / w.sum()
 
 
+def _centres(shape: tuple[int, int], pixel_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pixel centres ``(yy, xx)`` (north, east of the grid's centre; m) of a grid ``shape``."""
+    H, W = shape
+    return np.meshgrid((np.arange(H) + 0.5 - H / 2) * pixel_m, (np.arange(W) + 0.5 - W / 2) * pixel_m, indexing="ij")
+
+
 def mask_centroid(mask: Any, pixel_m: float) -> tuple[np.ndarray, np.ndarray]:
     """The centroid ``(2,)`` (east, north of the grid's centre; m; rows north, columns east) of a
     mask ``(H, W)`` in [0, 1], and its 1σ ``(2,)`` if each pixel were opaque with probability
     its value (independent Bernoulli: ``var = Σ m(1−m)(x − x̄)² / (Σ m)²``) — the grey pixels'
     share of the silhouette's position."""
     m = np.clip(np.asarray(mask, dtype=np.float64), 0, 1)
-    H, W = m.shape
-    yy, xx = np.meshgrid((np.arange(H) + 0.5 - H / 2) * pixel_m, (np.arange(W) + 0.5 - W / 2) * pixel_m, indexing="ij")
+    yy, xx = _centres(m.shape, pixel_m)
     A = m.sum()
     if not A > 0:
         return np.zeros(2), np.full(2, np.inf)
@@ -122,8 +127,7 @@ def gap_sigma(mask: Any, pixel_m: float, across_m: Any, direction: Any, aperture
     ``aperture_m``), uniform there (``gap/√12``); the centroid moves by half an edge's move.
     Beyond the outermost telescope the gap is open: its width is taken as the largest gap."""
     m = np.clip(np.asarray(mask, dtype=np.float64), 0, 1)
-    H, W = m.shape
-    yy, xx = np.meshgrid((np.arange(H) + 0.5 - H / 2) * pixel_m, (np.arange(W) + 0.5 - W / 2) * pixel_m, indexing="ij")
+    yy, xx = _centres(m.shape, pixel_m)
     d = np.asarray(direction, dtype=np.float64).reshape(2)
     x = xx * d[0] + yy * d[1]
     edges = np.arange(x.min(), x.max() + pixel_m, pixel_m)
@@ -147,13 +151,14 @@ def gap_sigma(mask: Any, pixel_m: float, across_m: Any, direction: Any, aperture
 
 def _profiled(Is, pixel_m, P, v, times, Y, S, q, s0):
     """χ² of the pattern ``Is`` with the offset ``s0 + q[:2]`` and the speed ``(1 + 1e-3 q[2])``,
-    the gains profiled out (``g_j = Σ y r/σ² / Σ r²/σ²``); returns ``(χ², gains, Σ r²/σ²)``."""
+    the gains profiled out (``g_j = Σ y r/σ² / Σ r²/σ²``); returns ``(χ², gains, Σ r²/σ²,
+    the normalised residuals (J, K))``."""
     r = record(Is, pixel_m, P - s0 - q[:2], v * (1 + 1e-3 * q[2]), times)
     a = (Y * r / S ** 2).sum(1)
     b = (r * r / S ** 2).sum(1)
     g = a / b
     res = (Y - g[:, None] * r) / S
-    return (res * res).sum(), g, b
+    return (res * res).sum(), g, b, res
 
 
 def fit_nuisances(mask: Any, series: Any, sigma: Any, pixel_m: float, wavelength_m: Any, distance_m: float, positions_m: Any,
@@ -195,13 +200,13 @@ def fit_nuisances(mask: Any, series: Any, sigma: Any, pixel_m: float, wavelength
 
         def closure():
             opt.zero_grad()
-            c2, _, _ = _profiled(Is, pixel_m, P, v, t, Y, S, qv, s0)
+            c2 = _profiled(Is, pixel_m, P, v, t, Y, S, qv, s0)[0]
             c2.backward()
             return c2
 
         opt.step(closure)
         with torch.no_grad():
-            c2, _, _ = _profiled(Is, pixel_m, P, v, t, Y, S, qv, s0)
+            c2 = _profiled(Is, pixel_m, P, v, t, Y, S, qv, s0)[0]
         prof.append(float(c2))
         fits.append((qv.detach().clone(), Is))
     prof_a = np.array(prof)
@@ -216,9 +221,8 @@ def fit_nuisances(mask: Any, series: Any, sigma: Any, pixel_m: float, wavelength
     else:
         cov = 2 * np.linalg.inv(Hn) * red
     with torch.no_grad():
-        _, g, b = _profiled(Is, pixel_m, P, v, t, Y, S, qb, s0)
-        r = record(Is, pixel_m, P - s0 - qb[:2], v * (1 + 1e-3 * qb[2]), t)
-        row = (((Y - g[:, None] * r) / S) ** 2).mean(1).clamp_min(1.0)  # each telescope's own misfit
+        _, g, b, res = _profiled(Is, pixel_m, P, v, t, Y, S, qb, s0)
+        row = (res * res).mean(1).clamp_min(1.0)  # each telescope's own misfit
     d_lo, d_hi, d_up = _profile_interval(dias, (prof_a - prof_a[i]) / red, i)
     return {"offset_m": (s0 + qb[:2]).numpy(), "offset_cov": cov[:2, :2], "speed_error": 1e-3 * float(qb[2]),
             "speed_error_sigma": 1e-3 * math.sqrt(max(cov[2, 2], 0.0)), "gains": g.numpy(),

@@ -70,7 +70,7 @@ _KEYS = {"star": ("ra_deg", "dec_deg", "magnitude", "bv", "diameter_mas", "limb_
 MAX_EXPOSURES = 1_000_000
 #: the widest silhouette grid (m): silhouette.size × silhouette.pixel_m
 MAX_SILHOUETTE_M = 1000.0
-MAS = 1e-3 / 206264.806
+MAS = 1e-3 / 206264.806  # a milliarcsecond, rad (this literal, not 1e-3 * ARCSEC: the 1e-9 difference changes the headline, note 37)
 
 
 def _known_keys(cfg: Any) -> dict[str, Any]:
@@ -185,6 +185,7 @@ class Shadow(ForwardModel):
         d = rel / np.linalg.norm(rel) if star.get("ra_deg") is None else star_direction(star.ra_deg, star.dec_deg)
         tr = shadow_track(sc, d)
         self.z = z = float(tr["distance_km"][1]) * 1e3
+        self.mas_m = MAS * z  # one milliarcsecond at the satellite's distance, m
         self.v = v = tr["velocity_km_s"][1] * 1e3  # predicted, m/s in the plane (east, north)
         self.speed = speed = float(np.linalg.norm(v))
         if not speed > 0:
@@ -251,7 +252,7 @@ class Shadow(ForwardModel):
         if not self.truth.sum() > 0:
             raise FieldError("silhouette", "the silhouette is empty on its grid (a model seen edge-on, or a grid too small)")
         self.metrics["target"] = self.target
-        self.k_true = pattern_kernel(pt, aperture_m=self.D, star_diameter_m=self.diam_mas * MAS * z, limb_darkening=self.limb,
+        self.k_true = pattern_kernel(pt, aperture_m=self.D, star_diameter_m=self.diam_mas * self.mas_m, limb_darkening=self.limb,
                                      smear_m=self.speed * self.t_exp, smear_dir=self.v / self.speed)
         self.I = shadow(torch.as_tensor(self.truth, dtype=torch.float64), pt, self.lams, z, weights=self.wts, ground=self.ground)
         self.Is = smooth(self.I, self.k_true)
@@ -264,8 +265,8 @@ class Shadow(ForwardModel):
         pt = self.pixel_t
         cross = ((xx + 0.5 - self.truth.shape[1] / 2) * self.across[0] + (yy + 0.5 - self.truth.shape[0] / 2) * self.across[1]) * pt
         self.width_across = float(cross.max() - cross.min() + pt)
-        span = (self.n_slots - 1) * self.spacing + self.D
-        self.cover_m = max((span - self.width_across) / 2, 0.0)  # the path error that still spans the silhouette
+        self.span = (self.n_slots - 1) * self.spacing + self.D  # the line's reach across the track, apertures included
+        self.cover_m = max((self.span - self.width_across) / 2, 0.0)  # the path error that still spans the silhouette
         self.dt_true = float(rng.uniform(-self.t_err, self.t_err)) if self.t_off is None else self.t_off
         self.c_true = float(rng.uniform(-self.cover_m, self.cover_m)) if self.path_off is None else self.path_off
         self.eps_true = float(rng.normal(0.0, self.speed_err))
@@ -295,7 +296,8 @@ class Shadow(ForwardModel):
         self.y, self.sig = noisy(self.clean, self.mag, D, t_exp, throughput=self.throughput, read_noise_e=self.read_noise,
                                  scintillation=self.scint != "none", airmass=airmass, gains=self.gains_true,
                                  scintillation_sigma=white, generator=gen)
-        p_cap = math.erf((((n_slots - 1) * self.spacing + self.width_across) / 2) / (self.path_err * math.sqrt(2)))
+        # any overlap of the silhouette with the line's reach: |path offset| ≤ (span + width)/2, the offset N(0, path_err)
+        p_cap = math.erf(((self.span + self.width_across) / 2) / (self.path_err * math.sqrt(2)))
         self.metrics.update(n_telescopes=int(n_on), n_slots=n_slots, fill=n_on / n_slots, n_samples=int(self.y.numel()),
                             photons_per_exposure=photons(self.mag, D, t_exp, self.throughput), star_magnitude=self.mag,
                             aperture_m=D, scintillation=self.scint, silhouette_width_across_m=self.width_across,

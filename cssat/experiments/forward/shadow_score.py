@@ -28,8 +28,8 @@ import numpy as np
 from cssat._checks import FieldError
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_npz
-from cssat.occultation import (edge_width, feature_contrast, fit_shapes, heldout_chi2, invert_event, iou, mask_centroid,
-                               pattern_kernel, registered_iou, resample_mask)
+from cssat.occultation import (edge_width, event_geometry, feature_contrast, fit_shapes, heldout_chi2, invert_event, iou,
+                               mask_centroid, registered_iou, resample_mask)
 from cssat.plots import save_figure
 from cssat.plots.occultation import occultation_figures
 
@@ -40,7 +40,7 @@ log = logging.getLogger("cssat")
 
 def solve_event(m: Any, run: Run) -> None:
     """The silhouette and the nuisances (:func:`~cssat.occultation.invert_event`), then the prior."""
-    mas_m = 1e-3 / 206264.806 * m.z
+    mas_m = m.mas_m
     known = {}
     if m.oracle:
         known = {"offset_m": m.s_true, "speed_error": m.eps_true, "gains": m.gains_true, "diameter_m": m.diam_mas * mas_m}
@@ -53,13 +53,10 @@ def solve_event(m: Any, run: Run) -> None:
     m.info, m.linear, m.used, m.shapes = info, info["linear"], "pixels", None
     if m.solver is not None:
         m.metrics["solver_linear"] = getattr(m.solver, "name", type(m.solver).__name__)
-    speed = m.speed * (1 + info["speed_error"])
-    m.kernel_inv = pattern_kernel(m.pixel, aperture_m=m.D, star_diameter_m=info["diameter_m"], limb_darkening=limb,
-                                  smear_m=speed * m.t_exp, smear_dir=m.v / m.speed)
-    g = info["gains"][:, None]
-    m.geo = (m.y.numpy() / g, m.sig.numpy() / g, (m.size_inv, m.size_inv), m.pixel, m.lams_inv, m.z, m.pos - info["grid_centre_m"],
-             m.v * (1 + info["speed_error"]), m.times)
-    m.metrics["iou_pixels"] = None  # scored in score_event
+    m.geo, m.kernel_inv = event_geometry(m.y.numpy(), m.sig.numpy(), (m.size_inv, m.size_inv), m.pixel, m.lams_inv, m.z, m.pos,
+                                         m.v, m.times, offset_m=info["grid_centre_m"], gains=info["gains"],
+                                         speed_error=info["speed_error"], diameter_m=info["diameter_m"], aperture_m=m.D,
+                                         exposure_s=m.t_exp, limb_darkening=limb)
     m.pixels_mask = mask
     if m.prior != "pixels":
         with run.stage("prior"):
@@ -99,7 +96,7 @@ def _offsets(m: Any) -> dict[str, Any]:
     t_sig = math.sqrt(max(float(u @ cov @ u), 0.0)) / m.speed
     p_true, p_est = float(true @ m.across), float(est @ m.across)
     p_sig = math.sqrt(max(float(m.across @ cov @ m.across), 0.0))
-    mas_m = 1e-3 / 206264.806 * m.z
+    mas_m = m.mas_m
     d_est, d_sig = info["diameter_m"] / mas_m, info["diameter_sigma_m"] / mas_m
     g_err = info["gains"] - m.gains_true
 
@@ -126,11 +123,13 @@ def score_event(m: Any) -> dict[str, Any]:
     truth, pt = m.truth, m.pixel_t
     rel = m.info["grid_centre_m"] - m.s_true  # the fitted grid's centre on the truth's grid (east, north)
     place = (float(rel[1]), float(rel[0]))
-    fine = resample_mask(m.m, m.pixel, truth.shape, pt, place)
-    reg = registered_iou(fine, truth, pixel_m=pt, truth_pixel_m=pt)
+
+    def registered(mask):  # a reconstruction where the fit placed it, on the truth's grid, then registered
+        return registered_iou(resample_mask(mask, m.pixel, truth.shape, pt, place), truth, pixel_m=pt, truth_pixel_m=pt)
+
+    reg = registered(m.m)
     m.registered = resample_mask(m.m, m.pixel, truth.shape, pt, (place[0] + reg["shift_north_m"], place[1] + reg["shift_east_m"]))
-    G = m.Is.shape[-1]
-    gy, gx = (m.Is.shape[-2] - truth.shape[0]) // 2, (G - truth.shape[1]) // 2
+    gy, gx = (m.Is.shape[-2] - truth.shape[0]) // 2, (m.Is.shape[-1] - truth.shape[1]) // 2
     m.geometric = np.clip(1 - m.Is.numpy()[gy:gy + truth.shape[0], gx:gx + truth.shape[1]], 0, 1)
     fc = feature_contrast(m.registered, truth, pt, m.feat)
     m.metrics.update(iou=reg["iou"], iou_placed=reg["iou_unregistered"], registration_north_m=reg["shift_north_m"],
@@ -140,12 +139,10 @@ def score_event(m: Any) -> dict[str, Any]:
                      gap_contrast=fc["gap_contrast"], thin_pixels=fc["thin_pixels"], gap_pixels=fc["gap_pixels"],
                      truth_pixel_m=pt, inversion_pixel_m=m.pixel, n_wavelengths=len(m.lams),
                      n_wavelengths_inversion=len(m.lams_inv), **_offsets(m))
-    m.metrics["iou_pixels"] = registered_iou(resample_mask(m.pixels_mask, m.pixel, truth.shape, pt, place), truth,
-                                             pixel_m=pt, truth_pixel_m=pt)["iou"]
+    m.metrics["iou_pixels"] = registered(m.pixels_mask)["iou"]
     m.metrics["silhouette_recovered"] = bool((np.asarray(m.m) >= 0.5).any())  # else the offsets' 1σ is not to be trusted
     if m.linear is not None:
-        m.metrics["iou_linear"] = registered_iou(resample_mask(m.linear, m.pixel, truth.shape, pt, place), truth,
-                                                 pixel_m=pt, truth_pixel_m=pt)["iou"]
+        m.metrics["iou_linear"] = registered(m.linear)["iou"]
     return m.metrics
 
 
