@@ -8,7 +8,6 @@ library code never reads Hydra state.
 from __future__ import annotations
 
 import errno
-import glob
 import logging
 import os
 import sys
@@ -101,6 +100,9 @@ def _hydra_main(cfg: DictConfig) -> float | None:
     if choice and cfg.get("experiment_name") != choice:  # an experiment is its YAML: the file names it
         with open_dict(cfg):
             cfg.experiment_name = choice
+    if OmegaConf.select(cfg, "catalogue.shard", default=None) is not None and not cfg.get("experiment_module"):
+        with open_dict(cfg):  # a catalogue's shard: many files in this job (cssat/catalogue.py)
+            cfg.experiment_module = "cssat.catalogue"
     tags = None
     if multirun:  # mark the job directory with its sweep's id (the summary keeps this sweep's jobs)
         sid = sweep_id(hc.sweep.dir)
@@ -137,26 +139,112 @@ def _register_launcher() -> None:
 
 #: the keys whose value a sweep may give as a directory or a glob of files (a catalogue)
 FILE_SWEEP_KEYS = ("observations",)
+#: the launchers (``launcher=<name>``) and the Hydra plugin package each needs (the launchers extra)
+LAUNCHER_PLUGINS = {"local": ("hydra_plugins.hydra_joblib_launcher", "hydra-joblib-launcher"),
+                    "slurm": ("hydra_plugins.hydra_submitit_launcher", "hydra-submitit-launcher"),
+                    "submitit_local": ("hydra_plugins.hydra_submitit_launcher", "hydra-submitit-launcher")}
+
+
+def _last_value(argv: list[str], key: str) -> str | None:
+    """The value of the last ``key=...`` override of ``argv`` (``+key``/``++key`` too), or ``None``."""
+    found = None
+    for a in argv:
+        k, eq, v = a.partition("=")
+        if eq and k.lstrip("+") == key:
+            found = v
+    return found
+
+
+def _is_file_sweep(value: str) -> bool:
+    """A directory or a glob (``*``, ``?``, ``[``), not a Hydra sweep or quoted value of its own."""
+    if value[:1] in "'\"" or "(" in value:
+        return False
+    return os.path.isdir(value) or ("," not in value and any(c in value for c in "*?["))
+
+
+def _shard_size(argv: list[str]) -> int:
+    """``catalogue.shard_size`` of the command line (an integer >= 1) or the experiment's default."""
+    from cssat.catalogue import DEFAULT_SHARD_SIZE  # startup: cssat.catalogue is light (the standard library)
+
+    text = _last_value(argv, "catalogue.shard_size")
+    if text is None:
+        return DEFAULT_SHARD_SIZE
+    try:
+        size = int(text)
+    except ValueError:
+        size = 0
+    if size < 1 or str(size) != text.strip():
+        raise ValueError(f"catalogue.shard_size: expected one integer >= 1 (files a job), got {text!r}")
+    return size
 
 
 def expand_file_sweeps(argv: list[str]) -> list[str]:
     """A multirun's ``observations=<directory>`` or ``observations=<glob>`` (``*``, ``?``, ``[``)
-    as Hydra's sweep of those files, sorted and quoted: one job per file (a catalogue of
-    thousands of tracks through Hydra's launchers). A pattern that matches nothing is a
-    ``ValueError`` naming the key."""
+    as a catalogue. With ``experiment=characterise``: *shards* — the sorted file list
+    (:func:`cssat.catalogue.catalogue_files`) cut into ``catalogue.shard_size`` files a job, the
+    sweep ``catalogue.shard=range(0,K)`` (unless the command line names its shards) with the list's
+    size and hash (``catalogue.n_files``, ``catalogue.listing_sha``) that every shard checks; the
+    file names themselves are never overrides. Another experiment: one job per file, each path
+    quoted literally. The directory or glob is quoted literally too (no ``${...}`` interpolation).
+    A pattern that matches nothing, a bad ``catalogue.shard_size``: a ``ValueError`` naming the key."""
+    from cssat._checks import FieldError  # startup: light
+    from cssat.catalogue import catalogue_files, listing_sha, literal_override, n_shards  # startup: light
+
+    out, extra = [], []
+    characterise = _last_value(argv, "experiment") == "characterise"
+    for a in argv:
+        key, eq, value = a.partition("=")
+        if eq and key.lstrip("+") in FILE_SWEEP_KEYS and _is_file_sweep(value):
+            try:
+                files = catalogue_files(value)
+            except FieldError as err:
+                raise ValueError(f"{key.lstrip('+')}: {err.detail}") from None
+            if characterise:
+                size = _shard_size(argv)
+                a = literal_override(key, value)
+                if _last_value(argv, "catalogue.shard") is None:
+                    extra.append(f"catalogue.shard=range(0,{n_shards(len(files), size)})")
+                extra += [f"catalogue.n_files={len(files)}", f"catalogue.listing_sha='{listing_sha(files)}'"]
+            else:
+                a = f"{key}=" + ",".join(literal_override(key, f).partition("=")[2] for f in files)
+        elif eq and key.lstrip("+") in FILE_SWEEP_KEYS and value[:1] not in "'\"" and os.path.exists(value):
+            a = literal_override(key, value)  # a file's name is data: t_${experiment_name}.txt is that file
+        out.append(a)
+    return out + extra
+
+
+def literal_paths(argv: list[str]) -> list[str]:
+    """A single run's ``observations=<path>`` quoted literally when that path exists as written,
+    so Hydra does not interpolate a ``${...}`` in a file's name (a value with ``${...}`` that is
+    no file is left to Hydra: a deliberate ``${oc.env:DATA}/track.txt``)."""
+    from cssat.catalogue import literal_override  # startup: light
+
     out = []
     for a in argv:
         key, eq, value = a.partition("=")
-        if eq and key.lstrip("+") in FILE_SWEEP_KEYS and "(" not in value and "," not in value and (
-                os.path.isdir(value) or any(c in value for c in "*?[")):
-            pattern = os.path.join(value, "*") if os.path.isdir(value) else value
-            files = sorted(f for f in glob.glob(pattern) if os.path.isfile(f) and not os.path.basename(f).startswith("."))
-            if not files:
-                raise ValueError(f"{key}: no file matches {pattern!r}")
-            quote = lambda f: "'" + f.replace("\\", "\\\\").replace("'", "\\'") + "'"  # noqa: E731
-            a = f"{key}=" + ",".join(quote(os.path.abspath(f)) for f in files)
+        if eq and key.lstrip("+") in FILE_SWEEP_KEYS and value[:1] not in "'\"" and os.path.exists(value):
+            a = literal_override(key, value)
         out.append(a)
     return out
+
+
+def missing_launcher(argv: list[str]) -> str | None:
+    """One line naming the ``launchers`` extra when ``launcher=<name>`` needs a Hydra plugin that is
+    not installed (Hydra's own error: ``Could not find 'hydra/launcher/joblib'``), else ``None``."""
+    import importlib.util  # startup: the standard library
+
+    name = _last_value(argv, "launcher")
+    if name not in LAUNCHER_PLUGINS:
+        return None
+    module, dist = LAUNCHER_PLUGINS[name]
+    try:
+        found = importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        found = False
+    if found:
+        return None
+    return (f"launcher: launcher={name} needs {dist}, which is not installed: pip install 'cssat[launchers]' "
+            f"(or leave launcher out: the jobs then run one after another)")
 
 
 def main() -> None:
@@ -167,12 +255,18 @@ def main() -> None:
         print(f"cssat {__version__}")
         return
     _register_launcher()
-    if any(a in ("-m", "--multirun") for a in sys.argv[1:]):
-        try:
+    why = missing_launcher(sys.argv[1:])
+    if why is not None:
+        print(f"bad input: {why}", file=sys.stderr)
+        sys.exit(2)
+    try:
+        if any(a in ("-m", "--multirun") for a in sys.argv[1:]):
             sys.argv[1:] = expand_file_sweeps(sys.argv[1:])
-        except ValueError as err:
-            print(f"bad input: {err}", file=sys.stderr)
-            sys.exit(2)
+        else:
+            sys.argv[1:] = literal_paths(sys.argv[1:])
+    except ValueError as err:
+        print(f"bad input: {err}", file=sys.stderr)
+        sys.exit(2)
     overrides = _cli_check.overrides_of(sys.argv[1:])
     if overrides:  # a mistake on the command line: one line naming the key, exit 2 (not Hydra's text)
         why = _cli_check.check(overrides)

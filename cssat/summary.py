@@ -8,6 +8,12 @@ row holds the swept values, every scalar metric of its ``metrics.json``, ``secon
 another sweep's, ``corrupt`` when they cannot be read, were edited since the run — ``metrics.json`` carries the
 digest of itself — or a result file no longer has its hash).
 ``cssat-summarize`` exits 1 when a row is not ``ok``.
+
+A catalogue sweep (``cssat -m experiment=characterise observations=<dir>``: jobs of
+``catalogue.shard``, :mod:`cssat.catalogue`) also gets ``catalogue.csv``, the shards' tables
+joined — one row per file — written atomically and only when every shard is complete and its
+table still has its hash; otherwise the summary says which shard is not, and no ``catalogue.csv``
+is left (:func:`join_catalogue`).
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("cssat")
 
-__all__ = ["collect", "summarize", "SummaryCallback", "main"]
+__all__ = ["collect", "summarize", "join_catalogue", "SummaryCallback", "main"]
 
 
 def _parse_overrides(path: Path) -> dict[str, str]:
@@ -180,6 +186,23 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | No
     return csv_path, png
 
 
+def join_catalogue(sweep_dir: str | Path, rows: list[dict[str, Any]]) -> bool:
+    """Join a catalogue sweep's shards into ``sweep_dir/catalogue.csv``
+    (:func:`cssat.catalogue.join_shards`) and log it; ``False`` when it is a catalogue sweep and
+    the catalogue could not be joined (the log says why), else ``True``."""
+    from cssat.catalogue import join_shards  # startup: light
+
+    path, why = join_shards(sweep_dir, rows)
+    if why is not None:
+        log.error("catalogue not joined: %s", why)
+        return False
+    if path is not None:
+        n = sum(int(r.get("n_files") or 0) for r in rows)
+        failed = sum(int(r.get("n_failed") or 0) for r in rows)
+        log.info("catalogue: %d files (%d failed to characterise) in %d shards -> %s", n, failed, len(rows), path)
+    return True
+
+
 try:  # the callback needs hydra, which cssat depends on; keep the import cheap for the CLI
     from hydra.experimental.callback import Callback
 except ImportError:  # pragma: no cover
@@ -225,11 +248,23 @@ class SummaryCallback(Callback):
             collected = collect(config.hydra.sweep.dir)
             SWEEP_FAILED = any(r.get("status") != "ok" for r in collected[0]) or not collected[0]
             summarize(config.hydra.sweep.dir, self.metric, collected, str(config.get("figure_format") or "png"))
-        except Exception as err:  # a summary must never turn a finished sweep into a failure
-            log.error("sweep summary failed: %s (run cssat-summarize %s)", err, config.hydra.sweep.dir)
+            if not join_catalogue(config.hydra.sweep.dir, collected[0]):
+                SWEEP_FAILED = True
+        except Exception as err:  # a summary must never turn a finished sweep into a traceback
+            if isinstance(err, OSError):  # a full disk, a read-only directory: the results are not all written
+                SWEEP_FAILED = True
+            log.error("sweep summary failed: %s (run cssat-summarize %s)", _one_line(err), config.hydra.sweep.dir)
         lock = _SWEEP_LOCKS.pop(str(config.hydra.sweep.dir), None)
         if lock is not None:
             lock.release()
+
+
+def _one_line(err: BaseException) -> str:
+    """An error in one line (an OSError: ``<path>: <cause>``)."""
+    if isinstance(err, OSError) and err.strerror:
+        return f"{err.filename}: {err.strerror}" if err.filename else err.strerror
+    lines = str(err).strip().splitlines()
+    return lines[0] if lines else type(err).__name__
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -247,16 +282,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     collected = collect(d)
     rows = collected[0]
-    if not any(args.metric in r for r in rows):
+    catalogue = any(r.get("catalogue_table") is not None for r in rows)
+    if not catalogue and not any(args.metric in r for r in rows):
         columns = sorted({k for r in rows for k in r if isinstance(r[k], (int, float)) and not isinstance(r[k], bool)})
         ap.error(f"--metric: no job has {args.metric!r}; numeric columns: {', '.join(columns) or 'none'}")
-    csv_path, png = summarize(d, args.metric, collected, args.format)
+    try:
+        csv_path, png = summarize(d, args.metric, collected, args.format)
+        joined = join_catalogue(d, rows)
+    except OSError as err:  # a full disk, a read-only directory: one line, nothing half-written
+        log.error("cannot write the summary: %s", _one_line(err))
+        return 1
     print(csv_path)
     if png:
         print(png)
+    if catalogue and joined:
+        print(d / "catalogue.csv")
     bad = [f"{r['job']}: {r.get('status')}" for r in rows if r.get("status") != "ok"]
-    if bad or not rows:
-        log.error("not every job ended ok: %s", "; ".join(bad) or "no jobs")
+    if bad or not rows or not joined:
+        log.error("not every job ended ok: %s", "; ".join(bad) or ("no jobs" if not rows else "the catalogue"))
         return 1
     return 0
 
