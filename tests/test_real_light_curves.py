@@ -183,6 +183,7 @@ def test_characterise_a_real_track_and_a_periodic_one(tmp_path):
     (["experiment=characterise", f"observations={MMT_RB}", "stages.spin=maybe"], "stages.spin"),
     (["experiment=characterise", f"observations={MMT_RB}", "period.min_periods=3"], "period.min_periods"),
     (["experiment=characterise", f"observations={MMT_RB}", "stages.spin=on"], "stages.spin"),
+    (["experiment=characterise", f"observations={MMT_RB}", "+observed.bogus=1"], "observed.bogus"),  # was a traceback
     (["experiment=inversion", f"observations={MMT_RB}", "nights.n=1"], "scenario.tle"),  # NORAD 99001, not Astra's
 ])
 def test_refusals_exit_2_naming_the_field(tmp_path, args, field):
@@ -213,6 +214,8 @@ def test_a_catalogue_through_hydra_s_launcher(tmp_path):
     assert status == {"broken.txt": "failed", MMT_REAL[0].name: "ok", MMT_RB.name: "ok"}, status
     ok = {Path(r["observations"]).name: r for r in rows if r["status"] == "ok"}
     assert ok[MMT_RB.name]["periodic"] == "True" and ok[MMT_REAL[0].name]["periodic"] == "False"
+    assert ok[MMT_RB.name]["verdict"] == "periodic" and ok[MMT_REAL[0].name]["verdict"] == "not periodic"
+    assert ok[MMT_REAL[0].name]["track"] == "20416355" and ok[MMT_REAL[0].name]["why"]  # a row a reader can use
     assert "observations.Mag[row 1]" in next(r["error"] for r in rows if r["status"] == "failed")
     from astropy.table import Table
 

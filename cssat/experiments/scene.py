@@ -35,15 +35,27 @@ class SceneTarget:
     kind = "scene"
 
 
-def read_observations(cfg: Any) -> Any:
+def read_observations(cfg: Any, check_only: bool = False) -> Any:
     """The measured light curve of ``cfg.observations`` (a path; ``None`` when unset), read with
-    the ``observed`` settings (column names, kind, time format)."""
+    the ``observed`` settings (column names, kind, time format). Each ``observed`` key is first
+    checked against :func:`cssat.data.read_light_curve`'s arguments: an unknown one (a typo,
+    ``+observed.bogus=1``) is a FieldError naming ``observed.<key>`` and the allowed keys, not a
+    TypeError's traceback. ``check_only``: the keys checked, nothing read (returns ``None``)."""
+    import inspect
+
     path = cfg.get("observations")
     if not path:
         return None
     from cssat.data import read_light_curve  # heavy: cssat.data imports torch
 
-    return read_light_curve(str(path), **settings(cfg.get("observed")))
+    kw = settings(cfg.get("observed"))
+    allowed = [p for p in inspect.signature(read_light_curve).parameters if p != "path"]
+    for k in kw:
+        if k not in allowed:
+            raise FieldError(f"observed.{k}", f"not an option of read_light_curve; the options: {', '.join(allowed)}")
+    if check_only:
+        return None
+    return read_light_curve(str(path), **kw)
 
 
 def check_elements(cfg: Any, lc: Any, max_epoch_days: float = 14.0) -> None:

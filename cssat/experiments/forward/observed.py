@@ -8,9 +8,11 @@ Stages of :class:`Observed` (run by :func:`~cssat.experiments.forward.base.run_m
 
 ``plan`` (``setup``)
     every setting checked before any work, each refusal a :class:`~cssat._checks.FieldError` with
-    its full key: ``observations`` given, ``stages.*`` (``auto`` runs a stage where the data allow
+    its full key: ``observations`` given, ``observed.*`` (the arguments of
+    :func:`cssat.data.read_light_curve`), ``stages.*`` (``auto`` runs a stage where the data allow
     and records why not otherwise; ``on`` requires it — the run stops with exit 2 naming what is
-    missing —; ``off``), the options under ``period`` and ``tumbling`` (those of
+    missing —; ``off``; ``stages.spin=on`` without ``scenario.tle`` is refused here, with fewer
+    nights than ``characterise.min_nights`` at ``clean``), the options under ``period`` and ``tumbling`` (those of
     :func:`cssat.inversion.estimate_period` and :func:`cssat.inversion.estimate_tumbling_periods`)
     and ``characterise.*``;
 ``measure`` (``read``, ``clean``)
@@ -23,9 +25,13 @@ Stages of :class:`Observed` (run by :func:`~cssat.experiments.forward.base.run_m
     object's light curve);
 ``estimate`` (``period``, ``tumbling``, ``spin``)
     the verdicts (:mod:`cssat.experiments.forward.verdicts`): the period on the magnitudes —
-    ``periodic``, ``period_s``, ``period_err_s``, ``fap``, ``alternatives``,
-    ``chi2_per_sample``, compared with the file's published period if any —; ``tumbling`` when
-    the curve holds enough samples for the 2-D series; ``spin`` — the pole, sidereal period and
+    ``verdict`` (one word: ``periodic``, ``not periodic``, ``undetermined``; ``failed`` is a
+    failed run's), ``why`` (one sentence), ``periodic`` (true, false, null: undetermined),
+    ``period_s``, ``period_err_s``, ``fap``, ``alternatives``, ``chi2_per_sample``,
+    ``warnings`` (one string, ``; ``-joined), compared with the file's published period if any
+    —; ``tumbling`` when the curve holds enough samples for the 2-D series and (``auto``) the
+    period stage asks for it: a curve not called periodic that varies over twice its noise
+    (``variation_over_noise``), or a period whose model misfits; ``spin`` — the pole, sidereal period and
     convex shape (:func:`cssat.inversion.estimate_spin`, :func:`cssat.inversion.minkowski`) — from
     a periodic curve, the object's element set (``scenario.tle``, checked against the file's
     NORAD id and epoch) and at least ``characterise.min_nights`` nights, the scenario's range and
@@ -33,7 +39,10 @@ Stages of :class:`Observed` (run by :func:`~cssat.experiments.forward.base.run_m
 ``solve``
     nothing: the verdicts are the answer;
 ``score``
-    the metrics (every stage's verdict ``stage_<name>``: ``ok``, ``skipped: <why>`` or ``off``);
+    the metrics, a catalogue row (summary.csv keeps every scalar): the file's ``object_id``
+    (NORAD), ``object_name``, ``track`` (its track ids, ``;``-joined), ``start_utc``, ``band``,
+    ``period_magnitudes`` (which magnitudes were searched), ``n_nights``, the verdicts above and
+    every stage's ``stage_<name>``: ``ok``, ``skipped: <why>`` or ``off``;
 ``write``
     ``arrays.npz`` (times s, values, the fitted model and trend, the periodogram),
     ``alternatives.csv``, ``tracks.csv`` (a file of several tracks: each one's own period and
@@ -44,8 +53,9 @@ Stages of :class:`Observed` (run by :func:`~cssat.experiments.forward.base.run_m
 
 from __future__ import annotations
 
+import contextlib
 import inspect
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -54,7 +64,8 @@ from cssat.experiments.build import settings
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_csv, write_npz
 from cssat.experiments.forward.base import ForwardModel
-from cssat.experiments.forward.verdicts import VERDICT_STAGES, fitted_model, period_stage, spin_stage, tumbling_stage
+from cssat.experiments.forward.verdicts import (VERDICT_STAGES, count_nights, fitted_model, period_stage, spin_stage,
+                                                tumbling_stage, variation_over_noise)
 from cssat.experiments.scene import check_elements, read_observations
 from cssat.plots import save_figure
 
@@ -73,6 +84,7 @@ def observed_settings(cfg: Any) -> dict[str, Any]:
 
     if not cfg.get("observations"):
         raise FieldError("observations", "characterise needs a light-curve file: observations=<path>")
+    read_observations(cfg, check_only=True)  # the observed.* keys: read_light_curve's arguments
     stages = settings(cfg.get("stages"))
     for k in stages:
         if k not in VERDICT_STAGES:
@@ -92,6 +104,9 @@ def observed_settings(cfg: Any) -> dict[str, Any]:
     for k in ch:
         if k not in CHARACTERISE_KEYS:
             raise FieldError(f"characterise.{k}", f"not a setting; the settings: {', '.join(sorted(CHARACTERISE_KEYS))}")
+    if modes["spin"] == "on" and (cfg.get("scenario") or {}).get("tle") is None:  # known before the file is read
+        raise FieldError("stages.spin", "the spin stage needs the object's element set: give scenario.tle (or "
+                                        "stages.spin=auto records the stage as skipped)")
     return {"modes": modes, "min_samples": int_param(ch.get("min_samples", 20), "characterise.min_samples", 12),
             "drop_penumbra": bool_param(ch.get("drop_penumbra", True), "characterise.drop_penumbra"),
             "min_nights": int_param(ch.get("min_nights", 2), "characterise.min_nights", 1),
@@ -102,8 +117,23 @@ def observed_settings(cfg: Any) -> dict[str, Any]:
             "tumbling": {k: v for k, v in settings(cfg.get("tumbling")).items() if v is not None}}
 
 
+def _plain(v: Any) -> Any:
+    """A metric as JSON's own type: numpy booleans, integers and floats as Python's."""
+    if isinstance(v, np.bool_):
+        return bool(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    return v
+
+
 class Observed(ForwardModel):
-    """A measured light curve and its verdicts (the module's docstring has the stages)."""
+    """A measured light curve and its verdicts (the module's docstring has the stages).
+
+    A stage that fails leaves what was known on the exception as ``partial_metrics`` (the
+    file's object, track, … and ``verdict: "failed"``, ``why``: the error), for a catalogue row
+    of a failed job."""
 
     name = "observed"
     timed_inside = ("measure", "estimate", "solve")
@@ -111,22 +141,42 @@ class Observed(ForwardModel):
     def plan(self, cfg: Any, run: Run) -> None:
         """Every setting checked (:func:`observed_settings`); nothing read yet."""
         self.cfg = cfg
-        self.opt = observed_settings(cfg)
         self.metrics: dict[str, Any] = {"psnr": None}
         self.res: dict[str, Any] | None = None
         self.per_track: list[dict[str, Any]] | None = None
+        with self._failure():
+            self.opt = observed_settings(cfg)
+
+    @contextlib.contextmanager
+    def _failure(self) -> Iterator[None]:
+        """An exception raised inside carries the metrics so far as ``partial_metrics`` (scalars
+        only, ``verdict: "failed"`` and ``why``: the error's one line)."""
+        try:
+            yield
+        except Exception as err:
+            part = {k: _plain(v) for k, v in self.metrics.items()
+                    if not k.startswith("_") and (v is None or isinstance(v, (str, int, float, bool, np.generic)))}
+            part.update(verdict="failed", why=str(err))
+            try:
+                err.partial_metrics = part  # type: ignore[attr-defined]
+            except AttributeError:  # an exception type without a __dict__
+                pass
+            raise
 
     def measure(self, run: Run) -> None:
         """The file read (``read``) and cleaned (``clean``): ``t`` (s from the first sample), ``y``
         (magnitudes, range-reduced where so set, or fluxes), ``sig`` (their 1σ) and ``tracks``."""
-        with run.stage("read"):
-            self._read()
-        with run.stage("clean"):
-            self._clean()
+        with self._failure():
+            with run.stage("read"):
+                self._read()
+            with run.stage("clean"):
+                self._clean()
 
     def _read(self) -> None:
         """The light curve of ``observations`` with the ``observed`` settings, its tracks selected,
-        a given element set checked against it; the file's own description in the metrics."""
+        a given element set checked against it; the file's own description in the metrics:
+        ``object_id`` (the NORAD id), ``object_name``, ``track`` (the file's track ids, ``;``-joined;
+        null when it names none), ``band`` (the magnitudes' filter, e.g. MMT's ``Clear``)."""
         cfg, opt, m = self.cfg, self.opt, self.metrics
         lc = read_observations(cfg)
         if opt["tracks"] is not None:
@@ -134,16 +184,24 @@ class Observed(ForwardModel):
                 lc = lc.select(list(opt["tracks"]) if not isinstance(opt["tracks"], (str, int)) else [opt["tracks"]])
             except FieldError as err:
                 raise FieldError("characterise.tracks", err.detail) from None
+        meta = lc.meta
+        band = (settings(cfg.get("observed")).get("band") or None)
+        if (band is None or band == "file") and lc.filters is not None:
+            band = "/".join(dict.fromkeys(str(f) for f in lc.filters))
+        m.update(object_id=meta.get("object_id"), object_name=meta.get("name"), file_format=meta.get("format"),
+                 track=";".join(dict.fromkeys(str(x) for x in lc.tracks)) if lc.tracks is not None else None,
+                 file_variability=meta.get("variability"), published_period_s=meta.get("published_period_s"),
+                 magnitude_system=lc.magnitude_system, band=None if band is None else str(band), n_rows=len(lc))
         if cfg.scenario.get("tle") is not None:  # an element set given is the file's object's, near its dates
             check_elements(cfg, lc, opt["max_epoch_days"])
-        meta = lc.meta
-        m.update(object_id=meta.get("object_id"), object_name=meta.get("name"), file_format=meta.get("format"),
-                 file_variability=meta.get("variability"), published_period_s=meta.get("published_period_s"),
-                 magnitude_system=lc.magnitude_system, n_rows=len(lc))
         self.lc = lc
 
     def _clean(self) -> None:
-        """Penumbra dropped, too few samples refused, apparent magnitudes reduced to 1000 km."""
+        """Penumbra dropped, too few samples refused, apparent magnitudes reduced to 1000 km;
+        ``stages.spin=on`` refused here, before any search, when the file holds fewer than
+        ``characterise.min_nights`` nights. ``period_magnitudes``: what the period stage's values
+        are (``apparent``, ``apparent, reduced to a range of 1000 km``, MMT StdMag's
+        ``normalised: 1000 km, phase 90°``, or ``flux``)."""
         lc, opt, m = self.lc, self.opt, self.metrics
         if opt["drop_penumbra"] and lc.penumbra is not None and lc.penumbra.any():
             m["n_penumbra_dropped"] = int(lc.penumbra.sum())
@@ -155,24 +213,35 @@ class Observed(ForwardModel):
         y = lc.magnitudes() if lc.kind == "magnitude" else lc.values
         sig = lc.magnitude_errors() if lc.kind == "magnitude" else lc.errors
         tracks = lc.track_ids()
+        m["period_magnitudes"] = lc.magnitude_system if lc.kind == "magnitude" else "flux"
         if opt["normalise_range"] and lc.kind == "magnitude" and lc.ranges_km is not None and lc.magnitude_system == "apparent":
             y = y - 5.0 * np.log10(lc.ranges_km / 1000.0)  # the range's inverse square out, to 1000 km (MMT's StdMag's)
             m["period_magnitudes"] = "apparent, reduced to a range of 1000 km"
-        m.update(n_samples=len(lc), n_tracks=len(set(tracks)), span_s=float(t[-1]), start_utc=str(lc.times_utc[0]))
+        nights = count_nights(t)
+        m.update(n_samples=len(lc), n_tracks=len(set(tracks)), n_nights=nights, span_s=float(t[-1]),
+                 start_utc=str(lc.times_utc[0]))
+        if opt["modes"]["spin"] == "on" and nights < opt["min_nights"]:
+            raise FieldError("stages.spin", f"the spin stage needs {opt['min_nights']} nights (characterise.min_nights); "
+                                            f"the file holds {nights}: one pass does not constrain a pole")
         self.lc, self.t, self.y, self.sig, self.tracks = lc, t, y, sig, tracks
 
     def estimate(self, run: Run) -> None:
-        """The verdicts, each timed under its own name: ``period``, ``tumbling``, ``spin``."""
-        self.res = period_stage(run, self.opt, self.t, self.y, self.sig, self.tracks, self.metrics)
-        tumbling_stage(run, self.opt, self.t, self.y, self.sig, self.res, self.metrics)
-        spin_stage(run, self.cfg, self.opt, self.lc, self.t, self.res, self.metrics)
+        """The verdicts, each timed under its own name: ``period``, ``tumbling``, ``spin``;
+        ``variation_over_noise`` first (what ``stages.tumbling: auto`` asks of the period stage)."""
+        with self._failure():
+            self.metrics["variation_over_noise"] = variation_over_noise(self.t, self.y, self.sig, self.tracks)
+            self.res = period_stage(run, self.opt, self.t, self.y, self.sig, self.tracks, self.metrics)
+            tumbling_stage(run, self.opt, self.t, self.y, self.sig, self.res, self.metrics)
+            spin_stage(run, self.cfg, self.opt, self.lc, self.t, self.res, self.metrics)
 
     def solve(self, run: Run) -> None:
         """Nothing to solve: the verdicts are the answer (and nothing is timed)."""
 
     def score(self, run: Run) -> dict[str, Any]:
-        """The metrics; the per-track rows kept aside for ``tracks.csv``."""
+        """The metrics (numpy scalars as JSON's booleans and numbers); the per-track rows kept
+        aside for ``tracks.csv``."""
         self.per_track = self.metrics.pop("_tracks", None)
+        self.metrics = {k: _plain(v) for k, v in self.metrics.items()}
         return self.metrics
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
@@ -188,22 +257,25 @@ class Observed(ForwardModel):
             write_csv(run.out_dir / "alternatives.csv", res["alternatives"] or [{"relation": "none"}])
         write_npz(run.out_dir / "arrays.npz", **arrays)
         if self.opt["figures"]:
-            from cssat.plots.characterise import characterise_figure  # heavy: cssat.plots.characterise imports matplotlib
+            from cssat.plots.characterise import characterise_figure, figure_labels  # heavy: matplotlib
 
+            labels = figure_labels(lc.meta, metrics, lc.kind, metrics.get("band"))
             save_figure(characterise_figure(t, y, lc.magnitude_errors() if lc.kind == "magnitude" else lc.errors, res,
-                                            arrays.get("model"), lc.kind, trend=arrays.get("trend")), run.figure("characterise"))
+                                            arrays.get("model"), lc.kind, trend=arrays.get("trend"), labels=labels,
+                                            verdict=metrics.get("verdict")), run.figure("characterise"))
 
     def headline(self, metrics: dict[str, Any]) -> str:
         """One line: the verdict and the period, or why there is none, and the skipped stages."""
         m = metrics
         name = " ".join(str(x) for x in (m.get("object_id"), m.get("object_name")) if x) or "the light curve"
-        if m.get("periodic"):
+        verdict = m.get("verdict")
+        if verdict == "periodic":
             head = (f"{name}: periodic, P = {m['period_s']:.6g} ± {m['period_err_s']:.2g} s (FAP {m['fap']:.2g}, "
                     f"χ²/N {m['chi2_per_sample']:.3g})")
         elif m.get("stage_period") == "ok":
-            head = f"{name}: not periodic (FAP {m['fap']:.2g}, repeat {m['repeat']:.2g})"
+            head = f"{name}: {verdict} (FAP {m['fap']:.2g}, repeat {m['repeat']:.2g}): {m.get('why')}"
         else:
-            head = f"{name}: {m.get('stage_period')}"
+            head = f"{name}: {verdict}: {m.get('stage_period')}"
         if m.get("n_tracks_periodic") is not None:
             head += f"; {m['n_tracks_periodic']} of {m['n_tracks']} tracks periodic on their own (tracks.csv)"
         skipped = [k for k in VERDICT_STAGES if str(m.get(f"stage_{k}", "")).startswith("skipped")]

@@ -5,6 +5,12 @@
 Each stage records its verdict ``stage_<name>`` in the metrics: ``ok``, ``skipped: <why>`` or
 ``off``; a stage set ``on`` that the data cannot serve is a :class:`~cssat._checks.FieldError`
 naming ``stages.<name>``. Times are seconds from the first sample; periods in seconds.
+
+The period's verdict is one word, ``verdict`` (:data:`VERDICTS`: ``periodic``, ``not periodic``,
+``undetermined`` — the data cannot tell, e.g. too few cycles or the whole curve out of the
+search's reach —, and ``failed`` for a run that stopped), with ``why`` (one sentence) beside it:
+:func:`~cssat.inversion.estimate_period`'s own ``verdict``/``verdict_why`` where it gives them,
+else its ``periodic`` and the FAP and repeat tests that made it.
 """
 
 from __future__ import annotations
@@ -17,26 +23,111 @@ from cssat._checks import FieldError
 from cssat.experiments.context import Run
 from cssat.experiments.scene import build_scenario, check_elements
 
-__all__ = ["VERDICT_STAGES", "MAX_RANGE_MISMATCH", "MAX_PHASE_MISMATCH_DEG", "period_stage", "per_track",
+__all__ = ["VERDICT_STAGES", "VERDICTS", "MAX_RANGE_MISMATCH", "MAX_PHASE_MISMATCH_DEG", "TUMBLING_MIN_VARIATION",
+           "period_verdict", "period_why", "variation_over_noise", "count_nights", "period_stage", "per_track",
            "tumbling_stage", "spin_stage", "compare_geometry", "fitted_model"]
 
 #: the stages of the verdict (each a key of the ``stages`` group and a ``seconds_<stage>`` timing)
 VERDICT_STAGES = ("period", "tumbling", "spin")
+#: the words of the ``verdict`` metric (``failed``: the run stopped; its ``error`` says why)
+VERDICTS = ("periodic", "not periodic", "undetermined", "failed")
+#: ``stages.tumbling: auto`` runs the tumbling search on a curve the period stage did not call
+#: periodic only when it varies: the rms of the curve less each track's offset and slope at
+#: least this many times the noise's 1σ (``variation_over_noise``)
+TUMBLING_MIN_VARIATION = 2.0
+#: a new night after a gap longer than this, s (the spin stage's ``characterise.min_nights``)
+NIGHT_GAP_S = 6 * 3600.0
+#: estimate_period's arguments that are the data (its FieldErrors on them name ``observations``)
+_DATA_ARGS = ("times_s", "flux", "sigma", "segments")
 #: the spin stage's geometry must agree with the file's: median |Δrange| / range and |Δphase|
 MAX_RANGE_MISMATCH = 0.05
 MAX_PHASE_MISMATCH_DEG = 5.0
+
+
+def period_verdict(res: dict[str, Any] | None) -> str:
+    """The period result's verdict word: its own ``verdict`` where it gives one, else from
+    ``periodic`` (``None``: undetermined); ``undetermined`` when there is no result."""
+    if res is None:
+        return "undetermined"
+    v = res.get("verdict")
+    if v is None:
+        p = res.get("periodic")
+        v = "undetermined" if p is None else "periodic" if p else "not periodic"
+    return str(v)
+
+
+def period_why(res: dict[str, Any], kw: dict[str, Any] | None = None) -> str:
+    """One sentence: why the period result is periodic, not periodic or undetermined — its own
+    ``verdict_why`` where it gives one, else the FAP and repeat tests against their thresholds
+    (``kw``: the ``period`` options, ``fap_max`` 1e-3 and ``min_repeat`` 0.7 by default), else
+    its ``why``."""
+    if res.get("verdict_why"):
+        return str(res["verdict_why"])
+    kw = kw or {}
+    fap, rep = res.get("fap"), res.get("repeat")
+    fap_max, min_rep = float(kw.get("fap_max", 1e-3)), float(kw.get("min_repeat", 0.7))
+    if fap is None or rep is None or not (np.isfinite(fap) and np.isfinite(rep)):
+        return str(res.get("why") or "")
+    v = period_verdict(res)
+    if v == "periodic":
+        return (f"the best period's false-alarm probability {fap:.2g} is under {fap_max:g} and its cycles repeat "
+                f"(repeat {rep:.2f} ≥ {min_rep:g})")
+    fails = ([f"the best period's false-alarm probability {fap:.2g} is over {fap_max:g}"] if fap > fap_max else []) + (
+        [f"its cycles do not repeat (repeat {rep:.2f} < {min_rep:g})"] if rep < min_rep else [])
+    return "; ".join(fails) if v == "not periodic" and fails else str(res.get("why") or v)
+
+
+def variation_over_noise(t: np.ndarray, y: np.ndarray, sig: np.ndarray | None, tracks: np.ndarray) -> float:
+    """How much the curve varies, in units of its noise: the rms of ``y`` less each track's
+    offset and slope, over the noise's 1σ — the median of ``sig`` where given, else the
+    point-to-point scatter within the tracks (1.4826 MAD(Δy)/√2). About 1 for noise alone; a
+    signal faster than the cadence also scatters point to point and reads as noise. NaN when
+    the noise is 0 or unknown."""
+    resid, steps = np.empty_like(y, dtype=float), []
+    for k in dict.fromkeys(tracks):
+        on = tracks == k
+        tk = t[on] - t[on].mean()
+        X = np.stack([np.ones_like(tk), tk], 1) if on.sum() > 2 else np.ones((on.sum(), 1))
+        coef, *_ = np.linalg.lstsq(X, y[on], rcond=None)
+        resid[on] = y[on] - X @ coef
+        steps.append(np.diff(y[on]))
+    if sig is not None:
+        noise = float(np.median(sig))
+    else:
+        d = np.concatenate(steps) if steps else np.empty(0)
+        noise = float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2)) if d.size else float("nan")
+    rms = float(np.sqrt(np.mean(resid ** 2)))
+    return rms / noise if noise > 0 else float("nan")
+
+
+def count_nights(t: np.ndarray) -> int:
+    """The nights of ``t`` (s, sorted): :func:`cssat.data.observations.stretches` at least
+    :data:`NIGHT_GAP_S` apart."""
+    from cssat.data.observations import stretches  # heavy: cssat.data imports torch
+
+    return int(len(np.unique(stretches(t, min_gap_s=NIGHT_GAP_S)))) if len(t) else 0
+
+
+def _period_error(err: FieldError) -> FieldError:
+    """An estimate_period FieldError with its config key: an option's ``period.<option>``, the
+    data's ``observations``."""
+    return FieldError("observations", err.detail) if err.field in _DATA_ARGS else err.within("period")
 
 
 def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
                  tracks: np.ndarray, m: dict[str, Any]) -> dict[str, Any] | None:
     """The period stage: the whole selection (its tracks' offsets and slopes fitted), and, when
     it holds several tracks, each track apart (``tracks.csv``); the whole may be out of reach
-    (tracks days apart: too many trial frequencies), the tracks then answer alone. Returns
+    (tracks days apart: too many trial frequencies), the tracks then answer alone. Records
+    ``verdict`` (:data:`VERDICTS`), ``why``, ``periodic`` (true, false or null: undetermined),
+    the period and its 1σ (s), ``fap``, ``repeat``, ``warnings`` (one string, ``; ``-joined) and
+    ``period_choice`` (why this period and not its multiples). estimate_period's FieldErrors
+    name their key: ``period.<option>`` or ``observations``. Returns
     :func:`~cssat.inversion.estimate_period`'s result (``None``: off or out of reach)."""
     from cssat.inversion import estimate_period  # heavy: cssat.inversion imports torch
 
     if opt["modes"]["period"] == "off":
-        m["stage_period"] = "off"
+        m.update(stage_period="off", verdict="undetermined", why="the period stage is off (stages.period=off)")
         return None
     kw = dict(opt["period"])
     res, why_not = None, None
@@ -45,14 +136,14 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
             res = estimate_period(t, y, sigma=sig, segments=tracks, **kw)
         except FieldError as err:
             if "trial frequencies" not in err.detail or len(set(tracks)) < 2:
-                raise
+                raise _period_error(err) from None
             why_not = err.detail
         rows = per_track(t, y, sig, tracks, kw, opt["min_samples"]) if len(set(tracks)) > 1 else []
     if rows:
-        m["n_tracks_periodic"] = sum(bool(r["periodic"]) for r in rows)
-        m["track_periods_s"] = [r["period_s"] for r in rows if r["periodic"]]
+        m["n_tracks_periodic"] = sum(r["verdict"] == "periodic" for r in rows)
+        m["track_periods_s"] = [r["period_s"] for r in rows if r["verdict"] == "periodic"]
         m["_tracks"] = rows  # tracks.csv, written with the other files
-    found = [r["period_s"] for r in rows if r["periodic"]]
+    found = [r["period_s"] for r in rows if r["verdict"] == "periodic"]
     p0 = float(np.median(found)) if found else None
     if p0 is not None and not {"min_period_s", "max_period_s"} & set(kw) and (
             res is None or not res["model_fits"] or abs(res["best_period_s"] / p0 - 1) > 0.02):
@@ -67,19 +158,27 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
             res = near
             m["period_search"] = f"about the tracks' median period {p0:.6g} s (0.7x to 1.45x)"
     if res is None:
-        m.update(periodic=False, period_s=None, stage_period=f"skipped (whole curve): {why_not} (set period.min_period_s "
-                                                             "and period.max_period_s); see tracks.csv")
+        m.update(periodic=None, period_s=None, verdict="undetermined",
+                 why=f"the whole curve is out of the period search's reach ({why_not}); its tracks are analysed apart "
+                     "(tracks.csv)",
+                 stage_period=f"skipped (whole curve): {why_not} (set period.min_period_s and period.max_period_s); "
+                              "see tracks.csv")
         return None
     keys = ("periodic", "period_s", "period_err_s", "fap", "repeat", "best_period_s", "best_period_err_s", "chi2_per_sample",
-            "model_fits", "n_harmonics", "n_cycles", "min_period_s", "max_period_s", "why")
-    m.update({k: res[k] for k in keys})
+            "model_fits", "n_harmonics", "n_cycles", "min_period_s", "max_period_s")
+    m.update({k: res.get(k) for k in keys})
+    verdict = period_verdict(res)
+    m.update(verdict=verdict, why=period_why(res, kw), period_choice=res.get("why"))
     m["alternatives"] = res["alternatives"]
-    m["warnings"] = list(res["warnings"])
+    m["warnings"] = "; ".join(str(w) for w in res["warnings"])
     pub = m.get("published_period_s")
-    if pub and res["periodic"]:
+    if pub and verdict == "periodic":
         m["period_vs_published"] = float(res["period_s"] / pub - 1.0)
     m["stage_period"] = "ok"
-    if opt["modes"]["period"] == "on" and not res["periodic"]:
+    if opt["modes"]["period"] == "on" and verdict != "periodic":
+        if verdict == "undetermined":
+            raise FieldError("stages.period", f"the period is undetermined: {m['why']}; stages.period=auto records that "
+                                              "as the answer")
         raise FieldError("stages.period", f"no significant period (fap {res['fap']:.3g}, repeat {res['repeat']:.3g}); "
                                           "stages.period=auto records that as the answer")
     return res
@@ -87,7 +186,8 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
 
 def per_track(t: np.ndarray, y: np.ndarray, sig: np.ndarray | None, tracks: np.ndarray, kw: dict[str, Any],
               min_samples: int) -> list[dict[str, Any]]:
-    """One row per track: its own period analysis (or why none: too few samples)."""
+    """One row per track: its own period analysis — ``verdict`` (:data:`VERDICTS`), ``why``,
+    ``periodic``, the period and its 1σ (s), FAP, repeat — or why none (too few samples)."""
     from cssat.inversion import estimate_period  # heavy: cssat.inversion imports torch
 
     rows = []
@@ -95,24 +195,49 @@ def per_track(t: np.ndarray, y: np.ndarray, sig: np.ndarray | None, tracks: np.n
         on = tracks == k
         row: dict[str, Any] = {"track": k, "n_samples": int(on.sum()), "span_s": float(np.ptp(t[on]))}
         if on.sum() < min_samples:
-            row.update(status="skipped: too few samples", periodic=False, period_s=None)
+            row.update(status="skipped: too few samples", verdict="undetermined", periodic=None, period_s=None,
+                       why=f"{int(on.sum())} samples, under characterise.min_samples ({min_samples})")
         else:
             try:
                 r = estimate_period(t[on], y[on], sigma=None if sig is None else sig[on], **kw)
             except FieldError as err:
-                row.update(status=f"failed: {err}", periodic=False, period_s=None)
+                row.update(status=f"failed: {_period_error(err)}", verdict="undetermined", periodic=None, period_s=None,
+                           why=str(_period_error(err)))
             else:
-                row.update(status="ok", periodic=r["periodic"], period_s=r["period_s"], period_err_s=r["period_err_s"],
-                           best_period_s=r["best_period_s"], fap=r["fap"], repeat=r["repeat"],
-                           chi2_per_sample=r["chi2_per_sample"])
+                row.update(status="ok", verdict=period_verdict(r), why=period_why(r, kw), periodic=r["periodic"],
+                           period_s=r["period_s"], period_err_s=r["period_err_s"], best_period_s=r["best_period_s"],
+                           fap=r["fap"], repeat=r["repeat"], chi2_per_sample=r["chi2_per_sample"])
         rows.append(row)
     return rows
+
+
+def _tumbling_not_asked(m: dict[str, Any], res: dict[str, Any] | None) -> str | None:
+    """Why ``stages.tumbling: auto`` does not run the tumbling search (``None``: the period
+    stage asks for it — a curve not called periodic that varies over
+    :data:`TUMBLING_MIN_VARIATION` times its noise, or a period whose model does not fit; or
+    there is no period result to ask: the stage off)."""
+    if res is None:
+        return None
+    v, var = m.get("verdict"), m.get("variation_over_noise")
+    if v == "periodic":
+        if res.get("model_fits"):
+            return (f"one period fits (periodic, χ²/N {res['chi2_per_sample']:.3g}): the period stage asks for no "
+                    "second period (stages.tumbling=on runs it)")
+        return None
+    if not res.get("model_fits", True):
+        return None
+    if var is not None and np.isfinite(var) and var >= TUMBLING_MIN_VARIATION:
+        return None
+    return (f"{v} and the curve varies no more than its noise (rms {var:.2g}× the noise's 1σ, under "
+            f"{TUMBLING_MIN_VARIATION:g}×): nothing for two periods to explain (stages.tumbling=on runs it)")
 
 
 def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
                    res: dict[str, Any] | None, m: dict[str, Any]) -> None:
     """The tumbling stage: :func:`~cssat.inversion.estimate_tumbling_periods`'s verdict when the
-    curve holds enough samples (and cycles) for its 2-D series of order ``tumbling.order``."""
+    curve holds enough samples (and cycles) for its 2-D series of order ``tumbling.order`` and —
+    ``stages.tumbling: auto`` — when the period stage asks for it (:func:`_tumbling_not_asked`;
+    the search costs several times the period's). ``tumbling`` (bool), ``tumbling_periods_s``."""
     from cssat.inversion import estimate_tumbling_periods  # heavy: cssat.inversion imports torch
 
     mode = opt["modes"]["tumbling"]
@@ -133,6 +258,11 @@ def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray,
             raise FieldError("stages.tumbling", why)
         m["stage_tumbling"] = f"skipped: {why}"
         return
+    if mode == "auto":
+        why = _tumbling_not_asked(m, res)
+        if why is not None:
+            m["stage_tumbling"] = f"skipped: {why}"
+            return
     with run_.stage("tumbling"):
         try:
             tp = estimate_tumbling_periods(t, y, sigma=sig, **opt["tumbling"])
@@ -158,12 +288,11 @@ def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray,
     if mode == "off":
         m["stage_spin"] = "off"
         return
-    from cssat.inversion.fourier import stretches  # heavy: cssat.inversion.fourier imports torch
-
-    nights = len(np.unique(stretches(t, min_gap_s=6 * 3600.0)))
+    nights = count_nights(t)
     missing = []
-    if res is None or not res["periodic"]:
-        missing.append("a periodic light curve")
+    verdict = period_verdict(res)
+    if verdict != "periodic":
+        missing.append(f"a periodic light curve (the period is {verdict})")
     if cfg.scenario.get("tle") is None:
         missing.append("the object's element set (scenario.tle)")
     if nights < opt["min_nights"]:
