@@ -11,8 +11,9 @@ import errno
 import logging
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -54,20 +55,61 @@ def task(cfg: Any, output_dir: str | Path, multirun: bool = False, finalize: Cal
             metrics = run_experiment(cfg, output_dir, finalize=finalize, tags=tags)
     except Exception as err:
         if multirun:
-            log.error("job failed: %s", err)
+            log.error("job failed: %s", _os_error(err, output_dir) if isinstance(err, OSError) else err)
             return None
         if isinstance(err, FieldError):  # bad input: its field is in the error, not parsed from a message
             log.error("bad input: %s", err)
             sys.exit(2)
         if isinstance(err, OSError):  # the machine, not the input: a full disk, a read-only directory
-            writing = err.errno in (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT,
-                                    errno.EEXIST, errno.ENOTDIR, errno.EISDIR)
+            writing = err.errno in WRITE_ERRNOS
             log.error("%s: %s", "cannot write the results" if writing else "system error", _os_error(err, output_dir))
             sys.exit(1)
         raise
     key = cfg.get("optimized_metric", "psnr")
     value = metrics.get(key) if key else None
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+#: the errors of a file system that refuses a write: full, read-only, no permission, in the way
+WRITE_ERRNOS = (errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT, errno.EEXIST, errno.ENOTDIR,
+                errno.EISDIR, errno.EFBIG)
+
+
+@contextmanager
+def _write_errors_in_one_line(where: str = "the output directory") -> Iterator[None]:
+    """Within the block, an OS error of writing (a full disk, a read-only directory) that escapes
+    Hydra's own code — the sweep's ``multirun.yaml``, a callback, a launcher — ends the run with
+    one line and exit status 1 instead of Hydra's printed traceback. Hydra prints an exception
+    itself (``hydra._internal.utils.run_and_report``), so the function it runs is wrapped; where
+    that private name is missing, Hydra's own report stands."""
+    from hydra._internal import utils as hydra_utils  # startup: hydra is imported already
+
+    original = getattr(hydra_utils, "run_and_report", None)
+    caught: list[OSError] = []
+
+    def run_and_report(func: Callable[[], Any]) -> Any:
+        def guarded() -> Any:
+            try:
+                return func()
+            except OSError as err:
+                if err.errno not in WRITE_ERRNOS:
+                    raise
+                caught.append(err)
+                return None
+
+        return original(guarded)
+
+    if original is not None:
+        hydra_utils.run_and_report = run_and_report
+    try:
+        yield
+    finally:
+        if original is not None:
+            hydra_utils.run_and_report = original
+    if caught:
+        err = caught[0]
+        print(f"cannot write the results: {_os_error(err, where)}", file=sys.stderr)
+        sys.exit(1)
 
 
 def _os_error(err: OSError, where: str | Path) -> str:
@@ -94,6 +136,7 @@ def _check_output_dir(overrides: list[str], multirun: bool) -> str | None:
 
 @hydra.main(version_base="1.3", config_path="pkg://cssat.conf", config_name="config")
 def _hydra_main(cfg: DictConfig) -> float | None:
+    logging.raiseExceptions = False  # also in a launcher's worker: a log file on a full disk drops its lines
     hc = HydraConfig.get()
     multirun = hc.mode == RunMode.MULTIRUN
     choice = hc.runtime.choices.get("experiment")
@@ -108,8 +151,12 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         sid = sweep_id(hc.sweep.dir)
         if sid is not None:
             out = Path(hc.runtime.output_dir)
-            out.mkdir(parents=True, exist_ok=True)
-            (out / SWEEP_MARK).write_text(sid + "\n")
+            try:
+                out.mkdir(parents=True, exist_ok=True)
+                atomic_write(out / SWEEP_MARK, lambda tmp: Path(tmp).write_text(sid + "\n"), result=False)
+            except OSError as err:  # a full disk: this job fails (its row says so), the sweep goes on
+                log.error("job failed: cannot write the results: %s", _os_error(err, out))
+                return None
             tags = {"sweep_id": sid}
 
     def save_hydra_files() -> None:
@@ -277,7 +324,10 @@ def main() -> None:
     if why is not None and overrides is not None:
         print(f"cannot write the results: {why}", file=sys.stderr)
         sys.exit(1)
-    _hydra_main()
+    multirun = any(a in ("-m", "--multirun") for a in sys.argv[1:])
+    where = _last_value(overrides or [], "hydra.sweep.dir" if multirun else "hydra.run.dir")
+    with _write_errors_in_one_line(where or "the output directory (outputs/)"):
+        _hydra_main()
     if summary.SWEEP_FAILED:
         log.error("sweep: not every job ended ok (see summary.csv)")
         sys.exit(1)

@@ -194,34 +194,6 @@ def test_refusals_exit_2_naming_the_field(tmp_path, args, field):
     assert not (tmp_path / "r" / "metrics.json").is_file() or json.loads((tmp_path / "r" / "metrics.json").read_text())["status"] == "failed"
 
 
-def test_a_catalogue_through_hydra_s_launcher(tmp_path):
-    """Three files in one multirun: two characterised, a broken one costs its row, not the run."""
-    cat = tmp_path / "tracks"
-    cat.mkdir()
-    for p in (MMT_REAL[0], MMT_RB):
-        (cat / p.name).write_bytes(p.read_bytes())
-    (cat / "broken.txt").write_text("# satellite: 1 X\n# Date Time Mag\n2020-01-01 00:00:00 99.999\n")
-    import csv
-    import subprocess
-    import sys
-
-    subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise", f"observations={cat}",
-                    "characterise.figures=false", f"hydra.sweep.dir={tmp_path / 'sweep'}"], cwd=tmp_path, capture_output=True,
-                   text=True, timeout=600)
-
-    rows = list(csv.DictReader(open(tmp_path / "sweep" / "summary.csv")))
-    status = {Path(r["observations"]).name: r["status"] for r in rows}
-    assert status == {"broken.txt": "failed", MMT_REAL[0].name: "ok", MMT_RB.name: "ok"}, status
-    ok = {Path(r["observations"]).name: r for r in rows if r["status"] == "ok"}
-    assert ok[MMT_RB.name]["periodic"] == "True" and ok[MMT_REAL[0].name]["periodic"] == "False"
-    assert ok[MMT_RB.name]["verdict"] == "periodic" and ok[MMT_REAL[0].name]["verdict"] == "not periodic"
-    assert ok[MMT_REAL[0].name]["track"] == "20416355" and ok[MMT_REAL[0].name]["why"]  # a row a reader can use
-    assert "observations.Mag[row 1]" in next(r["error"] for r in rows if r["status"] == "failed")
-    from astropy.table import Table
-
-    assert len(Table.read(tmp_path / "sweep" / "summary.csv", format="ascii.csv")) == 3  # astropy reads the summary
-
-
 def test_a_glob_that_matches_nothing_is_refused(tmp_path):
     import subprocess
     import sys

@@ -8,6 +8,10 @@ a job whose worker dies twice while it runs alone is the one killing it, and is 
 failed (its ``metrics.json`` says ``status: failed``) so that the rest of the sweep finishes and
 the summary is written; a job that only shared a batch with it is never blamed. ``retries``
 bounds the deaths with no job started (nothing to blame).
+
+A job whose directory cannot be written (a full disk: Hydra's own ``.hydra/`` files of the job
+fail before the job starts) is logged in one line and costs that job only: the sweep goes on and
+its summary says what is missing — never a traceback out of the launcher.
 """
 
 from __future__ import annotations
@@ -36,6 +40,22 @@ def _job_dir(config: Any, idx: int) -> Path:
     (cssat's subdir is ``${hydra.job.num}``; read unresolved, as the number is not set here)."""
     sub = str(OmegaConf.to_container(config.hydra.sweep, resolve=False)["subdir"])
     return Path(str(config.hydra.sweep.dir)) / sub.replace("${hydra.job.num}", str(idx))
+
+
+def _execute_job(idx: int, overrides: Sequence[str], hydra_context: Any, config: Any, task_function: Any,
+                 singleton_state: Any) -> JobReturn:
+    """Hydra's ``execute_job`` in a loky worker; an OS error of writing the job's own files (Hydra's
+    ``.hydra/``, before cssat's task runs) is the job's failure, in one line, not the sweep's end."""
+    from hydra_plugins.hydra_joblib_launcher import _core  # startup: joblib, only when a sweep launches
+
+    logging.raiseExceptions = False  # a job's log file on a full disk: its lines dropped, no "Logging error" tracebacks
+    try:
+        return _core.execute_job(idx, overrides, hydra_context, config, task_function, singleton_state)
+    except OSError as err:
+        where = err.filename if err.filename is not None else _job_dir(config, idx)
+        logging.getLogger("cssat").error("job %d failed: cannot write its results: %s: %s", idx, where,
+                                          err.strerror or err)
+        return JobReturn(overrides=list(overrides), status=JobStatus.COMPLETED, _return_value=None)
 
 
 def _state(d: Path) -> str:
@@ -69,8 +89,8 @@ class RobustJoblibLauncher(JoblibLauncher):
         state = Singleton.get_state()
         log.info("sweep: launching %d jobs in %s loky workers", len(batch), cfg.get("n_jobs"))
         return Parallel(**cfg)(
-            delayed(_core.execute_job)(initial_job_idx + i, job_overrides[i], self.hydra_context, self.config,
-                                       self.task_function, state)
+            delayed(_execute_job)(initial_job_idx + i, job_overrides[i], self.hydra_context, self.config,
+                                  self.task_function, state)
             for i in batch
         )
 
