@@ -141,7 +141,7 @@ def test_ecsv_and_fits_tables(tmp_path):
 
 
 @pytest.mark.parametrize("text, kwargs, field, words", [
-    ("time_utc,mag\n2020-04-01T00:00:00,1\n", {}, "observations.value_col", "no column 'magnitude'; its columns: time_utc, mag"),
+    ("time_utc,vmag\n2020-04-01T00:00:00,1\n", {}, "observations.value_col", "no column 'magnitude'; its columns: time_utc, vmag"),
     ("time_utc,magnitude\n2020-04-01T00:00:00,1\nnot-a-time,2\n", {}, "observations.time_utc[row 2]", "ISO"),
     ("time_utc,magnitude\n2020-04-01T00:00:00,1\n2020-04-01T00:00:01,nan\n", {}, "observations.magnitude[row 2]", "finite"),
     ("time_utc,magnitude\n2020-04-01T00:00:05,1\n2020-04-01T00:00:01,2\n", {}, "observations.time_utc[row 2]", "increase"),

@@ -310,7 +310,10 @@ def test_hostile_tables_and_arrays():
         read_light_curve(QTable({"time": t, "flux": np.ones(30) * u.m}), value_col="flux", kind="flux")
     jy = read_light_curve(QTable({"time": t, "flux": np.ones(30) * u.Jy, "flux_err": np.full(30, 10.0) * u.mJy}),
                           value_col="flux", kind="flux")
-    assert jy.values[0] == 1.0 and jy.errors[0] == pytest.approx(0.01)  # the error in the value's unit
+    # a flux density in Jy becomes a magnitude through the band's zero point (issue 46): astropy's AB
+    # magnitude of 1 Jy, within V's Vega-AB offset (< 0.05 mag); the error 2.5/ln10 * 10 mJy / 1 Jy
+    assert jy.kind == "magnitude" and abs(jy.values[0] - (1 * u.Jy).to_value(u.ABmag)) < 0.05
+    assert jy.errors[0] == pytest.approx(2.5 / np.log(10) * 0.01)
     with pytest.raises(FieldError, match="error_col"):
         read_light_curve(Table({"time": t, "mag": np.ones(30)}), error_col="nope")
     with pytest.raises(FieldError):

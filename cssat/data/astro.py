@@ -1,6 +1,13 @@
-"""astropy tables in (issue 34, point 1): a ``Table``/``QTable``/``TimeSeries`` object, or an
+"""astropy tables in (issues 34 and 46): a ``Table``/``QTable``/``TimeSeries`` object, or an
 ECSV/FITS file read by astropy, with its ``Time`` columns in any scale (``TIMESYS`` honoured)
-made UTC by astropy and its units checked against the light curve's kind."""
+made UTC by astropy and its units checked against the light curve's kind.
+
+A ``Time`` column carries its own scale: a ``time_scale`` other than UTC that differs from it
+is refused as a contradiction. A plain time column (ISO strings, or numbers: ``jd``, ``mjd``,
+``unix``) is read in ``time_format`` and ``time_scale``; a numeric column named ``jd`` or
+``mjd`` is read as such when ``time_format`` is left ``iso``. A spectral flux density per
+frequency (Jy, W m⁻² Hz⁻¹) is returned in Jy with ``meta["flux_unit"] = "Jy"`` (the caller
+makes it a magnitude through the band's zero point); one per wavelength is refused."""
 
 from __future__ import annotations
 
@@ -11,15 +18,14 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
-from cssat.data.formats import _datetime64, _period
-from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE
-from cssat.scene.orbit import _start_datetime
+from cssat.data.formats import _datetime64, period_or_none
+from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE, _times, find_column
 
 __all__ = ["read_astropy", "read_astropy_file"]
 
 
 def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str | None, error_col: str | None,
-                 kind: str) -> dict[str, Any]:
+                 kind: str, time_format: str = "iso", time_scale: str = "utc") -> dict[str, Any]:
     """The columns of an astropy table: its time column (a ``Time`` column in any scale, made
     UTC by astropy; or cssat's ISO ``time_utc``), its value and error columns checked against
     their units (magnitudes in mag; a flux in W/m² — converted — or a spectral flux density,
@@ -31,29 +37,48 @@ def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str 
     cols = list(table.colnames)
     if time_col is None:
         tcols = [c for c in cols if isinstance(table[c], Time)]
-        time_col = tcols[0] if tcols else ("time_utc" if "time_utc" in cols else ("time" if "time" in cols else None))
+        time_col = tcols[0] if tcols else find_column(cols, ("time_utc", "time", "mjd", "jd"))
     if time_col not in cols:
         raise FieldError("observations.time_col", f"{name} has no time column {time_col!r}; its columns: {', '.join(cols)}")
     tc = table[time_col]
     _unmasked(tc, time_col)
     if isinstance(tc, Time):
+        if time_scale != "utc" and tc.scale != time_scale:
+            raise FieldError("observations.time_scale", f"the column {time_col!r} is a Time in {tc.scale.upper()}; "
+                             f"time_scale={time_scale!r} contradicts it (leave it unset: astropy converts its own scale)")
         try:
             times = _datetime64(tc)
         except Exception as err:  # a scale astropy cannot make UTC ('local'), an out-of-range date
             raise FieldError(f"observations.{time_col}", f"not a time astropy can make UTC: {' '.join(str(err).split())}") from None
     else:
-        times = np.array([np.datetime64(_start_datetime(str(v).strip(), f"observations.{time_col}[row {i + 1}]"), "us")
-                          for i, v in enumerate(tc)], dtype="datetime64[us]")
+        raw = np.asarray(getattr(tc, "value", tc))
+        fmt = time_format
+        if fmt == "iso" and raw.dtype.kind in "iuf":
+            fmt = str(time_col).lower() if str(time_col).lower() in ("jd", "mjd") else ""
+            if not fmt:
+                raise FieldError("observations.time_format", f"the time column {time_col!r} holds numbers, not ISO "
+                                                              "date-times: give time_format='jd', 'mjd' or 'unix'")
+        if fmt == "unix" and time_scale != "utc":
+            raise FieldError("observations.time_scale", "Unix seconds count UTC; time_scale must be 'utc' with "
+                                                        "time_format='unix'")
+        times = _times(list(raw) if fmt == "iso" else raw, time_col, fmt, time_scale)
 
     value_col = value_col or next((c for c in (DEFAULT_VALUE[kind], "mag", "magnitude", "flux") if c in cols), None)
     if value_col not in cols:
         raise FieldError("observations.value_col", f"{name} has no column {value_col!r}; its columns: {', '.join(cols)}")
     if error_col is None:
-        error_col = next((c for c in (DEFAULT_ERROR[kind], f"{value_col}_err", "mag_err", "flux_err") if c in cols), None)
+        error_col = find_column(cols, (DEFAULT_ERROR[kind], f"{value_col}_err", "mag_err", "magerr", "flux_err", "err"))
     elif error_col not in cols:
         raise FieldError("observations.error_col", f"{name} has no column {error_col!r}; its columns: {', '.join(cols)}")
     vunit = _unit(table[value_col], value_col, kind)
-    target = u.W / u.m ** 2 if vunit is not None and vunit.is_equivalent(u.W / u.m ** 2) else vunit
+    target = vunit
+    if vunit is not None and vunit.is_equivalent(u.W / u.m ** 2):
+        target = u.W / u.m ** 2
+    elif vunit is not None and vunit.is_equivalent(u.Jy):
+        target = u.Jy  # f_ν: made a magnitude by read_light_curve through the band's zero point
+    elif kind == "flux" and vunit is not None:
+        raise FieldError(f"observations.{value_col}", f"a flux density per wavelength ({vunit}) needs the band's "
+                         "wavelength to become a magnitude: give the flux in Jy (f_ν) or in W/m², or magnitudes")
     vals = _column(table[value_col], value_col, vunit, target)
     errs = None
     if error_col:
@@ -76,8 +101,11 @@ def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str 
     out["meta"] = {"format": "astropy", "value_col": value_col, "error_col": error_col,
                    "object_id": None if obj is None else str(obj), "cospar": meta.get("cospar"),
                    "name": meta.get("object") or meta.get("name"), "header": meta}
-    if "period" in meta or "period_s" in meta:
-        out["meta"]["published_period_s"] = _period(meta.get("period_s", meta.get("period")), "observations.meta.period")
+    if target is not None and target == u.Jy:
+        out["meta"]["flux_unit"] = "Jy"
+    period = period_or_none(meta.get("period_s", meta.get("period")), "observations.meta.period")
+    if period is not None:
+        out["meta"]["published_period_s"] = period
     return out
 
 

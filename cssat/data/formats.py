@@ -1,23 +1,16 @@
-"""Readers for the light-curve files observers publish (issue 34, point 1).
+"""Readers for the light-curve files observers publish (issues 34 and 46), and the checks every
+reader shares.
 
 Each reader returns the columns of :class:`~cssat.data.observations.ObservedLightCurve` as a
 dict; :func:`~cssat.data.read_light_curve` picks one by ``format=`` or by the file's content:
 
-- ``mmt``: Mini-MegaTORTORA (MMT-9, Karpov et al. 2015) track and whole-object exports: a
-  ``# key: value`` header (``satellite: <NORAD> <NAME> / <country>``, ``variability: 0|1|2``,
-  ``variability_period``, ``track``), the column names in the last ``#`` line (``Date Time
-  StdMag Mag Filter Penumbra Distance Phase Channel [Track]``), whitespace-separated rows with
-  the UTC date and time as two fields. ``Mag`` is apparent; ``StdMag`` is reduced to 1000 km
-  and a phase angle of 90° (``value_col="StdMag"``).
-- ``score``: the IAU CPS SatHub SCORE CSV: one row per report with its observer's site, RA/Dec,
-  range, filter and object; a file of several objects needs ``object=`` (a NORAD id or name).
+- ``mmt``: Mini-MegaTORTORA (MMT-9) exports, :mod:`cssat.data.mmt`.
+- ``score``: the IAU CPS SatHub SCORE CSV, :mod:`cssat.data.score`.
 - ``alcdef``: the Asteroid Lightcurve Data Exchange Format (Warner et al. 2011):
   ``STARTMETADATA … ENDMETADATA`` blocks (one per session: a track) and ``DATA=JD|MAG|MAGERR``
   lines (UTC Julian dates; the block's ``MAGBAND``, ``DELIMITER``, object and observers).
 - ``astropy``: an astropy ``Table``/``QTable``/``TimeSeries``, or an ECSV/FITS file read by
-  astropy with its ``Time`` columns (any scale — ``TIMESYS`` honoured — converted to UTC by
-  astropy) and units (a magnitude column must be in mag, a flux column in a spectral or
-  bolometric flux unit).
+  astropy, :mod:`cssat.data.astro`.
 """
 
 from __future__ import annotations
@@ -31,7 +24,20 @@ import numpy as np
 from cssat._checks import FieldError
 from cssat.scene.orbit import _start_datetime
 
-__all__ = ["FORMATS", "sniff_format", "read_mmt", "read_score", "read_alcdef", "to_utc", "check_dates", "check_magnitudes"]
+__all__ = ["FORMATS", "sniff_format", "read_mmt", "read_score", "read_alcdef", "to_utc", "check_dates", "check_magnitudes",
+           "check_kind", "period_or_none"]
+
+
+def __getattr__(name: str) -> Any:  # the MMT and SCORE readers moved to their own modules (issue 46)
+    if name == "read_mmt":
+        from cssat.data.mmt import read_mmt
+
+        return read_mmt
+    if name == "read_score":
+        from cssat.data.score import read_score
+
+        return read_score
+    raise AttributeError(name)
 
 FORMATS = ("csv", "mmt", "score", "alcdef", "ecsv", "fits", "astropy")
 TIME_SCALES = ("utc", "tt", "tdb", "tai")
@@ -112,78 +118,6 @@ def _floats(tokens: list[str], where: str, name: str) -> np.ndarray:
         raise
 
 
-def read_mmt(text: str, name: str, value_col: str | None = None) -> dict[str, Any]:
-    """The columns of an MMT-9 export (the module's docstring)."""
-    meta: dict[str, Any] = {}
-    cols: list[str] = []
-    rows: list[list[str]] = []
-    for ln in text.splitlines():
-        s = ln.strip()
-        if not s:
-            continue
-        if s.startswith("#"):
-            body = s.lstrip("#").strip()
-            m = re.match(r"([A-Za-z_]+)\s*:\s*(.*)$", body)
-            if m:
-                meta[m.group(1).lower()] = m.group(2).strip()
-            elif body:
-                cols = body.split()
-            continue
-        rows.append(s.split())
-    if not cols or cols[:2] != ["Date", "Time"]:
-        raise FieldError("observations", f"{name}: an MMT file names its columns in a '# Date Time ...' comment line; "
-                                         f"found {' '.join(cols) or 'none'}")
-    if not rows:
-        raise FieldError("observations", f"{name}: an MMT header and no data rows")
-    bad = next((i for i, r in enumerate(rows) if len(r) != len(cols)), None)
-    if bad is not None:
-        raise FieldError(f"observations[row {bad + 1}]", f"{len(rows[bad])} fields, the header names {len(cols)}: "
-                                                         f"{' '.join(cols)}")
-    col = {c: [r[j] for r in rows] for j, c in enumerate(cols)}
-    stamps = [f"{d}T{t}" for d, t in zip(col["Date"], col["Time"])]
-    try:
-        times = np.array(stamps, dtype="datetime64[us]")
-    except ValueError:
-        times = None
-    if times is None or np.isnat(times).any():
-        i = next((k for k, v in enumerate(stamps) if _bad_iso(v)), 0)
-        raise FieldError(f"observations.Time[row {i + 1}]", f"not a UTC date and time: {stamps[i]!r}")
-    vcol = value_col or "Mag"
-    if vcol not in col:
-        raise FieldError("observations.value_col", f"{name} has no column {vcol!r}; its columns: {', '.join(cols)}")
-    out: dict[str, Any] = {"times_utc": times, "values": _floats(col[vcol], "observations", vcol), "errors": None,
-                           "kind": "magnitude"}
-    out["magnitude_system"] = "normalised: 1000 km, phase 90°" if vcol == "StdMag" else "apparent"
-    info_col = vcol
-    if "Filter" in col:
-        out["filters"] = np.array(col["Filter"])
-    for key, c, lo, hi, open_lo in (("ranges_km", "Distance", 0.0, 1e7, True), ("phase_deg", "Phase", 0.0, 180.0, False)):
-        if c in col:
-            out[key] = _checked(_floats(col[c], "observations", c), f"observations.{c}", lo, hi, open_lo=open_lo)
-    if "Channel" in col:
-        out["channels"] = np.array(col["Channel"])
-    if "Track" in col:
-        out["tracks"] = np.array(col["Track"])
-    elif meta.get("track", "").split():
-        out["tracks"] = np.full(len(rows), meta["track"].split()[0])
-    if "Penumbra" in col:
-        out["penumbra"] = np.array([v not in ("0", "0.0") for v in col["Penumbra"]])
-    info: dict[str, Any] = {"format": "mmt", "value_col": info_col}
-    sat = meta.get("satellite", "")
-    m = re.match(r"(\d+)\s+(.*?)(?:\s+/\s+(.*))?$", sat)
-    if m:
-        info.update(object_id=m.group(1), name=m.group(2).strip(), country=(m.group(3) or "").strip() or None)
-    if meta.get("variability", "").split():
-        code = meta["variability"].split()[0]
-        info["variability"] = MMT_VARIABILITY.get(int(code), meta["variability"]) if code.isdigit() else meta["variability"]
-    per = meta.get("variability_period", meta.get("period"))
-    if per not in (None, "", "None", "none"):
-        info["published_period_s"] = _period(per.split()[0] if per.split() else per, "observations.variability_period")
-    info["header"] = meta
-    out["meta"] = info
-    return out
-
-
 def _period(value: Any, field: str) -> float:
     """A published period in seconds: a finite number > 0."""
     try:
@@ -193,6 +127,26 @@ def _period(value: Any, field: str) -> float:
     if not (math.isfinite(p) and p > 0):
         raise FieldError(field, f"a period must be a finite number of seconds > 0, got {value!r}")
     return p
+
+
+#: what a header writes for "no period" (MMT's Not variable and Aperiodic tracks: ``0.0``)
+NO_PERIOD = ("", "0", "0.0", "0.00", "none", "null", "nan", "-")
+
+
+def period_or_none(value: Any, field: str) -> float | None:
+    """A published period in seconds, or None for a header's "no period" (``0``, ``0.0``,
+    ``None``, empty: :data:`NO_PERIOD`); a negative or unreadable period is a FieldError."""
+    if value is None:
+        return None
+    tok = str(value).split()
+    if not tok or tok[0].lower() in NO_PERIOD:
+        return None
+    try:
+        if float(tok[0]) == 0.0:
+            return None
+    except ValueError:
+        pass
+    return _period(tok[0], field)
 
 
 def _checked(x: np.ndarray, field: str, lo: float, hi: float, *, open_lo: bool = False) -> np.ndarray:
@@ -211,81 +165,6 @@ def _bad_iso(v: str) -> bool:
         return bool(np.isnat(np.datetime64(v, "us")))
     except ValueError:
         return True
-
-
-SCORE_COLUMNS = {"time": "observation_time_utc", "value": "apparent_magnitude", "error": "apparent_magnitude_uncertainty",
-                 "lat": "observer_latitude_deg", "lon": "observer_longitude_deg", "alt": "observer_altitude_m",
-                 "ra": "satellite_right_ascension_deg", "dec": "satellite_declination_deg",
-                 "range": "range_to_satellite_km", "filter": "observing_filter", "norad": "norad_cat_id",
-                 "name": "satellite_name"}
-
-
-def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = None) -> dict[str, Any]:
-    """The columns of a SCORE CSV (``header``, ``rows`` as the CSV reader split them). A row
-    shorter than the header has its missing trailing fields empty (SCORE's optional columns)."""
-    h = [c.strip() for c in header]
-    if not rows:
-        raise FieldError("observations", f"{name}: a SCORE header and no data rows")
-    idx = {c: h.index(c) for c in h}
-    for key in ("time", "value", "norad"):
-        if SCORE_COLUMNS[key] not in idx:
-            raise FieldError("observations", f"{name}: a SCORE file needs the column {SCORE_COLUMNS[key]!r}")
-    long_ = next((i for i, r in enumerate(rows) if len(r) > len(h)), None)
-    if long_ is not None:
-        raise FieldError(f"observations[row {long_ + 1}]", f"{len(rows[long_])} fields, the header has {len(h)}")
-    rows = [r + [""] * (len(h) - len(r)) for r in rows]
-
-    def get(key: str) -> list[str]:
-        c = SCORE_COLUMNS[key]
-        return [r[idx[c]].strip() for r in rows] if c in idx else [""] * len(rows)
-
-    norad, names = get("norad"), get("name")
-    objects = sorted(set(zip(norad, names)))
-    if obj is not None:
-        want = str(obj).strip().upper()
-        keep = [i for i in range(len(rows)) if norad[i] == want or names[i].upper() == want]
-        if not keep:
-            raise FieldError("observations.object", f"{want!r} is not in {name}; its objects: "
-                                                   + ", ".join(f"{n} {s}" for n, s in objects))
-        rows = [rows[i] for i in keep]
-        norad, names = get("norad"), get("name")
-    elif len({n for n, _ in objects}) > 1:
-        raise FieldError("observations.object", f"{name} holds {len({n for n, _ in objects})} objects; choose one "
-                                               "(NORAD id or name): " + ", ".join(f"{n} {s}" for n, s in objects))
-    stamps = get("time")
-
-    times = np.array([np.datetime64(_start_datetime(s, f"observations.{SCORE_COLUMNS['time']}[row {i + 1}]"), "us")
-                      for i, s in enumerate(stamps)], dtype="datetime64[us]")
-
-    def numbers(key: str, required: bool = False) -> np.ndarray | None:
-        raw = get(key)
-        if not required and all(v in ("", "None", "none", "null") for v in raw):
-            return None
-        vals = [v if v not in ("", "None", "none", "null") else "nan" for v in raw]
-        return _floats(vals, "observations", SCORE_COLUMNS[key])
-
-    out: dict[str, Any] = {"times_utc": times, "values": numbers("value", True), "kind": "magnitude",
-                           "magnitude_system": "apparent"}
-    err = numbers("error")
-    out["errors"] = err
-    lat, lon, alt = numbers("lat"), numbers("lon"), numbers("alt")
-    for v, key, lo, hi in ((lat, "lat", -90.0, 90.0), (lon, "lon", -360.0, 360.0), (alt, "alt", -1000.0, 1e5)):
-        if v is not None:
-            _checked(v, f"observations.{SCORE_COLUMNS[key]}", lo, hi)
-    if lat is not None and lon is not None:
-        out["sites"] = np.stack([lat, lon, np.zeros_like(lat) if alt is None else alt], 1)
-    for key, col in (("ra_deg", "ra"), ("dec_deg", "dec"), ("ranges_km", "range")):
-        v = numbers(col)
-        if v is not None:
-            out[key] = v
-    if "ranges_km" in out and np.isfinite(out["ranges_km"]).all():
-        _checked(out["ranges_km"], f"observations.{SCORE_COLUMNS['range']}", 0.0, 1e7, open_lo=True)
-    f = get("filter")
-    if any(f):
-        out["filters"] = np.array(f)
-    out["meta"] = {"format": "score", "object_id": norad[0], "name": names[0], "value_col": SCORE_COLUMNS["value"],
-                   "error_col": SCORE_COLUMNS["error"]}
-    return out
 
 
 def read_alcdef(text: str, name: str) -> dict[str, Any]:
@@ -357,3 +236,33 @@ def check_magnitudes(values: np.ndarray, col: str) -> None:
         raise FieldError(f"observations.{col}[row {i + 1}]", f"{float(values[i])!r} is not a magnitude (allowed {MAG_RANGE[0]:g} "
                          f"to {MAG_RANGE[1]:g}): a placeholder for a missing value? Drop the row, or read a flux "
                          "column with kind='flux'")
+
+
+_MAG_NAME = re.compile(r"mag(?!e)", re.I)  # "mag", "vmag", "apparent_magnitude"; not "image"
+
+
+def check_kind(values: np.ndarray, col: str, kind: str) -> None:
+    """Refuse a value column that contradicts ``kind`` (its name, or its values): a magnitude
+    column named ``flux…`` or whose values are all between 0 and 1e-4 (fluxes in W/m²: a V = 0
+    object gives 2.7e-8 W/m²); a flux column named ``…mag…`` or whose negative values lie in
+    ±30 (magnitudes: a flux is ≥ 0). Values above 30 in a magnitude column are
+    :func:`check_magnitudes`'s."""
+    lower = col.lower()
+    fin = values[np.isfinite(values)]
+    if kind == "magnitude":
+        if "flux" in lower:
+            raise FieldError("observations.kind", f"the column {col!r} reads as a flux, not a magnitude: give kind='flux'")
+        if fin.size and (fin >= 0).all() and (fin < 1e-4).all() and (fin > 0).any():
+            raise FieldError("observations.kind", f"the column {col!r} holds values between {fin.min():.3g} and "
+                             f"{fin.max():.3g}: fluxes (W/m²), not magnitudes; read it with kind='flux'")
+    elif kind == "flux":
+        if _MAG_NAME.search(lower):
+            raise FieldError("observations.kind", f"the column {col!r} reads as a magnitude, not a flux: give "
+                                                  "kind='magnitude'")
+        neg = np.flatnonzero(values < 0)
+        if neg.size:
+            i = int(neg[0])
+            mags = fin.size and (np.abs(fin) <= MAG_RANGE[1]).all()
+            raise FieldError(f"observations.{col}[row {i + 1}]", f"a flux must be >= 0, got {float(values[i])!r}"
+                             + ("; the column's values (all within ±30) look like magnitudes: read it with "
+                                "kind='magnitude'" if mags else ""))

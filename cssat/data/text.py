@@ -16,14 +16,24 @@ import numpy as np
 
 from cssat._checks import FieldError
 from cssat._tmpfiles import atomic_csv
-from cssat.data.formats import to_utc
+from cssat.data.formats import check_kind, to_utc
 from cssat.scene.orbit import _start_datetime
 
-__all__ = ["check_size", "read_csv", "text_rows", "write_light_curve", "DEFAULT_VALUE", "DEFAULT_ERROR"]
+__all__ = ["check_size", "read_csv", "text_rows", "write_light_curve", "find_column", "DEFAULT_VALUE", "DEFAULT_ERROR"]
 
 #: the value column of cssat's own ``lightcurve.csv`` by kind, and the error column it may carry
 DEFAULT_VALUE = {"magnitude": "magnitude", "flux": "flux_W_m2"}
 DEFAULT_ERROR = {"magnitude": "magnitude_err", "flux": "flux_W_m2_err"}
+#: the columns recognised when none is named, in order (case-insensitive): time, value by kind, error by kind
+TIME_NAMES = ("time_utc", "time", "mjd", "jd")
+VALUE_NAMES = {"magnitude": ("magnitude", "mag"), "flux": ("flux_W_m2", "flux")}
+ERROR_NAMES = {"magnitude": ("magnitude_err", "mag_err", "magerr", "err"), "flux": ("flux_W_m2_err", "flux_err", "err")}
+
+
+def find_column(cols: Sequence[str], names: Sequence[str]) -> str | None:
+    """The first of ``names`` among ``cols`` (case-insensitive), as ``cols`` spells it; else None."""
+    lower = {c.lower(): c for c in reversed(list(cols))}
+    return next((lower[n.lower()] for n in names if n.lower() in lower), None)
 
 
 #: the bytes of memory a text table's byte may take once parsed (rows of Python strings, then arrays)
@@ -64,10 +74,13 @@ def text_rows(text: str, name: str) -> tuple[list[str], list[list[str]]]:
     except csv.Error as err:
         raise FieldError("observations", f"{name}: not a readable CSV ({err})") from None
     first = rows[0]
-    looks_data = all(_is_number(v) or v[:1].isdigit() for v in first if v.strip())
+    # a data line has a number or a date in it (a column name does not start with a digit)
+    looks_data = any(_is_number(v) or v.strip()[:1].isdigit() for v in first if v.strip())
     if looks_data and comments:
         head = comments[-1].lstrip().lstrip("#").strip()
-        header, rows = (next(csv.reader([head])) if comma else head.split()), rows
+        header = next(csv.reader([head])) if comma else head.split()
+        if comma and len(header) == 1 and len(head.split()) == len(first):  # '# jd mag err' over comma-separated rows
+            header = head.split()
     else:
         header, rows = first, rows[1:]
     header = [c.strip() for c in header]
@@ -121,10 +134,12 @@ def read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, erro
               time_format: str, time_scale: str, filter_col: str | None, observer_col: str | None,
               track_col: str | None) -> dict[str, Any]:
     cols, rows = text_rows(text, name)
-    value_col = value_col or DEFAULT_VALUE[kind]
-    if error_col is None and DEFAULT_ERROR[kind] in cols:
-        error_col = DEFAULT_ERROR[kind]
-    tcols = list(time_col) if isinstance(time_col, (list, tuple)) else [time_col or "time_utc"]
+    value_col = value_col or find_column(cols, VALUE_NAMES[kind]) or DEFAULT_VALUE[kind]
+    if error_col is None:
+        error_col = find_column(cols, ERROR_NAMES[kind])
+    tcols = list(time_col) if isinstance(time_col, (list, tuple)) else [time_col or find_column(cols, TIME_NAMES) or "time_utc"]
+    if time_format == "iso" and len(tcols) == 1 and tcols[0].lower() in ("jd", "mjd"):
+        time_format = tcols[0].lower()  # a column named jd or mjd holds Julian dates (time_format left iso)
     if not 1 <= len(tcols) <= 2:
         raise FieldError("observations.time_col", f"one column, or two (date and time) to join; got {tcols}")
     if time_format == "unix" and time_scale != "utc":
@@ -138,10 +153,7 @@ def read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, erro
     bad = next((i for i, r in enumerate(rows) if len(r) != len(cols)), None)
     if bad is not None:
         raise FieldError(f"observations[row {bad + 1}]", f"{len(rows[bad])} fields, the header has {len(cols)}")
-    lower = value_col.lower()
-    if (kind == "magnitude" and "flux" in lower) or (kind == "flux" and "mag" in lower):
-        raise FieldError("observations.kind", f"the column {value_col!r} reads as a {'flux' if 'flux' in lower else 'magnitude'}, "
-                                              f"not a {kind}: give kind='{'flux' if 'flux' in lower else 'magnitude'}'")
+    check_kind(np.zeros(0), value_col, kind)  # the column's name against kind, before any value is parsed
 
     def column(c: str) -> list[str]:
         j = cols.index(c)
@@ -151,7 +163,8 @@ def read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, erro
     out: dict[str, Any] = {"times_utc": _times(raw_t, "+".join(tcols), time_format, time_scale),
                            "values": _numbers(column(value_col), value_col), "kind": kind,
                            "errors": _numbers(column(error_col), error_col, positive=True) if error_col else None,
-                           "meta": {"format": "csv"}}
+                           "meta": {"format": "csv", "time_col": "+".join(tcols), "time_format": time_format,
+                                    "value_col": value_col, "error_col": error_col}}
     for key, c in (("filters", filter_col), ("observers", observer_col), ("tracks", track_col)):
         if c in cols:
             out[key] = np.array(column(c))
