@@ -17,6 +17,9 @@ from cssat.smoke import EXAMPLE_TRACK
 REAL = Path(__file__).parent / "data" / "real"
 STARLINK = REAL / "mmt_sat10288_starlink3535_track20416355.txt"  # header: "# satellite: 51722 STARLINK-3535"; Track 20416355
 VERDICT_WORDS = ("periodic", "not periodic", "undetermined", "failed")
+#: an element set (cssat's synthetic Astra 1KR, epoch 2020-04-01) as a command-line override
+TLE = ("scenario.tle=['1 29055U 06012A   20092.00000000  .00000104  00000-0  00000-0 0  9998',"
+       "'2 29055   0.0291 247.7716 0004915 319.3582   1.8831  1.00273365 24812']")
 
 
 def _cfg(*overrides):
@@ -219,9 +222,7 @@ def test_spin_on_with_one_night_is_refused_before_the_period_search(tmp_path):
     t = np.datetime64("2020-04-01T21:00:00", "us") + (np.linspace(0, 600, 300) * 1e6).astype("timedelta64[us]")
     y = 8.0 + 0.3 * np.sin(2 * np.pi * np.linspace(0, 600, 300) / 37.0)
     write_light_curve(tmp_path / "one.csv", ObservedLightCurve(t, y, np.full(300, 0.02), "magnitude"))
-    cfg = _cfg(f"observations={tmp_path / 'one.csv'}", "stages.spin=on", "scenario.tle=[" +
-               "'1 29055U 06012A   20092.00000000  .00000104  00000-0  00000-0 0  9998'," +
-               "'2 29055   0.0291 247.7716 0004915 319.3582   1.8831  1.00273365 24812']")
+    cfg = _cfg(f"observations={tmp_path / 'one.csv'}", "stages.spin=on", TLE)
     run = Run.from_config(cfg, tmp_path / "r")
     model = Observed()
     model.plan(cfg, run)
@@ -259,3 +260,17 @@ def test_a_failed_file_leaves_what_was_known(tmp_path):
     with pytest.raises(FieldError) as err:
         _model(tmp_path / "b", f"observations={bad}")
     assert err.value.partial_metrics["verdict"] == "failed" and "observations" in err.value.partial_metrics["why"]
+
+
+@pytest.mark.parametrize("overrides, field", [
+    (["tumbling.order=x"], "tumbling.order"),  # was a ValueError's traceback from int("x") at the tumbling stage
+    (["tumbling.min_period_s=-5"], "tumbling.min_period_s"),  # was never checked where auto skips the search
+    (["characterise.max_epoch_days=abc"], "characterise.max_epoch_days"),  # was float("abc")'s traceback
+    (["stages.period=off", "stages.spin=on", TLE], "stages.spin"),  # can never be served: refused before reading
+])
+def test_settings_refused_in_plan_naming_the_key(overrides, field):
+    from cssat.experiments.forward.observed import observed_settings
+
+    with pytest.raises(FieldError) as err:
+        observed_settings(_cfg(f"observations={EXAMPLE_TRACK}", *overrides))
+    assert err.value.field == field, str(err.value)

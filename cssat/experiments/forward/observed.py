@@ -95,22 +95,33 @@ def observed_settings(cfg: Any) -> dict[str, Any]:
         for k in settings(cfg.get(node)):
             if k not in allowed:
                 raise FieldError(f"{node}.{k}", f"not an option of {fn.__name__}; its options: {', '.join(allowed)}")
-    tum = settings(cfg.get("tumbling"))
+    tum = settings(cfg.get("tumbling"))  # checked here: stages.tumbling auto runs the search on few curves
     if tum.get("aperiodic_threshold") is not None:
         float_param(tum["aperiodic_threshold"], "tumbling.aperiodic_threshold", 0.0, 1.0, open_lo=True)
-    if tum.get("window_s") is not None:
-        float_param(tum["window_s"], "tumbling.window_s", 0.0, open_lo=True)
+    for key in ("window_s", "min_period_s", "max_period_s"):
+        if tum.get(key) is not None:
+            float_param(tum[key], f"tumbling.{key}", 0.0, open_lo=True)
+    if tum.get("order") is not None:
+        int_param(tum["order"], "tumbling.order", 1, 10)
+    if tum.get("n_peaks") is not None:
+        int_param(tum["n_peaks"], "tumbling.n_peaks", 2, 50)
+    if tum.get("samples_per_peak") is not None:
+        int_param(tum["samples_per_peak"], "tumbling.samples_per_peak", 1)
     ch = settings(cfg.get("characterise"))
     for k in ch:
         if k not in CHARACTERISE_KEYS:
             raise FieldError(f"characterise.{k}", f"not a setting; the settings: {', '.join(sorted(CHARACTERISE_KEYS))}")
-    if modes["spin"] == "on" and (cfg.get("scenario") or {}).get("tle") is None:  # known before the file is read
+    if modes["spin"] == "on" and modes["period"] == "off":  # known before the file is read
+        raise FieldError("stages.spin", "the spin stage needs the period stage's periodic verdict, and stages.period is "
+                                        "off")
+    if modes["spin"] == "on" and (cfg.get("scenario") or {}).get("tle") is None:
         raise FieldError("stages.spin", "the spin stage needs the object's element set: give scenario.tle (or "
                                         "stages.spin=auto records the stage as skipped)")
     return {"modes": modes, "min_samples": int_param(ch.get("min_samples", 20), "characterise.min_samples", 12),
             "drop_penumbra": bool_param(ch.get("drop_penumbra", True), "characterise.drop_penumbra"),
             "min_nights": int_param(ch.get("min_nights", 2), "characterise.min_nights", 1),
-            "max_epoch_days": float(ch.get("max_epoch_days", 14.0)), "tracks": ch.get("tracks"),
+            "max_epoch_days": float_param(ch.get("max_epoch_days", 14.0), "characterise.max_epoch_days", 0.0,
+                                          open_lo=True), "tracks": ch.get("tracks"),
             "figures": bool_param(ch.get("figures", True), "characterise.figures"),
             "normalise_range": bool_param(ch.get("normalise_range", True), "characterise.normalise_range"),
             "period": {k: v for k, v in settings(cfg.get("period")).items() if v is not None},
