@@ -1,46 +1,56 @@
-"""The period of a light curve, and whether it has one (issue 34, point 3).
+"""The period of a light curve, and whether it has one (issues 34 and 46).
 
 :func:`estimate_period` is built for real tracks (Mini-MegaTORTORA, SCORE, a telescope's own
 photometry) with its defaults:
 
-1. **Bounds from the data.** The search runs from the cadence's Nyquist period ``2 d`` (``d``
-   the frame step: the 75th percentile of the steps inside contiguous stretches, so two camera
-   channels interleaved milliseconds apart do not fake a faster cadence) to half the longest
-   contiguous stretch (two cycles), unless ``min_period_s``/``max_period_s`` are given; the
-   aliases stay in that range (a "period" as long as the track would absorb its drifts).
-2. **Periodogram.** astropy's Lomb–Scargle (``nterms=1``, its fast method, on a grid of
-   ``samples_per_peak`` points per peak width ``1/span``) gives the ``n_peaks`` strongest
-   distinct frequencies ``f``. A rotating body's light curve puts its power in harmonics of
-   the spin frequency: two maxima a turn put the peak at ``2/P``, four glints at ``4/P``.
-3. **Multi-harmonic models and aliases.** For each peak the frequency is refined by least
-   squares of an ``m``-harmonic Fourier series (``m`` by BIC), then the candidate periods
-   ``k/f`` (``k = 1…4``) are scored with ``k m`` harmonics (all reach the same highest
-   frequency, so the longer period's model nests the shorter one's) by the Bayesian information
-   criterion ``BIC = N ln(RSS/N) + p ln N`` (or ``χ²/ĉ + p ln N`` when ``sigma`` is given,
-   ``ĉ = max(1, χ²/ν)`` of the best peak candidate: quasi-likelihood, so a drifting or glinting
-   curve does not buy harmonics with 4P): a longer period wins only when its extra (odd)
-   harmonics pay for themselves. The chosen
-   period's ``P/4, P/2, 2P`` and the other peaks' best periods are the ``alternatives``, each
-   with its χ², χ²/N and ΔBIC; ``why`` says in words why the chosen one won.
-4. **A verdict.** ``fap``: the false-alarm probability of the chosen model against a constant
-   — the F-test's tail over the ``N_eff = span·Δf`` independent frequencies searched (Horne &
-   Baliunas 1986). ``repeat``: the model fitted to one half of the track predicts the other
-   (the even cycles predict the odd ones and back: R² of the prediction over the in-sample R²,
-   the worse of the two): a periodic light curve repeats, red noise and trends do not. ``periodic``
-   is ``fap < fap_max`` and ``repeat >= min_repeat`` (0.7; a track too short to compare cycles
-   is not called periodic); when it is false ``period_s`` is NaN
-   (``best_period_s`` keeps the best candidate): no significant period is an answer.
-5. **Uncertainties.** ``period_err_s`` from the curvature of χ² in frequency (Δχ² = 1),
-   with ``sigma`` scaled by √(χ²/ν) when the model does not fit to the noise, else with the
-   residual's own scatter (its coverage: ``benchmarks/bench_coverage.py``; across gaps the
-   least-χ² fringe is searched for, :meth:`_Aliases.fringes`). ``chi2_per_sample`` is χ²/ν
-   against ``sigma``, or, without it, against the point-to-point scatter of the track
-   (``1.4826 MAD(Δy)/√2``); > 3 sets ``model_fits`` false and warns (a glinting or changing
-   curve the Fourier series misses).
+1. **Nuisance model.** Each contiguous stretch (track) has its own quadratic trend
+   (``detrend=2``: the pass's phase-angle and range drift, as MMT's own pipeline removes) and
+   each camera channel its own zero point (``zero_points``: channels interleaved ms apart).
+2. **Bounds from the data.** From the Nyquist period of the cadence, ``2 d`` (``d`` the
+   median frame step within one channel and stretch: dropped frames do not slow it and
+   interleaved channels do not speed it up), to the longest contiguous stretch, unless
+   ``min_period_s``/``max_period_s`` are given.
+3. **Periodogram and candidates.** astropy's Lomb–Scargle (``nterms=1``, fast) of the
+   curve less its nuisance model gives the ``n_peaks`` strongest distinct frequencies; each
+   peak's periods ``k/f`` (``k = ½, 1, 2, 3, 4``: a rotating body puts power in harmonics) are
+   candidates, each with its own least-BIC number of harmonics, refined by least squares.
+4. **Aliases, symmetric.** The least ``BIC = N ln(RSS/N) + p ln N`` (``χ²/ĉ + p ln N`` with
+   ``sigma``; ``ĉ`` the best candidate's χ²/ν when > 1) among the candidates and the chosen
+   period's ``P/4, P/3, P/2, 2P, 3P`` (each with its own harmonics) wins, with no margin for
+   either side: a longer period's series nests the shorter one's, so it wins only when its
+   extra harmonics pay their ``ln N`` each. That is the *photometric* period (the shortest over
+   which the curve repeats). Every relative is reported with its χ² and ΔBIC
+   (``alternatives``).
+5. **Convention.** ``convention="photometric"`` reports it; ``"double_peaked"`` (rocket
+   bodies: two maxima a turn, MMT's and the asteroid convention) reports the full turn: twice
+   the photometric period when its fold shows one significant maximum
+   (:func:`~cssat.inversion.period_null.count_maxima`), the photometric period when it shows
+   two or more.
+6. **The false-alarm probability from the track's own noise** (:func:`~cssat.inversion.period_null.surrogate_fap`):
+   the data's largest periodogram power against ``n_surrogates`` stationary-bootstrap
+   surrogates of the chosen model's residual (red noise kept on the scale of the period,
+   periodicity destroyed), a Gumbel tail fitted to their maxima; over the periods of at least
+   ``min_cycles`` cycles (``fap``) and over all periods searched (``fap_all``). Seeded
+   (``seed``): same data, same numbers.
+7. **Verdict** (``verdict``, ``periodic``, ``verdict_why``): ``"periodic"`` when ``fap <
+   fap_max``, the period spans at least ``min_cycles`` cycles of the longest stretch and its
+   fold covers the phase (no empty stretch over :data:`MAX_PHASE_GAP` of a cycle);
+   ``"undetermined"`` (``periodic`` None) when the curve varies significantly (either FAP below
+   ``fap_max``) but the period spans too few cycles or too sparse a fold; ``"not periodic"``
+   otherwise: no significant period is an answer. ``period_s`` and ``period_err_s`` are NaN
+   unless periodic; ``best_period_s`` keeps the best candidate.
+8. **Uncertainties.** ``period_err_s`` from the curvature of χ² in frequency (Δχ² = 1), with
+   ``sigma`` scaled by √(χ²/ν) when the model does not fit to the noise, else with the
+   residual's own scatter; across gaps, the cycle-count fringes within Δχ² 4 of the best are
+   reported (``fringes``) and the 1σ widened to reach the farthest. ``chi2_per_sample`` is
+   χ²/ν against ``sigma``, or, without it, against the point-to-point scatter of the track;
+   > 3 sets ``model_fits`` false and warns (a glinting or changing curve the series misses).
+   ``repeat`` (the even cycles' series predicting the odd ones) is reported as a diagnostic;
+   ``min_repeat`` makes it a condition of the verdict.
 
 The period found is the *synodic* one, that of the light curve (see :mod:`cssat.inversion.spin`).
-Assumptions: a strictly periodic signal plus noise that is white on the scale of the cadence;
-magnitudes and fluxes both work (the series fits either).
+Assumptions: a periodic signal whose shape changes slowly over the track, plus noise that is
+stationary over a period (red or white); magnitudes and fluxes both work (the series fits either).
 """
 
 from __future__ import annotations
@@ -50,75 +60,93 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, float_param, int_param
-from cssat.inversion.fourier import _Curve, _vector, check_grid, frame_step, light_curve_scatter, stretches
-from cssat.inversion.period_verdict import _constant, _warnings, _why
+from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.inversion.fourier import _Curve, _design, _vector, check_grid, frame_step, light_curve_scatter, stretches
+from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error
+from cssat.inversion.period_null import count_maxima, harmonic_sum, surrogate_fap
+from cssat.inversion.period_verdict import _constant, _verdict, _warnings, _why
 
-__all__ = ["estimate_period", "light_curve_scatter"]
+__all__ = ["estimate_period", "light_curve_scatter", "CONVENTIONS"]
 
 MIN_SAMPLES = 12
-#: the ΔBIC by which a period must beat its half to be chosen over it (Occam: the simpler model
-#: wins a near tie; "strong evidence" on Kass & Raftery's scale is ΔBIC 6-10)
-ALIAS_MARGIN = 6.0
+#: the period conventions: the light curve's own period, or the full turn of a two-maxima body
+CONVENTIONS = ("photometric", "double_peaked")
+#: a fold with an empty stretch of phase over this fraction of a cycle does not show its period
+MAX_PHASE_GAP = 0.25
+#: the surrogates' periodograms sample each peak this often (the data's statistic on the same grid)
+SURROGATE_SPP = 5
 
 
-def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: float | None = None,
-                    max_period_s: float | None = None, n_harmonics: int | None = None, max_harmonics: int = 8,
-                    n_peaks: int = 3, samples_per_peak: int = 10, detrend: int = 1, segments: Any = None,
-                    fap_max: float = 1e-3,
-                    min_repeat: float = 0.7) -> dict[str, Any]:
+def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: Any = None,
+                    max_period_s: Any = None, n_harmonics: int | None = None, max_harmonics: int = 12,
+                    n_peaks: int = 3, samples_per_peak: int = 10, detrend: int = 2, segments: Any = None,
+                    zero_points: Any = None, convention: str = "photometric", fap_max: float = 1e-3,
+                    min_cycles: float = 3.0, n_surrogates: int = 24, seed: int = 0,
+                    min_repeat: float | None = None) -> dict[str, Any]:
     """The period of the light curve ``flux (T,)`` (a flux or a magnitude) at ``times_s (T,)``
-    (seconds, any cadence, any order), and whether it is periodic at all: the method of the
-    module's docstring. ``sigma``: the 1σ of ``flux`` (scalar or ``(T,)``; default: none, the
-    track's own scatter). ``min_period_s``/``max_period_s``: the search range (default: from
-    the data: twice the cadence to half the longest contiguous stretch). ``n_harmonics``: fix
-    the base model's harmonics (default: BIC up to ``max_harmonics``). ``detrend``: the order of
-    the polynomial fitted to each contiguous stretch alongside the series (0: an offset per
-    stretch — per-track magnitude offsets —, 1: and a slope, the default). ``segments``: ``(T,)``
-    the track of each sample (e.g. a file's track ids; default: contiguous stretches split at gaps).
+    (seconds, any cadence, any order; an astropy ``Time`` or a time ``Quantity`` is converted,
+    a ``Quantity`` flux keeps its unit for ``sigma``), and whether it is periodic at all: the
+    method of the module's docstring. ``sigma``: the 1σ of ``flux`` (scalar or ``(T,)``;
+    default: none, the track's own scatter). ``min_period_s``/``max_period_s``: the search range
+    (s or a time ``Quantity``; default from the data). ``n_harmonics``: fix the base model's
+    harmonics (default: BIC up to ``max_harmonics``). ``detrend``: the order of each stretch's
+    polynomial (0 an offset, 1 a slope, 2 the default quadratic). ``segments``: ``(T,)`` the
+    track of each sample (default: contiguous stretches split at gaps). ``zero_points``: ``(T,)``
+    labels of samples sharing a zero point (camera channels). ``convention``: ``photometric`` or
+    ``double_peaked``. ``fap_max``, ``min_cycles``: the verdict's thresholds; ``n_surrogates``,
+    ``seed``: the null's draws.
 
-    Returns a dict: ``period_s`` and ``period_err_s`` (1σ; both NaN when not periodic),
-    ``periodic`` (bool), ``fap``, ``repeat``, ``best_period_s``/``best_period_err_s`` (the best
-    candidate, periodic or not), ``alternatives`` (list of dicts: ``relation`` — ``"P/4"``,
-    ``"P/2"``, ``"2P"`` or ``"peak"`` —, ``period_s``, ``n_harmonics``, ``chi2``,
-    ``chi2_per_sample``, ``delta_bic`` over the chosen), ``why``, ``n_harmonics``, ``chi2``,
-    ``chi2_per_sample``, ``model_fits``, ``n_cycles``, ``min_period_s``/``max_period_s`` (the
-    range searched), ``f0_period_s`` (the periodogram's peak), ``doubled`` (the chosen period is
-    a multiple of the peak's), ``warnings`` (list of str), ``noise_sigma`` (the scatter used
-    without ``sigma``) and ``periodogram`` (``frequency_hz``, ``power`` arrays)."""
-    t, y, w, seg_given = _check_track(times_s, flux, sigma, segments)
+    Returns a dict: ``verdict`` (``"periodic"``, ``"not periodic"``, ``"undetermined"``),
+    ``periodic`` (True, False, None), ``verdict_why`` (one sentence), ``period_s`` and
+    ``period_err_s`` (1σ; NaN unless periodic), ``photometric_period_s``, ``convention``,
+    ``n_maxima`` (significant maxima a photometric cycle), ``fap`` and ``fap_all`` (surrogates;
+    ``fap_surrogates_exceeding``: how many of the ``n_surrogates`` reached the data), ``fap_white``
+    (the white-noise F-test, for comparison), ``repeat``, ``best_period_s``/``best_period_err_s``,
+    ``alternatives`` (dicts: ``relation`` — ``"P/4"``, ``"P/3"``, ``"P/2"``, ``"2P"``, ``"3P"``
+    or ``"peak"`` —, ``period_s``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``,
+    ``delta_bic``), ``fringes`` (cycle counts across gaps within Δχ² 4: ``period_s``,
+    ``delta_chi2``), ``why``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``, ``model_fits``,
+    ``n_cycles``, ``min_period_s``/``max_period_s``, ``cadence_s``, ``f0_period_s``,
+    ``doubled``, ``warnings`` (list of str), ``noise_sigma`` and ``periodogram``
+    (``frequency_hz``, ``power``)."""
+    times_s, flux, sigma, min_period_s, max_period_s = _astropy_inputs(times_s, flux, sigma, min_period_s, max_period_s)
+    t, y, w, seg_given, zp = _check_track(times_s, flux, sigma, segments, zero_points)
     t = t - t[0]
     span = float(t[-1])
     if not span > 0:
         raise FieldError("times_s", "the samples span no time (all stamps equal)")
+    convention = choice_param(convention, "convention", CONVENTIONS)
     if np.ptp(y) == 0:
-        return _constant(t)
+        return _constant(t, convention)
     seg = stretches(t) if segments is None else seg_given
-    lo, hi, d_frame, longest = _search_range(t, seg, min_period_s, max_period_s)
-    # the aliases stay in the range too: a "period" as long as the track absorbs its drifts (on
-    # MMT-like tracks, allowing 1-2 cycles costs more periodic tracks than it gains)
+    lo, hi, d_frame, longest = _search_range(t, seg, zp, min_period_s, max_period_s)
     max_harmonics = int_param(max_harmonics, "max_harmonics", 1, 50)
     m_fixed = None if n_harmonics is None else int_param(n_harmonics, "n_harmonics", 1, 50)
     n_peaks = int_param(n_peaks, "n_peaks", 1, 20)
     spp = int_param(samples_per_peak, "samples_per_peak", 1, 1000)
     detrend = int_param(detrend, "detrend", 0, 3)
     fap_max = float_param(fap_max, "fap_max", 0.0, 1.0)
-    min_repeat = float_param(min_repeat, "min_repeat", -1.0, 1.0)
-    cv = _Curve(t, y, w, seg, detrend, sigma is not None)
+    min_cycles = float_param(min_cycles, "min_cycles", 0.0)
+    n_sur = int_param(n_surrogates, "n_surrogates", 2, 10_000)
+    seed = int_param(seed, "seed", 0)
+    if min_repeat is not None:
+        min_repeat = float_param(min_repeat, "min_repeat", -1.0, 1.0)
+    cv = _Curve(t, y, w, seg, detrend, sigma is not None, zp)
     dts = np.diff(t)
     f_harm = 0.5 / max(float(np.percentile(dts[dts > 0], 10)), 1e-300)  # the harmonics' ceiling: the finer steps' Nyquist
-    f_lo, f_hi = 1.0 / hi, max(min(4.0 / lo, 0.5 / d_frame), 1.0 / lo)
+    f_lo, f_hi = 1.0 / hi, 1.0 / lo
     step = 1.0 / (spp * span)
     check_grid(int((f_hi - f_lo) / step) + 1, span, lo, "max_period_s" if min_period_s is None else "min_period_s")
-    freq, power, peaks = _periodogram_peaks(t, cv.yp / w, None if sigma is None else 1.0 / w, f_lo, f_hi, spp, span, n_peaks)
-    search = _Aliases(cv, lo, hi, step, max_harmonics, f_harm, longest)
-    cands = search.of_peaks(peaks, m_fixed)
+    freq = f_lo + step * np.arange(int((f_hi - f_lo) / step) + 1)
+    power, peaks = _periodogram_peaks(t, cv.yp / w, None if sigma is None else 1.0 / w, freq, span, n_peaks)
+    search = Aliases(cv, lo, hi, step, max_harmonics, f_harm, longest, m_fixed)
+    cands = search.of_peaks(peaks)
     if not cands:
         raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
                          f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
     cv.overdispersion(cands)  # quasi-likelihood: χ² in units of the best candidate's χ²/ν when no series fits to σ
-    best = search.settle(_best_of_families(cands, len(peaks)), cands)
-    f_b, r_b = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])
+    best = search.settle(min(cands, key=lambda c: c["bic"]), cands)
+    f_b, r_b, minima = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])
     if r_b < best["rss"]:
         best = {**best, "period_s": 1.0 / f_b, "rss": r_b, "bic": cv.bic(r_b, best["n_harmonics"])}
     m = best["n_harmonics"]
@@ -128,28 +156,119 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     scat = max(light_curve_scatter(t, y), 1e-9 * float(np.std(y)), 1e-150)
     chi2 = rss if sigma is not None else rss / scat ** 2
     chi2_n = chi2 / nu
-    period, period_err = _period_error(cv, best, step, chi2_n, nu, sigma is not None)
-    fap = cv.fap(rss, m, span * (f_hi - f_lo))
+    p_phot = 1.0 / fb
+    err_phot = period_error(cv, best, step, chi2_n, nu, sigma is not None)
+    noise2 = max(chi2_n, 1.0) if sigma is not None else max(rss, cv.floor) / nu  # RSS units per χ² unit
+    fringes = [{"period_s": 1.0 / f, "delta_chi2": float((r - rss) / noise2)} for f, r in minima
+               if abs(f - fb) > 1e-9 * fb and (r - rss) / noise2 < FRINGE_DCHI2]
+    if fringes:  # the cycle count across the gaps is ambiguous: the 1σ reaches the farthest competitor
+        err_phot = max(err_phot, max(abs(fr["period_s"] - p_phot) for fr in fringes))
+    coef, cov, trend, resid = _fit(cv, fb, m)
+    n_max = count_maxima(coef, cov, fb, m, magnitudes=_is_magnitude(flux, y))
+    k_conv = 2 if convention == "double_peaked" and n_max == 1 else 1
+    period, period_err = k_conv * p_phot, k_conv * err_phot
+    # the false-alarm probability from the track's own noise (surrogates), over all periods and over the well-sampled ones
+    sub = slice(None, None, max(1, spp // SURROGATE_SPP))  # the null's grid: about SURROGATE_SPP points a peak
+    detect = freq[sub] >= min_cycles / longest
+    hs = harmonic_sum(power[sub], freq[sub])
+    z_all, z_det = float(hs.max()), float(hs[detect].max()) if detect.any() else 0.0
+    null = surrogate_fap(t, y, w, cv.Q, trend, resid, freq[sub], detect, z_all, z_det,
+                         mean_run_s=float(np.clip(p_phot, 10 * d_frame, longest / (2 * max(min_cycles, 1.0)))),
+                         cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max)
+    fap_white = cv.fap(rss, m, span * (f_hi - f_lo))
     rep = cv.repeat(fb, m)
-    periodic = bool(fap < fap_max and math.isfinite(rep) and rep >= min_repeat)  # no repeat to test: no verdict of periodic
-    alts = search.alternatives(best, period, cands, len(peaks), None if sigma is not None else scat)
+    n_cycles = float(longest / period)
+    gap = _phase_gap(t, 1.0 / period)
+    noise = float(np.median(1.0 / w)) if sigma is not None else scat
+    variation_snr = float(np.std(_design(t, fb, m) @ coef)) / noise
+    verdict, why_v = _verdict(null, fap_max, n_cycles, min_cycles, gap, MAX_PHASE_GAP, period, rep, min_repeat, lo, hi,
+                              variation_snr)
+    periodic = {"periodic": True, "not periodic": False}.get(verdict)
+    alts = search.alternatives(best, p_phot, cands, len(peaks), None if sigma is not None else scat)
     warns, model_fits = _warnings(period, lo, hi, longest, step, alts, chi2_n, m)
+    if fringes:
+        warns.append("the cycle count across the gaps is ambiguous: " + ", ".join(
+            f"{fr['period_s']:.8g} s (Δχ² {fr['delta_chi2']:.2g})" for fr in fringes) + "; the 1σ reaches the farthest")
     nan = float("nan")
-    return {"period_s": period if periodic else nan, "period_err_s": period_err if periodic else nan,
-            "periodic": periodic, "fap": fap, "repeat": rep, "best_period_s": period, "best_period_err_s": period_err,
-            "alternatives": alts, "why": _why(best, alts), "n_harmonics": m, "chi2": float(chi2),
-            "chi2_per_sample": float(chi2_n), "model_fits": model_fits, "n_cycles": float(longest / period),
-            "min_period_s": float(lo), "max_period_s": float(hi), "f0_period_s": 1.0 / peaks[0],
-            "doubled": bool(best["peak"] == 0 and best["k"] > 1), "warnings": warns,
+    ok = verdict == "periodic"
+    return {"verdict": verdict, "periodic": periodic, "verdict_why": why_v,
+            "period_s": period if ok else nan, "period_err_s": period_err if ok else nan,
+            "photometric_period_s": p_phot, "convention": convention, "n_maxima": int(n_max),
+            "fap": null["fap"], "fap_all": null["fap_all"], "fap_surrogates_exceeding": null["exceeding"],
+            "n_surrogates": null["n"], "fap_white": fap_white, "repeat": rep, "variation_snr": variation_snr,
+            "best_period_s": period, "best_period_err_s": period_err, "alternatives": alts, "fringes": fringes,
+            "why": _why(best, alts, k_conv, n_max), "n_harmonics": m, "chi2": float(chi2),
+            "chi2_per_sample": float(chi2_n), "model_fits": model_fits, "n_cycles": n_cycles,
+            "min_period_s": float(lo), "max_period_s": float(hi), "cadence_s": float(d_frame),
+            "f0_period_s": 1.0 / peaks[0], "doubled": bool(k_conv == 2 or best.get("k", 1) > 1), "warnings": warns,
             "noise_sigma": float(scat) if sigma is None else None, "n_samples": int(N), "rss": float(rss),
-            "n_nuisance": int(cv.q),
-            "periodogram": {"frequency_hz": freq, "power": power}}
+            "n_nuisance": int(cv.q), "periodogram": {"frequency_hz": freq, "power": power}}
 
 
-def _check_track(times_s: Any, flux: Any, sigma: Any, segments: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+def _is_magnitude(flux: Any, y: np.ndarray) -> bool:
+    """Whether ``y`` reads as magnitudes (brighter = smaller): a mag unit, else a median under 30
+    with values spanning under 15 (a flux in W/m² is ~1e-15, in counts or Jy positive and large)."""
+    unit = str(getattr(flux, "unit", "")).strip()
+    if unit:
+        return "mag" in unit
+    return bool(np.all(np.abs(y) < 40) and np.ptp(y) < 15 and np.median(y) > 1e-3)
+
+
+def _fit(cv: Any, f: float, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The ``m``-harmonic series at ``f`` with the nuisance model, fitted (weighted): the series'
+    coefficients ``(2m,)`` and their covariance ``(2m, 2m)`` (the residual's own scale), the
+    nuisance model ``(T,)`` and the residual ``(T,)`` in the data's units."""
+    X = np.concatenate([cv.Q, _design(cv.t, f, m) * cv.w[:, None]], 1)
+    yw = cv.y * cv.w
+    coef, *_ = np.linalg.lstsq(X, yw, rcond=None)
+    r = yw - X @ coef
+    nu = max(len(yw) - X.shape[1], 1)
+    s2 = float(r @ r) / nu if not cv.known else max(float(r @ r) / nu, 1.0)
+    cov = np.linalg.pinv(X.T @ X)[cv.q:, cv.q:] * s2
+    trend = (cv.Q @ coef[:cv.q]) / cv.w
+    return coef[cv.q:], cov, trend, r / cv.w
+
+
+def _phase_gap(t: np.ndarray, f: float) -> float:
+    """The largest empty stretch of phase (fraction of a cycle) in the fold of ``t`` at ``f``."""
+    ph = np.sort((t * f) % 1.0)
+    return float(np.max(np.diff(np.r_[ph, ph[0] + 1.0]))) if len(ph) else 1.0
+
+
+def _astropy_inputs(times_s: Any, flux: Any, sigma: Any, lo: Any, hi: Any) -> tuple[Any, Any, Any, Any, Any]:
+    """astropy inputs as plain numbers, units honoured: a ``Time`` as seconds from its first
+    instant, a time ``Quantity`` in seconds, a flux ``Quantity``'s ``sigma`` in the flux's unit,
+    period bounds as seconds. A unit that does not convert is a FieldError naming the field."""
+    def seconds(q: Any, field: str) -> Any:
+        if q is None or not hasattr(q, "unit") or not hasattr(q, "to_value"):
+            return q
+        try:
+            return q.to_value("s")
+        except Exception:  # noqa: BLE001 - astropy's UnitConversionError, UnitsError
+            raise FieldError(field, f"expected a time (s, min, h, d…), got a quantity in {q.unit}") from None
+
+    if hasattr(times_s, "jd1") and hasattr(times_s, "jd2"):  # an astropy Time: seconds from its first instant
+        times_s = (times_s - times_s.min()).to_value("s")
+    else:
+        times_s = seconds(times_s, "times_s")
+    if hasattr(flux, "unit") and hasattr(flux, "to_value"):
+        if sigma is not None and hasattr(sigma, "unit"):
+            try:
+                sigma = sigma.to_value(flux.unit)
+            except Exception:  # noqa: BLE001
+                raise FieldError("sigma", f"expected the unit of flux ({flux.unit}), got {sigma.unit}") from None
+        elif sigma is not None and not (str(flux.unit) in ("", "mag") or "mag" in str(flux.unit)):
+            raise FieldError("sigma", f"flux is in {flux.unit}: give sigma as a quantity in that unit")
+    elif sigma is not None and hasattr(sigma, "unit") and str(sigma.unit) not in ("", "mag"):
+        raise FieldError("sigma", f"flux has no unit, sigma is in {sigma.unit}")
+    return times_s, flux, sigma, seconds(lo, "min_period_s"), seconds(hi, "max_period_s")
+
+
+def _check_track(times_s: Any, flux: Any, sigma: Any, segments: Any,
+                 zero_points: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any, Any]:
     """The track sorted in time, checked: ``t (T,)`` (s), ``y (T,)``, the weights ``w = 1/σ (T,)``
-    (ones without ``sigma``) and the track index of each sample ``(T,)`` from ``segments``
-    (``None`` when not given)."""
+    (ones without ``sigma``), the track index of each sample ``(T,)`` from ``segments`` and the
+    zero-point index ``(T,)`` from ``zero_points`` (each ``None`` when not given)."""
     t = _vector(times_s, "times_s", times=True)
     y = _vector(flux, "flux")
     if t.shape != y.shape:
@@ -160,15 +279,19 @@ def _check_track(times_s: Any, flux: Any, sigma: Any, segments: Any) -> tuple[np
         raise FieldError("flux", f"a period needs at least {MIN_SAMPLES} samples, got {len(t)}")
     order = np.argsort(t, kind="stable")
     t, y = t[order], y[order]
-    seg_given = None
-    if segments is not None:
-        labels = np.asarray(segments)
-        if labels.shape != order.shape:
-            raise FieldError("segments", f"expected one track label per sample ({len(order)}), got {labels.shape}")
+
+    def labels(x: Any, field: str) -> Any:
+        if x is None:
+            return None
+        a = np.asarray(x)
+        if a.shape != order.shape:
+            raise FieldError(field, f"expected one label per sample ({len(order)}), got {a.shape}")
         try:
-            seg_given = np.unique(labels.astype(str)[order], return_inverse=True)[1].reshape(-1)
+            return np.unique(a.astype(str)[order], return_inverse=True)[1].reshape(-1)
         except (TypeError, ValueError):
-            raise FieldError("segments", "track labels must be strings or numbers") from None
+            raise FieldError(field, "labels must be strings or numbers") from None
+
+    seg_given, zp = labels(segments, "segments"), labels(zero_points, "zero_points")
     if sigma is None:
         w = np.ones_like(y)
     else:
@@ -179,33 +302,34 @@ def _check_track(times_s: Any, flux: Any, sigma: Any, segments: Any) -> tuple[np
         if not (np.isfinite(s).all() and (s > 0).all()):
             raise FieldError("sigma", "the uncertainties must be finite and > 0")
         w = 1.0 / s
-    return t, y, w, seg_given
+    return t, y, w, seg_given, zp
 
 
-def _search_range(t: np.ndarray, seg: np.ndarray, min_period_s: float | None,
+def _search_range(t: np.ndarray, seg: np.ndarray, zp: Any, min_period_s: float | None,
                   max_period_s: float | None) -> tuple[float, float, float, float]:
-    """The periods searched, ``(lo, hi)`` in s (given, or twice the frame step to half the longest
-    stretch), the frame step (:func:`~cssat.inversion.fourier.frame_step`) and the longest
-    contiguous stretch (s), for ``t (T,)`` in stretches ``seg (T,)``."""
+    """The periods searched, ``(lo, hi)`` in s (given, or the cadence's Nyquist period twice the
+    frame step to the longest stretch), the frame step (:func:`~cssat.inversion.fourier.frame_step`,
+    within each channel ``zp``) and the longest contiguous stretch (s), for ``t (T,)`` in
+    stretches ``seg (T,)``."""
     longest = max(float(t[seg == k][-1] - t[seg == k][0]) for k in np.unique(seg))
-    d_frame = frame_step(t, seg)
+    d_frame = frame_step(t, seg, zp)
     lo = 2 * d_frame if min_period_s is None else float_param(min_period_s, "min_period_s", 0.0, open_lo=True)
-    hi = longest / 2 if max_period_s is None else float_param(max_period_s, "max_period_s", 0.0, open_lo=True)
+    hi = longest if max_period_s is None else float_param(max_period_s, "max_period_s", 0.0, open_lo=True)
     if not hi > lo:
         raise FieldError("max_period_s", f"must exceed min_period_s ({lo:.6g} s), got {hi:.6g} s"
-                         + (" (by default half the longest stretch: the track is too short for its cadence)"
+                         + (" (by default the longest stretch: the track is too short for its cadence)"
                             if max_period_s is None else ""))
     return lo, hi, d_frame, longest
 
 
-def _periodogram_peaks(t: np.ndarray, resid: np.ndarray, dy: np.ndarray | None, f_lo: float, f_hi: float, spp: int,
-                       span: float, n_peaks: int) -> tuple[np.ndarray, np.ndarray, list[float]]:
+def _periodogram_peaks(t: np.ndarray, resid: np.ndarray, dy: np.ndarray | None, freq: np.ndarray, span: float,
+                       n_peaks: int) -> tuple[np.ndarray, list[float]]:
     """astropy's Lomb–Scargle of ``resid (T,)`` (the curve less its nuisance model; ``dy`` its 1σ
-    or ``None``) between ``f_lo`` and ``f_hi`` Hz, ``spp`` samples per peak: the frequencies, the
-    power, and the ``n_peaks`` strongest local maxima more than ``1.5/span`` apart, strongest first."""
+    or ``None``) on the regular grid ``freq (F,)`` Hz: the power, and the ``n_peaks`` strongest
+    local maxima more than ``1.5/span`` apart, strongest first."""
     from astropy.timeseries import LombScargle  # heavy: astropy, only for _periodogram_peaks()
 
-    freq, power = LombScargle(t, resid, dy).autopower(minimum_frequency=f_lo, maximum_frequency=f_hi, samples_per_peak=spp)
+    power = LombScargle(t, resid, dy).power(freq, method="fast", assume_regular_frequency=True)
     is_max = np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True]
     peaks: list[float] = []
     for i in np.flatnonzero(is_max)[np.argsort(power[is_max])[::-1]]:
@@ -213,146 +337,4 @@ def _periodogram_peaks(t: np.ndarray, resid: np.ndarray, dy: np.ndarray | None, 
             peaks.append(float(freq[i]))
         if len(peaks) == n_peaks:
             break
-    return freq, power, peaks
-
-
-class _Aliases:
-    """The candidate periods of one curve (``cv``, :class:`~cssat.inversion.fourier._Curve`) within
-    ``[lo, hi]`` s: the peaks' multiples ``k/f`` and the chosen period's halves and doubles, each
-    with its own least-BIC harmonics under the finer steps' Nyquist ``f_harm`` (Hz), refined to a
-    fraction of ``step`` (Hz)."""
-
-    cap = 24  # harmonics of the longest candidate (49 columns)
-
-    def __init__(self, cv: Any, lo: float, hi: float, step: float, max_harmonics: int, f_harm: float, longest: float):
-        self.cv, self.lo, self.hi, self.step, self.max_harmonics, self.f_harm = cv, lo, hi, step, max_harmonics, f_harm
-        self.longest = longest  # the longest contiguous stretch (s), for fringes()
-
-    def harmonics_at(self, f: float) -> int:
-        """The highest harmonic of ``f`` under the finer steps' Nyquist."""
-        return max(1, min(self.cap, int(self.f_harm / f)))
-
-    def of_peaks(self, peaks: list[float], m_fixed: int | None) -> list[dict[str, Any]]:
-        """One candidate per peak ``j`` and ``k = 1…4`` in range: the period ``k/f`` of the refined
-        peak ``f``, with ``k m`` harmonics or its own least-BIC number near it (``m``: ``m_fixed``
-        or the peak's own by BIC)."""
-        cv, max_harmonics = self.cv, self.max_harmonics
-        cands = []  # one dict per (peak, k)
-        for j, f in enumerate(peaks):
-            m0 = m_fixed or cv.best_m(f, min(max_harmonics, self.harmonics_at(f)))
-            f_ref, r_ref = cv.refine(f, m0, self.step)
-            f_ref, _ = self.fringes(f_ref, m0, r_ref)
-            for k in (1, 2, 3, 4):
-                P = k / f_ref
-                if not self.lo <= P <= self.hi:
-                    continue
-                c = cv.best_near(f_ref / k, k * m0, min(k * max_harmonics, self.harmonics_at(f_ref / k)))
-                c.update(peak=j, k=k)
-                cands.append(c)
-        return cands
-
-    def own(self, P: float, k: float, peak: int, best: dict[str, Any]) -> dict[str, Any] | None:
-        """The period ``P`` with its own least-BIC harmonics (from ``best``'s per cycle), refined
-        (None outside the range)."""
-        if not self.lo <= P <= self.hi:
-            return None
-        cv = self.cv
-        c = cv.best_near(1 / P, max(1, int(round(best["n_harmonics"] * P / best["period_s"]))),
-                         min(max(1, int(round(k)) if k >= 1 else 1) * self.max_harmonics, self.harmonics_at(1 / P)))
-        f, r = cv.refine(1 / P, c["n_harmonics"], self.step / max(k, 1))
-        return {**c, "period_s": 1 / f, "rss": r, "bic": cv.bic(r, c["n_harmonics"]), "peak": peak, "k": k}
-
-    def settle(self, best: dict[str, Any], cands: list[dict[str, Any]]) -> dict[str, Any]:
-        """``best`` refined with its own harmonics, then replaced by its half or double while one
-        wins (at most four times); each winner is appended to ``cands``."""
-        best = self.own(best["period_s"], best["k"], best["peak"], best) or best
-        for _ in range(4):  # the chosen period's half and double compete, each with its own harmonics, refined:
-            # the half wins unless the chosen one is better by ALIAS_MARGIN, the double only when better by it
-            half, double = (self.own(best["period_s"] * x, best["k"] * x, best["peak"], best) for x in (0.5, 2.0))
-            if half is not None and half["bic"] < best["bic"] + ALIAS_MARGIN:
-                win = half
-            elif double is not None and double["bic"] + ALIAS_MARGIN < best["bic"]:
-                win = double
-            else:
-                break
-            cands.append(win)
-            best = win
-        return best
-
-    def fringes(self, f0: float, m: int, rss0: float) -> tuple[float, float]:
-        """The least-RSS frequency (Hz) of the ``m``-harmonic series within ``f0 ± 0.5/longest``
-        (``longest``: the longest stretch, s) and its RSS, else ``(f0, rss0)``: across gaps the RSS
-        in frequency is a comb of fringes ``1/gap`` apart, and the periodogram's peak may pick a
-        neighbour of the best (a cycle miscounted across the gap). A grid of ``step / min(m, 2)`` of
-        the 2-harmonic RSS, its 5 lowest minima refined with ``m``; only when the track spans over
-        1.5 stretches."""
-        cv = self.cv
-        if float(cv.t[-1] - cv.t[0]) < 1.5 * self.longest:
-            return f0, rss0
-        ms = min(m, 2)  # the comb is found with the first two harmonics, its minima refined with all m
-        n = int(0.5 * ms / (self.longest * self.step))
-        n_max = 600  # tracks a week apart: ~7 grid points a fringe instead of 20 (3x faster), the 5 lowest refined
-        h = self.step / ms * max(1.0, n / n_max)
-        n = min(n, n_max)
-        grid = f0 + h * np.arange(-n, n + 1)
-        rss = np.array([cv.rss(f, ms) for f in grid])
-        low = np.flatnonzero(np.r_[True, rss[1:] <= rss[:-1]] & np.r_[rss[:-1] <= rss[1:], True])
-        best = (f0, rss0)
-        for i in low[np.argsort(rss[low])][:5]:  # the grid is coarse for a deep fringe: refine the 5 lowest
-            f, r = cv.refine(float(grid[i]), m, h)
-            if r < best[1] and self.lo <= 1 / f <= self.hi:
-                best = (f, r)
-        return best
-
-    def alternatives(self, best: dict[str, Any], period: float, cands: list[dict[str, Any]], n_peaks: int,
-                     scat: float | None) -> list[dict[str, Any]]:
-        """The chosen period's (``best``, ``period`` s) ``P/4``, ``P/2``, ``2P`` and the other
-        peaks' best candidates, each with its χ² (against ``scat``, the track's scatter, when there
-        is no ``sigma``; else ``None``), χ²/ν and ΔBIC over the chosen."""
-        cv = self.cv
-        m, rss = best["n_harmonics"], best["rss"]
-        alts = []
-        for rel, k in (("P/4", 0.25), ("P/2", 0.5), ("2P", 2.0)):
-            Pa = period * k
-            a = self.own(Pa, best["k"] * k, best["peak"], best)
-            if a is not None:
-                alts.append({"relation": rel, **a})
-        for j in range(n_peaks):
-            cj = [c for c in cands if c["peak"] == j]
-            if j != best["peak"] and cj:
-                alts.append({"relation": "peak", **min(cj, key=lambda c: c["bic"])})
-        N = len(cv.t)
-        for a in alts:
-            c2 = a["rss"] if scat is None else a["rss"] / scat ** 2
-            a.update(chi2=float(c2), chi2_per_sample=float(c2 / max(N - 2 * a["n_harmonics"] - cv.q, 1)),
-                     delta_bic=float(a["bic"] - cv.bic(rss, m)))
-            for key in ("rss", "bic", "peak", "k"):
-                a.pop(key, None)
-        return alts
-
-
-def _best_of_families(cands: list[dict[str, Any]], n_peaks: int) -> dict[str, Any]:
-    """The least-BIC of the peaks' picks: per peak, its multiples ``k = 1…4`` in turn, a longer
-    one winning only by :data:`ALIAS_MARGIN`."""
-    family = []  # per peak, its multiples k = 1…4 in turn: a longer one wins only by ALIAS_MARGIN
-    for j in range(n_peaks):
-        pick = None
-        for c in sorted((c for c in cands if c["peak"] == j), key=lambda c: c["k"]):
-            if pick is None or c["bic"] + ALIAS_MARGIN < pick["bic"]:
-                pick = c
-        if pick is not None:
-            family.append(pick)
-    return min(family, key=lambda c: c["bic"])
-
-
-def _period_error(cv: Any, best: dict[str, Any], step: float, chi2_n: float, nu: int, weighted: bool) -> tuple[float, float]:
-    """The chosen period (s) and its 1σ from the curvature of χ² in frequency (Δχ² = 1): ``sigma``
-    scaled by √(χ²/ν) when ``weighted`` and the model misfits, else the residual's own scatter."""
-    m = best["n_harmonics"]
-    fb, rss = 1.0 / best["period_s"], best["rss"]
-    h = step / (50 * max(best["k"], 1))
-    curv = (cv.rss(fb + h, m) - 2 * rss + cv.rss(fb - h, m)) / h ** 2
-    noise2 = max(chi2_n, 1.0) if weighted else max(rss, cv.floor) / nu  # σ² per unit of RSS
-    sig_f = max(math.sqrt(2.0 * noise2 / curv) if curv > 0 else float("inf"), step * 1e-5)  # ≥ the refinement's tolerance
-    period = 1.0 / fb
-    return period, sig_f * period ** 2
+    return power, peaks

@@ -33,25 +33,65 @@ def _warnings(period: float, lo: float, hi: float, longest: float, step: float, 
     return warns, model_fits
 
 
-def _why(best: dict[str, Any], alts: list[dict[str, Any]]) -> str:
-    """One sentence: why the chosen period beat its aliases."""
+def _why(best: dict[str, Any], alts: list[dict[str, Any]], k_conv: int = 1, n_max: int = 2) -> str:
+    """One sentence: why the chosen period beat its aliases, and the convention's doubling."""
     parts = []
     for a in alts:
         if a["relation"] == "peak":
             continue
         verdict = "worse" if a["delta_bic"] > 0 else "better"
         parts.append(f"{a['relation']} ({a['period_s']:.6g} s) {verdict} by ΔBIC {abs(a['delta_bic']):.3g}")
-    head = (f"{best['k']:g}× the periodogram's peak period with {best['n_harmonics']} harmonics (its odd harmonics pay for "
-            "their parameters)" if best["k"] > 1 else f"the periodogram's peak period with {best['n_harmonics']} harmonics")
+    k = best.get("k", 1)
+    head = (f"{k:g}× the periodogram's peak period with {best['n_harmonics']} harmonics" if k != 1
+            else f"the periodogram's peak period with {best['n_harmonics']} harmonics")
+    if k_conv == 2:
+        head += (f"; its fold shows {n_max} significant maximum, so the full turn of a double-peaked body is twice it "
+                 "(convention double_peaked)")
     return head + ("; " + ", ".join(parts) if parts else "")
 
 
-def _constant(t: np.ndarray) -> dict[str, Any]:
+#: a variation too slow for ``min_cycles`` is "undetermined" only when its rms reaches this many
+#: single-sample noise σ (weaker: "not periodic", MMT's "not variable" after its quadratic detrend)
+MIN_VARIATION_SNR = 1.0
+
+
+def _verdict(null: dict[str, Any], fap_max: float, n_cycles: float, min_cycles: float, gap: float, max_gap: float,
+             period: float, rep: float, min_repeat: float | None, lo: float, hi: float,
+             variation_snr: float) -> tuple[str, str]:
+    """The verdict word and its reason (:func:`cssat.inversion.estimate_period`, point 7):
+    ``variation_snr`` is the fitted series' rms over the single-sample noise."""
+    fap, fap_all = null["fap"], null["fap_all"]
+    sur = f"{null['n']} surrogates of the track's own noise"
+    if fap < fap_max:
+        if n_cycles < min_cycles:
+            return "undetermined", (f"a signal stands out (FAP {fap:.2g}, {sur}) but its period {period:.6g} s spans "
+                                    f"{n_cycles:.2g} cycles of the track, fewer than {min_cycles:g}")
+        if gap > max_gap:
+            return "undetermined", (f"a signal stands out (FAP {fap:.2g}) but the fold at {period:.6g} s leaves "
+                                    f"{gap:.0%} of a cycle unsampled: too sparse to show the period")
+        if min_repeat is not None and not rep >= min_repeat:
+            return "undetermined", (f"a period of {period:.6g} s stands out (FAP {fap:.2g}) but the cycles do not repeat "
+                                    f"(repeat {rep:.2g} < min_repeat {min_repeat:g})")
+        return "periodic", (f"P = {period:.6g} s stands out of the track's own noise (FAP {fap:.2g} from {sur}) over "
+                            f"{n_cycles:.3g} cycles")
+    if fap_all < fap_max and variation_snr >= MIN_VARIATION_SNR:
+        return "undetermined", (f"the curve varies (FAP {fap_all:.2g}, rms {variation_snr:.2g}× the noise) on the scale "
+                                f"of the track: its best period {period:.6g} s spans {n_cycles:.2g} cycles, fewer than "
+                                f"{min_cycles:g}")
+    slow = (f"; a slow variation (best {period:.6g} s, {n_cycles:.2g} cycles, FAP {fap_all:.2g}) is under the noise "
+            f"(rms {variation_snr:.2g}×)" if fap_all < fap_max else "")
+    return "not periodic", (f"no period between {lo:.4g} and {hi / max(min_cycles, 1.0):.4g} s ({min_cycles:g}+ cycles) "
+                            f"stands out of the track's own noise (FAP {fap:.2g}, {sur}){slow}")
+
+
+def _constant(t: np.ndarray, convention: str = "photometric") -> dict[str, Any]:
     """The verdict on a light curve without any variation."""
     nan = float("nan")
-    return {"period_s": nan, "period_err_s": nan, "periodic": False, "fap": 1.0, "repeat": nan, "best_period_s": nan,
-            "best_period_err_s": nan, "alternatives": [], "why": "the values do not vary", "n_harmonics": 0, "chi2": 0.0,
-            "chi2_per_sample": 0.0, "model_fits": True, "n_cycles": 0.0, "min_period_s": nan, "max_period_s": nan,
-            "f0_period_s": nan, "doubled": False, "warnings": ["constant light curve"], "noise_sigma": 0.0,
-            "n_samples": int(len(t)), "rss": 0.0, "n_nuisance": 1,
-            "periodogram": {"frequency_hz": np.zeros(0), "power": np.zeros(0)}}
+    return {"verdict": "not periodic", "periodic": False, "verdict_why": "the values do not vary",
+            "period_s": nan, "period_err_s": nan, "photometric_period_s": nan, "convention": convention, "n_maxima": 0,
+            "fap": 1.0, "fap_all": 1.0, "fap_surrogates_exceeding": 0, "n_surrogates": 0, "fap_white": 1.0,
+            "repeat": nan, "best_period_s": nan, "best_period_err_s": nan, "alternatives": [], "fringes": [],
+            "why": "the values do not vary", "n_harmonics": 0, "chi2": 0.0, "chi2_per_sample": 0.0, "model_fits": True,
+            "n_cycles": 0.0, "min_period_s": nan, "max_period_s": nan, "cadence_s": nan, "f0_period_s": nan,
+            "doubled": False, "warnings": ["constant light curve"], "noise_sigma": 0.0, "n_samples": int(len(t)),
+            "rss": 0.0, "n_nuisance": 1, "periodogram": {"frequency_hz": np.zeros(0), "power": np.zeros(0)}}

@@ -276,7 +276,7 @@ def _synodic_period(t: np.ndarray, y: np.ndarray, w: np.ndarray, sigma: Any, per
     verdict."""
     if period_s is None:
         synodic = estimate_period(t, y, sigma=None if sigma is None else 1.0 / w, min_period_s=min_period_s,
-                                  max_period_s=max_period_s)
+                                  max_period_s=max_period_s, detrend=1)  # each night's offset and slope
         P0 = synodic["best_period_s"]  # the search wants the best candidate, whatever the verdict
     else:
         P0 = float_param(period_s, "period_s", 0.0, open_lo=True)
