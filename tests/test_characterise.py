@@ -274,3 +274,16 @@ def test_settings_refused_in_plan_naming_the_key(overrides, field):
     with pytest.raises(FieldError) as err:
         observed_settings(_cfg(f"observations={EXAMPLE_TRACK}", *overrides))
     assert err.value.field == field, str(err.value)
+
+
+@pytest.mark.parametrize("override, field", [("observed.format=bogus", "observed.format"),  # was "format"
+                                             ("observed.kind=flux", "observed.kind")])  # was "observations.kind"
+def test_the_reader_s_refusal_of_a_setting_names_its_config_key(override, field):
+    from cssat.experiments.scene import read_observations
+
+    with pytest.raises(FieldError) as err:
+        read_observations(_cfg(f"observations={STARLINK}", override))
+    assert err.value.field == field, str(err.value)
+    with pytest.raises(FieldError) as err:  # a file's own fault keeps the file's name
+        read_observations(_cfg(f"observations={REAL / 'absent.txt'}"))
+    assert err.value.field == "observations", str(err.value)

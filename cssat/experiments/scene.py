@@ -40,7 +40,9 @@ def read_observations(cfg: Any, check_only: bool = False) -> Any:
     the ``observed`` settings (column names, kind, time format). Each ``observed`` key is first
     checked against :func:`cssat.data.read_light_curve`'s arguments: an unknown one (a typo,
     ``+observed.bogus=1``) is a FieldError naming ``observed.<key>`` and the allowed keys, not a
-    TypeError's traceback. ``check_only``: the keys checked, nothing read (returns ``None``)."""
+    TypeError's traceback; the reader's refusal of one of them names its key too
+    (``observed.format``, ``observed.kind``). ``check_only``: the keys checked, nothing read
+    (returns ``None``)."""
     import inspect
 
     path = cfg.get("observations")
@@ -55,7 +57,14 @@ def read_observations(cfg: Any, check_only: bool = False) -> Any:
             raise FieldError(f"observed.{k}", f"not an option of read_light_curve; the options: {', '.join(allowed)}")
     if check_only:
         return None
-    return read_light_curve(str(path), **kw)
+    try:
+        return read_light_curve(str(path), **kw)
+    except FieldError as err:  # an argument's error named by its config key: format -> observed.format
+        head, _, tail = err.field.partition(".")
+        arg = err.field if err.field in allowed else tail if head == "observations" and tail in kw else None
+        if arg is None:
+            raise
+        raise FieldError(f"observed.{arg}", err.detail) from None
 
 
 def check_elements(cfg: Any, lc: Any, max_epoch_days: float = 14.0) -> None:
