@@ -1,24 +1,30 @@
-"""A catalogue of MMT-format tracks characterised through Hydra's joblib launcher, against a
-plain astropy Lomb–Scargle loop over the same files (issue 34, point 6).
+"""A catalogue at archive scale (issue 46, point 6): MMT-format tracks characterised three ways,
+tracks per second on 2 cores, and the MMT-9 archive (500,000 tracks) extrapolated.
 
-    python benchmarks/bench_catalogue.py --n 200 [--jobs 2]
+    python benchmarks/bench_catalogue.py --n 2000 --repeats 3 [--jobs 2] [--shard-size 250]
 
-Writes ``n`` synthetic MMT-9 track files (:mod:`benchmarks.mmt_like`, one track each, in the
-MMT export format) to a temporary directory, then times
+The files: ``n`` SYNTHETIC MMT-9 tracks (:mod:`benchmarks.mmt_like`, one track a file in the MMT
+export format, named ``synthetic_<k>.txt``, object ``SYNTHETIC-<k>``) plus the 20 real MMT-9
+tracks of ``../shared/real/mmt`` (when there), in one temporary directory. Then, each repeat:
 
-1. ``cssat -m experiment=characterise observations=<dir> characterise.figures=false
-   launcher=local`` (2 joblib workers of 1 thread: every file a Hydra job with its own result
-   set, ``metrics.json`` and a row of ``summary.csv``) — tracks per second, wall clock;
-2. in one process, per file: ``cssat.data.read_light_curve`` + ``cssat.inversion.estimate_period``;
-3. in one process, per file: ``astropy.table.Table.read`` + ``LombScargle.autopower`` on the
-   data-derived grid (2/span to the Nyquist of the median step) — the plain baseline;
+(a) the shard path: ``cssat -m experiment=characterise observations=<dir>
+    catalogue.shard_size=<s> launcher=local hydra.launcher.n_jobs=2`` (joblib workers of 1
+    thread each): shards of ``s`` files a job, joined into ``catalogue.csv`` — wall clock from
+    the command's start to its end (Python start-up, Hydra, the joblib workers, the join);
+(b) :func:`cssat.catalogue.characterise_file` on every file in this one process (1 thread);
+(c) astropy: ``ascii.read`` of the file + ``LombScargle.autopower`` on the data-derived grid
+    (2/span to the Nyquist of the median step, 10 samples a peak) — the plain baseline.
 
-and prints tracks per second and the cost per track of each, and the ratios.
+Printed: tracks per second and ms a track of each (for (a) also core-seconds a track: wall x
+jobs / tracks), the ratios to astropy, the extrapolation to 500,000 tracks in core-hours (the
+target: <= 8 core-hours, <= 60 ms a track including the reading), and whether (a)'s
+``catalogue.csv`` rows equal (b)'s (less ``seconds``). Medians of the repeats; every run listed.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import os
 import shutil
 import statistics
@@ -36,9 +42,14 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mmt_like import make_tracks  # noqa: E402
 
+ROOT = Path(__file__).resolve().parents[1]
+REAL_MMT = ROOT.parent / "shared" / "real" / "mmt"
+ARCHIVE_TRACKS = 500_000  # MMT-9's archive, about
+TARGET_CORE_HOURS = 8.0
+
 
 def write_mmt(path: Path, tr: dict, k: int) -> None:
-    """One track as an MMT-9 export (the format of tests/data/real/mmt_*.txt)."""
+    """One SYNTHETIC track as an MMT-9 export (the format of tests/data/real/mmt_*.txt)."""
     t0 = np.datetime64("2021-03-04T21:10:05.000", "ms")
     code = {"periodic": "2 Periodic", "aperiodic": "1 Aperiodic", "nonvariable": "0 Not variable"}[tr["label"]]
     lines = [f"# satellite: {90000 + k} SYNTHETIC-{k} / --", "# catalogue: 1 NORAD", f"# variability: {code}",
@@ -50,69 +61,125 @@ def write_mmt(path: Path, tr: dict, k: int) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def astropy_loop(files: list[Path]) -> float:
+def astropy_loop(files: list[str]) -> tuple[float, int]:
+    """(c): seconds for every file, and how many astropy could read."""
     from astropy.io import ascii
     from astropy.timeseries import LombScargle
 
-    t0 = time.perf_counter()
+    names = ["Date", "Time", "StdMag", "Mag", "Filter", "Penumbra", "Distance", "Phase", "Channel", "Track"]
+    t0, ok = time.perf_counter(), 0
     for f in files:
-        tab = ascii.read(f, format="no_header", comment="#", names=["Date", "Time", "StdMag", "Mag", "Filter", "Penumbra",
-                                                                   "Distance", "Phase", "Channel", "Track"])
+        try:
+            tab = ascii.read(f, format="no_header", comment="#", names=names)
+        except Exception:  # a file astropy cannot read as MMT's columns
+            continue
         stamps = np.array([f"{d}T{s}" for d, s in zip(tab["Date"], tab["Time"])], dtype="datetime64[us]")
         t = (stamps - stamps[0]).astype(np.int64) / 1e6
         y = np.asarray(tab["Mag"], dtype=float)
         LombScargle(t, y).autopower(minimum_frequency=2 / t[-1], maximum_frequency=0.5 / np.median(np.diff(t)),
                                     samples_per_peak=10)
-    return time.perf_counter() - t0
+        ok += 1
+    return time.perf_counter() - t0, ok
 
 
-def cssat_loop(files: list[Path]) -> float:
-    from cssat.data import read_light_curve
-    from cssat.inversion import estimate_period
+def cssat_loop(files: list[str]) -> tuple[float, list[dict]]:
+    """(b): seconds for every file through characterise_file, and the rows."""
+    import torch
 
+    from cssat.catalogue import characterise_file
+
+    torch.set_num_threads(1)
     t0 = time.perf_counter()
-    for f in files:
-        lc = read_light_curve(f)
-        estimate_period(lc.times_s(), lc.values, segments=lc.track_ids())
-    return time.perf_counter() - t0
+    rows = [characterise_file(f) for f in files]
+    return time.perf_counter() - t0, rows
+
+
+def shard_sweep(tracks: Path, sweep: Path, jobs: int, shard_size: int) -> tuple[float, int]:
+    """(a): wall seconds of the whole command, and its exit status."""
+    t0 = time.perf_counter()
+    res = subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise", f"observations={tracks}",
+                          f"catalogue.shard_size={shard_size}", "launcher=local", f"hydra.launcher.n_jobs={jobs}",
+                          f"hydra.sweep.dir={sweep}"], capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if res.returncode != 0:
+        print(res.stderr[-2000:], file=sys.stderr)
+    return wall, res.returncode
+
+
+def same_rows(catalogue: Path, rows: list[dict]) -> bool:
+    """Whether the shards' joined rows equal characterise_file's (less ``seconds``); the first
+    difference printed."""
+    from cssat.catalogue import read_rows
+
+    strip = lambda rs: [{k: v for k, v in r.items() if k != "seconds"} for r in rs]  # noqa: E731
+    a, b = strip(read_rows(catalogue)), strip(rows)
+    for x, y in zip(a, b):
+        if x != y:
+            print("  first difference:", Path(str(x["file"])).name, {k: (x[k], y.get(k)) for k in x if x[k] != y.get(k)})
+            break
+    return a == b
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--n", type=int, default=200)
-    ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--repeats", type=int, default=1)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=10_000, help="synthetic tracks (default 10,000)")
+    ap.add_argument("--jobs", type=int, default=2, help="joblib workers of the shard path (1 thread each)")
+    ap.add_argument("--shard-size", type=int, default=None,
+                    help="files a shard (default: 500, or fewer so that each worker gets >= 4 shards)")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-real", action="store_true", help="leave out ../shared/real/mmt")
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="cssat-catalogue-"))
     try:
-        files = []
+        tracks = work / "tracks"
+        tracks.mkdir()
         for k, tr in enumerate(make_tracks(args.n, seed=0)):
-            f = work / "tracks" / f"track_{k:05d}.txt"
-            f.parent.mkdir(exist_ok=True)
-            write_mmt(f, tr, k)
-            files.append(f)
-        walls, loops, bases = [], [], []
-        for r in range(args.repeats):
-            sweep = work / f"sweep{r}"
-            t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise",
-                            f"observations={work / 'tracks'}", "characterise.figures=false", "launcher=local",
-                            f"hydra.launcher.n_jobs={args.jobs}", f"hydra.sweep.dir={sweep}"],
-                           check=False, capture_output=True, text=True)
-            walls.append(time.perf_counter() - t0)
-            loops.append(cssat_loop(files))
-            bases.append(astropy_loop(files))
-        rows = (sweep / "summary.csv").read_text().splitlines()
-        ok = sum(",ok," in r for r in rows[1:])
-        wall, loop, base = (statistics.median(v) for v in (walls, loops, bases))
+            write_mmt(tracks / f"synthetic_{k:06d}.txt", tr, k)
+        n_real = 0
+        if REAL_MMT.is_dir() and not args.no_real:
+            for f in sorted(REAL_MMT.glob("*.txt")):
+                shutil.copy(f, tracks / f"real_{f.name}")
+                n_real += 1
+        from cssat.catalogue import catalogue_files
+
+        files = catalogue_files(tracks)
         n = len(files)
-        print(f"{n} MMT-format tracks, {args.jobs} joblib workers; summary.csv: {ok} of {len(rows) - 1} rows ok")
-        print(f"catalogue (cssat -m, launcher=local): {wall:.1f} s wall, {n / wall:.2f} tracks/s, {wall / n * 1e3:.0f} ms a track")
-        print(f"cssat read + estimate_period, one process: {loop / n * 1e3:.1f} ms a track")
-        print(f"astropy Table.read + LombScargle, one process: {base / n * 1e3:.1f} ms a track")
-        print(f"ratios: period analysis / astropy = {loop / base:.2f}; catalogue job / astropy = {wall * args.jobs / base:.1f} "
-              "(per core)")
-        print(f"1000 tracks would take about {1000 * wall / n / 60:.1f} min")
+        size = args.shard_size or max(1, min(500, -(-n // (4 * args.jobs))))
+        print(f"{n} MMT-format files: {args.n} SYNTHETIC (benchmarks/mmt_like.py) + {n_real} real MMT-9 "
+              f"(../shared/real/mmt); shards of {size} ({-(-n // size)} jobs), {args.jobs} joblib workers of 1 thread")
+        print(f"load before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} "
+              f"on {os.cpu_count()} cores")
+        sweeps, loops, bases, agree, rows = [], [], [], [], []
+        for r in range(args.repeats):
+            wall, rc = shard_sweep(tracks, work / f"sweep{r}", args.jobs, size)
+            sweeps.append(wall)
+            loop, rows = cssat_loop(files)
+            loops.append(loop)
+            base, n_astropy = astropy_loop(files)
+            bases.append(base)
+            agree.append(rc == 0 and same_rows(work / f"sweep{r}" / "catalogue.csv", rows))
+            print(f"  run {r + 1}: (a) {wall:.1f} s wall (rc {rc}), (b) {loop:.1f} s, (c) {base:.1f} s "
+                  f"[load {os.getloadavg()[0]:.2f}]", flush=True)
+        wall, loop, base = (statistics.median(v) for v in (sweeps, loops, bases))
+        ok = sum(r["status"] == "ok" for r in rows)
+        verdicts = {v: sum(r["verdict"] == v for r in rows) for v in ("periodic", "not periodic", "undetermined", "failed")}
+        core_a = wall * args.jobs / n
+        print(f"rows: {ok} of {n} ok; verdicts {verdicts}; astropy read {n_astropy} of {n}")
+        print(f"(a) shards through Hydra's joblib launcher: {wall:.1f} s wall, {n / wall:.1f} tracks/s on {args.jobs} "
+              f"cores, {core_a * 1e3:.1f} core-ms a track; catalogue.csv = (b)'s rows: {all(agree)}")
+        print(f"(b) characterise_file, one process: {loop:.1f} s, {n / loop:.1f} tracks/s, {loop / n * 1e3:.1f} ms a track")
+        per_c = base / max(n_astropy, 1)  # the files astropy could read (not the real ones it cannot parse)
+        print(f"(c) astropy ascii.read + LombScargle, one process: {base:.1f} s for {n_astropy} files, "
+              f"{1 / per_c:.1f} tracks/s, {per_c * 1e3:.1f} ms a track")
+        print(f"ratios: (b)/(c) = {loop / n / per_c:.2f}; (a) per core / (c) = {core_a / per_c:.2f}; "
+              f"(a) per core / (b) = {core_a / (loop / n):.2f}")
+        for name, per in (("(a)", core_a), ("(b)", loop / n), ("(c)", per_c)):
+            hours = ARCHIVE_TRACKS * per / 3600
+            print(f"MMT archive, {ARCHIVE_TRACKS:,} tracks by {name}: {hours:.1f} core-hours "
+                  f"({'within' if hours <= TARGET_CORE_HOURS else 'over'} the {TARGET_CORE_HOURS:g}), "
+                  f"{hours / args.jobs:.1f} h on {args.jobs} cores")
+        print("all runs (s): (a) " + ", ".join(f"{v:.1f}" for v in sweeps) + "; (b) " + ", ".join(f"{v:.1f}" for v in loops)
+              + "; (c) " + ", ".join(f"{v:.1f}" for v in bases))
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
