@@ -22,7 +22,6 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
-from cssat.scene.orbit import _start_datetime
 
 __all__ = ["FORMATS", "sniff_format", "read_mmt", "read_score", "read_alcdef", "to_utc", "check_dates", "check_magnitudes",
            "check_kind", "period_or_none"]

@@ -25,9 +25,9 @@ from cssat._checks import FieldError, FieldTypeError, choice_param
 from cssat._record import read_input
 from cssat.data import formats as F
 from cssat.data.astro import read_astropy, read_astropy_file
-from cssat.data.formats import check_dates, check_kind, check_magnitudes
-from cssat.data.mmt import MMT_VALUE_COLUMNS, read_mmt
-from cssat.data.score import SCORE_COLUMNS, read_score
+from cssat.data.finish import FIXED_OPTIONS, fixed_format, finish, jansky_to_magnitudes  # noqa: F401
+from cssat.data.mmt import read_mmt
+from cssat.data.score import read_score
 from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE, write_light_curve  # noqa: F401  (cssat's own CSV)
 from cssat.data.text import check_size, read_csv, text_rows
 
@@ -45,7 +45,8 @@ _ROW_FIELDS = ("times_utc", "values", "errors", "filters", "observers", "tracks"
 
 @dataclass
 class ObservedLightCurve:
-    """A measured light curve: ``times_utc (T,)`` ``datetime64[us]`` UTC (increasing), ``values
+    """A measured light curve: ``times_utc (T,)`` ``datetime64[us]`` UTC (increasing; samples of
+    different camera ``channels`` may share a stamp), ``values
     (T,)`` float64 (magnitudes, or flux in the file's unit — W/m² for cssat's), ``errors (T,)``
     (1σ, same unit; ``None`` when the file has none), ``kind`` (``"magnitude"`` or ``"flux"``).
 
@@ -237,23 +238,35 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     ``format``: one of :data:`~cssat.data.formats.FORMATS` (default: by content — an ALCDEF
     ``STARTMETADATA``, an MMT ``# satellite:`` header, SCORE's columns, ``.ecsv``/``.fits`` —
     else cssat's CSV). For a CSV (comma or whitespace separated; the header the first line or,
-    when that is data, the last ``#`` line): ``time_col`` (default ``time_utc``; a pair of
-    columns — date and time — is joined), in ``time_format`` (``iso``, ``jd``, ``mjd``,
-    ``unix``) and ``time_scale`` (``utc``, ``tt``, ``tdb``, ``tai``: converted to UTC by
-    astropy); ``value_col`` (default cssat's ``magnitude``/``flux_W_m2`` for ``kind``; MMT's
-    ``Mag`` or ``StdMag``), ``error_col`` (its 1σ), ``filter_col``/``observer_col``/
-    ``track_col`` where present. ``object``: the NORAD id or name to keep from a file of
-    several (SCORE). ``band``/``band_system``: the magnitudes' band for flux↔magnitude (None:
-    V with the Sun at −26.74; a band name, a measured filter file, or ``"file"``: the file's own
-    filter column; :func:`cssat.optics.passbands.resolve_band`). ``duplicates``: equal time stamps are refused (``"refuse"``) or averaged
-    (``"merge"``: the mean value, the errors combined). MMT, SCORE and ALCDEF rows are sorted by
-    time; other files must increase.
+    when that is data, the last ``#`` line): ``time_col`` (default the first of ``time_utc``,
+    ``time``, ``mjd``, ``jd``; a pair of columns — date and time — is joined), in
+    ``time_format`` (``iso``, ``jd``, ``mjd``, ``unix``; a column named ``jd`` or ``mjd`` is
+    read as such when it is left ``iso``) and ``time_scale`` (``utc``, ``tt``, ``tdb``, ``tai``:
+    converted to UTC by astropy; for a table's plain time column too, a ``Time`` column keeps
+    its own scale); ``value_col`` (default cssat's ``magnitude``/``flux_W_m2`` for ``kind``,
+    else ``mag``/``flux``; MMT's ``Mag`` or ``StdMag``), ``error_col`` (its 1σ; default
+    ``<value>_err``, ``mag_err``, ``magerr``, ``err``), ``filter_col``/``observer_col``/
+    ``track_col`` where present. MMT, SCORE and ALCDEF set their own columns, times and kind:
+    options that agree with them are accepted, others refused naming the allowed values.
+    ``object``: the NORAD id or name to keep from a file of several (SCORE; MMT exports of
+    several objects concatenated). ``band``/``band_system``: the magnitudes' band for
+    flux↔magnitude (None: V with the Sun at −26.74; a band name, a measured filter file, or
+    ``"file"``: the file's own filter column; :func:`cssat.optics.passbands.resolve_band`); a
+    table's flux density in Jy is made a magnitude through that band's zero point (AB 3631 Jy;
+    Vega: less Vega's AB magnitude in the band) — ``kind`` becomes ``"magnitude"``,
+    ``meta["converted_from"]`` says how. ``duplicates``: equal time stamps within a camera
+    channel (the whole file when it has no ``channels``) are refused (``"refuse"``) or averaged
+    (``"merge"``: the mean value, the errors combined); channels may share a stamp (both kept);
+    an exact repeat of a row (stamp, channel, value, error) is dropped
+    (``meta["duplicates_dropped"]``). MMT, SCORE and ALCDEF rows are sorted by time; other
+    files must increase.
 
     Errors (:class:`~cssat._checks.FieldError`, exit 2 on the CLI) name the column and the data
     row: a missing column (with the file's columns), an unparsable time, a NaN or infinite value,
     a magnitude outside ±30 (a placeholder such as 99.999), a flux < 0, an uncertainty ≤ 0,
-    a unit or column name that contradicts ``kind``, times that do not increase, an empty file,
-    a file too large for the memory available.
+    a unit, column name or values that contradict ``kind`` (fluxes in a magnitude column,
+    magnitudes in a flux one), times that do not increase, an empty file, a file too large for
+    the memory available.
     """
     kind = choice_param(kind, "kind", KINDS)
     time_format = choice_param(time_format, "time_format", TIME_FORMATS)
@@ -294,7 +307,7 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
             except UnicodeDecodeError:
                 raise FieldError("observations", f"{name}: not a UTF-8 text table (nor FITS)") from None
             fmt = format or F.sniff_format(text[:8192], p.suffix.lstrip("."))
-        _fixed_format(fmt, kind=kind, time_col=time_col, error_col=error_col, time_format=time_format,
+        fixed_format(fmt, kind=kind, time_col=time_col, error_col=error_col, time_format=time_format,
                       time_scale=time_scale, value_col=value_col)
         if fmt == "mmt":
             d = read_mmt(text, name, value_col, object)
@@ -312,7 +325,7 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
                           time_format=time_format, time_scale=time_scale, filter_col=filter_col,
                           observer_col=observer_col, track_col=track_col)
     if d.get("meta", {}).get("flux_unit") == "Jy":  # a spectral flux density: a magnitude through the band's zero point
-        d = _jansky_to_magnitudes(d, band, band_system)
+        d = jansky_to_magnitudes(d, band, band_system)
     lc = ObservedLightCurve(**{k: v for k, v in d.items() if k != "meta"}, meta=d.get("meta", {}),
                             source=str(path) if fmt != "astropy" else "")
     if object is not None and fmt != "score":  # the file names its object: it must be the one asked for
@@ -327,137 +340,4 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
     ecol = error_col or lc.meta.get("error_col") or DEFAULT_ERROR[kind]
     if band is not None:
         lc.band = resolve_band(band, band_system, lc.filters, field="observations.band")
-    return _finish(lc, fmt, duplicates, vcol, tcol, ecol)
-
-
-#: the reading options a fixed format accepts (``None``: unset); any other value contradicts the format
-FIXED_OPTIONS: dict[str, dict[str, tuple]] = {
-    "mmt": {"kind": ("magnitude",), "time_col": (None, "time_utc", "Date Time", ("Date", "Time"), "Date+Time"),
-            "value_col": (None, *MMT_VALUE_COLUMNS), "error_col": (None,), "time_format": ("iso",), "time_scale": ("utc",)},
-    "score": {"kind": ("magnitude",), "time_col": (None, "time_utc", SCORE_COLUMNS["time"]),
-              "value_col": (None, SCORE_COLUMNS["value"]), "error_col": (None, SCORE_COLUMNS["error"]),
-              "time_format": ("iso",), "time_scale": ("utc",)},
-    "alcdef": {"kind": ("magnitude",), "time_col": (None, "time_utc", "JD"), "value_col": (None, "MAG"),
-               "error_col": (None, "MAGERR"), "time_format": ("iso", "jd"), "time_scale": ("utc",)},
-}
-
-
-def _fixed_format(fmt: str, **given: Any) -> None:
-    """Refuse a reading option that contradicts a fixed format (MMT, SCORE, ALCDEF say
-    themselves what their columns, times and kind are); one that agrees — the format's own
-    column name, ``kind='magnitude'`` — is accepted. The error names the option and the values
-    the format allows."""
-    allowed = FIXED_OPTIONS.get(fmt)
-    if allowed is None:
-        return
-    for key, value in given.items():
-        v = tuple(value) if isinstance(value, list) else value
-        if v not in allowed[key]:
-            ok = ", ".join(repr(list(a) if isinstance(a, tuple) else a) for a in allowed[key] if a is not None)
-            raise FieldError(f"observations.{key}", f"a {fmt.upper()} file sets its own: {key}={value!r} contradicts it "
-                             f"(allowed: {ok or 'none'}; or leave it unset)")
-
-
-def _jansky_to_magnitudes(d: dict[str, Any], band: Any, band_system: str) -> dict[str, Any]:
-    """A spectral flux density ``f_ν`` in Jy as magnitudes: ``m_AB = −2.5 log10(f_ν / 3631 Jy)``
-    (Oke & Gunn 1983), in Vega ``m_AB − m_AB(Vega)`` with the band's Vega zero point
-    (:mod:`cssat.optics.passbands`; ``band=None``: V, Vega, cssat's default); the error
-    ``2.5/ln 10 · σ/f_ν``. A flux ≤ 0 has no magnitude: a FieldError naming its row."""
-    from cssat.optics.passbands import AB_ZERO_W_M2_HZ, passband, resolve_band  # heavy: cssat.optics imports torch
-
-    meta = dict(d["meta"])
-    col = meta.get("value_col") or "flux"
-    f = np.asarray(d["values"], dtype=np.float64)
-    bad = np.flatnonzero(~(f > 0))
-    if bad.size:
-        i = int(bad[0])
-        raise FieldError(f"observations.{col}[row {i + 1}]", f"a flux density of {float(f[i])!r} Jy has no magnitude "
-                         "(cssat converts a flux in Jy to a magnitude through the band's zero point)")
-    pb, system = resolve_band(band, band_system, d.get("filters"), field="observations.band") if band is not None \
-        else (passband("V"), "Vega")
-    zero_jy = AB_ZERO_W_M2_HZ / 1e-26
-    m = -2.5 * np.log10(f / zero_jy) - (pb.vega_ab if system == "Vega" else 0.0)
-    e = d.get("errors")
-    meta["converted_from"] = (f"{col} in Jy (f_nu): m = -2.5 log10(F / {zero_jy:g} Jy)"
-                              + (f" - {pb.vega_ab:.4f} (Vega's AB magnitude in {pb.name})" if system == "Vega" else ""))
-    meta["value_col"] = col
-    return {**d, "values": m, "errors": None if e is None else 2.5 / math.log(10) * np.asarray(e) / f,
-            "kind": "magnitude", "magnitude_system": f"{system} ({pb.name}), from a flux density in Jy", "meta": meta}
-
-
-def _finish(lc: ObservedLightCurve, fmt: str, duplicates: str, vcol: str, tcol: str, ecol: str) -> ObservedLightCurve:
-    """Check values and dates, sort (MMT, SCORE, ALCDEF), drop exact repeats of a row, refuse
-    or merge duplicate stamps within a channel (camera channels of one track may share a stamp:
-    they are kept, in file order); every error names the file's own row."""
-    if not len(lc):
-        raise FieldError("observations", "no data rows")
-    check_dates(lc.times_utc, f"observations.{tcol}")
-    if not np.isfinite(lc.values).all():
-        i = int(np.flatnonzero(~np.isfinite(lc.values))[0])
-        raise FieldError(f"observations.{vcol}[row {i + 1}]", f"{float(lc.values[i])!r} is not a finite value (drop the row)")
-    if "converted_from" not in lc.meta:
-        check_kind(lc.values, vcol, lc.kind)
-    if lc.kind == "magnitude":
-        check_magnitudes(lc.values, vcol)
-    if lc.errors is not None and not (np.isfinite(lc.errors) & (lc.errors > 0)).all():
-        i = int(np.flatnonzero(~(np.isfinite(lc.errors) & (lc.errors > 0)))[0])
-        raise FieldError(f"observations.{ecol}[row {i + 1}]", f"an uncertainty must be finite and > 0, got "
-                                                             f"{float(lc.errors[i])!r}")
-    rows = np.arange(len(lc))  # each sample's data row in the file
-    if fmt in ("mmt", "score", "alcdef"):
-        rows = np.argsort(lc.times_utc, kind="stable")
-        lc = lc.rows(rows)
-    step = np.diff(lc.times_utc).astype(np.int64)
-    back = np.flatnonzero(step < 0)
-    if back.size:
-        i = int(back[0]) + 1
-        raise FieldError(f"observations.{tcol}[row {rows[i] + 1}]", f"times must increase: {lc.times_utc[i]} does not "
-                                                                   f"come after {lc.times_utc[i - 1]} (sort the file)")
-    if not (step == 0).any():
-        return lc
-    # equal stamps: compared within each camera channel (all samples one channel when the file has none)
-    chan = np.zeros(len(lc), np.int64) if lc.channels is None else np.unique(np.asarray(lc.channels).astype(str),
-                                                                             return_inverse=True)[1].reshape(-1)
-    t = lc.times_utc.astype(np.int64)
-    order = np.lexsort((np.arange(len(lc)), t, chan))  # by channel, then time, then file order
-    same = (np.diff(t[order]) == 0) & (np.diff(chan[order]) == 0)  # order[k + 1] repeats order[k]'s stamp
-    if not same.any():
-        return lc
-    err = lc.errors if lc.errors is not None else np.zeros(len(lc))
-    exact = same & (np.diff(lc.values[order]) == 0) & (np.diff(err[order]) == 0)
-    if exact.any():  # an exact repeat of a row (same stamp, channel, value, error): the same measurement twice
-        keep = np.ones(len(lc), bool)
-        keep[order[1:][exact]] = False
-        meta = {**lc.meta, "duplicates_dropped": int(exact.sum()) + int(lc.meta.get("duplicates_dropped", 0))}
-        lc, rows = replace(lc.rows(keep), meta=meta), rows[keep]
-        return _finish_duplicates(lc, rows, duplicates, tcol, chan[keep])
-    return _finish_duplicates(lc, rows, duplicates, tcol, chan)
-
-
-def _finish_duplicates(lc: ObservedLightCurve, rows: np.ndarray, duplicates: str, tcol: str,
-                       chan: np.ndarray) -> ObservedLightCurve:
-    """Refuse (``duplicates='refuse'``) or average (``'merge'``: the mean, or the inverse-variance
-    mean and its error) the samples of one channel that share a stamp."""
-    t = lc.times_utc.astype(np.int64)
-    order = np.lexsort((np.arange(len(lc)), t, chan))
-    same = (np.diff(t[order]) == 0) & (np.diff(chan[order]) == 0)
-    if not same.any():
-        return lc
-    if duplicates == "refuse":
-        k = int(np.flatnonzero(same)[0])
-        i, j = order[k + 1], order[k]
-        where = "" if lc.channels is None else f" in channel {lc.channels[i]}"
-        raise FieldError(f"observations.{tcol}[row {rows[i] + 1}]", f"a duplicate time stamp {lc.times_utc[i]}{where} (of "
-                                                                   f"row {rows[j] + 1}; drop it, or read with "
-                                                                   "duplicates='merge' to average them)")
-    group = np.empty(len(lc), np.int64)
-    group[order] = np.r_[0, np.cumsum(~same)]
-    _, first = np.unique(group, return_index=True)
-    first = np.sort(first)  # each group's first sample, in time order
-    if lc.errors is not None:
-        wgt = 1.0 / lc.errors ** 2
-        vals = np.bincount(group, lc.values * wgt) / np.bincount(group, wgt)
-        errs = 1.0 / np.sqrt(np.bincount(group, wgt))
-        return replace(lc.rows(first), values=vals[group[first]], errors=errs[group[first]])
-    vals = np.bincount(group, lc.values) / np.bincount(group)
-    return replace(lc.rows(first), values=vals[group[first]], errors=None)
+    return finish(lc, fmt, duplicates, vcol, tcol, ecol)
