@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
-from cssat.data.formats import _checked, _floats
+from cssat.data.formats import _checked
 from cssat.scene.orbit import _start_datetime
 
 __all__ = ["read_score", "SCORE_COLUMNS", "SATCHECKER_COLUMNS"]
@@ -84,7 +84,12 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
         vals = raw(c)
         if not required and all(v.lower() in MISSING for v in vals):
             return None
-        x = _floats(["nan" if v.lower() in MISSING else v for v in vals], "observations", c)
+        vals = ["nan" if v.lower() in MISSING else v for v in vals]
+        try:
+            x = np.array(vals, dtype=np.float64)
+        except ValueError:
+            i = next(i for i, v in enumerate(vals) if not _is_float(v))
+            raise FieldError(where(c, i), f"not a number: {vals[i]!r}") from None
         if required and not np.isfinite(x).all():
             raise FieldError(where(c, int(np.flatnonzero(~np.isfinite(x))[0])), "no value (an empty field): drop the row")
         return x
@@ -129,6 +134,14 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
         meta["potentially_discrepant_rows"] = disc
     out["meta"] = meta
     return out
+
+
+def _is_float(v: str) -> bool:
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
 
 
 def _first(idx: dict[str, int], key: str, numbers: Any) -> tuple[str, np.ndarray | None] | None:
