@@ -172,8 +172,12 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     detect = freq[sub] >= min_cycles / longest
     hs = harmonic_sum(power[sub], freq[sub])
     z_all, z_det = float(hs.max()), float(hs[detect].max()) if detect.any() else 0.0
-    null = surrogate_fap(t, y, w, cv.Q, trend, resid, freq[sub], detect, z_all, z_det,
-                         mean_run_s=float(np.clip(p_phot, 10 * d_frame, longest / (2 * max(min_cycles, 1.0)))),
+    # the null's noise: the residual of the chosen series where its period is one the detection
+    # covers (>= min_cycles), else of the trend alone (a series of 1-2 cycles and many harmonics
+    # absorbs red noise: its residual is whiter than the noise, and the null too weak)
+    noise_part = resid if p_phot * min_cycles <= longest else y - trend
+    null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, freq[sub], detect, z_all, z_det,
+                         mean_run_s=max(longest / (2 * max(min_cycles, 1.0)), 10 * d_frame),
                          cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max)
     fap_white = cv.fap(rss, m, span * (f_hi - f_lo))
     rep = cv.repeat(fb, m)
@@ -181,6 +185,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     gap = _phase_gap(t, 1.0 / period)
     noise = float(np.median(1.0 / w)) if sigma is not None else scat
     variation_snr = float(np.std(_design(t, fb, m) @ coef)) / noise
+    null["fap_white"] = fap_white
     verdict, why_v = _verdict(null, fap_max, n_cycles, min_cycles, gap, MAX_PHASE_GAP, period, rep, min_repeat, lo, hi,
                               variation_snr)
     periodic = {"periodic": True, "not periodic": False}.get(verdict)

@@ -17,8 +17,10 @@ over-states significance by orders of magnitude on them. The null here is fitted
 4. a Gumbel law fitted to the ``z*`` by moments (the maximum of many nearly independent
    periodogram ordinates: Süveges 2014, MNRAS 440, 2099), its tail at the data's own ``z``.
 
-``L`` is the chosen period, kept between 10 frame steps and a sixth of the longest stretch:
-the noise is kept on the scale the detection is about. Below ``1/n`` the FAP is the fitted
+``L`` is half the longest period detected (``longest / (2 min_cycles)``, a sixth of the longest
+stretch by default; at least 10 frame steps): the noise is kept on every scale the detection
+is about (runs as long as the period itself: a shorter ``L`` whitened red noise and called 39 of
+40 red-noise tracks significant at 0.1). Below ``1/n`` the FAP is the fitted
 tail's extrapolation (reported as such: ``fap_surrogates_exceeding``); its calibration on
 real non-variable tracks and on surrogates of real tracks is in BENCHMARKS.md (issue 46).
 Two grids are scored from the same surrogates: all periods searched, and the periods of at

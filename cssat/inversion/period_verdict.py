@@ -50,9 +50,10 @@ def _why(best: dict[str, Any], alts: list[dict[str, Any]], k_conv: int = 1, n_ma
     return head + ("; " + ", ".join(parts) if parts else "")
 
 
-#: a variation too slow for ``min_cycles`` is "undetermined" only when its rms reaches this many
-#: single-sample noise σ (weaker: "not periodic", MMT's "not variable" after its quadratic detrend)
-MIN_VARIATION_SNR = 1.0
+#: a variation too slow for ``min_cycles`` (no surrogate test tells it from red noise) is
+#: "undetermined" when it beats white noise and its rms reaches this many single-sample noise σ
+#: (weaker: "not periodic", as MMT's "not variable" after its quadratic detrend)
+MIN_VARIATION_SNR = 2.0
 
 
 def _verdict(null: dict[str, Any], fap_max: float, n_cycles: float, min_cycles: float, gap: float, max_gap: float,
@@ -74,14 +75,16 @@ def _verdict(null: dict[str, Any], fap_max: float, n_cycles: float, min_cycles: 
                                     f"(repeat {rep:.2g} < min_repeat {min_repeat:g})")
         return "periodic", (f"P = {period:.6g} s stands out of the track's own noise (FAP {fap:.2g} from {sur}) over "
                             f"{n_cycles:.3g} cycles")
-    if fap_all < fap_max and variation_snr >= MIN_VARIATION_SNR:
-        return "undetermined", (f"the curve varies (FAP {fap_all:.2g}, rms {variation_snr:.2g}× the noise) on the scale "
-                                f"of the track: its best period {period:.6g} s spans {n_cycles:.2g} cycles, fewer than "
-                                f"{min_cycles:g}")
-    slow = (f"; a slow variation (best {period:.6g} s, {n_cycles:.2g} cycles, FAP {fap_all:.2g}) is under the noise "
-            f"(rms {variation_snr:.2g}×)" if fap_all < fap_max else "")
+    slow = n_cycles < min_cycles and null.get("fap_white", 1.0) < fap_max  # more than white noise, too slow to test
+    if slow and variation_snr >= MIN_VARIATION_SNR:
+        return "undetermined", (f"the curve varies (rms {variation_snr:.2g}× the noise) on the scale of the track: its "
+                                f"best period {period:.6g} s spans {n_cycles:.2g} cycles, fewer than {min_cycles:g}, "
+                                "too few to tell a period from a slow change")
+    note = (f"; a variation on the scale of the track (best {period:.6g} s, {n_cycles:.2g} cycles, rms "
+            f"{variation_snr:.2g}× the single-sample noise, under {MIN_VARIATION_SNR:g}×) is not called a period"
+            if slow else "")
     return "not periodic", (f"no period between {lo:.4g} and {hi / max(min_cycles, 1.0):.4g} s ({min_cycles:g}+ cycles) "
-                            f"stands out of the track's own noise (FAP {fap:.2g}, {sur}){slow}")
+                            f"stands out of the track's own noise (FAP {fap:.2g}, {sur}){note}")
 
 
 def _constant(t: np.ndarray, convention: str = "photometric") -> dict[str, Any]:
