@@ -39,7 +39,8 @@ def fixed_format(fmt: str, **given: Any) -> None:
     if allowed is None:
         return
     for key, value in given.items():
-        v = tuple(value) if isinstance(value, list) else value
+        v = tuple(str(x) for x in value) if not isinstance(value, (str, type(None))) and hasattr(value, "__iter__") \
+            else value  # a list (or Hydra's ListConfig) of two columns compares as a tuple
         if v not in allowed[key]:
             ok = ", ".join(repr(list(a) if isinstance(a, tuple) else a) for a in allowed[key] if a is not None)
             raise FieldError(f"observations.{key}", f"a {fmt.upper()} file sets its own: {key}={value!r} contradicts it "
