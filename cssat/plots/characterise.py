@@ -22,13 +22,14 @@ def _with_gaps(t: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.insert(t.astype(float), gap, np.nan), np.insert(v.astype(float), gap, np.nan)
 
 
-def _grouped(alternatives: list[dict[str, Any]], chosen: float, rtol: float = 0.01) -> list[tuple[float, list[str]]]:
+def _grouped(alternatives: list[dict[str, Any]], chosen: float, rtol: float = 0.03,
+             near: float = 0.01) -> list[tuple[float, list[str]]]:
     """The alternatives' periods (s) grouped within ``rtol`` of each other, each with its
-    relations' names; those within ``rtol`` of the ``chosen`` period left out (its own line)."""
+    relations' names; those within ``near`` of the ``chosen`` period left out (its own line)."""
     groups: list[tuple[float, list[str]]] = []
     for alt in sorted(alternatives, key=lambda a: a["period_s"]):
         p = float(alt["period_s"])
-        if not np.isfinite(p) or abs(p / chosen - 1) < rtol:
+        if not np.isfinite(p) or abs(p / chosen - 1) < near:
             continue
         if groups and abs(p / groups[-1][0] - 1) < rtol:
             if alt["relation"] not in groups[-1][1]:
@@ -107,20 +108,24 @@ def characterise_figure(t: np.ndarray, y: np.ndarray, sigma: np.ndarray | None, 
         verdict = res.get("verdict") or ("undetermined" if res["periodic"] is None else
                                           "periodic" if res["periodic"] else "not periodic")
     b.axvline(P, color="tab:red", lw=1.2, label=f"{'chosen' if verdict == 'periodic' else 'best'} {P:.4g} s")
-    for k, (period, names) in enumerate(_grouped(res["alternatives"], P)):
-        b.axvline(period, color="tab:blue", ls=":", lw=0.9)
-        # one label per group of alternatives within 1 % (P/2 and a peak at the same period), the
-        # labels staggered down the panel, so two close groups do not overprint
-        b.text(period, 0.98 - 0.14 * (k % 2), " · ".join(names), fontsize=7, color="tab:blue", rotation=90,
-               va="top", ha="right", transform=b.get_xaxis_transform())
     lo, hi = float(np.min(1.0 / f)), float(np.max(1.0 / f))
+    shown = [a for a in res["alternatives"] if lo <= a["period_s"] <= hi]  # the periodogram's range only
+    for alt in shown:
+        b.axvline(alt["period_s"], color="tab:blue", ls=":", lw=0.9)
+    # one label per group of alternatives within 2 % of the log axis' width (P/2 and a peak at the same
+    # period; two peaks a hair apart), the labels staggered down the panel: no two overprint
+    width = 10 ** (0.02 * np.log10(max(hi / lo, 1.0 + 1e-9))) - 1.0
+    for k, (period, names) in enumerate(_grouped(shown, P, rtol=max(width, 0.01))):
+        left_edge = np.log(period / lo) < 0.04 * np.log(max(hi / lo, 1.0 + 1e-9))  # the label inside the axes
+        b.text(period, 0.98 - 0.14 * (k % 2), " · ".join(names), fontsize=7, color="tab:blue", rotation=90,
+               va="top", ha="left" if left_edge else "right", transform=b.get_xaxis_transform())
     pub_in = pub is not None and lo <= pub <= hi
     if pub is not None:
         b.axvline(pub, color="tab:green", ls="--", lw=1.2,
                   label=f"{who} {pub:.4g} s" if pub_in else None)
         if not pub_in:
             b.plot([], [], color="tab:green", ls="--", label=f"{who} {pub:.4g} s (outside {lo:.3g}–{hi:.3g} s)")
-        b.set_xlim(lo, hi)
+    b.set_xlim(lo, hi)
     b.set_ylim(0.0, 1.6 * float(np.max(p)) if np.max(p) > 0 else 1.0)  # the top third for the labels and the legend
     b.set_xlabel("period (s)")
     b.set_ylabel("Lomb–Scargle power")
