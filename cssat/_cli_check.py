@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-__all__ = ["check", "overrides_of"]
+__all__ = ["check", "check_catalogue", "overrides_of"]
 
 #: options after which the argument list is not overrides, or Hydra's own help and completion
 _SKIP_FLAGS = {"--help", "-h", "--hydra-help", "--info", "-i", "--shell-completion", "-sc", "--config-path", "-cp",
@@ -164,6 +164,37 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
             except (HydraException, ValueError) as err:
                 cause = err.__cause__ or err
                 return f"overrides: {str(cause).splitlines()[0]}"
+    finally:
+        GlobalHydra.instance().clear()
+    return None
+
+
+def check_catalogue(overrides: Sequence[str], config_module: str = "cssat.conf", config_name: str = "config") -> str | None:
+    """A catalogue sweep's settings — ``catalogue.*`` and the characterise groups its rows use
+    (``period.*``, ``observed.*``, ``characterise.*``, ``stages.*``, ``tumbling.*``) — checked
+    once, as every shard will check them (:func:`cssat.catalogue.check_config`), before any job
+    runs: the first mistake as ``"<key>: <what is wrong>"``, or ``None``. The overrides compose
+    with each sweep's first value (the check of :func:`check` passed already)."""
+    from hydra import compose, initialize_config_module  # startup: hydra; this module imports without it
+    from hydra.core.global_hydra import GlobalHydra  # startup: hydra; this module imports without it
+    from hydra.core.override_parser.overrides_parser import OverridesParser  # startup: hydra; this module imports without it
+
+    from cssat._checks import FieldError  # startup: light
+    from cssat.catalogue import check_config  # startup: light (its check imports torch when it runs)
+
+    firsts = []
+    for o in OverridesParser.create().parse_overrides(list(overrides)):
+        values = _values(o)
+        if values is None:
+            continue  # an interval sweep: a sweeper's values, checked by its jobs
+        firsts.append(_text(o, values[0]) if o.is_sweep_override() else o.input_line)
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_module(config_module=config_module, version_base="1.3"):
+            cfg = compose(config_name, overrides=firsts)
+        check_config(cfg)
+    except FieldError as err:
+        return str(err)
     finally:
         GlobalHydra.instance().clear()
     return None

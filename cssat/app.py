@@ -317,6 +317,8 @@ def main() -> None:
     overrides = _cli_check.overrides_of(sys.argv[1:])
     if overrides:  # a mistake on the command line: one line naming the key, exit 2 (not Hydra's text)
         why = _cli_check.check(overrides)
+        if why is None and _last_value(overrides, "catalogue.n_files") is not None:  # a catalogue: its settings, once
+            why = _cli_check.check_catalogue(overrides)
         if why is not None:
             print(f"bad input: {why}", file=sys.stderr)
             sys.exit(2)

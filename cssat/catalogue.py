@@ -34,14 +34,17 @@ import functools
 import glob as _glob
 import hashlib
 import json
+import logging
 import math
 import os
 import time
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
-__all__ = ["characterise_file", "catalogue_files", "listing_sha", "shard_files", "n_shards", "ROW_COLUMNS",
+__all__ = ["characterise_file", "check_config", "catalogue_files", "listing_sha", "shard_files", "n_shards", "ROW_COLUMNS",
            "DEFAULT_SHARD_SIZE", "read_rows", "write_rows", "shard_table", "join_shards", "literal_override", "run"]
+
+log = logging.getLogger("cssat")
 
 #: the columns of a catalogue row, in order (units: seconds; ``fap`` a probability)
 ROW_COLUMNS = ("file", "track", "object_id", "object_name", "verdict", "period_s", "period_err_s", "fap",
@@ -65,7 +68,7 @@ DEFAULT_STAGES = {"period": "auto", "tumbling": "off", "spin": "off"}
 
 def catalogue_files(observations: str | os.PathLike) -> list[str]:
     """The files of a catalogue, sorted, as absolute paths: every regular, non-hidden file of a
-    directory, or the regular files a glob (``*``, ``?``, ``[``) matches. Nothing is interpolated
+    directory, or the regular files a glob (``*``, ``?``, ``[``; ``**`` any depth) matches. Nothing is interpolated
     or expanded but the glob. A :class:`~cssat._checks.FieldError` naming ``observations`` when
     nothing matches."""
     from cssat._checks import FieldError  # startup: cssat._checks is light; kept local like the rest
@@ -77,7 +80,7 @@ def catalogue_files(observations: str | os.PathLike) -> list[str]:
         pattern = os.path.join(value, "*")
     else:
         pattern = value
-        files = [f for f in _glob.glob(pattern) if os.path.isfile(f) and not os.path.basename(f).startswith(".")]
+        files = [f for f in _glob.glob(pattern, recursive=True) if os.path.isfile(f) and not os.path.basename(f).startswith(".")]
     if not files:
         raise FieldError("observations", f"no file matches {pattern!r}")
     return sorted(os.path.abspath(f) for f in files)
@@ -376,6 +379,14 @@ def options_of(cfg: Any) -> dict[str, Any]:
                        "spin": "off"}}
 
 
+def check_config(cfg: Any) -> None:
+    """Every setting a shard of ``cfg`` uses checked (``catalogue.*``, then the rows' groups):
+    a FieldError naming the first bad key. Run once by ``cssat -m`` before the sweep's jobs, and
+    by each shard before its first file."""
+    _catalogue_settings(cfg)
+    _checked(_options(**options_of(cfg)))
+
+
 def run(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     """One shard of a catalogue (``experiment_module`` of a job with ``catalogue.shard`` set; run
     by :func:`cssat.experiments.run_experiment`): the sorted files of ``observations`` (a
@@ -385,9 +396,9 @@ def run(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     (files, ok, failed, periodic; the sweep's shape, for the join)."""
     from cssat._checks import FieldError
 
+    check_config(cfg)  # every setting checked before any file
     cat = _catalogue_settings(cfg)
     options = options_of(cfg)
-    _checked(_options(**options))  # every setting checked before any file
     observations = cfg.get("observations")
     if not observations:
         raise FieldError("observations", "a catalogue needs a directory or glob of light-curve files: observations=<dir>")
@@ -405,6 +416,8 @@ def run(cfg: Any, out_dir: str | Path) -> dict[str, Any]:
     out = Path(out_dir)
     write_rows(out / shard_table(k), rows)
     verdicts = [r["verdict"] for r in rows]
+    log.info("catalogue shard %d of %d: %d files, %d periodic, %d failed -> %s", k, total, len(rows),
+             verdicts.count("periodic"), verdicts.count("failed"), out / shard_table(k))
     return {"psnr": None, "catalogue_shard": k, "catalogue_shard_size": size, "catalogue_n_shards": total,
             "catalogue_n_files": len(files), "catalogue_listing_sha": sha, "catalogue_table": shard_table(k),
             "n_files": len(rows), "n_ok": sum(r["status"] == "ok" for r in rows),

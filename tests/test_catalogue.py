@@ -328,6 +328,38 @@ def test_the_sweep_is_cut_into_shards_and_the_file_names_never_become_overrides(
     assert _compose(["experiment=characterise"]).catalogue.shard_size == C.DEFAULT_SHARD_SIZE
 
 
+def test_another_experiment_s_file_sweep_gives_hydra_each_name_literally(tmp_path):
+    """Outside characterise a directory is still one job per file: each name quoted so that
+    Hydra's parser and OmegaConf give back exactly the file's path (was: ${...} interpolated,
+    backslashes doubled)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from omegaconf import OmegaConf
+
+    from cssat.app import expand_file_sweeps
+
+    names = ["t_${experiment_name}.txt", "h_${oc.env:HOME}.txt", "a\\b.txt", "it's.txt"]
+    for n in names:
+        (tmp_path / n).write_text("x")
+    out = expand_file_sweeps(["-m", "experiment=lightcurve", f"observations={tmp_path}"])
+    o = OverridesParser.create().parse_overrides([out[2]])[0]
+    got = [OmegaConf.to_container(OmegaConf.create({"experiment_name": "lightcurve", "o": getattr(v, "text", v)}),
+                                  resolve=True)["o"] for v in o.sweep_iterator()]  # a quoted value: its text
+    assert got == sorted(str(tmp_path / n) for n in names)
+
+
+def test_a_bad_catalogue_setting_is_refused_before_any_job(tmp_path):
+    from conftest import run_cli
+
+    for i in range(2):
+        mmt_file(tmp_path / f"f{i}.txt", 90080 + i, None, seed=i, n=60)
+    for arg, key in (("catalogue.tumbling=maybe", "catalogue.tumbling: expected true or false"),
+                     ("+period.min_periods=3", "period.min_periods: not an option of estimate_period")):
+        code, lines = run_cli(["-m", "experiment=characterise", f"observations={tmp_path}", arg,
+                               f"hydra.sweep.dir={tmp_path / 'sweep'}"], tmp_path)
+        assert code == 2 and len(lines) == 1 and lines[0].startswith(f"bad input: {key}"), lines
+        assert not (tmp_path / "sweep").exists()
+
+
 def test_a_shard_refuses_a_file_list_that_changed_since_the_sweep_listed_it(tmp_path):
     from cssat._checks import FieldError
 
