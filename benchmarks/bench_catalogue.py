@@ -127,7 +127,8 @@ def main() -> None:
     ap.add_argument("--shard-size", type=int, default=None,
                     help="files a shard (default: 500, or fewer so that each worker gets >= 4 shards)")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--no-real", action="store_true", help="leave out ../shared/real/mmt")
+    ap.add_argument("--real", default=str(REAL_MMT), help="the real MMT-9 tracks (default ../shared/real/mmt)")
+    ap.add_argument("--no-real", action="store_true", help="leave out the real tracks")
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="cssat-catalogue-"))
     try:
@@ -136,8 +137,8 @@ def main() -> None:
         for k, tr in enumerate(make_tracks(args.n, seed=0)):
             write_mmt(tracks / f"synthetic_{k:06d}.txt", tr, k)
         n_real = 0
-        if REAL_MMT.is_dir() and not args.no_real:
-            for f in sorted(REAL_MMT.glob("*.txt")):
+        if Path(args.real).is_dir() and not args.no_real:
+            for f in sorted(Path(args.real).glob("*.txt")):
                 shutil.copy(f, tracks / f"real_{f.name}")
                 n_real += 1
         from cssat.catalogue import catalogue_files
