@@ -162,3 +162,21 @@ def test_astropy_time_and_quantities_keep_their_units():
     with pytest.raises(FieldError, match="sigma"):
         estimate_period(t, y * u.Jy, sigma=0.02 * u.m)
     assert estimate_period(t, y, max_period_s=10 * u.min)["max_period_s"] == pytest.approx(600.0)
+
+
+@pytest.mark.parametrize("P", [40.0, 100.7])
+def test_tracks_days_apart_report_their_fringes_and_a_1sigma_that_covers_them(P):
+    """Two 10-minute tracks three days apart (the hostile pass: 39.92609 ± 0.0000033 s came back
+    for 40.000 s): the cycle count across the gap is ambiguous, the competing fringes are
+    reported with their Δχ² (one fringe apart: P²/gap), and the 1σ reaches the true period."""
+    from cssat.inversion import estimate_period
+
+    rng = np.random.default_rng(1)
+    t = np.r_[np.arange(0, 600, 1.0), 3 * 86400 + np.arange(0, 600, 1.0)]
+    y = 7 + 0.3 * np.sin(2 * np.pi * t / P) + 0.1 * np.sin(4 * np.pi * t / P + 1) + 0.05 * rng.normal(size=t.size)
+    r = estimate_period(t, y)
+    assert r["fringes"] and all(fr["delta_chi2"] < 4 for fr in r["fringes"])
+    gaps = np.array([fr["period_s"] for fr in r["fringes"]]) - r["period_s"]
+    assert np.min(np.abs(np.abs(gaps) / (P * P / (3 * 86400)) - 1)) < 0.05  # the nearest competitor one fringe away
+    assert abs(r["period_s"] - P) <= r["period_err_s"], (r["period_s"], r["period_err_s"])
+    assert any("ambiguous" in w for w in r["warnings"])

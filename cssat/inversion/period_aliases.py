@@ -20,6 +20,8 @@ RELATIVES = (("P/4", 0.25), ("P/3", 1 / 3), ("P/2", 0.5), ("2P", 2.0), ("3P", 3.
 PEAK_MULTIPLES = (0.5, 1, 2, 3, 4)
 #: fringes within this Δχ² of the best are competitors (2σ for one parameter)
 FRINGE_DCHI2 = 4.0
+#: the most trial frequencies in the map of the fringes (a tenth of a fringe each)
+MAX_FRINGE_GRID = 40_000
 
 
 class Aliases:
@@ -93,23 +95,26 @@ class Aliases:
     def fringes(self, f0: float, m: int, rss0: float) -> tuple[float, float, list[tuple[float, float]]]:
         """The least-RSS frequency (Hz) of the ``m``-harmonic series within ``f0 ± 0.5/longest``
         and its RSS (else ``(f0, rss0)``), and the fringes' ``(frequency, rss)`` minima: across
-        gaps the RSS in frequency is a comb of fringes ``1/gap`` apart, and the periodogram's
-        peak may pick a neighbour of the best (a cycle miscounted across the gap). A grid of
-        ``step / min(m, 2)`` of the 2-harmonic RSS, its 5 lowest minima refined with ``m``; only
-        when the track spans over 1.5 stretches."""
+        gaps the RSS in frequency is a comb of fringes ``1/span`` apart, and the periodogram's
+        peak may pick a neighbour of the best (a cycle miscounted across the gap). The comb is
+        mapped by astropy's two-term Lomb–Scargle of the curve less its nuisance model on a grid
+        of a tenth of a fringe (at most :data:`MAX_FRINGE_GRID` points), its 6 deepest minima
+        refined with ``m`` harmonics; only when the track spans over 1.5 stretches."""
+        from astropy.timeseries import LombScargle  # heavy: astropy, only for fringes()
+
         cv = self.cv
-        if float(cv.t[-1] - cv.t[0]) < 1.5 * self.longest:
+        span = float(cv.t[-1] - cv.t[0])
+        if span < 1.5 * self.longest:
             return f0, rss0, []
         ms = min(m, 2)
-        n = int(0.5 * ms / (self.longest * self.step))
-        n_max = 600  # tracks a week apart: ~7 grid points a fringe instead of 20, the 5 lowest refined
-        h = self.step / ms * max(1.0, n / n_max)
-        n = min(n, n_max)
-        grid = f0 + h * np.arange(-n, n + 1)
-        rss = np.array([cv.rss(f, ms) for f in grid])
-        low = np.flatnonzero(np.r_[True, rss[1:] <= rss[:-1]] & np.r_[rss[:-1] <= rss[1:], True])
+        h = max(1.0 / (10 * ms * span), 1.0 / (self.longest * MAX_FRINGE_GRID))
+        grid = f0 + h * np.arange(-int(0.5 / (self.longest * h)), int(0.5 / (self.longest * h)) + 1)
+        grid = grid[grid > 0]
+        power = LombScargle(cv.t, cv.yp / cv.w, None if not cv.known else 1.0 / cv.w, nterms=ms).power(
+            grid, method="fastchi2")
+        top = np.flatnonzero(np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True])
         best, minima = (f0, rss0), []
-        for i in low[np.argsort(rss[low])][:5]:
+        for i in top[np.argsort(power[top])[::-1]][:6]:
             f, r = cv.refine(float(grid[i]), m, h)
             if self.lo <= 1 / f <= self.hi:
                 minima.append((f, r))
