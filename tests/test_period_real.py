@@ -168,7 +168,8 @@ def test_astropy_time_and_quantities_keep_their_units():
 def test_tracks_days_apart_report_their_fringes_and_a_1sigma_that_covers_them(P):
     """Two 10-minute tracks three days apart (the hostile pass: 39.92609 ± 0.0000033 s came back
     for 40.000 s): the cycle count across the gap is ambiguous, the competing fringes are
-    reported with their Δχ² (one fringe apart: P²/gap), and the 1σ reaches the true period."""
+    reported with their Δχ² (one fringe apart: P²/gap), and the 1σ is a fringe wide: the true
+    period within 2σ."""
     from cssat.inversion import estimate_period
 
     rng = np.random.default_rng(1)
@@ -178,5 +179,6 @@ def test_tracks_days_apart_report_their_fringes_and_a_1sigma_that_covers_them(P)
     assert r["fringes"] and all(fr["delta_chi2"] < 4 for fr in r["fringes"])
     gaps = np.array([fr["period_s"] for fr in r["fringes"]]) - r["period_s"]
     assert np.min(np.abs(np.abs(gaps) / (P * P / (3 * 86400)) - 1)) < 0.05  # the nearest competitor one fringe away
-    assert abs(r["period_s"] - P) <= r["period_err_s"], (r["period_s"], r["period_err_s"])
+    assert abs(r["period_s"] - P) <= 2 * r["period_err_s"], (r["period_s"], r["period_err_s"])
+    assert r["period_err_s"] > 0.5 * P * P / (3 * 86400)  # at least half a fringe, not a microsecond
     assert any("ambiguous" in w for w in r["warnings"])

@@ -135,10 +135,13 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     dts = np.diff(t)
     f_harm = 0.5 / max(float(np.percentile(dts[dts > 0], 10)), 1e-300)  # the harmonics' ceiling: the finer steps' Nyquist
     f_lo, f_hi = 1.0 / hi, 1.0 / lo
-    step = 1.0 / (spp * span)
-    check_grid(int((f_hi - f_lo) / step) + 1, span, lo, "max_period_s" if min_period_s is None else "min_period_s")
-    freq = f_lo + step * np.arange(int((f_hi - f_lo) / step) + 1)
-    power, peaks = _periodogram_peaks(t, cv.yp / w, None if sigma is None else 1.0 / w, freq, span, n_peaks)
+    step = 1.0 / (spp * span)  # the refinement's scale: a tenth of the whole span's peak width
+    multi = span >= 1.5 * longest  # stretches far apart: the grid resolves one stretch's peak, fringes() the comb
+    grid_step = 1.0 / (spp * longest) if multi else step
+    check_grid(int((f_hi - f_lo) / grid_step) + 1, longest, lo, "max_period_s" if min_period_s is None else "min_period_s")
+    freq = f_lo + grid_step * np.arange(int((f_hi - f_lo) / grid_step) + 1)
+    power, peaks = _periodogram_peaks(t, cv.yp / w, None if sigma is None else 1.0 / w, freq, span, n_peaks,
+                                      seg if multi else None)
     search = Aliases(cv, lo, hi, step, max_harmonics, f_harm, longest, m_fixed)
     cands = search.of_peaks(peaks)
     if not cands:
@@ -168,15 +171,15 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     k_conv = 2 if convention == "double_peaked" and n_max == 1 else 1
     period, period_err = k_conv * p_phot, k_conv * err_phot
     # the false-alarm probability from the track's own noise (surrogates), over all periods and over the well-sampled ones
-    sub = slice(None, None, max(1, spp // SURROGATE_SPP))  # the null's grid: about SURROGATE_SPP points a peak
-    detect = freq[sub] >= min_cycles / longest
-    hs = harmonic_sum(power[sub], freq[sub])
+    fnull, pnull = _null_grid(t, cv.yp / w, freq, power, spp, multi)
+    detect = fnull >= min_cycles / longest
+    hs = harmonic_sum(pnull, fnull)
     z_all, z_det = float(hs.max()), float(hs[detect].max()) if detect.any() else 0.0
     # the null's noise: the residual of the chosen series where its period is one the detection
     # covers (>= min_cycles), else of the trend alone (a series of 1-2 cycles and many harmonics
     # absorbs red noise: its residual is whiter than the noise, and the null too weak)
     noise_part = resid if p_phot * min_cycles <= longest else y - trend
-    null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, freq[sub], detect, z_all, z_det,
+    null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, fnull, detect, z_all, z_det,
                          mean_run_s=max(longest / (2 * max(min_cycles, 1.0)), 10 * d_frame),
                          cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max)
     fap_white = cv.fap(rss, m, span * (f_hi - f_lo))
@@ -217,6 +220,19 @@ def _is_magnitude(flux: Any, y: np.ndarray) -> bool:
     if unit:
         return "mag" in unit
     return bool(np.all(np.abs(y) < 40) and np.ptp(y) < 15 and np.median(y) > 1e-3)
+
+
+def _null_grid(t: np.ndarray, resid: np.ndarray, freq: np.ndarray, power: np.ndarray, spp: int,
+               multi: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The null's grid (Hz), the search's thinned to about :data:`SURROGATE_SPP` points a peak,
+    and the data's Lomb–Scargle power of the whole curve on it (the surrogates' statistic;
+    for stretches far apart the search's own power is the stretches' sum, recomputed here)."""
+    from astropy.timeseries import LombScargle  # heavy: astropy, only for _null_grid()
+
+    sub = slice(None, None, max(1, spp // SURROGATE_SPP))
+    if not multi:
+        return freq[sub], power[sub]
+    return freq[sub], LombScargle(t, resid).power(freq[sub], method="fast", assume_regular_frequency=True)
 
 
 def _fit(cv: Any, f: float, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -328,17 +344,30 @@ def _search_range(t: np.ndarray, seg: np.ndarray, zp: Any, min_period_s: float |
 
 
 def _periodogram_peaks(t: np.ndarray, resid: np.ndarray, dy: np.ndarray | None, freq: np.ndarray, span: float,
-                       n_peaks: int) -> tuple[np.ndarray, list[float]]:
+                       n_peaks: int, seg: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
     """astropy's Lomb–Scargle of ``resid (T,)`` (the curve less its nuisance model; ``dy`` its 1σ
-    or ``None``) on the regular grid ``freq (F,)`` Hz: the power, and the ``n_peaks`` strongest
-    local maxima more than ``1.5/span`` apart, strongest first."""
+    or ``None``) on the regular grid ``freq (F,)`` Hz — with ``seg (T,)`` given, the stretches'
+    own periodograms summed, weighted by their samples (the envelope of the fringes between
+    stretches far apart, which a grid of the stretch's resolution cannot sample) —: the power,
+    and the ``n_peaks`` strongest local maxima more than ``1.5/span`` apart, strongest first."""
     from astropy.timeseries import LombScargle  # heavy: astropy, only for _periodogram_peaks()
 
-    power = LombScargle(t, resid, dy).power(freq, method="fast", assume_regular_frequency=True)
+    sep = 1.5 / span if seg is None else 1.5 * (freq[1] - freq[0]) * SURROGATE_SPP * 2  # a peak's width apart
+    if seg is None:
+        power = LombScargle(t, resid, dy).power(freq, method="fast", assume_regular_frequency=True)
+    else:
+        power, n = np.zeros(len(freq)), 0
+        for k in np.unique(seg):
+            on = seg == k
+            if on.sum() >= MIN_SAMPLES and np.ptp(resid[on]) > 0:
+                power += on.sum() * LombScargle(t[on], resid[on], None if dy is None else dy[on]).power(
+                    freq, method="fast", assume_regular_frequency=True)
+                n += on.sum()
+        power = power / max(n, 1)
     is_max = np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True]
     peaks: list[float] = []
     for i in np.flatnonzero(is_max)[np.argsort(power[is_max])[::-1]]:
-        if all(abs(freq[i] - p) > 1.5 / span for p in peaks):
+        if all(abs(freq[i] - p) > sep for p in peaks):
             peaks.append(float(freq[i]))
         if len(peaks) == n_peaks:
             break

@@ -98,7 +98,7 @@ class Aliases:
         gaps the RSS in frequency is a comb of fringes ``1/span`` apart, and the periodogram's
         peak may pick a neighbour of the best (a cycle miscounted across the gap). The comb is
         mapped by astropy's two-term Lomb–Scargle of the curve less its nuisance model on a grid
-        of a tenth of a fringe (at most :data:`MAX_FRINGE_GRID` points), its 6 deepest minima
+        of a tenth of a fringe (at most :data:`MAX_FRINGE_GRID` points), its 10 deepest minima
         refined with ``m`` harmonics; only when the track spans over 1.5 stretches."""
         from astropy.timeseries import LombScargle  # heavy: astropy, only for fringes()
 
@@ -114,7 +114,7 @@ class Aliases:
             grid, method="fastchi2")
         top = np.flatnonzero(np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True])
         best, minima = (f0, rss0), []
-        for i in top[np.argsort(power[top])[::-1]][:6]:
+        for i in top[np.argsort(power[top])[::-1]][:10]:
             f, r = cv.refine(float(grid[i]), m, h)
             if self.lo <= 1 / f <= self.hi:
                 minima.append((f, r))
