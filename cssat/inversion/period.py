@@ -56,6 +56,7 @@ stationary over a period (red or white); magnitudes and fluxes both work (the se
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -66,7 +67,7 @@ from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error
 from cssat.inversion.period_null import count_maxima, harmonic_sum, surrogate_fap
 from cssat.inversion.period_verdict import _constant, _verdict, _warnings, _why
 
-__all__ = ["estimate_period", "light_curve_scatter", "CONVENTIONS"]
+__all__ = ["estimate_period", "light_curve_scatter", "CONVENTIONS", "convention_for"]
 
 MIN_SAMPLES = 12
 #: the period conventions: the light curve's own period, or the full turn of a two-maxima body
@@ -74,7 +75,7 @@ CONVENTIONS = ("photometric", "double_peaked")
 #: a fold with an empty stretch of phase over this fraction of a cycle does not show its period
 MAX_PHASE_GAP = 0.25
 #: the surrogates' periodograms sample each peak this often (the data's statistic on the same grid)
-SURROGATE_SPP = 5
+SURROGATE_SPP = 3
 
 
 def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: Any = None,
@@ -220,6 +221,15 @@ def _is_magnitude(flux: Any, y: np.ndarray) -> bool:
     if unit:
         return "mag" in unit
     return bool(np.all(np.abs(y) < 40) and np.ptp(y) < 15 and np.median(y) > 1e-3)
+
+
+def convention_for(name: Any) -> str:
+    """The period convention of an object by its catalogue name: ``double_peaked`` for a rocket
+    body (``R/B``, ``ROCKET``, ``AKM``/``PKM`` stages: two maxima a turn, the full turn reported
+    — MMT's convention), else ``photometric`` (payloads and debris: the light curve's own
+    period, as MMT reports them too)."""
+    n = str(name or "").upper()
+    return "double_peaked" if ("R/B" in n or "ROCKET" in n or re.search(r"\b(AKM|PKM)\b", n)) else "photometric"
 
 
 def _null_grid(t: np.ndarray, resid: np.ndarray, freq: np.ndarray, power: np.ndarray, spp: int,

@@ -42,17 +42,18 @@ class Aliases:
         """The highest harmonic of ``f`` under the finer steps' Nyquist."""
         return max(1, min(self.cap, int(self.f_harm / f)))
 
-    def own(self, P: float, m0: int, k: float = 1.0) -> dict[str, Any] | None:
+    def own(self, P: float, m0: int, k: float = 1.0, refine: bool = True) -> dict[str, Any] | None:
         """The period ``P`` (s) with its own least-BIC harmonics searched from ``m0`` (or the
-        fixed number scaled by ``k``), refined within a step / max(k, 1); None outside the range."""
+        fixed number scaled by ``k``), refined within a step / max(k, 1) (``refine``); None
+        outside the range."""
         if not self.lo <= P <= self.hi:
             return None
-        key = (round(P, 9), m0, round(k, 6))
+        key = (round(P, 9), m0, round(k, 6), refine)
         if key not in self._own:
-            self._own[key] = self._own_fit(P, m0, k)
+            self._own[key] = self._own_fit(P, m0, k, refine)
         return dict(self._own[key])
 
-    def _own_fit(self, P: float, m0: int, k: float) -> dict[str, Any]:
+    def _own_fit(self, P: float, m0: int, k: float, refine: bool = True) -> dict[str, Any]:
         cv = self.cv
         m_max = min(max(1, math.ceil(k)) * self.max_harmonics, self.harmonics_at(1 / P))
         if self.m_fixed is not None:
@@ -60,26 +61,31 @@ class Aliases:
             c = cv.score(1 / P, m)
         else:
             c = cv.best_near(1 / P, max(1, min(m0, m_max)), m_max)
+        if not refine:
+            return c
         f, r = cv.refine(1 / P, c["n_harmonics"], self.step / max(k, 1.0))
         return {**c, "period_s": 1 / f, "rss": r, "bic": cv.bic(r, c["n_harmonics"])}
 
     def of_peaks(self, peaks: list[float]) -> list[dict[str, Any]]:
         """Candidates of each periodogram peak ``f`` (Hz): the periods ``k/f``, ``k`` in
-        :data:`PEAK_MULTIPLES`, each with its own harmonics (``peak``: the peak's rank)."""
+        :data:`PEAK_MULTIPLES` of the refined peak, each with its own harmonics, not refined
+        again (``peak``: the peak's rank; :meth:`settle` refines the chosen one)."""
         cands = []
         for j, f in enumerate(peaks):
             m0 = self.m_fixed or self.cv.best_m(f, min(self.max_harmonics, self.harmonics_at(f)))
             f_ref, r_ref = self.cv.refine(f, m0, self.step)
             f_ref, _, _ = self.fringes(f_ref, m0, r_ref)
             for k in PEAK_MULTIPLES:
-                c = self.own(k / f_ref, max(1, int(round(k * m0))), k)
+                c = self.own(k / f_ref, max(1, int(round(k * m0))), k, refine=False)
                 if c is not None:
                     cands.append({**c, "peak": j, "k": k})
         return cands
 
     def settle(self, best: dict[str, Any], cands: list[dict[str, Any]]) -> dict[str, Any]:
         """The least-BIC among ``best`` and its :data:`RELATIVES` (each with its own harmonics,
-        refined), repeated while a relative wins (at most three times); winners join ``cands``."""
+        refined), repeated while a relative wins (at most three times); winners join ``cands``.
+        ``best`` itself is refined first (its relatives are)."""
+        best = {**best, **(self.own(best["period_s"], best["n_harmonics"], best.get("k", 1)) or {})}
         for _ in range(3):
             rel = [self.own(best["period_s"] * x, max(1, int(round(best["n_harmonics"] * x))), best.get("k", 1) * x)
                    for _, x in RELATIVES]

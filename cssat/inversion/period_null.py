@@ -52,7 +52,7 @@ EULER_GAMMA = 0.5772156649015329
 HARMONICS = 4
 #: surrogates are drawn in rounds of this many; after the first and second round the draws stop
 #: when the verdict is beyond doubt (:func:`_decided`)
-EARLY = 8
+EARLY = 6
 
 
 def _bootstrap(r: np.ndarray, mean_run: float, rng: np.random.Generator) -> np.ndarray:

@@ -241,7 +241,7 @@ class Observed(ForwardModel):
         ``variation_over_noise`` first (what ``stages.tumbling: auto`` asks of the period stage)."""
         with self._failure():
             self.metrics["variation_over_noise"] = variation_over_noise(self.t, self.y, self.sig, self.tracks)
-            self.res = period_stage(run, self.opt, self.t, self.y, self.sig, self.tracks, self.metrics)
+            self.res = period_stage(run, self.opt, self.t, self.y, self.sig, self.tracks, self.metrics, self.lc.channels)
             tumbling_stage(run, self.opt, self.t, self.y, self.sig, self.res, self.metrics)
             spin_stage(run, self.cfg, self.opt, self.lc, self.t, self.res, self.metrics)
 
@@ -262,7 +262,7 @@ class Observed(ForwardModel):
         if self.per_track:
             write_csv(run.out_dir / "tracks.csv", self.per_track)
         if res is not None:
-            model, trend = fitted_model(t, y, res, int(self.opt["period"].get("detrend", 1)), lc.track_ids())
+            model, trend = fitted_model(t, y, res, int(self.opt["period"].get("detrend", 2)), lc.track_ids(), lc.channels)
             arrays.update(model=model, trend=trend, frequency_hz=res["periodogram"]["frequency_hz"],
                           power=res["periodogram"]["power"])
             write_csv(run.out_dir / "alternatives.csv", res["alternatives"] or [{"relation": "none"}])

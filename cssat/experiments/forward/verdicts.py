@@ -115,21 +115,29 @@ def _period_error(err: FieldError) -> FieldError:
 
 
 def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
-                 tracks: np.ndarray, m: dict[str, Any]) -> dict[str, Any] | None:
+                 tracks: np.ndarray, m: dict[str, Any], channels: np.ndarray | None = None) -> dict[str, Any] | None:
     """The period stage: the whole selection (its tracks' offsets and slopes fitted), and, when
     it holds several tracks, each track apart (``tracks.csv``); the whole may be out of reach
     (tracks days apart: too many trial frequencies), the tracks then answer alone. Records
     ``verdict`` (:data:`VERDICTS`), ``why``, ``periodic`` (true, false or null: undetermined),
     the period and its 1σ (s), ``fap``, ``repeat``, ``warnings`` (one string, ``; ``-joined) and
     ``period_choice`` (why this period and not its multiples). estimate_period's FieldErrors
-    name their key: ``period.<option>`` or ``observations``. Returns
+    name their key: ``period.<option>`` or ``observations``. ``channels (T,)``: each sample's
+    camera channel (its own zero point); ``period.convention`` null: by the object's name
+    (:func:`~cssat.inversion.period.convention_for`: the full turn of a rocket body). Returns
     :func:`~cssat.inversion.estimate_period`'s result (``None``: off or out of reach)."""
     from cssat.inversion import estimate_period  # heavy: cssat.inversion imports torch
 
     if opt["modes"]["period"] == "off":
         m.update(stage_period="off", verdict="undetermined", why="the period stage is off (stages.period=off)")
         return None
+    from cssat.inversion.period import convention_for  # heavy: cssat.inversion imports torch
+
     kw = dict(opt["period"])
+    kw.setdefault("convention", convention_for(m.get("object_name")))
+    m["period_convention"] = kw["convention"]
+    if channels is not None and len(set(np.asarray(channels).tolist())) > 1:
+        kw["zero_points"] = np.asarray(channels)
     res, why_not = None, None
     with run_.stage("period"):
         try:
@@ -164,8 +172,9 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
                  stage_period=f"skipped (whole curve): {why_not} (set period.min_period_s and period.max_period_s); "
                               "see tracks.csv")
         return None
-    keys = ("periodic", "period_s", "period_err_s", "fap", "repeat", "best_period_s", "best_period_err_s", "chi2_per_sample",
-            "model_fits", "n_harmonics", "n_cycles", "min_period_s", "max_period_s")
+    keys = ("periodic", "period_s", "period_err_s", "fap", "fap_all", "fap_white", "repeat", "best_period_s",
+            "best_period_err_s", "photometric_period_s", "n_maxima", "chi2_per_sample", "model_fits", "n_harmonics",
+            "n_cycles", "min_period_s", "max_period_s", "cadence_s", "variation_snr")
     m.update({k: res.get(k) for k in keys})
     verdict = period_verdict(res)
     m.update(verdict=verdict, why=period_why(res, kw), period_choice=res.get("why"))
@@ -199,7 +208,8 @@ def per_track(t: np.ndarray, y: np.ndarray, sig: np.ndarray | None, tracks: np.n
                        why=f"{int(on.sum())} samples, under characterise.min_samples ({min_samples})")
         else:
             try:
-                r = estimate_period(t[on], y[on], sigma=None if sig is None else sig[on], **kw)
+                kw_on = {**kw, "zero_points": kw["zero_points"][on]} if "zero_points" in kw else kw
+                r = estimate_period(t[on], y[on], sigma=None if sig is None else sig[on], **kw_on)
             except FieldError as err:
                 row.update(status=f"failed: {_period_error(err)}", verdict="undetermined", periodic=None, period_s=None,
                            why=str(_period_error(err)))
@@ -338,15 +348,18 @@ def compare_geometry(sc: Any, lc: Any, m: dict[str, Any]) -> None:
 
 
 def fitted_model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int,
-                 tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The chosen Fourier series with each track's offset and trend at ``t``, and that offset
-    and trend alone (the fold shows the curve less it)."""
+                 tracks: np.ndarray, channels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The chosen Fourier series (at its photometric period, the one its harmonics count) with
+    each track's trend and each channel's zero point at ``t``, and that trend and offset alone
+    (the fold shows the curve less it)."""
     from cssat.inversion.fourier import _Curve, _design  # heavy: cssat.inversion.fourier imports torch
 
-    if not np.isfinite(res["best_period_s"]):
+    P = res.get("photometric_period_s", res["best_period_s"])
+    if not np.isfinite(P):
         flat = np.full_like(y, np.mean(y))
         return flat, flat
-    cv = _Curve(t, y, np.ones_like(y), np.unique(tracks, return_inverse=True)[1].reshape(-1), detrend, False)
-    X = np.concatenate([cv.Q, _design(t, 1.0 / res["best_period_s"], res["n_harmonics"])], 1)
+    zp = None if channels is None or len(set(np.asarray(channels).tolist())) < 2 else np.asarray(channels)
+    cv = _Curve(t, y, np.ones_like(y), np.unique(tracks, return_inverse=True)[1].reshape(-1), detrend, False, zp)
+    X = np.concatenate([cv.Q, _design(t, 1.0 / P, res["n_harmonics"])], 1)
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     return X @ coef, cv.Q @ coef[:cv.q]
