@@ -169,7 +169,7 @@ class _Curve:
         from scipy.optimize import minimize_scalar  # heavy: scipy.optimize, only for refine()
 
         res = minimize_scalar(lambda x: self.rss(x, m), bounds=(f - step, f + step), method="bounded",
-                              options={"xatol": step * 1e-3})
+                              options={"xatol": step * 1e-5})
         c0 = self.rss(f, m)
         return (float(res.x), float(res.fun)) if res.fun <= c0 else (f, c0)
 

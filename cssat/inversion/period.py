@@ -42,7 +42,10 @@ photometry) with its defaults:
 8. **Uncertainties.** ``period_err_s`` from the curvature of χ² in frequency (Δχ² = 1), with
    ``sigma`` scaled by √(χ²/ν) when the model does not fit to the noise, else with the
    residual's own scatter; across gaps, the cycle-count fringes within Δχ² 4 of the best are
-   reported (``fringes``) and the 1σ widened to reach the farthest. ``chi2_per_sample`` is
+   reported (``fringes``) and the 1σ widened to reach the farthest; and where the stretches
+   alone (each with its own phase) pin the frequency to no better than a quarter of a fringe,
+   the cycle count is not fixed (``cycle_count``): the period and its 1σ are theirs (the
+   envelope of the fringes: the least-χ² fringe is one of many alike). ``chi2_per_sample`` is
    χ²/ν against ``sigma``, or, without it, against the point-to-point scatter of the track;
    > 3 sets ``model_fits`` false and warns (a glinting or changing curve the series misses).
    ``repeat`` (the even cycles' series predicting the odd ones) is reported as a diagnostic;
@@ -63,7 +66,7 @@ import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.fourier import _Curve, _design, _vector, check_grid, frame_step, light_curve_scatter, stretches
-from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error
+from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error, stretch_fit
 from cssat.inversion.period_null import count_maxima, harmonic_sum, surrogate_fap
 from cssat.inversion.period_verdict import _constant, _verdict, _warnings, _why
 
@@ -76,6 +79,9 @@ CONVENTIONS = ("photometric", "double_peaked")
 MAX_PHASE_GAP = 0.25
 #: the surrogates' periodograms sample each peak this often (the data's statistic on the same grid)
 SURROGATE_SPP = 3
+#: across gaps the cycle count is fixed when the stretches alone pin the frequency to under this
+#: fraction of a fringe (1σ); else the 1σ is theirs (the fringes are not told apart)
+FRINGE_FIXED = 0.25
 
 
 def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s: Any = None,
@@ -106,7 +112,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     ``alternatives`` (dicts: ``relation`` — ``"P/4"``, ``"P/3"``, ``"P/2"``, ``"2P"``, ``"3P"``
     or ``"peak"`` —, ``period_s``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``,
     ``delta_bic``), ``fringes`` (cycle counts across gaps within Δχ² 4: ``period_s``,
-    ``delta_chi2``), ``why``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``, ``model_fits``,
+    ``delta_chi2``), ``cycle_count`` (``one stretch``, ``fixed`` or ``ambiguous (…)``), ``why``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``, ``model_fits``,
     ``n_cycles``, ``min_period_s``/``max_period_s``, ``cadence_s``, ``f0_period_s``,
     ``doubled``, ``warnings`` (list of str), ``noise_sigma`` and ``periodogram``
     (``frequency_hz``, ``power``)."""
@@ -143,11 +149,13 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     freq = f_lo + grid_step * np.arange(int((f_hi - f_lo) / grid_step) + 1)
     power, peaks = _periodogram_peaks(t, cv.yp / w, None if sigma is None else 1.0 / w, freq, span, n_peaks,
                                       seg if multi else None)
-    search = Aliases(cv, lo, hi, step, max_harmonics, f_harm, longest, m_fixed)
+    search = Aliases(cv, lo, hi, step, max_harmonics, f_harm, longest, m_fixed, grid_step)
     cands = search.of_peaks(peaks)
     if not cands:
         raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
                          f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
+    for c in sorted(cands, key=lambda c: c["bic"])[:3]:  # the leaders refined (ĉ below is the best refined fit's)
+        c.update(search.own(c["period_s"], c["n_harmonics"], c.get("k", 1)) or {})
     cv.overdispersion(cands)  # quasi-likelihood: χ² in units of the best candidate's χ²/ν when no series fits to σ
     best = search.settle(min(cands, key=lambda c: c["bic"]), cands)
     f_b, r_b, minima = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])
@@ -167,6 +175,13 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
                if abs(f - fb) > 1e-9 * fb and (r - rss) / noise2 < FRINGE_DCHI2]
     if fringes:  # the cycle count across the gaps is ambiguous: the 1σ reaches the farthest competitor
         err_phot = max(err_phot, max(abs(fr["period_s"] - p_phot) for fr in fringes))
+    cycle_count = "one stretch"
+    if multi:  # is the cycle count across the gaps fixed? only if the stretches alone pin f to well under a fringe
+        f_inc, sig_inc = stretch_fit(cv, fb, m, 1.0 / (spp * longest), detrend)
+        fringes_per_sigma = sig_inc * span
+        cycle_count = "fixed" if fringes_per_sigma < FRINGE_FIXED else f"ambiguous ({fringes_per_sigma:.3g} fringes a 1σ)"
+        if fringes_per_sigma >= FRINGE_FIXED:  # the least-χ² fringe is one of many alike: the envelope's centre instead
+            p_phot, err_phot = 1.0 / f_inc, max(err_phot, sig_inc / f_inc ** 2)
     coef, cov, trend, resid = _fit(cv, fb, m)
     n_max = count_maxima(coef, cov, fb, m, magnitudes=_is_magnitude(flux, y))
     k_conv = 2 if convention == "double_peaked" and n_max == 1 else 1
@@ -195,8 +210,11 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     periodic = {"periodic": True, "not periodic": False}.get(verdict)
     alts = search.alternatives(best, p_phot, cands, len(peaks), None if sigma is not None else scat)
     warns, model_fits = _warnings(period, lo, hi, longest, step, alts, chi2_n, m)
+    if cycle_count.startswith("ambiguous"):
+        warns.append(f"the cycle count across the gaps is not fixed: the stretches alone give P to ±{err_phot:.3g} s, "
+                     f"{cycle_count}; the 1σ is theirs")
     if fringes:
-        warns.append("the cycle count across the gaps is ambiguous: " + ", ".join(
+        warns.append("the fringes across the gaps within Δχ² 4: " + ", ".join(
             f"{fr['period_s']:.8g} s (Δχ² {fr['delta_chi2']:.2g})" for fr in fringes) + "; the 1σ reaches the farthest")
     nan = float("nan")
     ok = verdict == "periodic"
@@ -205,7 +223,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
             "photometric_period_s": p_phot, "convention": convention, "n_maxima": int(n_max),
             "fap": null["fap"], "fap_all": null["fap_all"], "fap_surrogates_exceeding": null["exceeding"],
             "n_surrogates": null["n"], "fap_white": fap_white, "repeat": rep, "variation_snr": variation_snr,
-            "best_period_s": period, "best_period_err_s": period_err, "alternatives": alts, "fringes": fringes,
+            "best_period_s": period, "best_period_err_s": period_err, "alternatives": alts, "fringes": fringes, "cycle_count": cycle_count,
             "why": _why(best, alts, k_conv, n_max), "n_harmonics": m, "chi2": float(chi2),
             "chi2_per_sample": float(chi2_n), "model_fits": model_fits, "n_cycles": n_cycles,
             "min_period_s": float(lo), "max_period_s": float(hi), "cadence_s": float(d_frame),

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Aliases", "RELATIVES", "period_error"]
+__all__ = ["Aliases", "RELATIVES", "period_error", "stretch_fit"]
 
 #: the relatives of the chosen period that compete with it and are reported (name, factor)
 RELATIVES = (("P/4", 0.25), ("P/3", 1 / 3), ("P/2", 0.5), ("2P", 2.0), ("3P", 3.0))
@@ -33,9 +33,10 @@ class Aliases:
     cap = 24  # harmonics of the longest candidate (49 columns)
 
     def __init__(self, cv: Any, lo: float, hi: float, step: float, max_harmonics: int, f_harm: float, longest: float,
-                 m_fixed: int | None = None):
+                 m_fixed: int | None = None, grid_step: float | None = None):
         self.cv, self.lo, self.hi, self.step, self.max_harmonics, self.f_harm = cv, lo, hi, step, max_harmonics, f_harm
         self.longest, self.m_fixed = longest, m_fixed
+        self.grid_step = step if grid_step is None else grid_step  # the periodogram's (a peak is this far off at most)
         self._own: dict[tuple, dict[str, Any]] = {}  # own()'s fits by (period, harmonics, multiple)
 
     def harmonics_at(self, f: float) -> int:
@@ -73,8 +74,7 @@ class Aliases:
         cands = []
         for j, f in enumerate(peaks):
             m0 = self.m_fixed or self.cv.best_m(f, min(self.max_harmonics, self.harmonics_at(f)))
-            f_ref, r_ref = self.cv.refine(f, m0, self.step)
-            f_ref, _, _ = self.fringes(f_ref, m0, r_ref)
+            f_ref, _ = self.cv.refine(f, m0, self.grid_step)  # a fringe near; the chosen one's are searched at the end
             for k in PEAK_MULTIPLES:
                 c = self.own(k / f_ref, max(1, int(round(k * m0))), k, refine=False)
                 if c is not None:
@@ -104,7 +104,7 @@ class Aliases:
         gaps the RSS in frequency is a comb of fringes ``1/span`` apart, and the periodogram's
         peak may pick a neighbour of the best (a cycle miscounted across the gap). The comb is
         mapped by astropy's two-term Lomb–Scargle of the curve less its nuisance model on a grid
-        of a tenth of a fringe (at most :data:`MAX_FRINGE_GRID` points), its 10 deepest minima
+        of a tenth of a fringe (at most :data:`MAX_FRINGE_GRID` points about ``f0``), its 10 deepest minima
         refined with ``m`` harmonics; only when the track spans over 1.5 stretches."""
         from astropy.timeseries import LombScargle  # heavy: astropy, only for fringes()
 
@@ -113,8 +113,9 @@ class Aliases:
         if span < 1.5 * self.longest:
             return f0, rss0, []
         ms = min(m, 2)
-        h = max(1.0 / (10 * ms * span), 1.0 / (self.longest * MAX_FRINGE_GRID))
-        grid = f0 + h * np.arange(-int(0.5 / (self.longest * h)), int(0.5 / (self.longest * h)) + 1)
+        h = 1.0 / (10 * ms * span)  # a tenth of the second harmonic's fringe
+        n = min(int(0.5 / (self.longest * h)), MAX_FRINGE_GRID // 2)  # the stretch's peak width, or the fringes nearest
+        grid = f0 + h * np.arange(-n, n + 1)
         grid = grid[grid > 0]
         power = LombScargle(cv.t, cv.yp / cv.w, None if not cv.known else 1.0 / cv.w, nterms=ms).power(
             grid, method="fastchi2")
@@ -165,3 +166,31 @@ def period_error(cv: Any, best: dict[str, Any], step: float, chi2_n: float, nu: 
     noise2 = max(chi2_n, 1.0) if weighted else max(rss, cv.floor) / nu  # σ² per unit of RSS
     sig_f = max(math.sqrt(2.0 * noise2 / curv) if curv > 0 else float("inf"), step * 1e-5)
     return sig_f / fb ** 2
+
+
+def stretch_fit(cv: Any, f: float, m: int, step: float, detrend: int) -> tuple[float, float]:
+    """The frequency (Hz) and its 1σ from the stretches alone: each contiguous stretch
+    (``cv.seg``) fitted with its own phases (its own series and nuisance model), their RSS summed
+    and minimised within ``f ± 3 step``, its curvature in frequency giving the 1σ (Δχ² = 1, the
+    scale from the summed residual). Across gaps the cycle count is fixed only where this 1σ is
+    well under a fringe (``1/span``); otherwise this, the fringes' envelope, is the estimate."""
+    from scipy.optimize import minimize_scalar  # heavy: scipy.optimize, only for stretch_fit()
+
+    from cssat.inversion.fourier import _Curve
+
+    parts = []
+    for k in np.unique(cv.seg):
+        on = cv.seg == k
+        if on.sum() >= 2 * m + 2 * (detrend + 1) + 3:
+            parts.append(_Curve(cv.t[on], cv.y[on], cv.w[on], np.zeros(int(on.sum()), dtype=np.int64), detrend, cv.known))
+    if not parts:
+        return f, float("inf")
+    total = lambda x: sum(p.rss(x, m) for p in parts)  # noqa: E731
+    res = minimize_scalar(total, bounds=(f - 3 * step, f + 3 * step), method="bounded", options={"xatol": step * 1e-4})
+    f_inc = float(res.x) if res.fun <= total(f) else f
+    h = step / 10
+    rss = [total(f_inc + d) for d in (-h, 0.0, h)]
+    curv = (rss[0] - 2 * rss[1] + rss[2]) / h ** 2
+    nu = max(sum(p.N - 2 * m - p.q for p in parts), 1)
+    noise2 = max(rss[1] / nu, 1.0) if cv.known else max(rss[1], cv.floor) / nu
+    return f_inc, math.sqrt(2.0 * noise2 / curv) if curv > 0 else float("inf")
