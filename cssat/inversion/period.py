@@ -67,7 +67,7 @@ import numpy as np
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.fourier import _Curve, _design, _vector, check_grid, frame_step, light_curve_scatter, stretches
 from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error, stretch_fit
-from cssat.inversion.period_null import count_maxima, harmonic_sum, surrogate_fap
+from cssat.inversion.period_null import count_maxima, harmonic_sum, stretch_power, surrogate_fap
 from cssat.inversion.period_verdict import _constant, _verdict, _warnings, _why
 
 __all__ = ["estimate_period", "light_curve_scatter", "CONVENTIONS", "convention_for"]
@@ -187,17 +187,18 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     k_conv = 2 if convention == "double_peaked" and n_max == 1 else 1
     period, period_err = k_conv * p_phot, k_conv * err_phot
     # the false-alarm probability from the track's own noise (surrogates), over all periods and over the well-sampled ones
-    fnull, pnull = _null_grid(t, cv.yp / w, freq, power, spp, multi)
+    fnull, pnull = _null_grid(freq, power, spp)
     detect = fnull >= min_cycles / longest
     hs = harmonic_sum(pnull, fnull)
     z_all, z_det = float(hs.max()), float(hs[detect].max()) if detect.any() else 0.0
     # the null's noise: the residual of the chosen series where its period is one the detection
     # covers (>= min_cycles), else of the trend alone (a series of 1-2 cycles and many harmonics
     # absorbs red noise: its residual is whiter than the noise, and the null too weak)
-    noise_part = resid if p_phot * min_cycles <= longest else y - trend
+    noise_part = (_stretch_resid(cv, fb, m, detrend) if multi else resid) if p_phot * min_cycles <= longest else y - trend
     null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, fnull, detect, z_all, z_det,
                          mean_run_s=max(longest / (2 * max(min_cycles, 1.0)), 10 * d_frame),
-                         cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max)
+                         cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max, seg=seg if multi else None,
+                         dy=None if sigma is None else 1.0 / w)
     fap_white = cv.fap(rss, m, span * (f_hi - f_lo))
     rep = cv.repeat(fb, m)
     n_cycles = float(longest / period)
@@ -250,17 +251,27 @@ def convention_for(name: Any) -> str:
     return "double_peaked" if ("R/B" in n or "ROCKET" in n or re.search(r"\b(AKM|PKM)\b", n)) else "photometric"
 
 
-def _null_grid(t: np.ndarray, resid: np.ndarray, freq: np.ndarray, power: np.ndarray, spp: int,
-               multi: bool) -> tuple[np.ndarray, np.ndarray]:
+def _null_grid(freq: np.ndarray, power: np.ndarray, spp: int) -> tuple[np.ndarray, np.ndarray]:
     """The null's grid (Hz), the search's thinned to about :data:`SURROGATE_SPP` points a peak,
-    and the data's Lomb–Scargle power of the whole curve on it (the surrogates' statistic;
-    for stretches far apart the search's own power is the stretches' sum, recomputed here)."""
-    from astropy.timeseries import LombScargle  # heavy: astropy, only for _null_grid()
-
+    and the data's power on it (the surrogates' statistic, computed alike)."""
     sub = slice(None, None, max(1, spp // SURROGATE_SPP))
-    if not multi:
-        return freq[sub], power[sub]
-    return freq[sub], LombScargle(t, resid).power(freq[sub], method="fast", assume_regular_frequency=True)
+    return freq[sub], power[sub]
+
+
+def _stretch_resid(cv: Any, f: float, m: int, detrend: int) -> np.ndarray:
+    """``(T,)`` the residual of the ``m``-harmonic series at ``f`` fitted to each contiguous
+    stretch apart (its own amplitudes and phases, its own trend: a light curve that changes from
+    night to night with the geometry leaves its misfit, periodic itself, out of the null's noise)."""
+    out = np.zeros_like(cv.y)
+    for k in np.unique(cv.seg):
+        on = cv.seg == k
+        X = np.concatenate([np.stack([(cv.t[on] - cv.t[on].mean()) ** j for j in range(detrend + 1)], 1),
+                            _design(cv.t[on], f, m)], 1) * cv.w[on][:, None]
+        if on.sum() <= X.shape[1]:
+            continue
+        coef, *_ = np.linalg.lstsq(X, cv.y[on] * cv.w[on], rcond=None)
+        out[on] = cv.y[on] - (X @ coef) / cv.w[on]
+    return out
 
 
 def _fit(cv: Any, f: float, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -375,23 +386,10 @@ def _periodogram_peaks(t: np.ndarray, resid: np.ndarray, dy: np.ndarray | None, 
                        n_peaks: int, seg: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
     """astropy's Lomb–Scargle of ``resid (T,)`` (the curve less its nuisance model; ``dy`` its 1σ
     or ``None``) on the regular grid ``freq (F,)`` Hz — with ``seg (T,)`` given, the stretches'
-    own periodograms summed, weighted by their samples (the envelope of the fringes between
-    stretches far apart, which a grid of the stretch's resolution cannot sample) —: the power,
-    and the ``n_peaks`` strongest local maxima more than ``1.5/span`` apart, strongest first."""
-    from astropy.timeseries import LombScargle  # heavy: astropy, only for _periodogram_peaks()
-
+    own periodograms summed (:func:`~cssat.inversion.period_null.stretch_power`) —: the power,
+    and the ``n_peaks`` strongest local maxima a peak's width apart, strongest first."""
     sep = 1.5 / span if seg is None else 1.5 * (freq[1] - freq[0]) * SURROGATE_SPP * 2  # a peak's width apart
-    if seg is None:
-        power = LombScargle(t, resid, dy).power(freq, method="fast", assume_regular_frequency=True)
-    else:
-        power, n = np.zeros(len(freq)), 0
-        for k in np.unique(seg):
-            on = seg == k
-            if on.sum() >= MIN_SAMPLES and np.ptp(resid[on]) > 0:
-                power += on.sum() * LombScargle(t[on], resid[on], None if dy is None else dy[on]).power(
-                    freq, method="fast", assume_regular_frequency=True)
-                n += on.sum()
-        power = power / max(n, 1)
+    power = stretch_power(t, resid, freq, seg, dy, MIN_SAMPLES)
     is_max = np.r_[True, power[1:] >= power[:-1]] & np.r_[power[:-1] >= power[1:], True]
     peaks: list[float] = []
     for i in np.flatnonzero(is_max)[np.argsort(power[is_max])[::-1]]:

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["surrogate_fap", "harmonic_sum", "count_maxima", "MIN_PROMINENCE", "MIN_SIGNIFICANCE"]
+__all__ = ["surrogate_fap", "stretch_power", "harmonic_sum", "count_maxima", "MIN_PROMINENCE", "MIN_SIGNIFICANCE"]
 
 #: a secondary maximum counts when its prominence is this fraction of the largest ...
 MIN_PROMINENCE = 0.25
@@ -105,7 +105,8 @@ def _gumbel_sf(z: float, zs: np.ndarray) -> float:
 
 def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, trend: np.ndarray, resid: np.ndarray,
                   freq: np.ndarray, detect: np.ndarray, z_all: float, z_det: float, mean_run_s: float,
-                  cadence_s: float, n: int, seed: int, fap_max: float = 1e-3) -> dict[str, Any]:
+                  cadence_s: float, n: int, seed: int, fap_max: float = 1e-3,
+                  seg: np.ndarray | None = None, dy: np.ndarray | None = None) -> dict[str, Any]:
     """The false-alarm probabilities of the data's largest harmonic sum (:func:`harmonic_sum`)
     over all of ``freq (F,)`` (``z_all``) and over ``freq[detect]`` (``z_det``),
     under ``n`` stationary-bootstrap surrogates ``trend + r*`` of the residual ``resid (T,)``
@@ -120,7 +121,7 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
     for i in range(n):
         ys = (trend + _bootstrap(resid, run, rng)) * w
         yp = (ys - Q @ (Q.T @ ys)) / w
-        hs = harmonic_sum(LombScargle(t, yp).power(freq, method="fast", assume_regular_frequency=True), freq)
+        hs = harmonic_sum(stretch_power(t, yp, freq, seg, dy), freq)
         zs_all.append(float(hs.max()))
         zs_det.append(float(hs[detect].max()) if detect.any() else 0.0)
         if len(zs_all) in (EARLY, 2 * EARLY) and _decided(z_det, z_all, zs_det, zs_all, fap_max):
@@ -128,6 +129,26 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
     za, zd = np.array(zs_all), np.array(zs_det)
     return {"fap": _gumbel_sf(z_det, zd) if detect.any() else 1.0, "fap_all": _gumbel_sf(z_all, za),
             "exceeding": int((zd >= z_det).sum()), "exceeding_all": int((za >= z_all).sum()), "n": len(za)}
+
+
+def stretch_power(t: np.ndarray, y: np.ndarray, freq: np.ndarray, seg: np.ndarray | None = None,
+                  dy: np.ndarray | None = None, min_samples: int = 12) -> np.ndarray:
+    """``(F,)`` astropy's Lomb–Scargle power of ``y (T,)`` at ``t (T,)`` on the regular grid
+    ``freq (F,)``; with ``seg (T,)`` the stretches' own powers summed, weighted by their samples
+    (stretches days apart: the envelope of the fringes between them, which a grid of one
+    stretch's resolution cannot sample)."""
+    from astropy.timeseries import LombScargle  # heavy: astropy, only for stretch_power()
+
+    if seg is None:
+        return LombScargle(t, y, dy).power(freq, method="fast", assume_regular_frequency=True)
+    power, n = np.zeros(len(freq)), 0
+    for k in np.unique(seg):
+        on = seg == k
+        if on.sum() >= min_samples and np.ptp(y[on]) > 0:
+            power += on.sum() * LombScargle(t[on], y[on], None if dy is None else dy[on]).power(
+                freq, method="fast", assume_regular_frequency=True)
+            n += int(on.sum())
+    return power / max(n, 1)
 
 
 def _decided(z_det: float, z_all: float, zs_det: list[float], zs_all: list[float], fap_max: float) -> bool:
