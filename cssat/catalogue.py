@@ -283,7 +283,8 @@ def _characterise(row: dict[str, Any], options: dict[str, Any]) -> None:
         _describe(row, model.metrics, getattr(model, "lc", None))
         model.estimate(run_)
     except Exception as err:
-        _describe(row, {**model.metrics, **(getattr(err, "partial_metrics", None) or {})}, getattr(model, "lc", None))
+        known = {**getattr(model, "metrics", {}), **(getattr(err, "partial_metrics", None) or {})}
+        _describe(row, known, getattr(model, "lc", None))
         raise
     m, res = model.metrics, model.res
     if res is not None:
