@@ -192,7 +192,7 @@ def make_tracks(n: int = 100, seed: int = 0, channel_offset: bool = True) -> lis
         y += noise * rng.normal(size=len(t))
         meta.update(noise_mag=float(noise), n_samples=int(len(t)), span_s=span)
         out.append({"t": t, "mag": mag0 + y, "err": None, "label": label,
-                    "period_s": None if period is None else float(period), "kind": kind, "meta": meta})
+                    "period_s": None if period is None else float(period), "kind": kind, "meta": meta, "channels": ch})
     return out
 
 

@@ -79,6 +79,8 @@ CONVENTIONS = ("photometric", "double_peaked")
 MAX_PHASE_GAP = 0.25
 #: the surrogates' periodograms sample each peak this often (the data's statistic on the same grid)
 SURROGATE_SPP = 3
+#: the surrogates' mean run, as a fraction of the longest period detected (``longest / min_cycles``)
+RUN_FRACTION = 1.0
 #: across gaps the cycle count is fixed when the stretches alone pin the frequency to under this
 #: fraction of a fringe (1σ); else the 1σ is theirs (the fringes are not told apart)
 FRINGE_FIXED = 0.25
@@ -196,7 +198,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     # absorbs red noise: its residual is whiter than the noise, and the null too weak)
     noise_part = (_stretch_resid(cv, fb, m, detrend) if multi else resid) if p_phot * min_cycles <= longest else y - trend
     null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, fnull, detect, z_all, z_det,
-                         mean_run_s=max(longest / (2 * max(min_cycles, 1.0)), 10 * d_frame),
+                         mean_run_s=max(RUN_FRACTION * longest / max(min_cycles, 1.0), 10 * d_frame),
                          cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max, seg=seg if multi else None,
                          dy=None if sigma is None else 1.0 / w)
     fap_white = cv.fap(rss, m, span * (f_hi - f_lo))

@@ -17,10 +17,10 @@ over-states significance by orders of magnitude on them. The null here is fitted
 4. a Gumbel law fitted to the ``z*`` by moments (the maximum of many nearly independent
    periodogram ordinates: Süveges 2014, MNRAS 440, 2099), its tail at the data's own ``z``.
 
-``L`` is half the longest period detected (``longest / (2 min_cycles)``, a sixth of the longest
-stretch by default; at least 10 frame steps): the noise is kept on every scale the detection
-is about (runs as long as the period itself: a shorter ``L`` whitened red noise and called 39 of
-40 red-noise tracks significant at 0.1). Below ``1/n`` the FAP is the fitted
+``L`` is the longest period detected (``longest / min_cycles``, a third of the longest stretch
+by default; at least 10 frame steps): the noise is kept on every scale the detection is about
+(runs as long as the chosen period: a shorter ``L`` whitened red noise and called 39 of 40
+red-noise tracks significant at 0.1). Below ``1/n`` the FAP is the fitted
 tail's extrapolation (reported as such: ``fap_surrogates_exceeding``); its calibration on
 real non-variable tracks and on surrogates of real tracks is in BENCHMARKS.md (issue 46).
 Two grids are scored from the same surrogates: all periods searched, and the periods of at
@@ -94,11 +94,13 @@ def harmonic_sum(power: np.ndarray, freq: np.ndarray, n_harm: int = HARMONICS) -
 
 
 def _gumbel_sf(z: float, zs: np.ndarray) -> float:
-    """``P(Z ≥ z)`` of the Gumbel law with the mean and variance of ``zs``."""
+    """``P(Z ≥ z)`` of the Gumbel law with the mean and variance of ``zs``, its scale taken at
+    the upper end of its 1σ (``× (1 + 1/√n)``: a scale fitted to a few draws would make the
+    extrapolated tail too thin)."""
     sd = float(np.std(zs, ddof=1)) if len(zs) > 1 else 0.0
     if not sd > 0:
         return 0.0 if z > float(np.max(zs)) else 1.0
-    beta = sd * math.sqrt(6.0) / math.pi
+    beta = sd * math.sqrt(6.0) / math.pi * (1.0 + 1.0 / math.sqrt(len(zs)))
     mu = float(np.mean(zs)) - EULER_GAMMA * beta
     return float(-math.expm1(-math.exp(-(z - mu) / beta)))
 
@@ -124,7 +126,7 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
         hs = harmonic_sum(stretch_power(t, yp, freq, seg, dy), freq)
         zs_all.append(float(hs.max()))
         zs_det.append(float(hs[detect].max()) if detect.any() else 0.0)
-        if len(zs_all) in (EARLY, 2 * EARLY) and _decided(z_det, z_all, zs_det, zs_all, fap_max):
+        if len(zs_all) in (EARLY, 2 * EARLY) and _decided(z_det, z_all, zs_det, zs_all, fap_max, len(zs_all) >= 2 * EARLY):
             break
     za, zd = np.array(zs_all), np.array(zs_det)
     return {"fap": _gumbel_sf(z_det, zd) if detect.any() else 1.0, "fap_all": _gumbel_sf(z_all, za),
@@ -151,12 +153,14 @@ def stretch_power(t: np.ndarray, y: np.ndarray, freq: np.ndarray, seg: np.ndarra
     return power / max(n, 1)
 
 
-def _decided(z_det: float, z_all: float, zs_det: list[float], zs_all: list[float], fap_max: float) -> bool:
+def _decided(z_det: float, z_all: float, zs_det: list[float], zs_all: list[float], fap_max: float,
+             below_too: bool = True) -> bool:
     """Whether the surrogates drawn so far settle the verdict at ``fap_max`` beyond doubt: both
-    FAPs over 30× or under 1/30 of it (the data above every surrogate)."""
+    FAPs over 30× of it, or (``below_too``: after two rounds) under 1/30 of it with the data
+    above every surrogate."""
     fd, fa = _gumbel_sf(z_det, np.array(zs_det)), _gumbel_sf(z_all, np.array(zs_all))
     far_above = all(f > 30 * fap_max for f in (fd, fa))
-    far_below = all(f < fap_max / 30 for f in (fd, fa)) and z_det > max(zs_det) and z_all > max(zs_all)
+    far_below = below_too and all(f < fap_max / 30 for f in (fd, fa)) and z_det > max(zs_det) and z_all > max(zs_all)
     return far_above or far_below
 
 
