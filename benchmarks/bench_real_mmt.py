@@ -25,8 +25,10 @@ Reliability (``--nulls K``): the stated FAP against the empirical rate of FAP < 
 that hold no period: (a) the real Not-variable tracks; (b) K phase-randomised surrogates of each
 real track (the best series removed, the residual's Fourier phases randomised on the median-step
 grid and sampled back at the real stamps, the trend added: the track's own red spectrum, no
-period); (c) K Ornstein–Uhlenbeck + white noise tracks per real track (correlation time and
-variances fitted to its residual), on its real stamps. cssat's surrogate FAP beside the
+period — but a periodic track's misfit, periodic itself, keeps its lines through phase
+randomisation: only the Not-variable tracks' surrogates are clean nulls); (c) K
+Ornstein–Uhlenbeck + white noise tracks per real track (correlation time and variances fitted to
+its residual), on its real stamps. Rows split by MMT's label of the track the null came from. cssat's surrogate FAP beside the
 white-noise F-test (``fap_white``) and astropy's Baluev FAP of the highest 1-term peak.
 """
 
@@ -238,8 +240,9 @@ def reliability(files, K: int) -> None:
                 float(LombScargle(t, y).false_alarm_probability(LombScargle(t, y).power(fr).max(), minimum_frequency=fr[0],
                                                                   maximum_frequency=fr[-1])))
         r, trend = _residual(t, y, ch, res)
-        for family, make in (("phase-randomised surrogates of the 20 tracks", lambda: phase_randomised(t, r, rng)),
-                             ("OU + white noise fitted to the 20 tracks", lambda: ou_white(t, r, rng)[0])):
+        kind = "Not-variable" if (lc.meta.get("variability") or "") == "nonvariable" else "periodic-labelled"
+        for family, make in ((f"phase-randomised surrogates of the {kind} tracks", lambda: phase_randomised(t, r, rng)),
+                             (f"OU + white noise fitted to the {kind} tracks", lambda: ou_white(t, r, rng)[0])):
             for _ in range(K):
                 ys = trend + make()
                 rs = estimate_period(t, ys, zero_points=ch, convention=conv, seed=int(rng.integers(1 << 30)))
