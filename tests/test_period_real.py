@@ -198,3 +198,18 @@ def test_tracks_a_day_apart_with_a_fixed_cycle_count_keep_a_fringe_wide_1sigma_u
     r = estimate_period(t, y)
     assert r["cycle_count"] == "fixed"
     assert abs(r["period_s"] - 300.0) <= 3 * r["period_err_s"] and r["period_err_s"] < 0.1 * 300.0 ** 2 / 86400
+
+
+def test_ceres_is_not_given_a_period_its_sessions_cannot_hold():
+    """The repository's real ALCDEF file of (1) Ceres (5 sessions of 1.7-4.9 h over days;
+    Ceres turns in 9.07 h, Chamberlain et al. 2007): no session holds 3 turns, so no period may be
+    claimed (the hostile pass: "periodic, P = 230.191 ± 0.0028 s"), whether the sessions are
+    given as segments or found as stretches."""
+    from cssat.data import read_light_curve
+    from cssat.inversion import estimate_period
+
+    lc = read_light_curve(Path(__file__).parent / "data" / "real" / "alcdef_ceres_stephens_2011.txt")
+    for seg in (None, lc.track_ids()):
+        r = estimate_period(lc.times_s(), lc.values, segments=seg)
+        assert r["verdict"] != "periodic", (r["period_s"], r["verdict_why"])
+        assert r["verdict_why"]

@@ -114,7 +114,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     ``alternatives`` (dicts: ``relation`` — ``"P/4"``, ``"P/3"``, ``"P/2"``, ``"2P"``, ``"3P"``
     or ``"peak"`` —, ``period_s``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``,
     ``delta_bic``), ``fringes`` (cycle counts across gaps within Δχ² 4: ``period_s``,
-    ``delta_chi2``), ``cycle_count`` (``one stretch``, ``fixed`` or ``ambiguous (…)``), ``why``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``, ``model_fits``,
+    ``delta_chi2``), ``cycle_count`` (``one stretch``, ``fixed``, ``ambiguous (…)``, or that the stretches do not
+    agree on one period: then ``undetermined``), ``why``, ``n_harmonics``, ``chi2``, ``chi2_per_sample``, ``model_fits``,
     ``n_cycles``, ``min_period_s``/``max_period_s``, ``cadence_s``, ``f0_period_s``,
     ``doubled``, ``warnings`` (list of str), ``noise_sigma`` and ``periodogram``
     (``frequency_hz``, ``power``)."""
@@ -182,7 +183,9 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         f_inc, sig_inc = stretch_fit(cv, fb, m, 1.0 / (spp * longest), detrend)
         fringes_per_sigma = sig_inc * span
         cycle_count = "fixed" if fringes_per_sigma < FRINGE_FIXED else f"ambiguous ({fringes_per_sigma:.3g} fringes a 1σ)"
-        if fringes_per_sigma >= FRINGE_FIXED:  # the least-χ² fringe is one of many alike: the envelope's centre instead
+        if not math.isfinite(sig_inc):  # the stretches' own fits have no common minimum: no one period to speak of
+            cycle_count = "the stretches do not agree on one period (no minimum of their summed χ² near it)"
+        elif fringes_per_sigma >= FRINGE_FIXED:  # the least-χ² fringe is one of many alike: the envelope's centre instead
             p_phot, err_phot = 1.0 / f_inc, max(err_phot, sig_inc / f_inc ** 2)
     coef, cov, trend, resid = _fit(cv, fb, m)
     n_max = count_maxima(coef, cov, fb, m, magnitudes=_is_magnitude(flux, y))
@@ -210,6 +213,9 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     null["fap_white"] = fap_white
     verdict, why_v = _verdict(null, fap_max, n_cycles, min_cycles, gap, MAX_PHASE_GAP, period, rep, min_repeat, lo, hi,
                               variation_snr)
+    if verdict == "periodic" and cycle_count.startswith("the stretches do not agree"):
+        verdict, why_v = "undetermined", (f"a signal stands out (FAP {null['fap']:.2g}) but {cycle_count}: each track "
+                                          "alone may say more (the characterise experiment's tracks.csv)")
     periodic = {"periodic": True, "not periodic": False}.get(verdict)
     alts = search.alternatives(best, p_phot, cands, len(peaks), None if sigma is not None else scat)
     warns, model_fits = _warnings(period, lo, hi, longest, step, alts, chi2_n, m)
