@@ -203,7 +203,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, fnull, detect, z_all, z_det,
                          mean_run_s=max(RUN_FRACTION * longest / max(min_cycles, 1.0), 10 * d_frame),
                          cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max, seg=seg if multi else None,
-                         dy=None if sigma is None else 1.0 / w)
+                         dy=None if sigma is None else 1.0 / w, data=cv.yp / w)
     fap_white = cv.fap(rss, m, span * (f_hi - f_lo))
     rep = cv.repeat(fb, m)
     n_cycles = float(longest / period)
