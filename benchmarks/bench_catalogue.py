@@ -62,16 +62,18 @@ def write_mmt(path: Path, tr: dict, k: int) -> None:
 
 
 def astropy_loop(files: list[str]) -> tuple[float, int]:
-    """(c): seconds for every file, and how many astropy could read."""
+    """(c): seconds for every file, and how many astropy could read. The columns are the file's
+    own ``# Date Time ...`` line (the real exports have no ``Track`` column: it is a header line)."""
     from astropy.io import ascii
     from astropy.timeseries import LombScargle
 
-    names = ["Date", "Time", "StdMag", "Mag", "Filter", "Penumbra", "Distance", "Phase", "Channel", "Track"]
     t0, ok = time.perf_counter(), 0
     for f in files:
         try:
+            with open(f) as fh:
+                names = next(ln[1:].split() for ln in fh if ln.startswith("# Date"))
             tab = ascii.read(f, format="no_header", comment="#", names=names)
-        except Exception:  # a file astropy cannot read as MMT's columns
+        except Exception:  # a file astropy cannot read as its columns
             continue
         stamps = np.array([f"{d}T{s}" for d, s in zip(tab["Date"], tab["Time"])], dtype="datetime64[us]")
         t = (stamps - stamps[0]).astype(np.int64) / 1e6
