@@ -44,9 +44,8 @@ class Aliases:
         return max(1, min(self.cap, int(self.f_harm / f)))
 
     def own(self, P: float, m0: int, k: float = 1.0, refine: bool = True) -> dict[str, Any] | None:
-        """The period ``P`` (s) with its own least-BIC harmonics searched from ``m0`` (or the
-        fixed number scaled by ``k``), refined within a step / max(k, 1) (``refine``); None
-        outside the range."""
+        """The period ``P`` (s) with its own least-BIC harmonics searched from ``m0``, refined within
+        a step / max(k, 1) (``refine``); None outside the range."""
         if not self.lo <= P <= self.hi:
             return None
         key = (round(P, 9), m0, round(k, 6), refine)
@@ -57,11 +56,7 @@ class Aliases:
     def _own_fit(self, P: float, m0: int, k: float, refine: bool = True) -> dict[str, Any]:
         cv = self.cv
         m_max = min(max(1, math.ceil(k)) * self.max_harmonics, self.harmonics_at(1 / P))
-        if self.m_fixed is not None:
-            m = max(1, min(int(round(self.m_fixed * max(k, 1.0))), m_max))
-            c = cv.score(1 / P, m)
-        else:
-            c = cv.best_near(1 / P, max(1, min(m0, m_max)), m_max)
+        c = cv.best_near(1 / P, max(1, min(m0, m_max)), m_max)  # a fixed n_harmonics starts the peaks' search
         if not refine:
             return c
         f, r = cv.refine(1 / P, c["n_harmonics"], self.step / max(k, 1.0))
