@@ -165,13 +165,41 @@ class _Curve:
         return {"period_s": 1.0 / f, "n_harmonics": m, "rss": rss, "bic": self.bic(rss, m)}
 
     def refine(self, f: float, m: int, step: float) -> tuple[float, float]:
-        """The frequency minimising the RSS within ``f ± step``, and that RSS."""
+        """The frequency minimising the RSS within ``f ± step`` (to 1e-5 of ``step``), and that
+        RSS: Newton steps on three-point parabolas (the RSS is quadratic in frequency near its
+        minimum: a few evaluations), else — a concave or non-quadratic stretch — scipy's bounded
+        Brent search."""
         from scipy.optimize import minimize_scalar  # heavy: scipy.optimize, only for refine()
 
-        res = minimize_scalar(lambda x: self.rss(x, m), bounds=(f - step, f + step), method="bounded",
-                              options={"xatol": step * 1e-5})
+        tol = step * 1e-5
         c0 = self.rss(f, m)
-        return (float(res.x), float(res.fun)) if res.fun <= c0 else (f, c0)
+        x, rx, h = f, c0, 0.5 * step / max(m, 1)  # the m-th harmonic narrows the quadratic stretch m-fold
+        for _ in range(8):
+            a, c = self.rss(x - h, m), self.rss(x + h, m)
+            den = a - 2.0 * rx + c
+            if not den > 0:
+                break
+            dx = 0.5 * h * (a - c) / den
+            if abs(x + dx - f) > step or abs(dx) > 20.0 * h:
+                break
+            rn = self.rss(x + dx, m)
+            for _ in range(3):  # backtrack an overshoot (a start outside the quadratic stretch)
+                if rn <= rx or abs(dx) <= 1e-3 * step:
+                    break
+                dx *= 0.5
+                rn = self.rss(x + dx, m)
+            if rn > rx:
+                if abs(dx) <= 1e-3 * step:  # round-off: the minimum to this precision
+                    return x, rx
+                break
+            x, rx = x + dx, rn
+            if abs(dx) <= tol:
+                return x, rx
+            h = max(min(h, 4.0 * abs(dx)), 10.0 * tol)
+        res = minimize_scalar(lambda z: self.rss(z, m), bounds=(f - step, f + step), method="bounded",
+                              options={"xatol": tol})
+        cands = [(f, c0), (x, rx), (float(res.x), float(res.fun))]
+        return min(cands, key=lambda p: p[1])
 
     def best_m(self, f: float, m_max: int) -> int:
         """The number of harmonics (1…``m_max``) of least BIC at ``f``."""

@@ -157,8 +157,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     if not cands:
         raise FieldError("flux" if min_period_s is None and max_period_s is None else "min_period_s",
                          f"no candidate period within [{lo:.6g}, {hi:.6g}] s")
-    for c in sorted(cands, key=lambda c: c["bic"])[:3]:  # the leaders refined (ĉ below is the best refined fit's)
-        c.update(search.own(c["period_s"], c["n_harmonics"], c.get("k", 1)) or {})
+    for c in sorted(cands, key=lambda c: c["bic"])[:3 if sigma is not None else 0]:  # the leaders refined: ĉ is
+        c.update(search.own(c["period_s"], c["n_harmonics"], c.get("k", 1)) or {})     # the best refined fit's
     cv.overdispersion(cands)  # quasi-likelihood: χ² in units of the best candidate's χ²/ν when no series fits to σ
     best = search.settle(min(cands, key=lambda c: c["bic"]), cands)
     f_b, r_b, minima = search.fringes(1.0 / best["period_s"], best["n_harmonics"], best["rss"])

@@ -17,7 +17,7 @@ __all__ = ["Aliases", "RELATIVES", "period_error", "stretch_fit"]
 #: the relatives of the chosen period that compete with it and are reported (name, factor)
 RELATIVES = (("P/4", 0.25), ("P/3", 1 / 3), ("P/2", 0.5), ("2P", 2.0), ("3P", 3.0))
 #: the multiples of a periodogram peak's period tried as candidates (the peak may be any harmonic)
-PEAK_MULTIPLES = (0.5, 1, 2, 3, 4)
+PEAK_MULTIPLES = (1, 2, 4)  # P/2, 3P, … of the chosen: its relatives (settle)
 #: fringes within this Δχ² of the best are competitors (2σ for one parameter)
 FRINGE_DCHI2 = 4.0
 #: the most trial frequencies in the map of the fringes (a tenth of a fringe each)
@@ -68,7 +68,8 @@ class Aliases:
         again (``peak``: the peak's rank; :meth:`settle` refines the chosen one)."""
         cands = []
         for j, f in enumerate(peaks):
-            m0 = self.m_fixed or self.cv.best_m(f, min(self.max_harmonics, self.harmonics_at(f)))
+            m_top = min(self.max_harmonics, self.harmonics_at(f))
+            m0 = self.m_fixed or self.cv.best_near(f, min(2, m_top), m_top)["n_harmonics"]  # a local search from 2
             f_ref, _ = self.cv.refine(f, m0, self.grid_step)  # a fringe near; the chosen one's are searched at the end
             for k in PEAK_MULTIPLES:
                 c = self.own(k / f_ref, max(1, int(round(k * m0))), k, refine=False)

@@ -152,24 +152,25 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
             "z_all": z_all, "z_det": z_det}
 
 
-#: the largest trial frequencies × samples the batched periodogram holds (one complex128 matrix)
-MAX_BATCH = 4_000_000
+#: the largest trial frequencies × samples the batched periodogram holds (one complex64 matrix, 64 MB)
+MAX_BATCH = 8_000_000
 
 
 def _trig_basis(t: np.ndarray, freq: np.ndarray) -> dict[str, Any]:
     """``e^{iωt}`` ``(F, T)`` on the regular grid ``freq`` (by the recurrence ``e^{i(ω+Δω)t} =
-    e^{iωt} e^{iΔωt}``: one complex product an entry, round-off ~``F ε``) and the sums of the
+    e^{iωt} e^{iΔωt}`` in single precision: one complex product an entry, round-off ~``F ε``,
+    1e-4 at most on the grids the null uses: data and surrogates alike) and the sums of the
     generalised Lomb–Scargle that depend on the times alone (unit weights, a fitted mean)."""
     tc = t - t.mean()
-    E = np.empty((len(freq), len(t)), dtype=np.complex128)
+    E = np.empty((len(freq), len(t)), dtype=np.complex64)  # single precision: the null's statistic, data and draws alike
     E[0] = np.exp((2j * np.pi * freq[0]) * tc)
     if len(freq) > 1:
-        R = np.exp((2j * np.pi * (freq[1] - freq[0])) * tc)
+        R = np.exp((2j * np.pi * (freq[1] - freq[0])) * tc).astype(np.complex64)
         for j in range(1, len(freq)):
             np.multiply(E[j - 1], R, out=E[j])
     N = len(t)
-    m = E.mean(1)  # C + iS
-    e2 = (E * E).mean(1)  # cos 2ωt + i sin 2ωt, averaged
+    m = E.mean(1, dtype=np.complex128)  # C + iS
+    e2 = (E * E).mean(1, dtype=np.complex128)  # cos 2ωt + i sin 2ωt, averaged
     C, S = m.real, m.imag
     cc = 0.5 * (1.0 + e2.real)
     CC = cc - C * C
@@ -186,7 +187,7 @@ def batched_power(basis: dict[str, Any], Y: np.ndarray) -> np.ndarray:
     N = b["N"]
     Yc = Y - Y.mean(0)
     YY = (Yc * Yc).sum(0) / N
-    Z = (b["E"] @ Yc.astype(np.complex128)) / N  # YC + i YS
+    Z = (b["E"] @ Yc.astype(np.complex64)).astype(np.complex128) / N  # YC + i YS
     YC, YS = Z.real, Z.imag
     num = b["SS"][:, None] * YC ** 2 + b["CC"][:, None] * YS ** 2 - 2 * b["CS"][:, None] * YC * YS
     return num / (np.maximum(YY, 1e-300)[None, :] * np.maximum(b["D"], 1e-300)[:, None])
