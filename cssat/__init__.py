@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 
 #: the subpackages and modules reachable as ``cssat.<name>`` (imported lazily)
 SUBMODULES = ("scene", "optics", "data", "sparse", "reference", "physics", "recon", "inversion", "metrics", "plots",
-              "experiments", "summary")
+              "experiments", "summary", "catalogue")
 __all__ = [*SUBMODULES, "__version__"]
 
 

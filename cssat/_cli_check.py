@@ -172,7 +172,7 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
 def check_catalogue(overrides: Sequence[str], config_module: str = "cssat.conf", config_name: str = "config") -> str | None:
     """A catalogue sweep's settings — ``catalogue.*`` and the characterise groups its rows use
     (``period.*``, ``observed.*``, ``characterise.*``, ``stages.*``, ``tumbling.*``) — checked
-    once, as every shard will check them (:func:`cssat.catalogue.check_config`), before any job
+    once, as every shard will check them (:func:`cssat.catalogue_shards.check_config`), before any job
     runs: the first mistake as ``"<key>: <what is wrong>"``, or ``None``. The overrides compose
     with each sweep's first value (the check of :func:`check` passed already)."""
     from hydra import compose, initialize_config_module  # startup: hydra; this module imports without it
@@ -180,7 +180,7 @@ def check_catalogue(overrides: Sequence[str], config_module: str = "cssat.conf",
     from hydra.core.override_parser.overrides_parser import OverridesParser  # startup: hydra; this module imports without it
 
     from cssat._checks import FieldError  # startup: light
-    from cssat.catalogue import check_config  # startup: light (its check imports torch when it runs)
+    from cssat.catalogue_shards import check_config  # startup: light (its check imports torch when it runs)
 
     firsts = []
     for o in OverridesParser.create().parse_overrides(list(overrides)):

@@ -144,8 +144,8 @@ def _hydra_main(cfg: DictConfig) -> float | None:
         with open_dict(cfg):
             cfg.experiment_name = choice
     if OmegaConf.select(cfg, "catalogue.shard", default=None) is not None and not cfg.get("experiment_module"):
-        with open_dict(cfg):  # a catalogue's shard: many files in this job (cssat/catalogue.py)
-            cfg.experiment_module = "cssat.catalogue"
+        with open_dict(cfg):  # a catalogue's shard: many files in this job (cssat/catalogue_shards.py)
+            cfg.experiment_module = "cssat.catalogue_shards"
     tags = None
     if multirun:  # mark the job directory with its sweep's id (the summary keeps this sweep's jobs)
         sid = sweep_id(hc.sweep.dir)

@@ -188,9 +188,9 @@ def summarize(sweep_dir: str | Path, metric: str = "psnr", collected: tuple | No
 
 def join_catalogue(sweep_dir: str | Path, rows: list[dict[str, Any]]) -> bool:
     """Join a catalogue sweep's shards into ``sweep_dir/catalogue.csv``
-    (:func:`cssat.catalogue.join_shards`) and log it; ``False`` when it is a catalogue sweep and
+    (:func:`cssat.catalogue_shards.join_shards`) and log it; ``False`` when it is a catalogue sweep and
     the catalogue could not be joined (the log says why), else ``True``."""
-    from cssat.catalogue import join_shards  # startup: light
+    from cssat.catalogue_shards import join_shards  # startup: light
 
     path, why = join_shards(sweep_dir, rows)
     if why is not None:

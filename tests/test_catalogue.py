@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from cssat import catalogue as C
+from cssat import catalogue_shards as S
 
 REAL = Path(__file__).parent / "data" / "real"
 STARLINK = REAL / "mmt_sat10288_starlink3535_track20416355.txt"  # MMT: "Not variable"
@@ -89,7 +90,7 @@ def _compose(overrides):
 
 def test_dask_rows_equal_shard_rows_equal_characterise_file_rows(tmp_path):
     """The same files three ways: characterise_file in a loop, a Dask bag on threads, and the
-    sweep's shard jobs (cssat.catalogue.run, the function each job of `cssat -m` runs)."""
+    sweep's shard jobs (cssat.catalogue_shards.run, the function each job of `cssat -m` runs)."""
     db = pytest.importorskip("dask.bag")
     cat = tmp_path / "cat"
     cat.mkdir()
@@ -109,7 +110,7 @@ def test_dask_rows_equal_shard_rows_equal_characterise_file_rows(tmp_path):
     for k in range(C.n_shards(len(files), 3)):
         with open_dict(cfg):
             cfg.catalogue.shard = k
-        metrics = C.run(cfg, tmp_path / f"job{k}")
+        metrics = S.run(cfg, tmp_path / f"job{k}")
         assert metrics["catalogue_table"] == f"tracks_{k}.csv" and metrics["n_files"] == (3 if k == 0 else 1)
         shard_rows += C.read_rows(tmp_path / f"job{k}" / metrics["catalogue_table"])
     assert without_seconds(shard_rows) == without_seconds(loop)  # through the CSV: full precision, None as empty
@@ -195,7 +196,7 @@ def test_a_failed_shard_leaves_no_catalogue_and_the_summary_names_it(tmp_path, c
         from cssat.experiments import run_experiment
 
         with open_dict(cfg):
-            cfg.experiment_module = "cssat.catalogue"
+            cfg.experiment_module = "cssat.catalogue_shards"
         run_experiment(cfg, d)
     assert summary.main([str(sweep)]) == 0
     joined = C.read_rows(sweep / "catalogue.csv")
@@ -221,7 +222,7 @@ def test_the_join_on_a_full_disk_writes_nothing_half_and_says_so_in_one_line(tmp
     (d / ".hydra" / "overrides.yaml").write_text("- catalogue.shard=0\n")
     mmt_file(tmp_path / "cat.txt", 90040, None, seed=0, n=60)
     cfg = _compose(["experiment=characterise", f"observations={tmp_path / 'cat.txt'}", "catalogue.shard=0",
-                    "+experiment_module=cssat.catalogue"])
+                    "+experiment_module=cssat.catalogue_shards"])
     from cssat.experiments import run_experiment
 
     run_experiment(cfg, d)
@@ -370,10 +371,10 @@ def test_a_shard_refuses_a_file_list_that_changed_since_the_sweep_listed_it(tmp_
                     "catalogue.n_files=3", f"catalogue.listing_sha='{C.listing_sha(files)}'"])
     (tmp_path / "f3.txt").write_text("new")
     with pytest.raises(FieldError, match=r"^observations: the files changed since the sweep listed them"):
-        C.run(cfg, tmp_path / "job")
+        S.run(cfg, tmp_path / "job")
     cfg = _compose(["experiment=characterise", f"observations={tmp_path}", "catalogue.shard=9"])
     with pytest.raises(FieldError, match=r"^catalogue\.shard: 4 files in shards of 500 make 1 shards \(0 to 0\), got 9"):
-        C.run(cfg, tmp_path / "job")
+        S.run(cfg, tmp_path / "job")
     assert not (tmp_path / "job" / "tracks_0.csv").exists()
 
 

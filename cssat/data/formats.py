@@ -23,20 +23,10 @@ import numpy as np
 
 from cssat._checks import FieldError
 
-__all__ = ["FORMATS", "sniff_format", "read_mmt", "read_score", "read_alcdef", "to_utc", "check_dates", "check_magnitudes",
+__all__ = ["FORMATS", "sniff_format", "read_alcdef", "to_utc", "check_dates", "check_magnitudes",
            "check_kind", "period_or_none"]
 
 
-def __getattr__(name: str) -> Any:  # the MMT and SCORE readers moved to their own modules (issue 46)
-    if name == "read_mmt":
-        from cssat.data.mmt import read_mmt
-
-        return read_mmt
-    if name == "read_score":
-        from cssat.data.score import read_score
-
-        return read_score
-    raise AttributeError(name)
 
 FORMATS = ("csv", "mmt", "score", "alcdef", "ecsv", "fits", "astropy")
 TIME_SCALES = ("utc", "tt", "tdb", "tai")

@@ -43,7 +43,7 @@ def read_observations(cfg: Any, check_only: bool = False) -> Any:
     TypeError's traceback; the reader's refusal of one of them names its key too
     (``observed.format``, ``observed.kind``). ``check_only``: the keys checked, nothing read
     (returns ``None``)."""
-    import inspect
+    import inspect  # local: read_light_curve's own parameters name the observed keys
 
     path = cfg.get("observations")
     if not path:

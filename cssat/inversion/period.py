@@ -65,14 +65,14 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
-from cssat.inversion.fourier import _Curve, _design, _vector, check_grid, frame_step, light_curve_scatter, stretches
+from cssat.inversion.fourier import _Curve, _design, check_grid, frame_step, light_curve_scatter, stretches
+from cssat.inversion.period_inputs import MIN_SAMPLES, _astropy_inputs, _check_track
 from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error, stretch_fit
 from cssat.inversion.period_null import count_maxima, harmonic_sum, stretch_power, surrogate_fap
 from cssat.inversion.period_verdict import _constant, _verdict, _warnings, _why
 
 __all__ = ["estimate_period", "light_curve_scatter", "CONVENTIONS", "convention_for"]
 
-MIN_SAMPLES = 12
 #: the period conventions: the light curve's own period, or the full turn of a two-maxima body
 CONVENTIONS = ("photometric", "double_peaked")
 #: a fold with an empty stretch of phase over this fraction of a cycle does not show its period
@@ -130,17 +130,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         return _constant(t, convention)
     seg = stretches(t) if segments is None else seg_given
     lo, hi, d_frame, longest = _search_range(t, seg, zp, min_period_s, max_period_s)
-    max_harmonics = int_param(max_harmonics, "max_harmonics", 1, 50)
-    m_fixed = None if n_harmonics is None else int_param(n_harmonics, "n_harmonics", 1, 50)
-    n_peaks = int_param(n_peaks, "n_peaks", 1, 20)
-    spp = int_param(samples_per_peak, "samples_per_peak", 1, 1000)
-    detrend = int_param(detrend, "detrend", 0, 3)
-    fap_max = float_param(fap_max, "fap_max", 0.0, 1.0)
-    min_cycles = float_param(min_cycles, "min_cycles", 0.0)
-    n_sur = int_param(n_surrogates, "n_surrogates", 2, 10_000)
-    seed = int_param(seed, "seed", 0)
-    if min_repeat is not None:
-        min_repeat = float_param(min_repeat, "min_repeat", -1.0, 1.0)
+    max_harmonics, m_fixed, n_peaks, spp, detrend, fap_max, min_cycles, n_sur, seed, min_repeat = _options(
+        max_harmonics, n_harmonics, n_peaks, samples_per_peak, detrend, fap_max, min_cycles, n_surrogates, seed, min_repeat)
     cv = _Curve(t, y, w, seg, detrend, sigma is not None, zp)
     dts = np.diff(t)
     f_harm = 0.5 / max(float(np.percentile(dts[dts > 0], 10)), 1e-300)  # the harmonics' ceiling: the finer steps' Nyquist
@@ -171,22 +162,10 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     scat = max(light_curve_scatter(t, y), 1e-9 * float(np.std(y)), 1e-150)
     chi2 = rss if sigma is not None else rss / scat ** 2
     chi2_n = chi2 / nu
-    p_phot = 1.0 / fb
     err_phot = period_error(cv, best, step, chi2_n, nu, sigma is not None)
     noise2 = max(chi2_n, 1.0) if sigma is not None else max(rss, cv.floor) / nu  # RSS units per χ² unit
-    fringes = [{"period_s": 1.0 / f, "delta_chi2": float((r - rss) / noise2)} for f, r in minima
-               if abs(f - fb) > 1e-9 * fb and (r - rss) / noise2 < FRINGE_DCHI2]
-    if fringes:  # the cycle count across the gaps is ambiguous: the 1σ reaches the farthest competitor
-        err_phot = max(err_phot, max(abs(fr["period_s"] - p_phot) for fr in fringes))
-    cycle_count = "one stretch"
-    if multi:  # is the cycle count across the gaps fixed? only if the stretches alone pin f to well under a fringe
-        f_inc, sig_inc = stretch_fit(cv, fb, m, 1.0 / (spp * longest), detrend)
-        fringes_per_sigma = sig_inc * span
-        cycle_count = "fixed" if fringes_per_sigma < FRINGE_FIXED else f"ambiguous ({fringes_per_sigma:.3g} fringes a 1σ)"
-        if not math.isfinite(sig_inc):  # the stretches' own fits have no common minimum: no one period to speak of
-            cycle_count = "the stretches do not agree on one period (no minimum of their summed χ² near it)"
-        elif fringes_per_sigma >= FRINGE_FIXED:  # the least-χ² fringe is one of many alike: the envelope's centre instead
-            p_phot, err_phot = 1.0 / f_inc, max(err_phot, sig_inc / f_inc ** 2)
+    p_phot, err_phot, fringes, cycle_count = _across_gaps(cv, fb, m, rss, err_phot, minima, noise2,
+                                                          1.0 / (spp * longest) if multi else None, span, detrend)
     coef, cov, trend, resid = _fit(cv, fb, m)
     n_max = count_maxima(coef, cov, fb, m, magnitudes=_is_magnitude(flux, y))
     k_conv = 2 if convention == "double_peaked" and n_max == 1 else 1
@@ -219,12 +198,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     periodic = {"periodic": True, "not periodic": False}.get(verdict)
     alts = search.alternatives(best, p_phot, cands, len(peaks), None if sigma is not None else scat)
     warns, model_fits = _warnings(period, lo, hi, longest, step, alts, chi2_n, m)
-    if cycle_count.startswith("ambiguous"):
-        warns.append(f"the cycle count across the gaps is not fixed: the stretches alone give P to ±{err_phot:.3g} s, "
-                     f"{cycle_count}; the 1σ is theirs")
-    if fringes:
-        warns.append("the fringes across the gaps within Δχ² 4: " + ", ".join(
-            f"{fr['period_s']:.8g} s (Δχ² {fr['delta_chi2']:.2g})" for fr in fringes) + "; the 1σ reaches the farthest")
+    warns += _gap_warnings(cycle_count, fringes, err_phot)
     nan = float("nan")
     ok = verdict == "periodic"
     return {"verdict": verdict, "periodic": periodic, "verdict_why": why_v,
@@ -239,6 +213,54 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
             "f0_period_s": 1.0 / peaks[0], "doubled": bool(k_conv == 2 or best.get("k", 1) > 1), "warnings": warns,
             "noise_sigma": float(scat) if sigma is None else None, "n_samples": int(N), "rss": float(rss),
             "n_nuisance": int(cv.q), "periodogram": {"frequency_hz": freq, "power": power}}
+
+
+def _options(max_harmonics: Any, n_harmonics: Any, n_peaks: Any, samples_per_peak: Any, detrend: Any, fap_max: Any,
+             min_cycles: Any, n_surrogates: Any, seed: Any, min_repeat: Any) -> tuple:
+    """:func:`estimate_period`'s options checked, each a FieldError naming it."""
+    return (int_param(max_harmonics, "max_harmonics", 1, 50),
+            None if n_harmonics is None else int_param(n_harmonics, "n_harmonics", 1, 50),
+            int_param(n_peaks, "n_peaks", 1, 20), int_param(samples_per_peak, "samples_per_peak", 1, 1000),
+            int_param(detrend, "detrend", 0, 3), float_param(fap_max, "fap_max", 0.0, 1.0),
+            float_param(min_cycles, "min_cycles", 0.0), int_param(n_surrogates, "n_surrogates", 2, 10_000),
+            int_param(seed, "seed", 0), None if min_repeat is None else float_param(min_repeat, "min_repeat", -1.0, 1.0))
+
+
+def _gap_warnings(cycle_count: str, fringes: list[dict[str, float]], err_phot: float) -> list[str]:
+    """The warnings of a period across gaps: a cycle count not fixed, the competing fringes."""
+    out = []
+    if cycle_count.startswith("ambiguous"):
+        out.append(f"the cycle count across the gaps is not fixed: the stretches alone give P to ±{err_phot:.3g} s, "
+                   f"{cycle_count}; the 1σ is theirs")
+    if fringes:
+        out.append("the fringes across the gaps within Δχ² 4: " + ", ".join(
+            f"{fr['period_s']:.8g} s (Δχ² {fr['delta_chi2']:.2g})" for fr in fringes) + "; the 1σ reaches the farthest")
+    return out
+
+
+def _across_gaps(cv: Any, fb: float, m: int, rss: float, err_phot: float, minima: list[tuple[float, float]],
+                 noise2: float, stretch_step: float | None, span: float,
+                 detrend: int) -> tuple[float, float, list[dict[str, float]], str]:
+    """The photometric period (s), its 1σ, the competing fringes and the cycle count across gaps
+    (module docstring, point 8): the fringes ``minima`` (Hz, RSS) within Δχ² 4 of the best
+    ``fb`` (RSS per χ² unit ``noise2``) widen the 1σ; with stretches far apart
+    (``stretch_step``: the periodogram's step, Hz; None for one stretch) the stretches' own fit
+    (:func:`~cssat.inversion.period_aliases.stretch_fit`) says whether the cycle count is fixed."""
+    p_phot = 1.0 / fb
+    fringes = [{"period_s": 1.0 / f, "delta_chi2": float((r - rss) / noise2)} for f, r in minima
+               if abs(f - fb) > 1e-9 * fb and (r - rss) / noise2 < FRINGE_DCHI2]
+    if fringes:  # the cycle count across the gaps is ambiguous: the 1σ reaches the farthest competitor
+        err_phot = max(err_phot, max(abs(fr["period_s"] - p_phot) for fr in fringes))
+    if stretch_step is None:
+        return p_phot, err_phot, fringes, "one stretch"
+    f_inc, sig_inc = stretch_fit(cv, fb, m, stretch_step, detrend)  # fixed only if the stretches pin f under a fringe
+    per_sigma = sig_inc * span
+    if not math.isfinite(sig_inc):  # the stretches' own fits have no common minimum: no one period to speak of
+        return p_phot, err_phot, fringes, "the stretches do not agree on one period (no minimum of their summed χ² near it)"
+    if per_sigma < FRINGE_FIXED:
+        return p_phot, err_phot, fringes, "fixed"
+    # the least-χ² fringe is one of many alike: the envelope's centre instead, and its 1σ
+    return 1.0 / f_inc, max(err_phot, sig_inc / f_inc ** 2), fringes, f"ambiguous ({per_sigma:.3g} fringes a 1σ)"
 
 
 def _is_magnitude(flux: Any, y: np.ndarray) -> bool:
@@ -301,76 +323,6 @@ def _phase_gap(t: np.ndarray, f: float) -> float:
     """The largest empty stretch of phase (fraction of a cycle) in the fold of ``t`` at ``f``."""
     ph = np.sort((t * f) % 1.0)
     return float(np.max(np.diff(np.r_[ph, ph[0] + 1.0]))) if len(ph) else 1.0
-
-
-def _astropy_inputs(times_s: Any, flux: Any, sigma: Any, lo: Any, hi: Any) -> tuple[Any, Any, Any, Any, Any]:
-    """astropy inputs as plain numbers, units honoured: a ``Time`` as seconds from its first
-    instant, a time ``Quantity`` in seconds, a flux ``Quantity``'s ``sigma`` in the flux's unit,
-    period bounds as seconds. A unit that does not convert is a FieldError naming the field."""
-    def seconds(q: Any, field: str) -> Any:
-        if q is None or not hasattr(q, "unit") or not hasattr(q, "to_value"):
-            return q
-        try:
-            return q.to_value("s")
-        except Exception:  # noqa: BLE001 - astropy's UnitConversionError, UnitsError
-            raise FieldError(field, f"expected a time (s, min, h, d…), got a quantity in {q.unit}") from None
-
-    if hasattr(times_s, "jd1") and hasattr(times_s, "jd2"):  # an astropy Time: seconds from its first instant
-        times_s = (times_s - times_s.min()).to_value("s")
-    else:
-        times_s = seconds(times_s, "times_s")
-    if hasattr(flux, "unit") and hasattr(flux, "to_value"):
-        if sigma is not None and hasattr(sigma, "unit"):
-            try:
-                sigma = sigma.to_value(flux.unit)
-            except Exception:  # noqa: BLE001
-                raise FieldError("sigma", f"expected the unit of flux ({flux.unit}), got {sigma.unit}") from None
-        elif sigma is not None and not (str(flux.unit) in ("", "mag") or "mag" in str(flux.unit)):
-            raise FieldError("sigma", f"flux is in {flux.unit}: give sigma as a quantity in that unit")
-    elif sigma is not None and hasattr(sigma, "unit") and str(sigma.unit) not in ("", "mag"):
-        raise FieldError("sigma", f"flux has no unit, sigma is in {sigma.unit}")
-    return times_s, flux, sigma, seconds(lo, "min_period_s"), seconds(hi, "max_period_s")
-
-
-def _check_track(times_s: Any, flux: Any, sigma: Any, segments: Any,
-                 zero_points: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any, Any]:
-    """The track sorted in time, checked: ``t (T,)`` (s), ``y (T,)``, the weights ``w = 1/σ (T,)``
-    (ones without ``sigma``), the track index of each sample ``(T,)`` from ``segments`` and the
-    zero-point index ``(T,)`` from ``zero_points`` (each ``None`` when not given)."""
-    t = _vector(times_s, "times_s", times=True)
-    y = _vector(flux, "flux")
-    if t.shape != y.shape:
-        raise FieldError("flux", f"expected times and values of one length, got {t.shape} and {y.shape}")
-    if not (np.isfinite(t).all() and np.isfinite(y).all()):
-        raise FieldError("flux", "the times and values must be finite (drop the rows that are not)")
-    if len(t) < MIN_SAMPLES:
-        raise FieldError("flux", f"a period needs at least {MIN_SAMPLES} samples, got {len(t)}")
-    order = np.argsort(t, kind="stable")
-    t, y = t[order], y[order]
-
-    def labels(x: Any, field: str) -> Any:
-        if x is None:
-            return None
-        a = np.asarray(x)
-        if a.shape != order.shape:
-            raise FieldError(field, f"expected one label per sample ({len(order)}), got {a.shape}")
-        try:
-            return np.unique(a.astype(str)[order], return_inverse=True)[1].reshape(-1)
-        except (TypeError, ValueError):
-            raise FieldError(field, "labels must be strings or numbers") from None
-
-    seg_given, zp = labels(segments, "segments"), labels(zero_points, "zero_points")
-    if sigma is None:
-        w = np.ones_like(y)
-    else:
-        s = _vector(sigma, "sigma", scalar_ok=True)
-        if s.size not in (1, len(order)):
-            raise FieldError("sigma", f"expected a scalar or one value per sample ({len(order)}), got {s.size}")
-        s = np.broadcast_to(s, (len(order),))[order]
-        if not (np.isfinite(s).all() and (s > 0).all()):
-            raise FieldError("sigma", "the uncertainties must be finite and > 0")
-        w = 1.0 / s
-    return t, y, w, seg_given, zp
 
 
 def _search_range(t: np.ndarray, seg: np.ndarray, zp: Any, min_period_s: float | None,

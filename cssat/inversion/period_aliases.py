@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from cssat.inversion.fourier import _Curve
+
 __all__ = ["Aliases", "RELATIVES", "period_error", "stretch_fit"]
 
 #: the relatives of the chosen period that compete with it and are reported (name, factor)
@@ -171,8 +173,6 @@ def stretch_fit(cv: Any, f: float, m: int, step: float, detrend: int) -> tuple[f
     scale from the summed residual). Across gaps the cycle count is fixed only where this 1σ is
     well under a fringe (``1/span``); otherwise this, the fringes' envelope, is the estimate."""
     from scipy.optimize import minimize_scalar  # heavy: scipy.optimize, only for stretch_fit()
-
-    from cssat.inversion.fourier import _Curve
 
     parts = []
     for k in np.unique(cv.seg):

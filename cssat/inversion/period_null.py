@@ -116,7 +116,7 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
     (mean run ``mean_run_s`` s; ``cadence_s`` the frame step; ``t, y, w (T,)`` the data and
     weights, ``Q (T, q)`` the orthonormal weighted nuisance basis). The draws stop after 6 (or
     12) when both FAPs are over 30× ``fap_max``, after 12 when both are under 1/30 of it with
-    the data above every surrogate. ``seg
+    the data above every surrogate (after 6 when under 1e-6 of it). ``seg
     (T,)``: stretches far apart, each searched alone and their powers summed
     (:func:`stretch_power`); ``dy (T,)``: the 1σ the data's own periodogram was weighted by.
     ``data (T,)``: the data less its nuisance model — given, its statistic is computed here
@@ -216,11 +216,13 @@ def stretch_power(t: np.ndarray, y: np.ndarray, freq: np.ndarray, seg: np.ndarra
 def _decided(z_det: float, z_all: float, zs_det: list[float], zs_all: list[float], fap_max: float,
              below_too: bool = True) -> bool:
     """Whether the surrogates drawn so far settle the verdict at ``fap_max`` beyond doubt: both
-    FAPs over 30× of it, or (``below_too``: after two rounds) under 1/30 of it with the data
-    above every surrogate."""
+    FAPs over 30× of it, or under 1/30 of it with the data above every surrogate (``below_too``:
+    after two rounds; after one, under 1e-6 of it)."""
     fd, fa = _gumbel_sf(z_det, np.array(zs_det)), _gumbel_sf(z_all, np.array(zs_all))
     far_above = all(f > 30 * fap_max for f in (fd, fa))
-    far_below = below_too and all(f < fap_max / 30 for f in (fd, fa)) and z_det > max(zs_det) and z_all > max(zs_all)
+    above_all = z_det > max(zs_det) and z_all > max(zs_all)
+    margin = fap_max / 30 if below_too else fap_max * 1e-6  # after one round only a detection six decades out
+    far_below = all(f < margin for f in (fd, fa)) and above_all
     return far_above or far_below
 
 
