@@ -93,6 +93,12 @@ def harmonic_sum(power: np.ndarray, freq: np.ndarray, n_harm: int = HARMONICS) -
     return out
 
 
+def _same_everywhere(z: float) -> float:
+    """``z`` to 10 significant digits: a statistic, hence a FAP, that does not depend on the
+    last bits a BLAS's thread count leaves (a catalogue's rows equal across launchers)."""
+    return float(f"{z:.10g}")
+
+
 def _gumbel_sf(z: float, zs: np.ndarray) -> float:
     """``P(Z ≥ z)`` of the Gumbel law with the mean and variance of ``zs``, its scale taken at
     the upper end of its 1σ (``× (1 + 1/√n)``: a scale fitted to a few draws would make the
@@ -131,6 +137,7 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
     if batched:
         hs = harmonic_sum(batched_power(basis, data[:, None])[:, 0], freq)
         z_all, z_det = float(hs.max()), float(hs[detect].max()) if detect.any() else 0.0
+    z_all, z_det = _same_everywhere(z_all), _same_everywhere(z_det)
     zs_all: list[float] = []
     zs_det: list[float] = []
     while len(zs_all) < n:
@@ -142,8 +149,8 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
         P = batched_power(basis, Y) if batched else np.stack([stretch_power(t, Y[:, i], freq, seg, dy) for i in range(k)], 1)
         for i in range(k):
             hs = harmonic_sum(P[:, i], freq)
-            zs_all.append(float(hs.max()))
-            zs_det.append(float(hs[detect].max()) if detect.any() else 0.0)
+            zs_all.append(_same_everywhere(float(hs.max())))
+            zs_det.append(_same_everywhere(float(hs[detect].max())) if detect.any() else 0.0)
         if len(zs_all) in (EARLY, 2 * EARLY) and _decided(z_det, z_all, zs_det, zs_all, fap_max, len(zs_all) >= 2 * EARLY):
             break
     za, zd = np.array(zs_all), np.array(zs_det)
@@ -152,25 +159,24 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
             "z_all": z_all, "z_det": z_det}
 
 
-#: the largest trial frequencies × samples the batched periodogram holds (one complex64 matrix, 64 MB)
-MAX_BATCH = 8_000_000
+#: the largest trial frequencies × samples the batched periodogram holds (one complex128 matrix, 64 MB)
+MAX_BATCH = 4_000_000
 
 
 def _trig_basis(t: np.ndarray, freq: np.ndarray) -> dict[str, Any]:
     """``e^{iωt}`` ``(F, T)`` on the regular grid ``freq`` (by the recurrence ``e^{i(ω+Δω)t} =
-    e^{iωt} e^{iΔωt}`` in single precision: one complex product an entry, round-off ~``F ε``,
-    1e-4 at most on the grids the null uses: data and surrogates alike) and the sums of the
+    e^{iωt} e^{iΔωt}``: one complex product an entry, round-off ~``F ε``) and the sums of the
     generalised Lomb–Scargle that depend on the times alone (unit weights, a fitted mean)."""
     tc = t - t.mean()
-    E = np.empty((len(freq), len(t)), dtype=np.complex64)  # single precision: the null's statistic, data and draws alike
+    E = np.empty((len(freq), len(t)), dtype=np.complex128)
     E[0] = np.exp((2j * np.pi * freq[0]) * tc)
     if len(freq) > 1:
-        R = np.exp((2j * np.pi * (freq[1] - freq[0])) * tc).astype(np.complex64)
+        R = np.exp((2j * np.pi * (freq[1] - freq[0])) * tc)
         for j in range(1, len(freq)):
             np.multiply(E[j - 1], R, out=E[j])
     N = len(t)
-    m = E.mean(1, dtype=np.complex128)  # C + iS
-    e2 = (E * E).mean(1, dtype=np.complex128)  # cos 2ωt + i sin 2ωt, averaged
+    m = E.mean(1)  # C + iS
+    e2 = (E * E).mean(1)  # cos 2ωt + i sin 2ωt, averaged
     C, S = m.real, m.imag
     cc = 0.5 * (1.0 + e2.real)
     CC = cc - C * C
@@ -187,7 +193,7 @@ def batched_power(basis: dict[str, Any], Y: np.ndarray) -> np.ndarray:
     N = b["N"]
     Yc = Y - Y.mean(0)
     YY = (Yc * Yc).sum(0) / N
-    Z = (b["E"] @ Yc.astype(np.complex64)).astype(np.complex128) / N  # YC + i YS
+    Z = (b["E"] @ Yc.astype(np.complex128)) / N  # YC + i YS
     YC, YS = Z.real, Z.imag
     num = b["SS"][:, None] * YC ** 2 + b["CC"][:, None] * YS ** 2 - 2 * b["CS"][:, None] * YC * YS
     return num / (np.maximum(YY, 1e-300)[None, :] * np.maximum(b["D"], 1e-300)[:, None])
