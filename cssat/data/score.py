@@ -19,6 +19,7 @@ import numpy as np
 
 from cssat._checks import FieldError
 from cssat.data.formats import _checked
+from cssat.data.text import _is_number
 from cssat.scene.orbit import _start_datetime
 
 __all__ = ["read_score", "SCORE_COLUMNS", "SATCHECKER_COLUMNS"]
@@ -88,7 +89,7 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
         try:
             x = np.array(vals, dtype=np.float64)
         except ValueError:
-            i = next(i for i, v in enumerate(vals) if not _is_float(v))
+            i = next(i for i, v in enumerate(vals) if not _is_number(v))
             raise FieldError(where(c, i), f"not a number: {vals[i]!r}") from None
         if required and not np.isfinite(x).all():
             raise FieldError(where(c, int(np.flatnonzero(~np.isfinite(x))[0])), "no value (an empty field): drop the row")
@@ -134,14 +135,6 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
         meta["potentially_discrepant_rows"] = disc
     out["meta"] = meta
     return out
-
-
-def _is_float(v: str) -> bool:
-    try:
-        float(v)
-        return True
-    except ValueError:
-        return False
 
 
 def _first(idx: dict[str, int], key: str, numbers: Any) -> tuple[str, np.ndarray | None] | None:
