@@ -68,7 +68,7 @@ from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.fourier import _Curve, _design, check_grid, frame_step, light_curve_scatter, stretches
 from cssat.inversion.period_inputs import MIN_SAMPLES, _astropy_inputs, _check_track
 from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error, stretch_fit
-from cssat.inversion.period_null import count_maxima, harmonic_sum, stretch_power, surrogate_fap
+from cssat.inversion.period_null import count_maxima, stretch_power, surrogate_fap
 from cssat.inversion.period_verdict import _constant, _verdict, _warnings, _why
 
 __all__ = ["estimate_period", "light_curve_scatter", "CONVENTIONS", "convention_for"]
@@ -173,13 +173,11 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     # the false-alarm probability from the track's own noise (surrogates), over all periods and over the well-sampled ones
     fnull, pnull = _null_grid(freq, power, spp)
     detect = fnull >= min_cycles / longest
-    hs = harmonic_sum(pnull, fnull)
-    z_all, z_det = float(hs.max()), float(hs[detect].max()) if detect.any() else 0.0
     # the null's noise: the residual of the chosen series where its period is one the detection
     # covers (>= min_cycles), else of the trend alone (a series of 1-2 cycles and many harmonics
     # absorbs red noise: its residual is whiter than the noise, and the null too weak)
     noise_part = (_stretch_resid(cv, fb, m, detrend) if multi else resid) if p_phot * min_cycles <= longest else y - trend
-    null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, fnull, detect, z_all, z_det,
+    null = surrogate_fap(t, y, w, cv.Q, trend, noise_part, fnull, detect, pnull,
                          mean_run_s=max(RUN_FRACTION * longest / max(min_cycles, 1.0), 10 * d_frame),
                          cadence_s=d_frame, n=n_sur, seed=seed, fap_max=fap_max, seg=seg if multi else None,
                          dy=None if sigma is None else 1.0 / w, data=cv.yp / w)
@@ -189,9 +187,8 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     gap = _phase_gap(t, 1.0 / period)
     noise = float(np.median(1.0 / w)) if sigma is not None else scat
     variation_snr = float(np.std(_design(t, fb, m) @ coef)) / noise
-    null["fap_white"] = fap_white
-    verdict, why_v = _verdict(null, fap_max, n_cycles, min_cycles, gap, MAX_PHASE_GAP, period, rep, min_repeat, lo, hi,
-                              variation_snr)
+    verdict, why_v = _verdict(null, fap_white, fap_max, n_cycles, min_cycles, gap, MAX_PHASE_GAP, period, rep, min_repeat,
+                              lo, hi, variation_snr)
     if verdict == "periodic" and cycle_count.startswith("the stretches do not agree"):
         verdict, why_v = "undetermined", (f"a signal stands out (FAP {null['fap']:.2g}) but {cycle_count}: each track "
                                           "alone may say more (the characterise experiment's tracks.csv)")

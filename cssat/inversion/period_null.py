@@ -112,12 +112,12 @@ def _gumbel_sf(z: float, zs: np.ndarray) -> float:
 
 
 def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, trend: np.ndarray, resid: np.ndarray,
-                  freq: np.ndarray, detect: np.ndarray, z_all: float, z_det: float, mean_run_s: float,
+                  freq: np.ndarray, detect: np.ndarray, data_power: np.ndarray, mean_run_s: float,
                   cadence_s: float, n: int, seed: int, fap_max: float = 1e-3,
                   seg: np.ndarray | None = None, dy: np.ndarray | None = None,
                   data: np.ndarray | None = None) -> dict[str, Any]:
-    """The false-alarm probabilities of the data's largest harmonic sum (:func:`harmonic_sum`)
-    over all of ``freq (F,)`` (``z_all``) and over ``freq[detect]`` (``z_det``),
+    """The false-alarm probabilities of the data's largest harmonic sum (:func:`harmonic_sum`
+    of its power ``data_power (F,)``) over all of ``freq (F,)`` and over ``freq[detect]``,
     under ``n`` stationary-bootstrap surrogates ``trend + r*`` of the residual ``resid (T,)``
     (mean run ``mean_run_s`` s; ``cadence_s`` the frame step; ``t, y, w (T,)`` the data and
     weights, ``Q (T, q)`` the orthonormal weighted nuisance basis). The draws stop after 6 (or
@@ -125,19 +125,18 @@ def surrogate_fap(t: np.ndarray, y: np.ndarray, w: np.ndarray, Q: np.ndarray, tr
     the data above every surrogate (after 6 when under 1e-6 of it). ``seg
     (T,)``: stretches far apart, each searched alone and their powers summed
     (:func:`stretch_power`); ``dy (T,)``: the 1σ the data's own periodogram was weighted by.
-    ``data (T,)``: the data less its nuisance model — given, its statistic is computed here
-    with the surrogates' own (exact, batched: :func:`batched_power`) periodogram where the grid
-    is small, and ``z_all``, ``z_det`` are replaced. Returns ``fap`` (detection grid),
+    ``data (T,)``: the data less its nuisance model — given, its power is computed here with
+    the surrogates' own (exact, batched: :func:`batched_power`) periodogram where the grid is
+    small, in place of ``data_power``. Returns ``fap`` (detection grid),
     ``fap_all``, how many surrogates reached each (``exceeding``, ``exceeding_all``), how many
     were drawn (``n``) and the data's statistics (``z_all``, ``z_det``)."""
     rng = np.random.default_rng(seed)
     run = max(mean_run_s / max(cadence_s, 1e-300), 1.0)
     batched = seg is None and dy is None and data is not None and len(freq) * len(t) <= MAX_BATCH
     basis = _trig_basis(t, freq) if batched else None
-    if batched:
-        hs = harmonic_sum(batched_power(basis, data[:, None])[:, 0], freq)
-        z_all, z_det = float(hs.max()), float(hs[detect].max()) if detect.any() else 0.0
-    z_all, z_det = _same_everywhere(z_all), _same_everywhere(z_det)
+    hs = harmonic_sum(batched_power(basis, data[:, None])[:, 0] if batched else data_power, freq)
+    z_all = _same_everywhere(float(hs.max()))
+    z_det = _same_everywhere(float(hs[detect].max())) if detect.any() else 0.0
     zs_all: list[float] = []
     zs_det: list[float] = []
     while len(zs_all) < n:

@@ -56,11 +56,12 @@ def _why(best: dict[str, Any], alts: list[dict[str, Any]], k_conv: int = 1, n_ma
 MIN_VARIATION_SNR = 2.0
 
 
-def _verdict(null: dict[str, Any], fap_max: float, n_cycles: float, min_cycles: float, gap: float, max_gap: float,
-             period: float, rep: float, min_repeat: float | None, lo: float, hi: float,
+def _verdict(null: dict[str, Any], fap_white: float, fap_max: float, n_cycles: float, min_cycles: float, gap: float,
+             max_gap: float, period: float, rep: float, min_repeat: float | None, lo: float, hi: float,
              variation_snr: float) -> tuple[str, str]:
     """The verdict word and its reason (:func:`cssat.inversion.estimate_period`, point 7):
-    ``variation_snr`` is the fitted series' rms over the single-sample noise."""
+    ``null`` the surrogates' FAPs, ``fap_white`` the white-noise F-test's, ``variation_snr`` the
+    fitted series' rms over the single-sample noise."""
     fap, fap_all = null["fap"], null["fap_all"]
     sur = f"{null['n']} surrogates of the track's own noise"
     if fap < fap_max:
@@ -75,7 +76,7 @@ def _verdict(null: dict[str, Any], fap_max: float, n_cycles: float, min_cycles: 
                                     f"(repeat {rep:.2g} < min_repeat {min_repeat:g})")
         return "periodic", (f"P = {period:.6g} s stands out of the track's own noise (FAP {fap:.2g} from {sur}) over "
                             f"{n_cycles:.3g} cycles")
-    slow = n_cycles < min_cycles and null.get("fap_white", 1.0) < fap_max  # more than white noise, too slow to test
+    slow = n_cycles < min_cycles and fap_white < fap_max  # more than white noise, too slow to test
     if slow and variation_snr >= MIN_VARIATION_SNR:
         return "undetermined", (f"the curve varies (rms {variation_snr:.2g}× the noise) on the scale of the track: its "
                                 f"best period {period:.6g} s spans {n_cycles:.2g} cycles, fewer than {min_cycles:g}, "
