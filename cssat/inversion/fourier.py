@@ -266,3 +266,9 @@ class _Curve:
             r2_pred, r2_in = 1 - float(r_pred @ r_pred) / tot, 1 - float(r_in @ r_in) / tot
             out.append(r2_pred / r2_in if r2_in > 0 else 0.0)
         return float(max(min(out), -1.0)) if out else float("nan")
+
+
+#: the public names of the harmonic design matrix and of the prepared curve (the private names are kept for old imports)
+Curve = _Curve
+design = _design
+__all__ += ["Curve", "design"]
