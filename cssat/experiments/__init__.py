@@ -43,7 +43,7 @@ def experiment_names() -> list[str]:
 
 def _process_seconds() -> float:
     """Seconds since this process started (Python start-up, imports, Hydra's composition)."""
-    import psutil  # heavy: psutil, only for _process_seconds()
+    import psutil  # heavy: psutil, only for the process start time (seconds_startup)
 
     return max(0.0, time.time() - psutil.Process().create_time())
 

@@ -15,7 +15,7 @@ import numpy as np
 from cssat._checks import FieldError, int_param
 from cssat.experiments.build import settings
 from cssat.scene import make_scenario
-from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, _satellite, _skyfield
+from cssat.scene.orbit import ASTRA_1KR_SYNTHETIC_TLE, earth_satellite, skyfield_ephemeris
 
 if TYPE_CHECKING:
     from cssat.scene import Scenario
@@ -77,8 +77,8 @@ def check_elements(cfg: Any, lc: Any, max_epoch_days: float = 14.0) -> None:
     tle = cfg.scenario.get("tle")
     given = tle is not None
     tle = ASTRA_1KR_SYNTHETIC_TLE if tle is None else OmegaConf.to_container(tle) if OmegaConf.is_config(tle) else tle
-    ts, _ = _skyfield()
-    sat, _ = _satellite(tle, ts)
+    ts, _ = skyfield_ephemeris()
+    sat, _ = earth_satellite(tle, ts)
     obj = str(lc.meta.get("object_id") or "").strip()
     satnum = int(sat.model.satnum)
     what = "scenario.tle" if given else "scenario.tle is null: the synthetic Astra 1KR set"

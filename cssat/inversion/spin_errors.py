@@ -16,8 +16,12 @@ def _pole_vector(lon_deg: float, lat_deg: float) -> np.ndarray:
     return np.array([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)])
 
 
-def _separation_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
+def separation_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """The angle (degrees) between the poles ``a`` and ``b``, each ``(longitude, latitude)`` in degrees."""
     return float(np.degrees(np.arccos(np.clip(_pole_vector(*a) @ _pole_vector(*b), -1.0, 1.0))))
+
+
+_separation_deg = separation_deg  # the old private name, kept for old imports
 
 
 def _spin_errors(fine: Any, lon: float, lat: float, f: float, chi2: float, span: float,

@@ -11,7 +11,8 @@ from typing import Any, Mapping
 from cssat._checks import FieldError, FieldTypeError
 from cssat.scene.times import _start_datetime
 
-__all__ = ["ASTRA_1KR_SYNTHETIC_TLE", "OMM_DEFAULTS", "OMM_REQUIRED", "SATELLITE_FORMS", "check_elements", "check_tle"]
+__all__ = ["ASTRA_1KR_SYNTHETIC_TLE", "OMM_DEFAULTS", "OMM_REQUIRED", "SATELLITE_FORMS", "check_elements", "check_tle",
+           "earth_satellite"]
 
 #: Astra 1KR (NORAD 29055, 19.2°E), re-epoched to 2020-04-01 00:00 UTC from the real 2020-09-30
 #: element set with the mean anomaly set so the longitude is 19.2°E. **Synthetic**: no real TLE near
@@ -67,7 +68,7 @@ SATELLITE_FORMS = ("two TLE lines (line1, line2)", "three (name, line1, line2)",
                    "a skyfield EarthSatellite", "an sgp4 Satrec", "an OMM/GP record (a dict of CCSDS keys)")
 
 
-def _satellite(tle, ts, field: str = "scenario.tle"):
+def earth_satellite(tle, ts, field: str = "scenario.tle"):
     """``(EarthSatellite, name)`` of any of :data:`SATELLITE_FORMS`; TLE lines are checked by
     :func:`check_tle` first (``name`` is ``""`` when the input carries none)."""
     from sgp4.api import Satrec  # heavy: sgp4, only for _satellite()
@@ -95,6 +96,9 @@ def _satellite(tle, ts, field: str = "scenario.tle"):
     line1, line2 = (ln.rstrip() for ln in lines)
     check_tle(line1, line2, field=field)
     return EarthSatellite(line1, line2, name=name or None, ts=ts), name
+
+
+_satellite = earth_satellite  # the old private name, kept for old imports
 
 
 #: lowest perigee altitude (km) whose orbit SGP4 propagates as a satellite: below, it has re-entered

@@ -22,13 +22,15 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
-from cssat.scene.elements import ASTRA_1KR_SYNTHETIC_TLE, R_EARTH_KM, STALE_DAYS, _satellite, check_elements, check_tle
+from cssat.scene.elements import ASTRA_1KR_SYNTHETIC_TLE, R_EARTH_KM, STALE_DAYS, check_elements, check_tle, earth_satellite
 from cssat.scene.times import TIMES_FORMS, _start_datetime, utc_times
 
 __all__ = [
     "ASTRA_1KR_SYNTHETIC_TLE",
     "Scenario",
     "check_tle",
+    "earth_satellite",
+    "skyfield_ephemeris",
     "earth_shadow_fraction",
     "make_scenario",
     "utc_times",
@@ -87,10 +89,10 @@ class Scenario:
 
 
 @lru_cache(maxsize=1)
-def _skyfield():
+def skyfield_ephemeris():
     """The timescale and DE421 ephemeris, loaded offline from ``skyfield-data``."""
-    import skyfield_data  # heavy: skyfield-data, only for _skyfield()
-    from skyfield.api import Loader  # heavy: skyfield, only for _skyfield()
+    import skyfield_data  # heavy: skyfield-data, only for skyfield_ephemeris()
+    from skyfield.api import Loader  # heavy: skyfield, only for skyfield_ephemeris()
 
     with warnings.catch_warnings():
         # skyfield-data warns when its Earth-orientation table is past its date; DE421 and the
@@ -98,6 +100,9 @@ def _skyfield():
         warnings.filterwarnings("ignore", message=".*has expired.*", category=RuntimeWarning)
         load = Loader(skyfield_data.get_skyfield_data_path(), expire=False, verbose=False)
         return load.timescale(builtin=True), load("de421.bsp")
+
+
+_skyfield = skyfield_ephemeris  # the old private name, kept for old imports
 
 
 def earth_shadow_fraction(r_sat_km: np.ndarray, r_sun_km: np.ndarray) -> np.ndarray:
@@ -168,8 +173,8 @@ def make_scenario(
     from sgp4.api import SGP4_ERRORS  # heavy: sgp4, only for make_scenario()
     from skyfield.api import wgs84  # heavy: skyfield, only for make_scenario()
 
-    ts, eph = _skyfield()
-    sat, own_name = _satellite(tle, ts)
+    ts, eph = skyfield_ephemeris()
+    sat, own_name = earth_satellite(tle, ts)
     if name is None:
         default = tle is ASTRA_1KR_SYNTHETIC_TLE
         name = "Astra 1KR (synthetic TLE)" if default else own_name or f"NORAD {sat.model.satnum}"

@@ -12,7 +12,7 @@ import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat._tmpfiles import atomic_write
-from cssat.experiments.forward.egi_score import _rms, _typical
+from cssat.experiments.forward.egi_score import rms, typical
 from cssat.scene.mesh import Mesh
 
 __all__ = ["check_shape_settings", "solve_parametric", "score_parametric", "write_parametric"]
@@ -55,13 +55,13 @@ def solve_parametric(f: Any) -> None:
               "fit_typical_over_noise", "heldout_typical_over_noise"):
         m[f"convex_{k}"] = m.get(k)
     resid = y - f.model_unit
-    rf, rh = _rms(resid, fit), _rms(resid, held)
-    nf = _rms(sigma, fit) if sigma is not None else None
-    nh = _rms(sigma, held) if sigma is not None else None
+    rf, rh = rms(resid, fit), rms(resid, held)
+    nf = rms(sigma, fit) if sigma is not None else None
+    nh = rms(sigma, held) if sigma is not None else None
     m.update(shape="parametric", fit_rms=rf, fit_rms_over_noise=rf / nf if nf else None, heldout_rms=rh,
              heldout_rms_over_noise=rh / nh if nh and held.any() else None,
              heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
-             fit_typical_over_noise=_typical(resid, sigma, fit), heldout_typical_over_noise=_typical(resid, sigma, held),
+             fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
              **{f"parametric_{k}": v for k, v in info["params"].items()})
 
 

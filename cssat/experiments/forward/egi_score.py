@@ -16,7 +16,8 @@ from cssat.plots import save_figure
 from cssat.scene.attitudes import Spin, Tumbling
 from cssat.scene.mesh import Mesh
 
-__all__ = ["solve_egi", "score_truth", "write_egi", "egi_recovered_share", "EGI_WEIGHT_SHARE", "EGI_MATCH_DEG"]
+__all__ = ["solve_egi", "score_truth", "write_egi", "egi_recovered_share", "rms", "typical", "EGI_WEIGHT_SHARE",
+           "EGI_MATCH_DEG"]
 
 #: a recovered normal "carries weight" when it holds at least this share of the recovered area
 EGI_WEIGHT_SHARE = 0.01
@@ -43,15 +44,19 @@ def _grid(n: int) -> np.ndarray:
     return fibonacci_sphere(min(n, 2000)).numpy()
 
 
-def _rms(x: np.ndarray, m: np.ndarray) -> float | None:
+def rms(x: np.ndarray, m: np.ndarray) -> float | None:
+    """The rms of ``x`` over the samples ``m`` (bool, like ``x``); None without samples."""
     return float(np.sqrt(np.mean(x[m] ** 2))) if m.any() else None
 
 
-def _typical(resid: np.ndarray, sigma: np.ndarray | None, m: np.ndarray) -> float | None:
+def typical(resid: np.ndarray, sigma: np.ndarray | None, m: np.ndarray) -> float | None:
     """The typical residual over the noise on the samples ``m``: ``median |r/σ| / 0.6745`` (1 for
     residuals at the noise, Gaussian), which a few unpredicted glints do not dominate as they do
     the rms; None without ``sigma`` or samples."""
     return float(np.median(np.abs(resid[m] / sigma[m])) / 0.6745) if sigma is not None and m.any() else None
+
+
+_rms, _typical = rms, typical  # the old private names, kept for old imports
 
 
 def solve_egi(f: Any) -> None:
@@ -66,14 +71,14 @@ def solve_egi(f: Any) -> None:
                                 sigma=None if sigma is None else sigma[fit], closure=f.closure, solver=f.solver)
     f.model_unit = res.predict(f.sun_b, f.obs_b)
     resid = y - f.model_unit
-    noise_fit = _rms(sigma, fit) if sigma is not None else None
-    noise_held = _rms(sigma, held) if sigma is not None else None
-    rms_fit, rms_held = _rms(resid, fit), _rms(resid, held)
+    noise_fit = rms(sigma, fit) if sigma is not None else None
+    noise_held = rms(sigma, held) if sigma is not None else None
+    rms_fit, rms_held = rms(resid, fit), rms(resid, held)
     f.metrics.update(egi_n_normals=int(res.areas.size), egi_area_m2=float(res.areas.sum()), fit_rms=rms_fit,
                      fit_rms_over_noise=(rms_fit / noise_fit) if noise_fit else None,
                      heldout_rms=rms_held, heldout_rms_over_noise=(rms_held / noise_held) if noise_held and held.any() else None,
                      heldout_rms_relative=(rms_held / float(np.sqrt(np.mean(y[held] ** 2)))) if held.any() else None,
-                     fit_typical_over_noise=_typical(resid, sigma, fit), heldout_typical_over_noise=_typical(resid, sigma, held),
+                     fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
                      shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
                      **{f"inversion_{k}": v for k, v in res.info.items() if isinstance(v, (int, float, str)) or v is None})
     f.grid = _grid(f.n_normals)
@@ -105,26 +110,26 @@ def score_truth(f: Any) -> dict[str, np.ndarray]:
     if isinstance(attitude, Tumbling) and f.spin_mode == "tumbling":
         metrics.update(_tumbling_errors(attitude, sol.state))
     if isinstance(attitude, Spin) and sol is not None:
-        from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
+        from cssat.inversion.spin_errors import separation_deg  # heavy: cssat.inversion imports torch
 
         metrics["period_error_relative"] = abs(sol.period_s - abs(attitude.period_s)) / abs(attitude.period_s)
         lon, lat = attitude.pole_lon_deg, attitude.pole_lat_deg
         if attitude.period_s < 0:  # a retrograde spin is a prograde one about the opposite pole
             lon, lat = lon + 180.0, -lat
-        metrics["pole_error_deg"] = _separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (lon, lat))
+        metrics["pole_error_deg"] = separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (lon, lat))
     return {"true_normals": tn_fit, "true_areas": ta}
 
 
 def _tumbling_errors(attitude: Any, st: Any) -> dict[str, Any]:
     """A searched torque-free state ``st`` against the attitude's own invariants."""
-    from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
+    from cssat.inversion.spin_errors import separation_deg  # heavy: cssat.inversion imports torch
     from cssat.inversion.tumble import torque_free_invariants  # heavy: cssat.inversion.tumble imports torch
 
     tr = torque_free_invariants(attitude.inertia, attitude.q0, attitude.omega0, st.frame)
     if tr is None:
         return {}
     e_w, e_p = abs(st.f_omega_hz / tr["f_omega_hz"] - 1), abs(st.f_phi_hz / tr["f_phi_hz"] - 1)
-    return dict(pole_error_deg=_separation_deg((st.lon_deg, st.lat_deg), (tr["L_lon_deg"], tr["L_lat_deg"])),
+    return dict(pole_error_deg=separation_deg((st.lon_deg, st.lat_deg), (tr["L_lon_deg"], tr["L_lat_deg"])),
                 period_error_relative=max(e_w, e_p), tumble_P_omega_error_relative=e_w,
                 tumble_P_phi_error_relative=e_p, tumble_i1_error=st.i1 - tr["i1"], tumble_i2_error=st.i2 - tr["i2"],
                 tumble_true_P_omega_s=1 / tr["f_omega_hz"], tumble_true_P_phi_s=1 / tr["f_phi_hz"],

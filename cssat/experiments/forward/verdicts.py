@@ -352,14 +352,14 @@ def fitted_model(t: np.ndarray, y: np.ndarray, res: dict[str, Any], detrend: int
     """The chosen Fourier series (at its photometric period, the one its harmonics count) with
     each track's trend and each channel's zero point at ``t``, and that trend and offset alone
     (the fold shows the curve less it)."""
-    from cssat.inversion.fourier import _Curve, _design  # heavy: cssat.inversion.fourier imports torch
+    from cssat.inversion.fourier import Curve, design  # heavy: cssat.inversion.fourier imports torch
 
     P = res.get("photometric_period_s", res["best_period_s"])
     if not np.isfinite(P):
         flat = np.full_like(y, np.mean(y))
         return flat, flat
     zp = None if channels is None or len(set(np.asarray(channels).tolist())) < 2 else np.asarray(channels)
-    cv = _Curve(t, y, np.ones_like(y), np.unique(tracks, return_inverse=True)[1].reshape(-1), detrend, False, zp)
-    X = np.concatenate([cv.Q, _design(t, 1.0 / P, res["n_harmonics"])], 1)
+    cv = Curve(t, y, np.ones_like(y), np.unique(tracks, return_inverse=True)[1].reshape(-1), detrend, False, zp)
+    X = np.concatenate([cv.Q, design(t, 1.0 / P, res["n_harmonics"])], 1)
     coef, *_ = np.linalg.lstsq(X, y, rcond=None)
     return X @ coef, cv.Q @ coef[:cv.q]
