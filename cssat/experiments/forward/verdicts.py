@@ -125,8 +125,9 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
     name their key: ``period.<option>`` or ``observations``. ``channels (T,)``: each sample's
     camera channel (its own zero point); ``period.convention`` null: by the object's name
     (:func:`~cssat.inversion.period.convention_for`: the full turn of a rocket body). Returns
-    :func:`~cssat.inversion.estimate_period`'s result (``None``: off or out of reach)."""
-    from cssat.inversion import estimate_period  # heavy: cssat.inversion imports torch
+    :func:`~cssat.inversion.estimate_period`'s result (``None``: off or out of reach); ``period.method``
+    another registered period method (:func:`~cssat.inversion.period_method`)."""
+    from cssat.inversion import period_method  # heavy: cssat.inversion imports torch
 
     if opt["modes"]["period"] == "off":
         m.update(stage_period="off", verdict="undetermined", why="the period stage is off (stages.period=off)")
@@ -134,6 +135,8 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
     from cssat.inversion.period import convention_for  # heavy: cssat.inversion imports torch
 
     kw = dict(opt["period"])
+    method = kw.pop("method", None)
+    estimate_period = period_method(method, field="period.method")
     kw.setdefault("convention", convention_for(m.get("object_name")))
     m["period_convention"] = kw["convention"]
     if channels is not None and len(set(np.asarray(channels).tolist())) > 1:
@@ -146,7 +149,7 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
             if "trial frequencies" not in err.detail or len(set(tracks)) < 2:
                 raise _period_error(err) from None
             why_not = err.detail
-        rows = per_track(t, y, sig, tracks, kw, opt["min_samples"]) if len(set(tracks)) > 1 else []
+        rows = per_track(t, y, sig, tracks, kw, opt["min_samples"], method) if len(set(tracks)) > 1 else []
     if rows:
         m["n_tracks_periodic"] = sum(r["verdict"] == "periodic" for r in rows)
         m["track_periods_s"] = [r["period_s"] for r in rows if r["verdict"] == "periodic"]
@@ -194,10 +197,12 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
 
 
 def per_track(t: np.ndarray, y: np.ndarray, sig: np.ndarray | None, tracks: np.ndarray, kw: dict[str, Any],
-              min_samples: int) -> list[dict[str, Any]]:
+              min_samples: int, method: str | None = None) -> list[dict[str, Any]]:
     """One row per track: its own period analysis — ``verdict`` (:data:`VERDICTS`), ``why``,
     ``periodic``, the period and its 1σ (s), FAP, repeat — or why none (too few samples)."""
-    from cssat.inversion import estimate_period  # heavy: cssat.inversion imports torch
+    from cssat.inversion import period_method  # heavy: cssat.inversion imports torch
+
+    estimate_period = period_method(method, field="period.method")
 
     rows = []
     for k in dict.fromkeys(tracks):

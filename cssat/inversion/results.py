@@ -1,0 +1,460 @@
+"""The results of the inversion's estimators as objects: :class:`PeriodResult` (a period search),
+:class:`SpinSolution` (a principal-axis spin) and :class:`TumblingSolution` (a tumbling state).
+
+Each is a read-only mapping of its keys (``r["period_s"]``, ``dict(r)``, ``r.keys()``, ``"fap" in
+r``: what scripts and the experiments have always read) with typed attributes for the documented
+ones (``r.period_s``) and, for any other key, attribute access too. A result is a
+:class:`~collections.abc.Mapping` over the estimator's own dict rather than a dataclass of fixed
+fields because the keys are open: each period method records its own (the default 36, a plain
+periodogram a dozen, a registered method whatever it has), and an absent key stays absent —
+``r.get("photometric_period_s", r["best_period_s"])`` reads as it did on the dict, where a
+dataclass's default ``None`` would be a present value. ``dict(r)`` is the estimator's dict, key
+for key; :meth:`Result.to_json` writes it as JSON (arrays as lists), :meth:`Result.from_json`
+reads it back (the array keys as arrays).
+
+:func:`series_fit` fits the light-curve model a period result's :meth:`PeriodResult.model`
+evaluates: a Fourier series at one period plus each stretch's polynomial trend and each camera
+channel's zero point, the keys ``coefficients``, ``model_period_s``, ``time_origin_s``, ``trend``
+and ``zero_points``.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import Any, ClassVar, Iterator
+
+import numpy as np
+
+from cssat._checks import FieldError, FieldTypeError
+
+__all__ = ["Result", "PeriodResult", "SpinSolution", "TumblingSolution", "series_fit", "jsonable"]
+
+
+def jsonable(value: Any) -> Any:
+    """``value`` with numpy arrays as lists, numpy scalars as Python numbers, tuples as lists,
+    mappings (results included) as dicts with string keys; other objects (a BRDF, a state) as
+    their ``repr`` — JSON of them is a record, not a way back."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return repr(value)
+
+
+class Result(Mapping):
+    """A read-only mapping of an estimator's keys with attribute access (the module's
+    docstring). ``Result(d)`` or ``Result(**kw)``; ``Result(r)`` of a result copies its keys.
+    Subclasses name the keys they require (:attr:`required`, a FieldError naming the missing
+    ones) and the keys :meth:`from_json` makes arrays again (:attr:`array_keys`, dotted for a
+    nested mapping)."""
+
+    __slots__ = ("_data",)
+    required: ClassVar[tuple[str, ...]] = ()
+    array_keys: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, data: Mapping[str, Any] | None = None, /, **kw: Any):
+        if data is not None and not isinstance(data, Mapping):
+            raise FieldTypeError(self._name(), f"expected a mapping of the result's keys, got {type(data).__name__}")
+        d = {**(dict(data._data) if isinstance(data, Result) else dict(data or {})), **kw}
+        missing = [k for k in self.required if k not in d]
+        if missing:
+            raise FieldError(self._name(), f"missing {', '.join(missing)}; a {type(self).__name__} needs "
+                                           f"{', '.join(self.required)}")
+        object.__setattr__(self, "_data", d)
+
+    @classmethod
+    def _name(cls) -> str:
+        return cls.__name__
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Any:
+        """``data`` as this class: a result of it returned as it is (idempotent), a dict wrapped."""
+        return data if type(data) is cls else cls(data)
+
+    def __getitem__(self, key: str) -> Any:
+        return self._data[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._data
+
+    def __getattr__(self, name: str) -> Any:  # only for names that are not attributes: the other keys
+        if name.startswith("_"):
+            raise AttributeError(name)
+        try:
+            return self._data[name]
+        except KeyError:
+            raise AttributeError(f"{type(self).__name__} has no {name!r}; its keys: {', '.join(self._data)}") from None
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"a {type(self).__name__} is read-only: make a new one, "
+                             f"{type(self).__name__}({{**r, {name!r}: ...}})")
+
+    def __delattr__(self, name: str) -> None:
+        raise AttributeError(f"a {type(self).__name__} is read-only")
+
+    def __reduce__(self) -> tuple:  # pickled across joblib workers as its dict
+        return (type(self), (self._data,))
+
+    def __dir__(self) -> list[str]:
+        return sorted(set(super().__dir__()) | {k for k in self._data if isinstance(k, str) and k.isidentifier()})
+
+    def __repr__(self) -> str:
+        keys = ", ".join(list(self._data)[:8]) + (", …" if len(self._data) > 8 else "")
+        return f"{type(self).__name__}({keys})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """A (shallow) copy of the keys as a plain dict: ``dict(r)``."""
+        return dict(self._data)
+
+    def to_json(self, **kw: Any) -> str:
+        """The keys as JSON (:func:`jsonable`; ``kw`` to :func:`json.dumps`; NaN as ``NaN``)."""
+        return json.dumps(jsonable(self._data), **kw)
+
+    @classmethod
+    def from_json(cls, text: str) -> Any:
+        """A result from :meth:`to_json`'s text, :attr:`array_keys` as float arrays."""
+        d = json.loads(text)
+        for key in cls.array_keys:
+            *outer, last = key.split(".")
+            node = d
+            for k in outer:
+                node = node.get(k) if isinstance(node, dict) else None
+            if isinstance(node, dict) and node.get(last) is not None:
+                node[last] = np.asarray(node[last], dtype=np.float64)
+        return cls(d)
+
+
+class PeriodResult(Result):
+    """The result of a period search (:func:`cssat.inversion.find_period`, any registered
+    method): at least ``period_s`` (s; NaN or None where there is none), ``verdict``
+    (``"periodic"``, ``"not periodic"``, ``"undetermined"``) and ``periodic`` (True, False, None:
+    undetermined); :func:`cssat.inversion.estimate_period`'s keys are documented there. The
+    attributes below read the keys; one that a method does not record reads ``None`` (``[]`` for
+    the lists) while ``r[key]`` raises KeyError as a dict does."""
+
+    required = ("period_s", "verdict", "periodic")
+    array_keys = ("periodogram.frequency_hz", "periodogram.power")
+
+    @property
+    def period_s(self) -> float | None:
+        """The period (s): the verdict's period (the full turn under ``convention
+        double_peaked``)."""
+        return self._data["period_s"]
+
+    @property
+    def period_err_s(self) -> float | None:
+        """The period's 1σ (s)."""
+        return self._data.get("period_err_s")
+
+    @property
+    def verdict(self) -> str:
+        """``"periodic"``, ``"not periodic"`` or ``"undetermined"``."""
+        return self._data["verdict"]
+
+    @property
+    def periodic(self) -> bool | None:
+        """True, False, or None (undetermined)."""
+        return self._data["periodic"]
+
+    @property
+    def method(self) -> str | None:
+        """The registered method that made it (``None``: not recorded)."""
+        return self._data.get("method")
+
+    @property
+    def fap(self) -> float | None:
+        """The false-alarm probability of the period (``None``: the method has none)."""
+        return self._data.get("fap")
+
+    @property
+    def alternatives(self) -> list[dict[str, Any]]:
+        """The other periods the method weighed (dicts with at least ``period_s``)."""
+        return self._data.get("alternatives") or []
+
+    @property
+    def warnings(self) -> list[str]:
+        """The method's warnings."""
+        return self._data.get("warnings") or []
+
+    @property
+    def periodogram(self) -> dict[str, np.ndarray] | None:
+        """``{"frequency_hz": (F,), "power": (F,)}``, or None."""
+        return self._data.get("periodogram")
+
+    @property
+    def why(self) -> str | None:
+        """One sentence: why this verdict (``verdict_why``), else why this period (``why``)."""
+        return self._data.get("verdict_why") or self._data.get("why")
+
+    def model(self, times_s: Any, *, trend: bool = True, channels: Any = None) -> np.ndarray:
+        """The fitted light curve ``(T,)`` at ``times_s (T,)`` (s, the origin of the times the
+        method was given): the Fourier series ``Σₖ aₖ cos 2πk(t − t₀)/P + bₖ sin 2πk(t − t₀)/P``
+        (``coefficients`` = ``[a₁…a_m, b₁…b_m]``, ``P`` = ``model_period_s`` — else
+        ``photometric_period_s``, else ``period_s`` —, ``t₀`` = ``time_origin_s``, default 0)
+        plus, with ``trend``, the polynomial of the stretch each time falls in (``trend``: dicts
+        ``start_s``, ``stop_s``, ``centre_s``, ``scale_s``, ``coefficients`` ``[c₀, c₁, …]`` of
+        ``Σ cⱼ ((t − centre)/scale)ʲ``; a time outside every stretch takes the nearest's) and,
+        with ``channels (T,)``, each channel's zero point (``zero_points``: {channel: offset}).
+        In the unit of the values the method was given. A result without ``coefficients`` is a
+        FieldError naming ``model``."""
+        d = self._data
+        if d.get("coefficients") is None:
+            raise FieldError("model", f"this result ({d.get('method') or 'its method'}) records no fitted series: no "
+                                      "'coefficients' key (series_fit gives the model's keys)")
+        t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+        c = np.asarray(d["coefficients"], dtype=np.float64)
+        m = len(c) // 2
+        period = next(float(d[k]) for k in ("model_period_s", "photometric_period_s", "period_s")
+                      if d.get(k) is not None)
+        phase = (2 * np.pi / period) * (t - float(d.get("time_origin_s") or 0.0))[:, None] * np.arange(1, m + 1)
+        out = np.cos(phase) @ c[:m] + np.sin(phase) @ c[m:]
+        if trend and d.get("trend"):
+            out = out + _trend(t, d["trend"])
+        if channels is not None and d.get("zero_points"):
+            zp = {str(k): float(v) for k, v in d["zero_points"].items()}
+            ch = np.asarray(channels).astype(str).reshape(-1)
+            unknown = sorted(set(ch) - set(zp))
+            if unknown:
+                raise FieldError("channels", f"no zero point for {', '.join(unknown)}; the channels: {', '.join(zp)}")
+            out = out + np.array([zp[k] for k in ch])
+        return out
+
+
+def _trend(t: np.ndarray, stretches: list[Mapping[str, Any]]) -> np.ndarray:
+    """Each time's stretch polynomial (the stretch it falls in, else the nearest)."""
+    lo = np.array([float(s["start_s"]) for s in stretches])
+    hi = np.array([float(s["stop_s"]) for s in stretches])
+    dist = np.maximum(np.maximum(lo[None, :] - t[:, None], t[:, None] - hi[None, :]), 0.0)
+    which = np.argmin(dist, axis=1)
+    out = np.empty_like(t)
+    for k, s in enumerate(stretches):
+        on = which == k
+        if on.any():
+            u = (t[on] - float(s["centre_s"])) / float(s["scale_s"])
+            out[on] = np.polynomial.polynomial.polyval(u, np.asarray(s["coefficients"], dtype=np.float64))
+    return out
+
+
+def series_fit(times_s: Any, flux: Any, period_s: float, n_harmonics: int, *, sigma: Any = None, segments: Any = None,
+               detrend: int = 2, zero_points: Any = None) -> dict[str, Any]:
+    """The keys of :meth:`PeriodResult.model`: the weighted least-squares fit (weights ``1/σ``;
+    none: equal) of an ``n_harmonics``-term Fourier series at ``period_s`` plus, for each
+    stretch (``segments (T,)`` labels; default :func:`cssat.data.observations.stretches`), a
+    polynomial of order ``detrend`` in ``(t − mean)/max|t − mean|`` (an offset alone for a
+    stretch of at most ``2 (detrend + 1)`` samples: the nuisance model of
+    :func:`~cssat.inversion.estimate_period`), and an offset for each ``zero_points (T,)``
+    label after the first. ``times_s (T,)`` s, ``flux (T,)`` any unit. Where the offsets
+    repeat each other (channels inside stretches) the least-norm split is taken: the model on
+    the data is unique, the split is not. Returns ``coefficients`` (``[a₁…a_m, b₁…b_m]``),
+    ``model_period_s``, ``time_origin_s`` (the earliest time: phase 0), ``trend`` (a dict a
+    stretch: ``segment``, ``start_s``, ``stop_s``, ``centre_s``, ``scale_s``,
+    ``coefficients``) and ``zero_points`` ({label: offset}, the first label's 0; ``None``
+    without labels)."""
+    from cssat.data.observations import stretches as _stretches  # cssat.data: torch on import
+
+    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
+    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    if y.shape != t.shape or not len(t):
+        raise FieldError("flux", f"expected times and values of one length (T,), got {t.shape} and {y.shape}")
+    if not (np.isfinite(period_s) and period_s > 0):
+        raise FieldError("period_s", f"a finite period > 0 is needed, got {period_s!r}")
+    w = np.ones_like(t) if sigma is None else 1.0 / np.broadcast_to(np.asarray(sigma, dtype=np.float64), t.shape)
+    seg = _stretches(np.sort(t))[np.argsort(np.argsort(t, kind="stable"), kind="stable")] if segments is None \
+        else np.asarray(segments).reshape(-1)
+    origin = float(t.min())
+    cols, spans = [], []
+    for s in dict.fromkeys(seg.tolist()):
+        on = seg == s
+        centre = float(t[on].mean())
+        scale = max(float(np.abs(t[on] - centre).max()), 1e-300)
+        order = detrend if on.sum() > 2 * (detrend + 1) else 0
+        u = np.where(on, (t - centre) / scale, 0.0)
+        spans.append({"segment": str(s), "start_s": float(t[on].min()), "stop_s": float(t[on].max()), "centre_s": centre,
+                      "scale_s": scale, "order": order, "first": len(cols)})
+        cols += [np.where(on, u ** k, 0.0) for k in range(order + 1)]
+    labels = None if zero_points is None else np.asarray(zero_points).astype(str).reshape(-1)
+    names = [] if labels is None else list(np.unique(labels))
+    cols += [(labels == z).astype(np.float64) for z in names[1:]]
+    m = int(n_harmonics)
+    phase = (2 * np.pi / float(period_s)) * (t - origin)[:, None] * np.arange(1, m + 1)
+    X = np.concatenate([np.stack(cols, 1), np.cos(phase), np.sin(phase)], 1)
+    coef, *_ = np.linalg.lstsq(X * w[:, None], y * w, rcond=None)
+    q = len(cols) - max(len(names) - 1, 0)
+    trend = [{k: v for k, v in sp.items() if k not in ("order", "first")}
+             | {"coefficients": coef[sp["first"]:sp["first"] + sp["order"] + 1].tolist()} for sp in spans]
+    zp = None if labels is None else {names[0]: 0.0, **{z: float(c) for z, c in zip(names[1:], coef[q:len(cols)])}}
+    return {"coefficients": coef[len(cols):].tolist(), "model_period_s": float(period_s), "time_origin_s": origin,
+            "trend": trend, "zero_points": zp}
+
+
+class SpinSolution(Result):
+    """What :func:`~cssat.inversion.estimate_spin` returns. The spin of
+    :func:`cssat.scene.attitude.spin_frame` (body +z along the pole, phase 0 at ``times_s = 0``):
+    ``pole_lon_deg``, ``pole_lat_deg`` (ecliptic λ, β or equatorial α, δ — ``frame``), the
+    sidereal ``period_s`` (> 0: the pole is the one the body turns counter-clockwise about),
+    their 1σ (``lon_err_deg``, ``lat_err_deg``, ``pole_err_deg`` — the pole's angular 1σ —,
+    ``period_err_s``), the EGI in that body frame (``normals (K, 3)``, ``areas (K,)``, only
+    those with area; with a :class:`~cssat.inversion.egi.Lobes` ``brdf`` the areas summed over
+    the lobes and each lobe's in ``lobe_areas ((L+1), K)``), ``chi2`` (weighted; unweighted
+    without ``sigma``), ``residual (T,)`` (flux − fit), the light curve's synodic period
+    (``synodic``, :func:`~cssat.inversion.estimate_period`'s output) and ``alternatives``: the
+    other local minima refined at full resolution (``pole_lon_deg``, ``pole_lat_deg``,
+    ``period_s``, ``chi2``, ``delta_chi2`` over the best in units of the reduced χ²,
+    ``separation_deg`` from the best pole); ``ambiguous`` is true when one of them, more than
+    10° away, is within Δχ² < 9 (3σ). ``model_fits``: the reduced χ² is at most
+    :data:`~cssat.inversion.period_verdict.MODEL_FITS_CHI2` (``None`` without ``sigma``). When
+    false the model misses the data by more than the noise (self-shadowing, glints, materials
+    the BRDF does not have) and the 1σ, scaled by the reduced χ², still counts that misfit as
+    white noise: it does not cover a pole the misfit moved (measured: a box-wing with real
+    materials and shadows, χ²/ν 15, pole 84° off at 1σ 0.4°)."""
+
+    required = ("pole_lon_deg", "pole_lat_deg", "period_s", "frame")
+    array_keys = ("normals", "areas", "lobe_areas", "residual")
+
+    @property
+    def pole_lon_deg(self) -> float:
+        """The pole's longitude (ecliptic λ or right ascension α, ``frame``), °."""
+        return self._data["pole_lon_deg"]
+
+    @property
+    def pole_lat_deg(self) -> float:
+        """The pole's latitude (ecliptic β or declination δ), °."""
+        return self._data["pole_lat_deg"]
+
+    @property
+    def period_s(self) -> float:
+        """The sidereal rotation period, s."""
+        return self._data["period_s"]
+
+    @property
+    def pole_err_deg(self) -> float | None:
+        """The pole's angular 1σ, °."""
+        return self._data.get("pole_err_deg")
+
+    @property
+    def period_err_s(self) -> float | None:
+        """The sidereal period's 1σ, s."""
+        return self._data.get("period_err_s")
+
+    @property
+    def frame(self) -> str:
+        """``"ecliptic"`` or ``"equatorial"``."""
+        return self._data["frame"]
+
+    @property
+    def alternatives(self) -> list[dict[str, Any]]:
+        """The other refined minima (pole, period, ``delta_chi2``, ``separation_deg``)."""
+        return self._data.get("alternatives") or []
+
+    @property
+    def synodic(self) -> Any:
+        """The light curve's synodic period result (a :class:`PeriodResult` where the search ran)."""
+        s = self._data.get("synodic")
+        return PeriodResult(s) if isinstance(s, Mapping) and not isinstance(s, PeriodResult) and \
+            all(k in s for k in PeriodResult.required) else s
+
+    def frames(self, times_s: Any) -> np.ndarray:
+        """The body frames ``(T, 3, 3)`` of this spin at ``times_s`` (same origin as the fit's)."""
+        from cssat.scene.attitude import spin_frame  # heavy: cssat.scene imports torch
+
+        return spin_frame(np.asarray(times_s, dtype=np.float64), self.pole_lon_deg, self.pole_lat_deg, self.period_s,
+                          0.0, self.frame)
+
+    def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
+        """The fitted model's light curve ``(T,)`` (flux units of the fit) at ``times_s`` for
+        inertial ``sun``/``obs (T, 3)`` directions: e.g. a night held out of the fit."""
+        from cssat.inversion.egi import egi_light_curve  # heavy: cssat.inversion.egi imports torch
+        from cssat.scene.attitude import to_body  # heavy: cssat.scene imports torch
+
+        R = self.frames(times_s)
+        return egi_light_curve(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
+                               self.normals, self.areas, self.brdf, self.lobe_areas)
+
+    def describe(self) -> dict[str, Any]:
+        """The spin's metrics, ``spin_<key>``."""
+        keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "lon_err_deg", "lat_err_deg", "pole_err_deg", "period_err_s",
+                "formal_pole_err_deg", "grid_pole_shift_deg", "split_pole_err_deg", "split_period_err_s", "chi2",
+                "reduced_chi2", "model_fits", "ambiguous", "frame")
+        return {f"spin_{k}": self._data[k] for k in keys}
+
+    def __repr__(self) -> str:
+        d = self._data
+        return (f"SpinSolution(pole ({d['pole_lon_deg']:.2f}°, {d['pole_lat_deg']:.2f}°) ± {d['pole_err_deg']:.2g}°, "
+                f"period {d['period_s']:.6f} ± {d['period_err_s']:.2g} s, reduced χ² {d['reduced_chi2']:.3g}"
+                f"{', ambiguous' if d['ambiguous'] else ''})")
+
+
+class TumblingSolution(Result):
+    """What :func:`~cssat.inversion.estimate_tumbling` returns: ``state``
+    (:class:`~cssat.inversion.TumblingState`, the body frame its principal frame), ``normals (K,
+    3)``/``areas (K,)`` (the EGI in that frame, those with area), ``chi2``, ``reduced_chi2``,
+    ``model_fits`` (with ``sigma``: the reduced χ² at most
+    :data:`~cssat.inversion.period_verdict.MODEL_FITS_CHI2`, else None; false means the 1σ count
+    the model's misfit — glints, shadows, materials it lacks — as white noise), ``residual
+    (T,)`` (flux − fit on every sample), ``errors`` (1σ of ``i1, i2, P_omega_s, P_phi_s, t0_s,
+    L_lon_deg, L_lat_deg, phi0_deg`` and ``L_err_deg``, the angular 1σ of ``L``: the formal
+    Gauss–Newton 1σ on the state and the support's areas, scaled by the reduced χ² when above 1,
+    added in quadrature to the shift of the fit on a grid of normals turned at random —
+    ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
+    fundamental frequencies the search started from), ``frequency_pairs`` (the ``(P_ω, P_φ)``
+    hypotheses searched), ``alternatives`` (other refined minima with ``delta_chi2`` in units of
+    the reduced χ² and ``separation_deg`` of their ``L``) and ``ambiguous`` (one of them within
+    Δχ² < 9 and more than 10° away)."""
+
+    required = ("state",)
+    array_keys = ("normals", "areas", "lobe_areas", "residual")
+
+    @property
+    def state(self) -> Any:
+        """The :class:`~cssat.inversion.TumblingState`."""
+        return self._data["state"]
+
+    @property
+    def errors(self) -> dict[str, float]:
+        """The 1σ of the state's parameters (the class docstring)."""
+        return self._data.get("errors") or {}
+
+    @property
+    def alternatives(self) -> list[dict[str, Any]]:
+        """The other refined minima."""
+        return self._data.get("alternatives") or []
+
+    def frames(self, times_s: Any) -> np.ndarray:
+        """The body frames ``(T, 3, 3)`` at ``times_s``."""
+        return self.state.frames(times_s)
+
+    def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
+        """The fitted light curve ``(T,)`` at ``times_s`` for inertial ``sun``/``obs (T, 3)``."""
+        from cssat.inversion.egi import egi_light_curve  # heavy: cssat.inversion.egi imports torch
+        from cssat.scene.attitude import to_body  # heavy: cssat.scene imports torch
+
+        R = self.frames(times_s)
+        return egi_light_curve(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
+                               self.normals, self.areas, self.brdf, self.lobe_areas)
+
+    def describe(self) -> dict[str, Any]:
+        """The state's metrics and the fit's, ``tumble_<key>``."""
+        d = self._data
+        out = self.state.describe()
+        out.update(tumble_chi2=d["chi2"], tumble_reduced_chi2=d["reduced_chi2"], tumble_model_fits=d["model_fits"],
+                   tumble_ambiguous=d["ambiguous"], **{f"tumble_err_{k}": v for k, v in d["errors"].items()})
+        return out
+
+    def __repr__(self) -> str:
+        s, d = self.state, self._data
+        return (f"TumblingSolution(L ({s.lon_deg:.2f}°, {s.lat_deg:.2f}°) ± {d['errors']['L_err_deg']:.2g}°, "
+                f"P_ω {1 / s.f_omega_hz:.4f} s, P_φ {1 / s.f_phi_hz:.4f} s, I₁/I₃ {s.i1:.3f}, I₂/I₃ {s.i2:.3f}, "
+                f"{'SAM' if s.short_axis else 'LAM'}, reduced χ² {d['reduced_chi2']:.3g})")
