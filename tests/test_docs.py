@@ -89,6 +89,17 @@ def test_figures_are_shown():
         assert f"]({png.name})" in text or f"](../{png.name})" in text, f"{png.name} is on no page"
 
 
+def test_cited_benchmark_sections_exist():
+    """A page that sends the reader to BENCHMARKS.md names a section that is there."""
+    from test_readme import benchmark_sections, cited_sections
+
+    titles = benchmark_sections()
+    cited = [(page.name, title) for page in _pages() for title in cited_sections(page.read_text(encoding="utf-8"))]
+    assert len(cited) >= 10
+    for page, title in cited:
+        assert any(t.startswith(title) for t in titles), f"{page}: BENCHMARKS.md has no section '{title}'"
+
+
 def test_no_issue_numbers_in_the_pages():
     for page in _pages():
         text = page.read_text(encoding="utf-8")

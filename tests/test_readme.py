@@ -86,6 +86,28 @@ def test_every_decimal_number_is_in_benchmarks():
         assert frac in benchmarks, frac
 
 
+def benchmark_sections() -> list[str]:
+    """The section titles of BENCHMARKS.md (without the leading ``#``s)."""
+    text = (ROOT / "BENCHMARKS.md").read_text(encoding="utf-8")
+    return [m.group(1) for m in re.finditer(r"^#{2,4} (.+)$", text, re.M)]
+
+
+def cited_sections(text: str) -> list[str]:
+    """The BENCHMARKS.md sections a text names: ``BENCHMARKS.md, "Title"`` (also ``("Title"``)."""
+    flat = re.sub(r"\s+", " ", text)
+    return re.findall(r'BENCHMARKS\.md,? \(?"([^"]+)"', flat)
+
+
+def test_cited_benchmark_sections_exist():
+    """The headline numbers name the BENCHMARKS.md section that holds each with its command."""
+    titles = benchmark_sections()
+    headline = re.sub(r"\s+", " ", _section(README, "Headline numbers"))
+    cited = re.findall(r'\("([^"]+)"\)', headline) + cited_sections(README)
+    assert len(cited) >= 4
+    for title in cited:
+        assert any(t.startswith(title) for t in titles), f"BENCHMARKS.md has no section '{title}'"
+
+
 def test_no_issue_numbers():
     assert not re.search(r"\b[Ii]ssues? ?#?\d+|(?<![\w&])#\d+\b", README), "issue numbers belong in CHANGELOG.md"
 
