@@ -14,6 +14,12 @@ EXPERIMENTS = sorted(p.stem for p in (CONF / "experiment").glob("*.yaml"))
 
 
 def options(group):
+    """A group's options: its YAML files, and for ``forward`` the typed configs in Hydra's ConfigStore."""
+    if group == "forward":
+        from cssat.models import FORWARD_CONFIGS, register_configs
+
+        register_configs()
+        return sorted(FORWARD_CONFIGS)
     return sorted(p.stem for p in (CONF / group).glob("*.yaml"))
 
 
@@ -82,3 +88,43 @@ def test_the_file_model_requires_a_path():
     cfg = compose_cfg("experiment=lightcurve", "model=file", "model.path=null")
     with pytest.raises(ConfigError, match="^model.path"):
         build_model(cfg.model)
+
+
+def test_the_forward_models_configs_are_typed_dataclasses_in_one_place():
+    """Every ``forward`` option is a dataclass in Hydra's ConfigStore (no YAML repeats its
+    defaults); ``forward.<key>=…`` overrides a field, a key that is not one is refused when the
+    config is composed, and a bad value is a FieldError naming the full key before any work."""
+    import dataclasses
+    import math
+
+    import torch
+    from hydra.errors import ConfigCompositionException
+
+    from cssat._checks import FieldError
+    from cssat.models import FORWARD_CONFIGS
+    from cssat.models.moving.config import MovingConfig
+
+    assert not list((CONF / "forward").glob("*.yaml"))
+    assert {"pixels", "moving", "egi", "scene", "shadow", "observed"} <= set(options("forward"))
+    for name in options("forward"):
+        node = compose_cfg(f"forward={name}").forward
+        assert dataclasses.is_dataclass(FORWARD_CONFIGS[name]) and node._target_.rsplit(".", 1)[-1] in (
+            "PixelSensing", "MovingScene", "EGILightCurve", "SceneLightCurve", "Shadow", "Observed")
+    # overrides of the old YAML keys keep their meaning: the model gets them
+    moving = build(compose_cfg("forward=moving", "forward.step_s=2.5", "forward.lat_deg=-30", "forward.dtype=float64").forward,
+                   "forward")
+    assert (moving.step_s, moving.lat_deg, moving.dtype, moving.draw_dtype) == (2.5, -30.0, torch.float64, None)
+    assert build(compose_cfg("experiment=realism").forward, "forward").dtype == torch.float64  # the experiment's forward.dtype
+    # a key that is not a field: refused by the schema; forced in with "+", refused by the model's build
+    with pytest.raises(ConfigCompositionException, match="forward.n_normals"):
+        compose_cfg("experiment=inversion", "forward.n_normals=3")
+    with pytest.raises(FieldError, match=r"^forward\.n_normals: not a setting of the egi forward model"):
+        build(compose_cfg("experiment=inversion", "+forward.n_normals=3").forward, "forward")
+    # a bad value: the dataclass's own check, naming the full key
+    with pytest.raises(FieldError, match=r"^forward\.dtype: expected one of \['float32', 'float64'\], got 'float16'"):
+        build(compose_cfg("forward.dtype=float16").forward, "forward")
+    with pytest.raises(FieldError, match=r"^forward\.lat_deg: expected a finite number"):
+        build(compose_cfg("forward=moving", "forward.lat_deg=nan").forward, "forward")
+    with pytest.raises(FieldError, match=r"^forward\.step_s: must be a finite number in \(0\.0, inf\]"):
+        MovingConfig(step_s=0)
+    assert math.isclose(MovingConfig(step_s=3).step_s, 3.0)

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, bool_param, float_param, int_param
+from cssat._checks import FieldError, int_param
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.forward import Measured, PixelSensing
 from cssat.scene import ASTRA_1KR_SYNTHETIC_TLE, make_scenario, tess_like
@@ -70,11 +70,13 @@ class MovingScene(PixelSensing):
     def __init__(self, start_utc: str = "2020-04-01T21:00:00", step_s: float | None = None, tle: Any = None,
                  lat_deg: float = 51.17, lon_deg: float = 10.45, alt_m: float = 0.0, shadows: bool = True,
                  dtype: str | None = None, draw_dtype: str | None = None):
-        super().__init__(dtype, draw_dtype)
-        self.start_utc = str(start_utc)
-        self.step_s = None if step_s is None else float_param(step_s, "step_s", 0.0, open_lo=True)
-        self.tle, self.lat_deg, self.lon_deg, self.alt_m = tle, float(lat_deg), float(lon_deg), float(alt_m)
-        self.shadows = bool_param(shadows, "shadows")
+        from cssat.models.moving.config import MovingConfig
+
+        c = self.config = MovingConfig(start_utc=start_utc, step_s=step_s, tle=tle, lat_deg=lat_deg, lon_deg=lon_deg,
+                                       alt_m=alt_m, shadows=shadows, dtype=dtype, draw_dtype=draw_dtype)  # checked
+        self._precisions(c)
+        self.start_utc, self.step_s, self.tle, self.shadows = c.start_utc, c.step_s, c.tle, c.shadows
+        self.lat_deg, self.lon_deg, self.alt_m = c.lat_deg, c.lon_deg, c.alt_m
 
     def frames(self, m: int, size: int, step_s: float | None = None) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
         """``(x_t (m, size²), x̄ (size, size), geometry)`` scaled so that ``max x̄ = 1``, samples

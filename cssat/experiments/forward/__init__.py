@@ -5,7 +5,7 @@ measures it through the ``atmosphere`` group's sensing operator, placed by the `
 with the ``noise`` group's noise; the ``cs`` group says how many samples. Everything after it in
 the pipeline (the operator estimate, the solver, the denoiser, the scores) is shared, so another
 forward model — reflectance over surface normals, Fresnel shadows — is one class with the same
-two methods and one YAML in ``conf/forward/``.
+two methods and one typed config registered as ``forward/<name>`` (:mod:`cssat.models`).
 """
 
 from __future__ import annotations
@@ -107,8 +107,15 @@ class PixelSensing:
     name = "pixels"
 
     def __init__(self, dtype: str | None = None, draw_dtype: str | None = None):
-        self.dtype = opt(dtype, dtype_param, "dtype")
-        self.draw_dtype = opt(draw_dtype, dtype_param, "draw_dtype")
+        from cssat.models.pixels.config import PixelsConfig
+
+        self.config = PixelsConfig(dtype=dtype, draw_dtype=draw_dtype)  # checked by its __post_init__
+        self._precisions(self.config)
+
+    def _precisions(self, config: Any) -> None:
+        """``dtype`` and ``draw_dtype`` of ``config`` (checked) as torch dtypes."""
+        self.dtype = opt(config.dtype, dtype_param, "forward.dtype")
+        self.draw_dtype = opt(config.draw_dtype, dtype_param, "forward.draw_dtype")
 
     def shape(self, target: Any) -> tuple[int, int]:
         """The unknown's shape: the target image's ``(n, n)``."""

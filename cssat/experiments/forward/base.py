@@ -23,8 +23,9 @@ same stages, run by :func:`run_model` in this order, each timed into ``seconds_<
     ``arrays.npz``, tables and figures.
 
 A model keeps what its stages hand on as attributes of itself; :func:`run_model` owns the loop,
-the timings and the headline line in the log. A new forward model is one subclass and one YAML
-in ``conf/forward/``; an experiment that uses it is an overlay in ``conf/experiment/``.
+the timings and the headline line in the log. A new forward model is one subclass and its typed
+config registered as ``forward/<name>`` (:func:`cssat.models.register`); an experiment that uses it
+is an overlay in ``conf/experiment/``.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+from cssat._checks import FieldError
 from cssat.experiments.context import Run
 
 __all__ = ["ForwardModel", "run_model", "STAGES"]
@@ -50,6 +52,13 @@ class ForwardModel:
     name = "forward"
     #: a stage whose method times its own parts (``run.stage``) is not timed again around them
     timed_inside: tuple[str, ...] = ()
+
+    def __init__(self, **settings: Any) -> None:
+        """A model whose settings are the experiment's groups takes none in its ``forward`` node:
+        a key there is a :class:`FieldError` naming it."""
+        if settings:
+            key = sorted(settings)[0]
+            raise FieldError(key, f"not a setting of the {self.name} forward model (its typed config: cssat.models)")
 
     def plan(self, cfg: Any, run: Run) -> None:  # pragma: no cover - abstract
         """Build and check every setting of ``cfg`` and the memory estimate, before any work."""
