@@ -41,13 +41,23 @@ def _design(t: np.ndarray, f: float, m: int) -> np.ndarray:
     return np.concatenate([np.cos(W), np.sin(W)], 1)
 
 
-def _harmonics(t: np.ndarray, f: float, m: int) -> np.ndarray:
-    """:func:`_design` by the recurrence ``e^{ikθ} = e^{iθ} e^{i(k−1)θ}`` (one sine and cosine a
-    sample instead of ``m``; round-off grows as ``k ε``, 1e-14 at ``m = 50``)."""
-    if m == 1:
-        return _design(t, f, 1)
-    z = np.cumprod(np.broadcast_to(np.exp((2j * np.pi * f) * t)[:, None], (len(t), m)), axis=1)
-    return np.concatenate([z.real, z.imag], 1)
+def _harmonics_t(t: np.ndarray, f: float, m: int, w: np.ndarray | None = None) -> np.ndarray:
+    """``(2m, T)``: the transpose of :func:`_design` (times the weights ``w (T,)`` when given), by
+    the recurrence ``e^{ikθ} = e^{i(k−1)θ} e^{iθ}`` (one complex exponential a sample instead of
+    ``m`` sines and cosines; round-off grows as ``k ε``, 1e-14 at ``m = 50``). Rows: the samples
+    of one harmonic, contiguous (the products with the nuisance basis run on long rows)."""
+    n = len(t)
+    Z = np.empty((m, n), dtype=np.complex128)
+    Z[0] = np.exp((2j * np.pi * f) * t)
+    for k in range(1, m):
+        np.multiply(Z[k - 1], Z[0], out=Z[k])
+    X = np.empty((2 * m, n))
+    if w is None:
+        X[:m], X[m:] = Z.real, Z.imag
+    else:
+        np.multiply(Z.real, w, out=X[:m])
+        np.multiply(Z.imag, w, out=X[m:])
+    return X
 
 
 def light_curve_scatter(times_s: Any, values: Any) -> float:
@@ -122,6 +132,7 @@ class _Curve:
             U, sv, _ = np.linalg.svd(A, full_matrices=False)
             self.Q = U[:, sv > sv[0] * 1e-10]
         self.q = self.Q.shape[1]
+        self.QT = np.ascontiguousarray(self.Q.T)
         yw = y * w
         self.yp = yw - self.Q @ (self.Q.T @ yw)
         self.rss0 = float(self.yp @ self.yp)
@@ -129,8 +140,10 @@ class _Curve:
         self.c = 1.0  # the overdispersion ĉ that divides a known-σ χ² in bic() (quasi-likelihood)
 
     def _xp(self, f: float, m: int) -> np.ndarray:
-        X = _harmonics(self.t, f, m) * self.w[:, None]
-        return X - self.Q @ (self.Q.T @ X)
+        """``(2m, T)``: the weighted harmonics at ``f`` with the nuisance model projected out."""
+        X = _harmonics_t(self.t, f, m, self.w)
+        X -= (X @ self.Q) @ self.QT
+        return X
 
     def rss(self, f: float, m: int) -> float:
         """The residual sum of squares of the ``m``-harmonic series at ``f`` Hz (weighted, the
@@ -139,10 +152,10 @@ class _Curve:
         SVD where they are singular."""
         Xp = self._xp(f, m)
         try:
-            coef = np.linalg.solve(Xp.T @ Xp, Xp.T @ self.yp)
+            coef = np.linalg.solve(Xp @ Xp.T, Xp @ self.yp)
         except np.linalg.LinAlgError:
-            coef, *_ = np.linalg.lstsq(Xp, self.yp, rcond=None)
-        r = Xp @ coef - self.yp
+            coef, *_ = np.linalg.lstsq(Xp.T, self.yp, rcond=None)
+        r = coef @ Xp - self.yp
         return float(r @ r)
 
     def bic(self, rss: float, m: int) -> float:
@@ -167,8 +180,9 @@ class _Curve:
     def refine(self, f: float, m: int, step: float) -> tuple[float, float]:
         """The frequency minimising the RSS within ``f ± step`` (to 1e-5 of ``step``), and that
         RSS: Newton steps on three-point parabolas (the RSS is quadratic in frequency near its
-        minimum: a few evaluations), else — a concave or non-quadratic stretch — scipy's bounded
-        Brent search."""
+        minimum: a few evaluations), projected into the window and held to 20 stencils a step, a
+        concave stencil walked downhill; else — no progress in 8 steps — scipy's bounded Brent
+        search."""
         from scipy.optimize import minimize_scalar  # heavy: scipy.optimize, only for refine()
 
         tol = step * 1e-5
@@ -177,11 +191,17 @@ class _Curve:
         for _ in range(8):
             a, c = self.rss(x - h, m), self.rss(x + h, m)
             den = a - 2.0 * rx + c
-            if not den > 0:
+            if not den > 0:  # concave here: walk downhill to the lower neighbour, a wider stencil
+                r_low, d_low = min((a, -h), (c, h))
+                if r_low < rx and abs(x + d_low - f) <= step:
+                    x, rx, h = x + d_low, r_low, 2.0 * h
+                    continue
                 break
             dx = 0.5 * h * (a - c) / den
-            if abs(x + dx - f) > step or abs(dx) > 20.0 * h:
-                break
+            dx = max(-20.0 * h, min(20.0 * h, dx))  # a trust region: 20 stencils at most a step
+            dx = min(max(x + dx, f - step), f + step) - x  # projected into the window
+            if dx == 0.0:  # at the window's edge, the parabola pointing out of it: the edge is the least
+                return x, rx
             rn = self.rss(x + dx, m)
             for _ in range(3):  # backtrack an overshoot (a start outside the quadratic stretch)
                 if rn <= rx or abs(dx) <= 1e-3 * step:
