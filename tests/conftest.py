@@ -72,3 +72,19 @@ def cfg_of(*overrides):
 
     with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
         return compose(config_name="config", overrides=list(overrides))
+
+
+#: the inversion experiment at a tiny size with its attitude known (an oracle): a light curve of two nights
+INVERSION_TINY = ["experiment=inversion", "nights.n=2", "nights.fit=1", "scenario.step_s=600", "inversion.spin=known",
+                  "inversion.n_normals=64", "threads=1",
+                  "attitude.epoch_utc=2020-04-01T12:00:00"]  # the spin's phase epoch: the same for a file starting at night
+
+
+@pytest.fixture(scope="session")
+def inversion_sim(tmp_path_factory):
+    """``(metrics, out_dir)`` of one simulated run of :data:`INVERSION_TINY` (read, never written
+    to, by the tests that share it: its ``lightcurve.csv`` is a measured light curve for them)."""
+    from cssat.experiments import run_experiment
+
+    out = tmp_path_factory.mktemp("inversion_sim") / "sim"
+    return run_experiment(cfg_of(*INVERSION_TINY), out), out

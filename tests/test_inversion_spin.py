@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import INVERSION_TINY
 
 SIDEREAL_DAY = 86164.0905
 
@@ -161,25 +162,24 @@ def cfg_of(*overrides):
         return compose(config_name="config", overrides=list(overrides))
 
 
-TINY = ["nights.n=2", "nights.fit=1", "scenario.step_s=600", "inversion.spin=known", "inversion.n_normals=64", "threads=1",
-        "attitude.epoch_utc=2020-04-01T12:00:00"]  # the spin's phase epoch: the same for a file starting at night
+TINY = [o for o in INVERSION_TINY if not o.startswith("experiment=")]  # the session's simulated run's (conftest)
 
 
-def test_the_experiment_inverts_its_own_light_curve_file(tmp_path):
+def test_the_experiment_inverts_its_own_light_curve_file(tmp_path, inversion_sim):
     """The experiment's lightcurve.csv read back as a measured light curve (flux and 1σ in
     W/m², ISO stamps) gives the same samples, nights and EGI as the simulated run."""
     from cssat.experiments import run_experiment
 
-    a = run_experiment(cfg_of("experiment=inversion", *TINY), tmp_path / "sim")
+    a, sim = inversion_sim  # the simulated run of TINY, shared with test_seams.py
     assert a["status"] == "ok" and a["n_nights_observed"] == 2 and a["attitude_known"]
     for f in ("shape.obj", "egi.csv", "lightcurve.csv", "arrays.npz", "figures/inversion_egi.png",
               "figures/inversion_lightcurve.png", "figures/inversion_shapes.png", "figures/inversion_observability.png"):
-        assert (tmp_path / "sim" / f).is_file(), f
-    b = run_experiment(cfg_of("experiment=inversion", *TINY, f"observations={tmp_path / 'sim' / 'lightcurve.csv'}",
+        assert (sim / f).is_file(), f
+    b = run_experiment(cfg_of("experiment=inversion", *TINY, f"observations={sim / 'lightcurve.csv'}",
                               "observed.kind=flux", "observed.value_col=flux_W_m2", "observed.error_col=flux_err_W_m2"),
                        tmp_path / "obs")
     assert b["status"] == "ok" and b["n_samples"] == a["n_samples"] and b["n_fit"] == a["n_fit"]
-    ea, eb = np.load(tmp_path / "sim" / "arrays.npz"), np.load(tmp_path / "obs" / "arrays.npz")
+    ea, eb = np.load(sim / "arrays.npz"), np.load(tmp_path / "obs" / "arrays.npz")
     assert np.allclose(ea["flux"], eb["flux"], rtol=1e-9) and np.allclose(ea["sun_body"], eb["sun_body"], atol=1e-9)
     # the same fit (NNLS's support may differ in atoms of negligible area)
     assert np.allclose(ea["model"], eb["model"], rtol=1e-5) and ea["areas"].sum() == pytest.approx(eb["areas"].sum(), rel=1e-5)
