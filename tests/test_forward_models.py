@@ -43,36 +43,102 @@ def test_the_experiments_package_has_no_experiment_specific_run():
     assert found == ["grid.py", "task.py"]
 
 
-def test_run_model_runs_the_stages_in_order_and_times_them(tmp_path):
+def _recording(cls, calls):
+    """``cls`` with every stage replaced by one that records its name (its ``needs`` kept)."""
+
+    def stage(name):
+        def method(self, *args):
+            calls.append(name)
+            return {"x": 1} if name == "score" else None
+        return method
+
+    body = {name: stage(name) for name in ("plan", "measure", "estimate", "solve", "score", "write")}
+    body["headline"] = lambda self, metrics: None
+    return type(f"Recording{cls.__name__}", (cls,), body)
+
+
+def _models():
+    from cssat.experiments.forward.base import ForwardModel
+    from cssat.experiments.forward.egi import EGILightCurve
+    from cssat.experiments.forward.observed import Observed
+    from cssat.experiments.forward.scene import SceneLightCurve
+    from cssat.experiments.forward.shadow import Shadow
+    from cssat.experiments.pipeline import ImagePipeline
+
+    return [ForwardModel, EGILightCurve, SceneLightCurve, Shadow, Observed, ImagePipeline]
+
+
+def _meets(order, needs):
+    """Whether every stage of ``order`` comes after every stage it needs (brute force, by position)."""
+    pos = {s: i for i, s in enumerate(order)}
+    return all(pos[d] < pos[s] for s, deps in needs.items() for d in deps)
+
+
+@pytest.mark.parametrize("cls", _models(), ids=lambda c: c.__name__)
+def test_the_runner_meets_every_models_declared_stage_needs(tmp_path, cls):
+    """The runner's order against what each model declares it needs (not against STAGES itself):
+    every stage runs once, after every stage it reads from, and is timed."""
     from cssat.experiments.context import Run
-    from cssat.experiments.forward.base import STAGES, ForwardModel, run_model
+    from cssat.experiments.forward.base import STAGES, run_model
 
     calls = []
-
-    class Toy(ForwardModel):
-        def plan(self, cfg, run):
-            calls.append("plan")
-
-        def measure(self, run):
-            calls.append("measure")
-
-        def estimate(self, run):
-            calls.append("estimate")
-
-        def solve(self, run):
-            calls.append("solve")
-
-        def score(self, run):
-            calls.append("score")
-            return {"x": 1}
-
-        def write(self, run, metrics):
-            calls.append("write")
-
     run = Run.from_config({}, tmp_path)
-    m = run_model(Toy(), {}, run)
-    assert calls == list(STAGES)
-    assert m["x"] == 1 and {f"seconds_{s}" for s in ("setup", "measure", "estimate", "solve", "score", "write")} <= set(m)
+    m = run_model(_recording(cls, calls)(), {}, run)
+    assert sorted(calls) == sorted(STAGES) and len(set(calls)) == 6 and run.stages_done == calls
+    declared = {s: tuple(d) for s, d in dict(cls.needs).items()}
+    assert declared and _meets(calls, declared), (cls.__name__, calls, declared)
+    assert m["x"] == 1 and {"seconds_setup", "seconds_score", "seconds_write"} <= set(m)
+
+
+def test_every_order_of_the_stages_that_breaks_a_declared_need_is_refused(tmp_path, monkeypatch):
+    """All 720 orders of the six stages through the runner, for each model: an order is run to
+    the end exactly when it meets the model's declared needs (checked by position here); any
+    other is refused before the first stage that would run too early — also when the order is the
+    module's STAGES, permuted."""
+    import itertools
+
+    from cssat.experiments.context import Run
+    from cssat.experiments.forward import base
+
+    for cls in _models():
+        needs = {s: tuple(d) for s, d in dict(cls.needs).items()}
+        ran_any = refused_any = False
+        for order in itertools.permutations(base.STAGES):
+            calls = []
+            ok = _meets(order, needs)
+            if ok:
+                base.run_model(_recording(cls, calls)(), {}, Run.from_config({}, tmp_path), stages=order)
+                assert calls == list(order)
+                ran_any = True
+            else:
+                with pytest.raises(base.StageOrderError, match=r"would run before"):
+                    base.run_model(_recording(cls, calls)(), {}, Run.from_config({}, tmp_path), stages=order)
+                first_bad = next(i for i, s in enumerate(order) if any(d not in order[:i] for d in needs.get(s, ())))
+                assert calls == list(order[:first_bad])  # nothing ran out of order
+                refused_any = True
+        assert ran_any and refused_any, cls.__name__
+    # the module's own order, permuted: estimate after solve breaks the EGI's declared needs
+    from cssat.experiments.forward.egi import EGILightCurve
+
+    monkeypatch.setattr(base, "STAGES", ("plan", "measure", "solve", "estimate", "score", "write"))
+    calls = []
+    with pytest.raises(base.StageOrderError, match=r"egi: stage 'solve' would run before \['estimate'\]"):
+        base.run_model(_recording(EGILightCurve, calls)(), {}, Run.from_config({}, tmp_path))
+    assert calls == ["plan", "measure"]
+
+
+def test_a_model_whose_declared_needs_the_order_violates_is_refused(tmp_path):
+    from cssat.experiments.context import Run
+    from cssat.experiments.forward.base import ForwardModel, StageOrderError, run_model
+
+    calls = []
+    Late = _recording(type("Late", (ForwardModel,), {"needs": {"estimate": ("solve",)}}), calls)
+    with pytest.raises(StageOrderError, match=r"stage 'estimate' would run before \['solve'\]"):
+        run_model(Late(), {}, Run.from_config({}, tmp_path))
+    assert calls == ["plan", "measure"]
+    Typo = _recording(type("Typo", (ForwardModel,), {"needs": {"solve": ("estmate",)}}), calls)
+    with pytest.raises(StageOrderError, match=r"not stages: \['estmate'\]"):
+        run_model(Typo(), {}, Run.from_config({}, tmp_path))
 
 
 def tiny(name: str) -> list[str]:

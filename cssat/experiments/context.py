@@ -50,6 +50,7 @@ class Run:
     figure_format: str = "png"
     memory_limit_gb: float | None = None
     seconds: dict[str, float] = field(default_factory=dict)
+    stages_done: list[str] = field(default_factory=list)  #: the forward model's stages run so far, in order
 
     @classmethod
     def from_config(cls, cfg: Any, out_dir: str | Path) -> Run:

@@ -223,6 +223,8 @@ class ImagePipeline(ForwardModel):
 
     name = "image"
     timed_inside = ("measure", "estimate", "solve")
+    #: measure runs the operator estimate and the solves of every repeat (:func:`execute`)
+    needs = {"measure": ("plan",), "score": ("plan", "measure"), "write": ("plan", "measure", "score")}
 
     def __init__(self, sensing: Any = None):
         """``sensing``: the ``forward`` group's image model, already built (None: built by :func:`plan`)."""

@@ -22,8 +22,10 @@ same stages, run by :func:`run_model` in this order, each timed into ``seconds_<
 ``write``
     ``arrays.npz``, tables and figures.
 
-A model keeps what its stages hand on as attributes of itself; :func:`run_model` owns the loop,
-the timings and the headline line in the log. A new forward model is one subclass and its typed
+A model keeps what its stages hand on as attributes of itself and declares, in :attr:`ForwardModel.needs`,
+which earlier stages each stage reads from: :func:`run_model` owns the loop, refuses an order that
+runs a stage before one it needs (:class:`StageOrderError`), the timings and the headline line in
+the log. A new forward model is one subclass and its typed
 config registered as ``forward/<name>`` (:func:`cssat.models.register`); an experiment that uses it
 is an overlay in ``conf/experiment/``.
 """
@@ -31,17 +33,37 @@ is an overlay in ``conf/experiment/``.
 from __future__ import annotations
 
 import logging
-from typing import Any
+from typing import Any, Mapping
 
 from cssat._checks import FieldError
 from cssat.experiments.context import Run
 
-__all__ = ["ForwardModel", "run_model", "STAGES"]
+__all__ = ["ForwardModel", "run_model", "STAGES", "NEEDS", "StageOrderError", "check_needs"]
 
 log = logging.getLogger("cssat")
 
 #: the stages of every forward model, in the order :func:`run_model` runs them
 STAGES = ("plan", "measure", "estimate", "solve", "score", "write")
+
+#: what each stage reads by default: what the stage before it handed on (a model declares its own)
+NEEDS: Mapping[str, tuple[str, ...]] = {"plan": (), "measure": ("plan",), "estimate": ("measure",), "solve": ("estimate",),
+                                        "score": ("solve",), "write": ("score",)}
+
+
+class StageOrderError(RuntimeError):
+    """A stage about to run before a stage it needs (a model's :attr:`ForwardModel.needs`)."""
+
+
+def check_needs(model: Any) -> dict[str, tuple[str, ...]]:
+    """``model.needs`` checked: every key and every stage needed is one of :data:`STAGES`, no stage
+    needs itself; the stages it leaves out need nothing."""
+    needs = dict(getattr(model, "needs", NEEDS))
+    for stage, deps in needs.items():
+        bad = [s for s in (stage, *deps) if s not in STAGES]
+        if bad or stage in deps:
+            raise StageOrderError(f"{type(model).__name__}.needs[{stage!r}] = {deps!r}: "
+                                  f"{'not stages: ' + repr(bad) if bad else 'a stage cannot need itself'} (stages: {STAGES})")
+    return {stage: tuple(needs.get(stage, ())) for stage in STAGES}
 
 
 class ForwardModel:
@@ -52,6 +74,8 @@ class ForwardModel:
     name = "forward"
     #: a stage whose method times its own parts (``run.stage``) is not timed again around them
     timed_inside: tuple[str, ...] = ()
+    #: stage → the earlier stages whose results it reads (:func:`run_model` refuses another order)
+    needs: Mapping[str, tuple[str, ...]] = NEEDS
 
     def __init__(self, **settings: Any) -> None:
         """A model whose settings are the experiment's groups takes none in its ``forward`` node:
@@ -88,22 +112,35 @@ class ForwardModel:
         return None
 
 
-def run_model(model: ForwardModel, cfg: Any, run: Run) -> dict[str, Any]:
-    """Plan ``model`` on ``cfg`` (nothing computed when a setting is refused), then run its stages;
-    return its metrics with ``seconds_<stage>`` of every stage."""
+def run_model(model: ForwardModel, cfg: Any, run: Run, stages: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """Plan ``model`` on ``cfg`` (nothing computed when a setting is refused), then run its stages
+    in the order of ``stages`` (default :data:`STAGES`); return its metrics with
+    ``seconds_<stage>`` of every stage. A stage about to run before one it needs
+    (``model.needs``) is a :class:`StageOrderError`, before it runs; ``run.stages_done`` lists
+    the stages run, in order."""
+    needs = check_needs(model)
+    order = STAGES if stages is None else tuple(stages)
+    if sorted(order) != sorted(STAGES):
+        raise StageOrderError(f"the stages to run {order!r} are not the stages {STAGES!r}")
     names = {"plan": "setup"}
-    for stage in STAGES[:4]:
+    done: list[str] = []
+    run.stages_done = done
+    metrics: dict[str, Any] = {}
+    for stage in order:
+        missing = [s for s in needs[stage] if s not in done]
+        if missing:
+            raise StageOrderError(f"{model.name}: stage {stage!r} would run before {missing}, which it needs "
+                                  f"(the order: {order!r}; its needs: {needs[stage]!r})")
         method = getattr(model, stage)
-        args = (cfg, run) if stage == "plan" else (run,)
-        if stage in model.timed_inside:
-            method(*args)
+        args = {"plan": (cfg, run), "write": (run, metrics)}.get(stage, (run,))
+        if stage in model.timed_inside and stage not in ("score", "write"):
+            out = method(*args)
         else:
             with run.stage(names.get(stage, stage)):
-                method(*args)
-    with run.stage("score"):
-        metrics = model.score(run)
-    with run.stage("write"):
-        model.write(run, metrics)
+                out = method(*args)
+        if stage == "score":
+            metrics = out
+        done.append(stage)
     metrics.update(run.timings())
     line = model.headline(metrics)
     if line:

@@ -70,6 +70,11 @@ class EGILightCurve(ForwardModel):
 
     name = "egi"
     timed_inside = ("measure", "estimate", "solve")
+    #: the samples and nights (measure) → the periods and the attitude's frames on the fitted nights
+    #: (estimate) → the EGI from those frames with plan's solver (solve) → the truth's errors
+    #: (score: the true frames of measure) → arrays and figures
+    needs = {"measure": ("plan",), "estimate": ("plan", "measure"), "solve": ("plan", "measure", "estimate"),
+             "score": ("measure", "estimate", "solve"), "write": ("measure", "solve", "score")}
 
     def plan(self, cfg: Any, run: Run) -> None:
         self.cfg = cfg

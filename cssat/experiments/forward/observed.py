@@ -148,6 +148,9 @@ class Observed(ForwardModel):
 
     name = "observed"
     timed_inside = ("measure", "estimate", "solve")
+    #: the verdicts (estimate) from the cleaned curve (measure) are the answer: nothing is solved
+    needs = {"measure": ("plan",), "estimate": ("plan", "measure"), "score": ("measure", "estimate"),
+             "write": ("plan", "measure", "estimate", "score")}
 
     def plan(self, cfg: Any, run: Run) -> None:
         """Every setting checked (:func:`observed_settings`); nothing read yet."""

@@ -61,6 +61,8 @@ class SceneLightCurve(ForwardModel):
 
     name = "scene"
     timed_inside = ("measure", "estimate", "solve")
+    #: nothing is estimated or solved: the magnitudes (score) come from the curves of measure
+    needs = {"measure": ("plan",), "score": ("plan", "measure"), "write": ("measure", "score")}
 
     def plan(self, cfg: Any, run: Run) -> None:
         self.cfg = cfg

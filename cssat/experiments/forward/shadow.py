@@ -88,6 +88,9 @@ class Shadow(ForwardModel):
 
     name = "shadow"
     timed_inside = ("measure", "solve")
+    #: the nuisances are estimated with the silhouette (solve) from the recorded series (measure)
+    needs = {"measure": ("plan",), "solve": ("plan", "measure"), "score": ("measure", "solve"),
+             "write": ("measure", "solve", "score")}
 
     def plan(self, cfg: Any, run: Run) -> None:
         self.cfg = cfg
