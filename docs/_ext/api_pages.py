@@ -24,5 +24,22 @@ def exports(module: str) -> list[str]:
     raise ValueError(f"{module} has no __all__ ({path})")
 
 
+def entries(module: str) -> list[str]:
+    """The object paths of ``module``'s exports. A name that is also a submodule's
+    (``cssat.inversion.egi``, the function, beside ``cssat/inversion/egi.py``) is given by the module
+    it is imported from, so that the entry is the function or class, not the module."""
+    base = ROOT.joinpath(*module.split("."))
+    source = {}
+    if base.is_dir():
+        for node in ast.parse((base / "__init__.py").read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ImportFrom) and node.module:
+                source.update({a.asname or a.name: f"{node.module}.{a.name}" for a in node.names})
+    paths = []
+    for name in exports(module):
+        shadowed = base.is_dir() and ((base / f"{name}.py").exists() or (base / name / "__init__.py").exists())
+        paths.append(source[name] if shadowed and name in source else f"{module}.{name}")
+    return paths
+
+
 def on_page_markdown(markdown: str, **kwargs: Any) -> str:
-    return MARKER.sub(lambda m: "\n\n".join(f"::: {m.group(1)}.{name}" for name in exports(m.group(1))), markdown)
+    return MARKER.sub(lambda m: "\n\n".join(f"::: {path}" for path in entries(m.group(1))), markdown)
