@@ -37,6 +37,7 @@ def _pages() -> list[Path]:
     return sorted(p for p in DOCS.rglob("*.md") if "_ext" not in p.parts)
 
 
+@pytest.mark.slow  # ~10 s: the whole site with its API pages
 @pytest.mark.skipif(not all(importlib.util.find_spec(m) for m in ("mkdocs", "mkdocstrings_handlers.python", "material")),
                     reason="the docs extra is not installed: pip install -e '.[docs]'")
 def test_site_builds_strict(tmp_path):
