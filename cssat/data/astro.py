@@ -13,15 +13,17 @@ from __future__ import annotations
 
 import io
 import warnings
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cssat._checks import FieldError
 from cssat.data.formats import _datetime64, period_or_none
+from cssat.data.registry import decode_text, read_bytes, register_format
 from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE, _times, find_column
 
-__all__ = ["read_astropy", "read_astropy_file"]
+__all__ = ["read_astropy", "read_astropy_file", "identify_ecsv"]
 
 
 def read_astropy(table: Any, name: str, *, time_col: str | None, value_col: str | None, error_col: str | None,
@@ -167,3 +169,31 @@ def _column(col: Any, name: str, unit: Any, target: Any) -> np.ndarray:
     if unit is not None and target is not None and unit != target:
         x = (x * unit).to_value(target)
     return x
+
+
+def identify_ecsv(path: Any, first_lines: list[str]) -> bool:
+    """An ECSV file starts with ``# %ECSV``."""
+    return bool(first_lines) and first_lines[0].startswith("# %ECSV")
+
+
+def _reader(fmt: str) -> Any:
+    """The registered ``read`` of an ECSV (``astropy`` a path: as ECSV) or FITS file."""
+
+    def read(path: Any, *, time_col: str | None = None, value_col: str | None = None, error_col: str | None = None,
+             kind: str = "magnitude", time_format: str = "iso", time_scale: str = "utc", **options: Any) -> dict[str, Any]:
+        name = Path(path).name
+        data = read_bytes(path)
+        if fmt != "fits":
+            decode_text(data, name)  # not UTF-8: the text formats' error
+        return read_astropy(read_astropy_file(data, fmt if fmt == "fits" else "ecsv", name), name, time_col=time_col,
+                            value_col=value_col, error_col=error_col, kind=kind, time_format=time_format,
+                            time_scale=time_scale)
+
+    return read
+
+
+register_format("fits", None, _reader("fits"), extensions=("fits", "fit", "fts"), priority=60, binary=True,
+                overwrite=True)
+register_format("ecsv", identify_ecsv, _reader("ecsv"), extensions=("ecsv",), priority=50, overwrite=True)
+#: an astropy Table/QTable/TimeSeries object (read_light_curve reads one itself), or a path read as ECSV
+register_format("astropy", lambda path, first_lines: False, _reader("astropy"), overwrite=True)

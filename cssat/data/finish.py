@@ -11,34 +11,32 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat.data.alcdef import ALCDEF_FIXED_OPTIONS
 from cssat.data.formats import check_dates, check_kind, check_magnitudes
-from cssat.data.mmt import MMT_VALUE_COLUMNS
-from cssat.data.score import SCORE_COLUMNS
+from cssat.data.mmt import MMT_FIXED_OPTIONS
+from cssat.data.registry import get_format
+from cssat.data.score import SCORE_FIXED_OPTIONS
 
 __all__ = ["FIXED_OPTIONS", "fixed_format", "jansky_to_magnitudes", "finish"]
 
 
-#: the reading options a fixed format accepts (``None``: unset); any other value contradicts the format
-FIXED_OPTIONS: dict[str, dict[str, tuple]] = {
-    "mmt": {"kind": ("magnitude",), "time_col": (None, "time_utc", "Date Time", ("Date", "Time"), "Date+Time"),
-            "value_col": (None, *MMT_VALUE_COLUMNS), "error_col": (None,), "time_format": ("iso",), "time_scale": ("utc",)},
-    "score": {"kind": ("magnitude",), "time_col": (None, "time_utc", SCORE_COLUMNS["time"]),
-              "value_col": (None, SCORE_COLUMNS["value"]), "error_col": (None, SCORE_COLUMNS["error"]),
-              "time_format": ("iso",), "time_scale": ("utc",)},
-    "alcdef": {"kind": ("magnitude",), "time_col": (None, "time_utc", "JD"), "value_col": (None, "MAG"),
-               "error_col": (None, "MAGERR"), "time_format": ("iso", "jd"), "time_scale": ("utc",)},
-}
+#: the reading options cssat's fixed formats accept (``None``: unset; each format's own, registered
+#: with it: :class:`cssat.data.registry.Format`'s ``fixed_options``)
+FIXED_OPTIONS: dict[str, dict[str, tuple]] = {"mmt": MMT_FIXED_OPTIONS, "score": SCORE_FIXED_OPTIONS,
+                                              "alcdef": ALCDEF_FIXED_OPTIONS}
 
 
 def fixed_format(fmt: str, **given: Any) -> None:
     """Refuse a reading option that contradicts a fixed format (MMT, SCORE, ALCDEF say
     themselves what their columns, times and kind are); one that agrees — the format's own
     column name, ``kind='magnitude'`` — is accepted. The error names the option and the values
-    the format allows."""
-    allowed = FIXED_OPTIONS.get(fmt)
+    the format allows (the format's registered ``fixed_options``)."""
+    allowed = get_format(fmt).fixed_options
     if allowed is None:
         return
     for key, value in given.items():
+        if key not in allowed:  # an option the format leaves to the caller
+            continue
         v = tuple(str(x) for x in value) if not isinstance(value, (str, type(None))) and hasattr(value, "__iter__") \
             else value  # a list (or Hydra's ListConfig) of two columns compares as a tuple
         if v not in allowed[key]:
@@ -93,7 +91,7 @@ def finish(lc: Any, fmt: str, duplicates: str, vcol: str, tcol: str, ecol: str) 
         raise FieldError(f"observations.{ecol}[row {i + 1}]", f"an uncertainty must be finite and > 0, got "
                                                              f"{float(lc.errors[i])!r}")
     rows = np.arange(len(lc))  # each sample's data row in the file
-    if fmt in ("mmt", "score", "alcdef"):
+    if get_format(fmt).sort:
         rows = np.argsort(lc.times_utc, kind="stable")
         lc = lc.rows(rows)
     step = np.diff(lc.times_utc).astype(np.int64)

@@ -2,15 +2,15 @@
 reader shares.
 
 Each reader returns the columns of :class:`~cssat.data.observations.ObservedLightCurve` as a
-dict; :func:`~cssat.data.read_light_curve` picks one by ``format=`` or by the file's content:
+dict and is registered by its own module (:mod:`cssat.data.registry`);
+:func:`~cssat.data.read_light_curve` picks one by ``format=`` or by the file's content:
 
 - ``mmt``: Mini-MegaTORTORA (MMT-9) exports, :mod:`cssat.data.mmt`.
 - ``score``: the IAU CPS SatHub SCORE CSV, :mod:`cssat.data.score`.
-- ``alcdef``: the Asteroid Lightcurve Data Exchange Format (Warner et al. 2011):
-  ``STARTMETADATA … ENDMETADATA`` blocks (one per session: a track) and ``DATA=JD|MAG|MAGERR``
-  lines (UTC Julian dates; the block's ``MAGBAND``, ``DELIMITER``, object and observers).
-- ``astropy``: an astropy ``Table``/``QTable``/``TimeSeries``, or an ECSV/FITS file read by
-  astropy, :mod:`cssat.data.astro`.
+- ``alcdef``: the Asteroid Lightcurve Data Exchange Format, :mod:`cssat.data.alcdef`.
+- ``ecsv``, ``fits``, ``astropy``: an astropy ``Table``/``QTable``/``TimeSeries``, or an
+  ECSV/FITS file read by astropy, :mod:`cssat.data.astro`.
+- ``csv``: cssat's own CSV and any comma- or whitespace-separated table, :mod:`cssat.data.text`.
 """
 
 from __future__ import annotations
@@ -22,13 +22,15 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat.data.registry import BUILTIN_FORMATS
 
-__all__ = ["FORMATS", "sniff_format", "read_alcdef", "to_utc", "check_dates", "check_magnitudes",
+__all__ = ["FORMATS", "to_utc", "check_dates", "check_magnitudes",
            "check_kind", "period_or_none"]
 
 
 
-FORMATS = ("csv", "mmt", "score", "alcdef", "ecsv", "fits", "astropy")
+#: cssat's own formats (:func:`cssat.data.registry.registered_formats`: every registered one)
+FORMATS = BUILTIN_FORMATS
 TIME_SCALES = ("utc", "tt", "tdb", "tai")
 MMT_VARIABILITY = {0: "nonvariable", 1: "aperiodic", 2: "periodic"}
 MAG_RANGE = (-30.0, 30.0)  # apparent magnitudes of anything a telescope sees (the Sun is -26.7)
@@ -73,25 +75,6 @@ def check_dates(times: np.ndarray, field: str, rows: np.ndarray | None = None) -
         i = int(bad[0])
         row = int(rows[i]) + 1 if rows is not None else i + 1
         raise FieldError(f"{field}[row {row}]", f"{times[i]} is not a time between 1900 and 2100 (a placeholder?)")
-
-
-def sniff_format(head: str, suffix: str) -> str:
-    """The format of a file from its first kilobytes and its suffix."""
-    s = suffix.lower()
-    if s in ("fits", "fit", "fts"):
-        return "fits"
-    if s == "ecsv" or head.startswith("# %ECSV"):
-        return "ecsv"
-    first = head.lstrip("\ufeff").lstrip()
-    if first.upper().startswith("STARTMETADATA"):
-        return "alcdef"
-    if re.search(r"^#\s*(satellite|track|variability)\s*:", head, re.M) or re.search(r"^#\s*Date\s+Time\s", head, re.M):
-        return "mmt"
-    header = next((ln for ln in head.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), "")
-    cols = {c.strip().lower() for c in header.split(",")}
-    if {"observation_time_utc", "apparent_magnitude"} <= cols:
-        return "score"
-    return "csv"
 
 
 def _floats(tokens: list[str], where: str, name: str) -> np.ndarray:
@@ -154,66 +137,6 @@ def _bad_iso(v: str) -> bool:
         return bool(np.isnat(np.datetime64(v, "us")))
     except ValueError:
         return True
-
-
-def read_alcdef(text: str, name: str) -> dict[str, Any]:
-    """The columns of an ALCDEF file: each ``STARTMETADATA`` block a track."""
-    times: list[float] = []
-    mags: list[float] = []
-    errs: list[float] = []
-    tracks: list[str] = []
-    filters: list[str] = []
-    blocks: list[dict[str, str]] = []
-    meta: dict[str, str] = {}
-    in_meta = False
-    for n, ln in enumerate(text.splitlines(), 1):
-        s = ln.strip()
-        if not s:
-            continue
-        key, _, val = s.partition("=")
-        key = key.strip().upper()
-        if key == "STARTMETADATA":
-            if in_meta:
-                raise FieldError(f"observations[line {n}]", "STARTMETADATA inside a metadata block (its ENDMETADATA is missing)")
-            meta, in_meta = {}, True
-        elif key == "ENDMETADATA":
-            in_meta = False
-            blocks.append(meta)
-        elif in_meta:
-            meta.setdefault(key, val.strip())
-        elif key == "DATA":
-            sep = {"PIPE": "|", "TAB": "\t", "COMMA": ","}.get(meta.get("DELIMITER", "PIPE").upper(), "|")
-            f = val.split(sep)
-            try:
-                vals = (float(f[0]), float(f[1]), float(f[2]) if len(f) > 2 and f[2].strip() else math.nan)
-                if not (math.isfinite(vals[0]) and math.isfinite(vals[1])):
-                    raise ValueError
-                times.append(vals[0])
-                mags.append(vals[1])
-                errs.append(vals[2])
-            except (ValueError, IndexError):
-                raise FieldError(f"observations[line {n}]", f"not an ALCDEF data line JD{sep}MAG{sep}MAGERR: {s!r}") from None
-            tracks.append(meta.get("LCBLOCKID", str(len(blocks))))
-            filters.append(meta.get("MAGBAND", ""))
-        elif key not in ("ENDDATA",):
-            raise FieldError(f"observations[line {n}]", f"not ALCDEF: {s[:60]!r} outside a metadata block")
-    if in_meta:
-        raise FieldError("observations", f"{name}: a metadata block without its ENDMETADATA")
-    if not times:
-        raise FieldError("observations", f"{name}: an ALCDEF file without DATA lines")
-    e = np.array(errs)
-    if np.isnan(e).any() and not np.isnan(e).all():
-        i = int(np.flatnonzero(np.isnan(e))[0])
-        raise FieldError(f"observations.MAGERR[row {i + 1}]", "a missing error where the other rows give theirs")
-    first = blocks[0] if blocks else {}
-    info = {"format": "alcdef", "value_col": "MAG", "error_col": "MAGERR", "object_id": first.get("OBJECTNUMBER") or first.get("MPCDESIG") or None,
-            "name": first.get("OBJECTNAME") or None, "observers": sorted({b.get("OBSERVERS", "") for b in blocks} - {""}),
-            "blocks": blocks}
-    reduced = first.get("REDUCEDMAGS", "NONE").upper()
-    return {"times_utc": to_utc(np.array(times), "jd", "utc", "observations.JD"), "values": np.array(mags),
-            "errors": None if np.isnan(e).any() else e, "kind": "magnitude", "tracks": np.array(tracks),
-            "filters": np.array(filters), "magnitude_system": "apparent" if reduced == "NONE" else f"reduced ({reduced})",
-            "meta": info}
 
 
 def check_magnitudes(values: np.ndarray, col: str) -> None:

@@ -17,17 +17,23 @@ Aperiodic): no ``published_period_s``; ``variability`` is kept.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cssat._checks import FieldError
 from cssat.data.formats import MMT_VARIABILITY, _bad_iso, _checked, _floats, period_or_none
+from cssat.data.registry import read_text, register_format
 
-__all__ = ["read_mmt", "MMT_VALUE_COLUMNS"]
+__all__ = ["read_mmt", "identify_mmt", "MMT_VALUE_COLUMNS", "MMT_FIXED_OPTIONS"]
 
 #: the value columns of an MMT export: apparent ``Mag`` (default) or ``StdMag`` (1000 km, 90°)
 MMT_VALUE_COLUMNS = ("Mag", "StdMag")
+#: the reading options an MMT export accepts (``None``: unset); any other value contradicts it
+MMT_FIXED_OPTIONS = {"kind": ("magnitude",), "time_col": (None, "time_utc", "Date Time", ("Date", "Time"), "Date+Time"),
+                     "value_col": (None, *MMT_VALUE_COLUMNS), "error_col": (None,), "time_format": ("iso",),
+                     "time_scale": ("utc",)}
 
 
 def _object_of(meta: dict[str, str]) -> tuple[str, str, str | None] | None:
@@ -190,3 +196,18 @@ def read_mmt(text: str, name: str, value_col: str | None = None, obj: Any = None
     info["header"] = blocks[0]["meta"]
     out["meta"] = info
     return out
+
+
+def identify_mmt(path: Any, first_lines: list[str]) -> bool:
+    """An MMT export has a ``# satellite:``, ``# track:`` or ``# variability:`` header line or a
+    ``# Date Time …`` column line in its first lines."""
+    head = "".join(first_lines)
+    return bool(re.search(r"^#\s*(satellite|track|variability)\s*:", head, re.M)
+                or re.search(r"^#\s*Date\s+Time\s", head, re.M))
+
+
+def _read(path: Any, *, value_col: str | None = None, object: Any = None, **options: Any) -> dict[str, Any]:
+    return read_mmt(read_text(path), Path(path).name, value_col, object)
+
+
+register_format("mmt", identify_mmt, _read, priority=30, fixed_options=MMT_FIXED_OPTIONS, sort=True, overwrite=True)

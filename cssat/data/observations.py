@@ -22,14 +22,12 @@ from typing import Any, Sequence
 import numpy as np
 
 from cssat._checks import FieldError, FieldTypeError, choice_param
-from cssat._record import read_input
 from cssat.data import formats as F
-from cssat.data.astro import read_astropy, read_astropy_file
+from cssat.data.astro import read_astropy
 from cssat.data.finish import FIXED_OPTIONS, fixed_format, finish, jansky_to_magnitudes  # noqa: F401
-from cssat.data.mmt import read_mmt
-from cssat.data.score import read_score
+from cssat.data.registry import get_format, identify_format
 from cssat.data.text import DEFAULT_ERROR, DEFAULT_VALUE, write_light_curve  # noqa: F401  (cssat's own CSV)
-from cssat.data.text import check_size, read_csv, text_rows
+from cssat.data.text import check_size
 
 __all__ = ["ObservedLightCurve", "read_light_curve", "write_light_curve", "stretches", "KINDS", "TIME_FORMATS", "DUPLICATES"]
 
@@ -235,9 +233,11 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
                      duplicates: str = "refuse", band: Any = None, band_system: str = "Vega") -> ObservedLightCurve:
     """Read a measured light curve from a file (or an astropy ``Table``/``QTable``/``TimeSeries``).
 
-    ``format``: one of :data:`~cssat.data.formats.FORMATS` (default: by content — an ALCDEF
+    ``format``: a registered format (:func:`cssat.data.registry.registered_formats`; cssat's own are
+    :data:`~cssat.data.formats.FORMATS`; default: the one that identifies the file — an ALCDEF
     ``STARTMETADATA``, an MMT ``# satellite:`` header, SCORE's columns, ``.ecsv``/``.fits`` —
-    else cssat's CSV). For a CSV (comma or whitespace separated; the header the first line or,
+    else cssat's CSV; a new format is one module that calls
+    :func:`~cssat.data.registry.register_format`). For a CSV (comma or whitespace separated; the header the first line or,
     when that is data, the last ``#`` line): ``time_col`` (default the first of ``time_utc``,
     ``time``, ``mjd``, ``jd``; a pair of columns — date and time — is joined), in
     ``time_format`` (``iso``, ``jd``, ``mjd``, ``unix``; a column named ``jd`` or ``mjd`` is
@@ -280,7 +280,7 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
         else:
             choice_param(band_system, "observations.band_system", ("AB", "Vega"))
     if format is not None:
-        format = choice_param(str(format).lower(), "format", F.FORMATS)
+        format = get_format(str(format).lower()).name
     if hasattr(path, "colnames"):  # an astropy table in memory
         d = read_astropy(path, "the table", time_col=time_col, value_col=value_col, error_col=error_col, kind=kind,
                          time_format=time_format, time_scale=time_scale)
@@ -296,46 +296,26 @@ def read_light_curve(path: Any, *, time_col: Any = None, value_col: str | None =
             raise FieldError("observations", f"no such file: {p}")
 
         check_size(p)
-
-        data = read_input(p, 1 << 30, "observations")
         name = p.name
-        if format in ("fits",) or (format is None and p.suffix.lower() in (".fits", ".fit", ".fts")):
-            fmt, text = "fits", ""
-        else:
-            try:
-                text = data.decode("utf-8-sig")
-            except UnicodeDecodeError:
-                raise FieldError("observations", f"{name}: not a UTF-8 text table (nor FITS)") from None
-            fmt = format or F.sniff_format(text[:8192], p.suffix.lstrip("."))
+        fmt = format or identify_format(p)  # every registered format asked (cssat.data.registry)
         fixed_format(fmt, kind=kind, time_col=time_col, error_col=error_col, time_format=time_format,
                       time_scale=time_scale, value_col=value_col)
-        if fmt == "mmt":
-            d = read_mmt(text, name, value_col, object)
-        elif fmt == "alcdef":
-            d = F.read_alcdef(text, name)
-        elif fmt == "score":
-            header, rows = text_rows(text, name)
-            d = read_score(header, rows, name, object)
-        elif fmt in ("ecsv", "fits", "astropy"):
-            d = read_astropy(read_astropy_file(data, "fits" if fmt == "fits" else "ecsv", name), name,
-                             time_col=time_col, value_col=value_col, error_col=error_col, kind=kind,
-                             time_format=time_format, time_scale=time_scale)
-        else:
-            d = read_csv(text, name, time_col=time_col, value_col=value_col, error_col=error_col, kind=kind,
-                          time_format=time_format, time_scale=time_scale, filter_col=filter_col,
-                          observer_col=observer_col, track_col=track_col)
+        d = get_format(fmt).read(p, time_col=time_col, value_col=value_col, error_col=error_col, kind=kind,
+                                 time_format=time_format, time_scale=time_scale, filter_col=filter_col,
+                                 observer_col=observer_col, track_col=track_col, object=object)
     if d.get("meta", {}).get("flux_unit") == "Jy":  # a spectral flux density: a magnitude through the band's zero point
         d = jansky_to_magnitudes(d, band, band_system)
     lc = ObservedLightCurve(**{k: v for k, v in d.items() if k != "meta"}, meta=d.get("meta", {}),
                             source=str(path) if fmt != "astropy" else "")
-    if object is not None and fmt != "score":  # the file names its object: it must be the one asked for
+    entry = get_format(fmt)
+    if object is not None and not entry.selects_object:  # the file names its object: it must be the one asked for
         want, have = str(object).strip().upper(), {str(lc.meta.get(k) or "").strip().upper() for k in ("object_id", "name")}
         if not (have - {""}):
             raise FieldError("observations.object", f"{name} names no object to compare with {object!r}")
         if want not in have:
             raise FieldError("observations.object", f"{name} is of {lc.meta.get('object_id')} {lc.meta.get('name') or ''}"
                                                     f", not {object!r}")
-    tcol = "+".join(time_col) if isinstance(time_col, (list, tuple)) else (time_col or ("time_utc" if fmt == "csv" else "time"))
+    tcol = "+".join(time_col) if isinstance(time_col, (list, tuple)) else (time_col or entry.time_col)
     vcol = value_col or lc.meta.get("value_col") or DEFAULT_VALUE[kind]
     ecol = error_col or lc.meta.get("error_col") or DEFAULT_ERROR[kind]
     if band is not None:

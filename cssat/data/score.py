@@ -13,16 +13,18 @@ others have one, is a FieldError naming the column and the row.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cssat._checks import FieldError
 from cssat.data.formats import _checked
-from cssat.data.text import _is_number
+from cssat.data.registry import read_text, register_format
+from cssat.data.text import _is_number, text_rows
 from cssat.scene.orbit import _start_datetime
 
-__all__ = ["read_score", "SCORE_COLUMNS", "SATCHECKER_COLUMNS"]
+__all__ = ["read_score", "identify_score", "SCORE_COLUMNS", "SATCHECKER_COLUMNS", "SCORE_FIXED_OPTIONS"]
 
 SCORE_COLUMNS = {"time": "observation_time_utc", "value": "apparent_magnitude", "error": "apparent_magnitude_uncertainty",
                  "lat": "observer_latitude_deg", "lon": "observer_longitude_deg", "alt": "observer_altitude_m",
@@ -31,6 +33,10 @@ SCORE_COLUMNS = {"time": "observation_time_utc", "value": "apparent_magnitude", 
                  "name": "satellite_name"}
 #: SatChecker's computed columns in a SCORE database export (the first present is used)
 SATCHECKER_COLUMNS = {"range": ("range_to_sat_km_satchecker",), "phase": ("phase_angle_deg_satchecker", "phase_angle")}
+#: the reading options a SCORE file accepts (``None``: unset); any other value contradicts it
+SCORE_FIXED_OPTIONS = {"kind": ("magnitude",), "time_col": (None, "time_utc", SCORE_COLUMNS["time"]),
+                       "value_col": (None, SCORE_COLUMNS["value"]), "error_col": (None, SCORE_COLUMNS["error"]),
+                       "time_format": ("iso",), "time_scale": ("utc",)}
 #: fields that stand for "no value"
 MISSING = ("", "none", "null", "nan", "n/a", "na")
 
@@ -174,3 +180,20 @@ def _ranges(out: dict[str, Any], meta: dict[str, Any], obs: np.ndarray | None, s
     meta["range_source"] = "satchecker" if used_sc.all() else ("observer" if not used_sc.any() else "mixed")
     if meta["range_source"] == "mixed":
         meta["range_satchecker_rows"] = [int(file_row[i]) + 1 for i in np.flatnonzero(used_sc)]
+
+
+def identify_score(path: Any, first_lines: list[str]) -> bool:
+    """A SCORE CSV's header (its first line that is not blank or a ``#`` comment) names
+    ``observation_time_utc`` and ``apparent_magnitude``."""
+    header = next((ln for ln in "".join(first_lines).splitlines() if ln.strip() and not ln.lstrip().startswith("#")), "")
+    return {SCORE_COLUMNS["time"], SCORE_COLUMNS["value"]} <= {c.strip().lower() for c in header.split(",")}
+
+
+def _read(path: Any, *, object: Any = None, **options: Any) -> dict[str, Any]:
+    name = Path(path).name
+    header, rows = text_rows(read_text(path), name)
+    return read_score(header, rows, name, object)
+
+
+register_format("score", identify_score, _read, priority=20, fixed_options=SCORE_FIXED_OPTIONS, sort=True,
+                selects_object=True, overwrite=True)

@@ -17,6 +17,7 @@ import numpy as np
 from cssat._checks import FieldError
 from cssat._tmpfiles import atomic_csv
 from cssat.data.formats import check_kind, to_utc
+from cssat.data.registry import read_text, register_format
 from cssat.scene.orbit import _start_datetime
 
 __all__ = ["check_size", "read_csv", "text_rows", "write_light_curve", "find_column", "DEFAULT_VALUE", "DEFAULT_ERROR"]
@@ -169,6 +170,18 @@ def read_csv(text: str, name: str, *, time_col: Any, value_col: str | None, erro
         if c in cols:
             out[key] = np.array(column(c))
     return out
+
+
+def _read(path: Any, *, time_col: Any = None, value_col: str | None = None, error_col: str | None = None,
+          kind: str = "magnitude", time_format: str = "iso", time_scale: str = "utc", filter_col: str | None = "filter",
+          observer_col: str | None = "observer", track_col: str | None = "track", **options: Any) -> dict[str, Any]:
+    return read_csv(read_text(path), Path(path).name, time_col=time_col, value_col=value_col, error_col=error_col,
+                    kind=kind, time_format=time_format, time_scale=time_scale, filter_col=filter_col,
+                    observer_col=observer_col, track_col=track_col)
+
+
+#: any text table: the fallback, tried last
+register_format("csv", lambda path, first_lines: True, _read, priority=-100, time_col="time_utc", overwrite=True)
 
 
 def write_light_curve(path: str | Path, lc: Any) -> None:
