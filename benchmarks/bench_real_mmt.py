@@ -11,11 +11,12 @@ result refined on the whole track, not ground truth). Three estimators on the sa
 1. **cssat** — :func:`cssat.catalogue.characterise_file` with its defaults (the characterise
    experiment's read → clean → period stages: the verdict and the full-turn convention for
    rocket bodies);
-2. **astropy LS** — ``LombScargle(nterms=2)`` on the data-derived grid (2/span to the Nyquist of the
+2. **astropy LS** — the ``lombscargle`` period method (:mod:`cssat.inversion.period_methods`):
+   ``LombScargle(nterms=2)`` on the data-derived grid (2/span to the Nyquist of the
    median step, 10 points a peak), its highest peak (a plain periodogram has no verdict: it
    always "claims" a period);
-3. **PDM** — Stellingwerf's (1978) θ with 10 phase bins on the same grid, after a quadratic
-   detrend (MMT's own pipeline refines by PDM), its lowest θ.
+3. **PDM** — the ``pdm`` period method: Stellingwerf's (1978) θ with 10 phase bins on the same
+   grid, after a quadratic detrend (MMT's own pipeline refines by PDM), its lowest θ.
 
 Scores: a period is *right* within 1 % of MMT's; *target* tracks are the periodic ones whose file
 spans ≥ 3 of MMT's periods; a *wrong claim* is a period stated (cssat: verdict periodic) off
@@ -64,38 +65,26 @@ def magnitudes(path: Path):
 
 
 def grid(t: np.ndarray, channels) -> np.ndarray:
-    """2/span to the Nyquist of the median in-channel step, 10 points a peak."""
-    steps = np.concatenate([np.diff(np.sort(t[channels == c])) for c in np.unique(channels)])
-    d = float(np.median(steps[steps > 0]))
-    span = float(t[-1] - t[0])
-    return np.arange(2.0 / span, 0.5 / d, 0.1 / span)
+    """2/span to the Nyquist of the median in-channel step, 10 points a peak
+    (:func:`cssat.inversion.period_methods.frequency_grid`)."""
+    from cssat.inversion.period_methods import frequency_grid
+
+    return frequency_grid(t, channels)
 
 
 def ls_period(t, y, channels) -> float:
-    from astropy.timeseries import LombScargle
+    """The ``lombscargle`` period method's period (astropy's 2-term LombScargle on :func:`grid`)."""
+    from cssat.inversion.period_methods import lomb_scargle_period
 
-    f = grid(t, channels)
-    p = LombScargle(t, y, nterms=2).power(f)
-    return 1.0 / float(f[np.argmax(p)])
+    return float(lomb_scargle_period(t, y, zero_points=channels).period_s)
 
 
 def pdm_period(t, y, channels, bins: int = 10) -> float:
-    """Stellingwerf's PDM: θ = pooled within-bin variance / total variance, its minimum."""
-    yy = y - np.polyval(np.polyfit(t - t.mean(), y, 2), t - t.mean())
-    var = yy.var(ddof=1)
-    f = grid(t, channels)
-    best, fb = np.inf, f[0]
-    for fi in f:
-        b = np.floor(((t * fi) % 1.0) * bins).astype(int)
-        n = np.bincount(b, minlength=bins)
-        s = np.bincount(b, yy, minlength=bins)
-        s2 = np.bincount(b, yy * yy, minlength=bins)
-        ok = n > 1
-        within = (s2[ok] - s[ok] ** 2 / n[ok]).sum() / max(n[ok].sum() - ok.sum(), 1)
-        theta = within / var
-        if theta < best:
-            best, fb = theta, fi
-    return 1.0 / float(fb)
+    """The ``pdm`` period method's period: Stellingwerf's θ = pooled within-bin variance / total
+    variance after a quadratic trend, its minimum on :func:`grid`."""
+    from cssat.inversion.period_methods import pdm_period as pdm
+
+    return float(pdm(t, y, zero_points=channels, bins=bins).period_s)
 
 
 def relation(p: float | None, ref: float | None) -> str:
