@@ -1,5 +1,6 @@
-"""The grid stage: one pipeline run per cell of a declared grid, in one job (the solver comparison,
-the realism maps).
+"""A grid: one image run per cell of a declared grid, in one job (the solver comparison, the
+realism maps), run by the image forward model (:class:`~cssat.experiments.forward.PixelSensing`)
+as a list of cell configs (:class:`GridRun`).
 
 ``grid.axes`` is a list; the first axis varies slowest. An axis is either a config key and its
 values (``{name: m, key: cs.ratio, values: [0.088, 0.25, 0.807], label: m}``: each cell sets
@@ -39,7 +40,7 @@ from cssat.plots import grid_curves_figure, grid_images_figure, grid_maps_figure
 
 log = logging.getLogger("cssat")
 
-__all__ = ["run", "cells"]
+__all__ = ["GridRun", "cells"]
 
 #: a cell is below the flat image of the true flux when it scores more than this under it (dB): the
 #: flux-only solver's own flat image, of a *fitted* flux, loses ~1e-3 dB to it
@@ -98,46 +99,61 @@ def _name(fmt: str | None, labels: dict[str, Any]) -> str:
         raise FieldError("grid.name", f"{fmt!r} names an axis that is not in {list(labels)} ({err})") from None
 
 
-def run(cfg: Any, run_: Any) -> dict[str, Any]:
-    """Run every cell of ``cfg.grid`` into ``run_.out_dir``; return the grid's metrics."""
-    g = cfg.grid
-    with run_.stage("setup"):
-        axes = _axes(g)
-        todo = cells(cfg)
-        plans = [plan(c, run_) for _, c in todo]  # every cell checked before any work
-        figures = [choice_param(f, "grid.figures", ("images", "maps", "curves", "information")) for f in (g.get("figures") or [])]
-    cache: dict = {}
-    rows, images, truth = [], {}, None
-    for (labels, _), p in zip(todo, plans):
-        before = {k: run_.seconds.get(k, 0.0) for k in ("solver", "dictionary", "denoise")}
-        res = execute(p, run_, cache)
-        with run_.stage("score"):
-            met = metrics_of(p, run_, res)
-            t = res["measured"].truth
-            met["psnr_flux_only"] = psnr(t, np.full_like(t, t.mean()), data_range=1.0)
-        seconds = sum(run_.seconds.get(k, 0.0) - v for k, v in before.items())
-        for ax in axes:  # a value axis labelled by a metric of the cell (cs.ratio -> m1444)
-            if ax["label"] is not None:
-                labels[ax["name"]] = met.get(ax["label"], labels[ax["name"]])
-        name = _name(g.get("name"), labels)
-        rec = res["recs"][0]
-        truth = res["measured"].truth
-        images[name] = rec.denoised
-        row = {**labels, "cell": name, "psnr": met["psnr_denoised"], "ssim": met["ssim_denoised"], "psnr_raw": met["psnr"],
-               "seconds": seconds, "iterations": met.get("solver_iterations", met.get("omp_atoms"))}
-        row.update({k: v for k, v in met.items() if k.startswith(ROW_PREFIXES) and isinstance(v, (int, float, str, type(None)))})
-        row["below_flux_only"] = bool(row["psnr"] < met["psnr_flux_only"] - FLUX_TOLERANCE_DB)  # the true flux's flat image
-        row["unreachable"] = met.get("noise_reachable") is False or bool(met.get("noise_saturated") or 0)
-        rows.append(row)
-        log.info("%s: %s PSNR %.2f dB, SSIM %.3f, %.1f s", cfg.get("experiment_name"), name, row["psnr"], row["ssim"], seconds)
-    with run_.stage("score"):
-        metrics = _metrics(g, axes, rows, plans[0], truth)
-    with run_.stage("write"):
-        write_csv(run_.out_dir / str(g.get("csv_name") or "grid.csv"), rows)
-        write_npz(run_.out_dir / "arrays.npz", truth=truth, **images)
-        _figures(g, figures, axes, rows, images, truth, run_, metrics)
-    metrics.update(run_.timings())
-    return metrics
+class GridRun:
+    """A grid run of the image forward models: a list of cell configs, each planned, executed and
+    scored as one image run, then the grid's metrics, table and figures (the module's docstring)."""
+
+    def __init__(self, cfg: Any, run_: Any):
+        """Every cell of ``cfg.grid`` planned before any work."""
+        self.cfg = cfg
+        g = self.g = cfg.grid
+        self.axes = _axes(g)
+        self.todo = cells(cfg)
+        self.plans = [plan(c, run_) for _, c in self.todo]  # every cell checked before any work
+        self.figures = [choice_param(f, "grid.figures", ("images", "maps", "curves", "information"))
+                        for f in (g.get("figures") or [])]
+
+    def measure(self, run_: Any) -> None:
+        """Every cell executed and scored, in order (a cell's Φ reused by the next with the same forward settings)."""
+        cfg, g, axes = self.cfg, self.g, self.axes
+        cache: dict = {}
+        rows, images, truth = [], {}, None
+        for (labels, _), p in zip(self.todo, self.plans):
+            before = {k: run_.seconds.get(k, 0.0) for k in ("solver", "dictionary", "denoise")}
+            res = execute(p, run_, cache)
+            with run_.stage("score"):
+                met = metrics_of(p, run_, res)
+                t = res["measured"].truth
+                met["psnr_flux_only"] = psnr(t, np.full_like(t, t.mean()), data_range=1.0)
+            seconds = sum(run_.seconds.get(k, 0.0) - v for k, v in before.items())
+            for ax in axes:  # a value axis labelled by a metric of the cell (cs.ratio -> m1444)
+                if ax["label"] is not None:
+                    labels[ax["name"]] = met.get(ax["label"], labels[ax["name"]])
+            name = _name(g.get("name"), labels)
+            rec = res["recs"][0]
+            truth = res["measured"].truth
+            images[name] = rec.denoised
+            row = {**labels, "cell": name, "psnr": met["psnr_denoised"], "ssim": met["ssim_denoised"], "psnr_raw": met["psnr"],
+                   "seconds": seconds, "iterations": met.get("solver_iterations", met.get("omp_atoms"))}
+            row.update({k: v for k, v in met.items() if k.startswith(ROW_PREFIXES) and isinstance(v, (int, float, str, type(None)))})
+            row["below_flux_only"] = bool(row["psnr"] < met["psnr_flux_only"] - FLUX_TOLERANCE_DB)  # the true flux's flat image
+            row["unreachable"] = met.get("noise_reachable") is False or bool(met.get("noise_saturated") or 0)
+            rows.append(row)
+            log.info("%s: %s PSNR %.2f dB, SSIM %.3f, %.1f s", cfg.get("experiment_name"), name, row["psnr"], row["ssim"], seconds)
+        self.rows, self.images, self.truth = rows, images, truth
+
+    def score(self, run_: Any) -> dict[str, Any]:
+        return _metrics(self.g, self.axes, self.rows, self.plans[0], self.truth)
+
+    def write(self, run_: Any, metrics: dict[str, Any]) -> None:
+        g = self.g
+        write_csv(run_.out_dir / str(g.get("csv_name") or "grid.csv"), self.rows)
+        write_npz(run_.out_dir / "arrays.npz", truth=self.truth, **self.images)
+        _figures(g, self.figures, self.axes, self.rows, self.images, self.truth, run_, metrics)
+
+    def headline(self, metrics: dict[str, Any]) -> None:
+        """None: each cell's line is logged as it is scored."""
+        return None
 
 
 def _metrics(g: Any, axes: list[dict], rows: list[dict], p: Any, truth: Any) -> dict[str, Any]:

@@ -93,7 +93,7 @@ class MovingScene(PixelSensing):
         s = 1.0 / mean.max()
         return frames.reshape(len(frames), -1) * s, mean * s, geo
 
-    def measure(self, run: Run, truth: np.ndarray, operator: Any, noise: Any, dtype: Any) -> Measured:
+    def sense(self, run: Run, truth: np.ndarray, operator: Any, noise: Any, dtype: Any) -> Measured:
         """Measure the moving scene through ``operator`` with ``noise`` (seed + 1); the truth is
         the time-mean image, ``truth`` (the target's) only sets the size."""
         import torch  # heavy: torch (~1 s); the module imports without it

@@ -8,9 +8,9 @@ Each stage is a config group, built and checked by :func:`plan` before any work:
 ``full_rank``, ``sparse``, ``min_norm``), ``solver``, ``denoiser``, ``denoiser3d`` and
 ``figures``. An experiment is a YAML file in ``conf/experiment/`` that picks options of these
 groups; a grid of such runs (the solver comparison, the realism maps) is the ``grid`` stage
-(:mod:`cssat.experiments.grid`); the light-curve experiment's target is a mesh in a scenario
-(:mod:`cssat.experiments.scene`); :mod:`cssat.experiments.task` picks which of them a config
-is. Every stage's time is in ``metrics.json`` as ``seconds_<stage>``.
+(:mod:`cssat.experiments.grid`), run by the same image forward model
+(:class:`~cssat.experiments.forward.PixelSensing`) as one image (:class:`ImageRun`). Every
+stage's time is in ``metrics.json`` as ``seconds_<stage>``.
 """
 
 from __future__ import annotations
@@ -29,14 +29,13 @@ from cssat.experiments.build import build, build_denoiser, build_solver
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.estimators import Known
 from cssat.experiments.forward import Geometry, PixelSensing, measurements, phi_stats
-from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.report import FIGURES, repeats_summary
 from cssat.experiments.resources import check_memory
 from cssat.metrics import psnr
 
 log = logging.getLogger("cssat")
 
-__all__ = ["Plan", "plan", "measure", "execute", "metrics_of", "ImagePipeline"]
+__all__ = ["Plan", "plan", "measure", "execute", "metrics_of", "ImageRun"]
 
 
 @dataclass
@@ -136,7 +135,7 @@ def measure(p: Plan, run: Run, cache: dict | None = None) -> Any:
             cache.clear()
             cache[p.forward_key] = (op, stats)
     with run.stage("measure"):
-        measured = p.forward.measure(run, truth, op, p.noise, dtype)
+        measured = p.forward.sense(run, truth, op, p.noise, dtype)
         measured.metrics.update({**p.atmosphere.describe(), **stats})
     if p.information and measured.noise_var is not None:
         from cssat.physics.information import mode_information  # heavy: cssat.physics.information imports torch
@@ -213,31 +212,20 @@ def metrics_of(p: Plan, run: Run, res: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-class ImagePipeline(ForwardModel):
-    """The image forward models (``forward: pixels``, ``moving``) as a forward model of the one
-    protocol: ``plan`` is :func:`plan` (every stage built and checked, the memory estimated),
-    ``measure`` runs :func:`execute` — the measurement, the operator estimate of the
-    ``reference`` group (its stage ``estimate``) and the ``solver`` and denoisers (``solve``) over
-    the repeats, each timed by its own stages —, ``score`` is :func:`metrics_of`, ``write`` the
+class ImageRun:
+    """One image run of the image forward models (``forward: pixels``, ``moving``): what their
+    stages do when the config has no ``grid`` — ``plan`` is :func:`plan` (every stage built and
+    checked, the memory estimated), ``measure`` runs :func:`execute` (the measurement, the
+    operator estimate of the ``reference`` group and the ``solver`` and denoisers over the
+    repeats, each timed by its own stages), ``score`` is :func:`metrics_of`, ``write`` the
     report's arrays and figures."""
 
-    name = "image"
-    timed_inside = ("measure", "estimate", "solve")
-    #: measure runs the operator estimate and the solves of every repeat (:func:`execute`)
-    needs = {"measure": ("plan",), "score": ("plan", "measure"), "write": ("plan", "measure", "score")}
-
-    def __init__(self, sensing: Any = None):
-        """``sensing``: the ``forward`` group's image model, already built (None: built by :func:`plan`)."""
-        self.sensing = sensing
-
-    def plan(self, cfg: Any, run: Run) -> None:
-        self.p = plan(cfg, run, self.sensing)
+    def __init__(self, cfg: Any, run: Run, sensing: Any):
+        """Plan ``cfg`` with ``sensing``, the ``forward`` group's image model."""
+        self.p = plan(cfg, run, sensing)
 
     def measure(self, run: Run) -> None:
         self.res = execute(self.p, run)
-
-    def solve(self, run: Run) -> None:
-        """Solved with the repeats of :meth:`measure` (each repeat's operator estimate, solve and denoising)."""
 
     def score(self, run: Run) -> dict[str, Any]:
         return metrics_of(self.p, run, self.res)

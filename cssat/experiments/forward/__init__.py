@@ -18,6 +18,7 @@ import numpy as np
 
 from cssat._checks import FieldError, dtype_param, float_param, int_param, opt
 from cssat.experiments.context import Run, as_field
+from cssat.experiments.forward.base import ForwardModel
 
 if TYPE_CHECKING:
     import torch
@@ -92,10 +93,16 @@ class Measured:
     noise_var: Any = None  #: the noise variance of each sample of ``y`` (m,), as the noise model states it
 
 
-class PixelSensing:
+class PixelSensing(ForwardModel):
     """The paper's forward model (Eq. 12–15): the unknown is the target image ``x (n, n)``,
     ``N = n²`` pixels, each pixel's flux scaled per sample by the atmosphere's weights:
     ``y = noise(Φ x)``, ``Φ (m, N)`` drawn from ``seed``, the noise from ``seed + 1``.
+
+    Its stages run the image pipeline (:mod:`cssat.experiments.pipeline`): one image
+    (:class:`~cssat.experiments.pipeline.ImageRun`), or, when the config has a ``grid``, the list
+    of its cells' configs (:class:`~cssat.experiments.grid.GridRun`); ``measure`` runs the
+    operator estimate and the solves of every repeat and cell, each timed by its own stages. The
+    sensing itself is :meth:`shape`, :meth:`precision`, :meth:`operator` and :meth:`sense`.
 
     ``dtype``: the precision of ``Φ``, ``x`` and ``y`` (null: the run's ``dtype``; ``float64``
     keeps the digits of a positive Φ's 1 % fluctuations, the system then centred in float64 and
@@ -105,6 +112,9 @@ class PixelSensing:
     """
 
     name = "pixels"
+    timed_inside = ("measure", "estimate", "solve")
+    #: measure runs the operator estimate and the solves of every repeat (and every cell of a grid)
+    needs = {"measure": ("plan",), "score": ("plan", "measure"), "write": ("plan", "measure", "score")}
 
     def __init__(self, dtype: str | None = None, draw_dtype: str | None = None):
         from cssat.models.pixels.config import PixelsConfig
@@ -139,7 +149,33 @@ class PixelSensing:
             op = MatrixOperator(op.matrix().to(dtype))
         return op
 
-    def measure(self, run: Run, truth: np.ndarray, operator: Any, noise: Any, dtype: torch.dtype) -> Measured:
+    def plan(self, cfg: Any, run: Run) -> None:
+        """Every stage of ``cfg`` built and checked before any work: one image, or every cell of its ``grid``."""
+        from cssat.experiments.grid import GridRun  # heavy: cssat.experiments.grid imports torch and matplotlib
+        from cssat.experiments.pipeline import ImageRun  # heavy: cssat.experiments.pipeline imports torch
+
+        self.job = GridRun(cfg, run) if cfg.get("grid") is not None else ImageRun(cfg, run, self)
+
+    def measure(self, run: Run) -> None:  # type: ignore[override]
+        """The measurement, the operator estimate and the solves (of every cell of a grid)."""
+        self.job.measure(run)
+
+    def estimate(self, run: Run) -> None:
+        """Estimated with each repeat's solve in :meth:`measure`."""
+
+    def solve(self, run: Run) -> None:
+        """Solved with the repeats of :meth:`measure`."""
+
+    def score(self, run: Run) -> dict[str, Any]:
+        return self.job.score(run)
+
+    def write(self, run: Run, metrics: dict[str, Any]) -> None:
+        self.job.write(run, metrics)
+
+    def headline(self, metrics: dict[str, Any]) -> None:
+        return self.job.headline(metrics)
+
+    def sense(self, run: Run, truth: np.ndarray, operator: Any, noise: Any, dtype: torch.dtype) -> Measured:
         """Measure ``truth`` through ``operator`` (from :meth:`operator`) with ``noise``, seeded
         with the run's seed + 1, in ``dtype``."""
         import torch  # heavy: torch (~1 s); the module imports without it
