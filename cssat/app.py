@@ -115,7 +115,8 @@ def _write_errors_in_one_line(where: str = "the output directory") -> Iterator[N
 def _os_error(err: OSError, where: str | Path) -> str:
     """``<path>: <cause>`` of an OS error, in one line."""
     path = err.filename if err.filename is not None else where
-    return f"{path}: {err.strerror or err}"
+    cause = err.strerror or (os.strerror(err.errno) if isinstance(err.errno, int) else "") or str(err)
+    return f"{path}: {cause or type(err).__name__ + ' (the system gave no reason)'}"
 
 
 def _check_output_dir(overrides: list[str], multirun: bool) -> str | None:

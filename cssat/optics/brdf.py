@@ -105,9 +105,11 @@ class Lambert(BRDF):
         return torch.full_like(nl, self.albedo / math.pi)
 
 
-def _lobe_sum(kd: float, ks: float) -> None:
+def _lobe_sum(kd: float, ks: float, names: tuple[str, str] = ("kd", "ks")) -> None:
+    """Energy: a diffuse and a specular fraction that add up to at most 1 (all the light)."""
     if kd + ks > 1 + 1e-12:
-        raise FieldError("ks", f"kd + ks = {kd + ks:g} > 1 reflects more light than arrives")
+        raise FieldError(names[1], f"{names[0]} + {names[1]} = {kd + ks:g} > 1 reflects more light than arrives "
+                                   f"(their sum must be at most 1)")
 
 
 class Phong(BRDF):
@@ -195,6 +197,7 @@ class PaperBRDF(BRDF):
 
     def __init__(self, cd: float = 0.8, cs: float = 0.2, window_deg: float = 0.5, sun_range_km: float = 149_597_870.7):
         self.cd, self.cs = _fraction(cd, "cd"), _fraction(cs, "cs")
+        _lobe_sum(self.cd, self.cs, ("cd", "cs"))
         self.window_deg = float_param(window_deg, "window_deg", 0.0, 180.0)
         self.sun_range_km = float_param(sun_range_km, "sun_range_km", 1e3, open_lo=True)
 

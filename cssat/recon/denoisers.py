@@ -23,7 +23,7 @@ from torch import Tensor
 
 from cssat._checks import FieldError, float_param, int_param, opt, progress_param
 from cssat.sparse import estimate_sigma, ksvd_denoise
-from cssat.sparse.denoise import check_settings
+from cssat.sparse.denoise import DEMO_DEFAULTS, check_settings
 
 if TYPE_CHECKING:
     from cssat._types import Array
@@ -169,6 +169,12 @@ class SparseKSVD(Denoiser):
                 vals = [v] if not isinstance(v, Sequence) or isinstance(v, str) else list(v)
                 t = tuple(int_param(u, key, 1) for u in vals)
                 self.kw[key] = t[0] if len(t) == 1 else t
+        if "step" in self.kw:  # the blocks are 8 a side unless given (both demos): a step past them leaves pixels out
+            steps = np.atleast_1d(self.kw["step"])
+            blocks = np.atleast_1d(self.kw.get("block_size", DEMO_DEFAULTS[2]["block"]))
+            if (len(steps) == len(blocks) or 1 in (len(steps), len(blocks))) and np.any(steps > blocks):
+                raise FieldError("step", f"{self.kw['step']} must not exceed the block size "
+                                         f"{self.kw.get('block_size', DEMO_DEFAULTS[2]['block'])}, or pixels would be left out")
         if settings.get("gain") is not None:
             self.kw["gain"] = float_param(settings["gain"], "gain", 0.0, open_lo=True)
         self.kw["lam"] = float_param(settings.get("lam") or 0.0, "lam", 0.0)

@@ -37,7 +37,10 @@ def _seconds(scenario: Scenario, epoch_utc: Any) -> np.ndarray:
 
 
 def _vector(v: Any, n: int, field: str) -> np.ndarray:
-    a = np.asarray(v, dtype=np.float64)
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise FieldError(field, f"expected {n} finite numbers, got {v!r}") from None
     if a.shape != (n,) or not np.isfinite(a).all():
         raise FieldError(field, f"expected {n} finite numbers, got {v!r}")
     return a
@@ -88,13 +91,16 @@ class Spin(Attitude):
 
     def __init__(self, pole_lon_deg: float = 0.0, pole_lat_deg: float = 90.0, period_s: float = 600.0,
                  phase_deg: float = 0.0, epoch_utc: Any = None, frame: str = "ecliptic"):
-        self.pole_lon_deg = float_param(pole_lon_deg, "pole_lon_deg", -360.0, 360.0)
-        self.pole_lat_deg = float_param(pole_lat_deg, "pole_lat_deg", -90.0, 90.0)
-        self.period_s = float(period_s)
-        if not (np.isfinite(self.period_s) and self.period_s != 0):
-            raise FieldError("period_s", f"expected a non-zero finite period in seconds, got {period_s!r}")
-        self.phase_deg = float_param(phase_deg, "phase_deg")
-        self.epoch_utc, self.frame = epoch_utc, choice_param(frame, "frame", ("ecliptic", "equatorial"))
+        self.pole_lon_deg = float_param(pole_lon_deg, "attitude.pole_lon_deg", -360.0, 360.0)
+        self.pole_lat_deg = float_param(pole_lat_deg, "attitude.pole_lat_deg", -90.0, 90.0)
+        try:
+            self.period_s = float(period_s)
+        except (TypeError, ValueError):
+            self.period_s = float("nan")
+        if isinstance(period_s, bool) or not (np.isfinite(self.period_s) and self.period_s != 0):
+            raise FieldError("attitude.period_s", f"expected a non-zero finite period in seconds, got {period_s!r}")
+        self.phase_deg = float_param(phase_deg, "attitude.phase_deg")
+        self.epoch_utc, self.frame = epoch_utc, choice_param(frame, "attitude.frame", ("ecliptic", "equatorial"))
 
     def frames(self, scenario: Scenario) -> np.ndarray:
         return spin_frame(_seconds(scenario, self.epoch_utc), self.pole_lon_deg, self.pole_lat_deg, self.period_s,
@@ -115,14 +121,18 @@ class Tumbling(Attitude):
     def __init__(self, inertia_kg_m2: Sequence[Any] = (3000.0, 4000.0, 5000.0),
                  q0: Sequence[float] = (0.0, 0.0, 0.0, 1.0), omega0_rad_s: Sequence[float] = (0.01, 0.005, 0.02),
                  epoch_utc: Any = None):
-        I = np.asarray(inertia_kg_m2, dtype=np.float64)
+        try:
+            I = np.asarray(inertia_kg_m2, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise FieldError("attitude.inertia_kg_m2", f"expected 3 principal moments or a (3, 3) tensor of numbers (kg m²), "
+                                                       f"got {inertia_kg_m2!r}") from None
         if I.shape == (3,):
             I = np.diag(I)
         if I.shape != (3, 3):
-            raise FieldError("inertia_kg_m2", f"expected 3 principal moments or a (3, 3) tensor, got shape {I.shape}")
+            raise FieldError("attitude.inertia_kg_m2", f"expected 3 principal moments or a (3, 3) tensor, got shape {I.shape}")
         self.inertia = I
-        self.q0 = _vector(q0, 4, "q0")
-        self.omega0 = _vector(omega0_rad_s, 3, "omega0_rad_s")
+        self.q0 = _vector(q0, 4, "attitude.q0")
+        self.omega0 = _vector(omega0_rad_s, 3, "attitude.omega0_rad_s")
         self.epoch_utc = epoch_utc
 
     def frames(self, scenario: Scenario) -> np.ndarray:
@@ -141,7 +151,13 @@ class Quaternions(Attitude):
     def __init__(self, times_utc: Sequence[Any], quaternions: Sequence[Sequence[float]]):
         self.times_utc = utc_times(list(times_utc) if not isinstance(times_utc, np.ndarray) else times_utc,
                                    "attitude.times_utc")
-        self.quaternions = np.asarray(quaternions, dtype=np.float64)
+        try:
+            self.quaternions = np.asarray(quaternions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise FieldError("attitude.quaternions", f"expected (K, 4) numbers [x, y, z, w], one a time, got {quaternions!r}") from None
+        if self.quaternions.ndim != 2 or self.quaternions.shape[1] != 4 or len(self.quaternions) != len(self.times_utc):
+            raise FieldError("attitude.quaternions", f"expected one [x, y, z, w] for each of the {len(self.times_utc)} "
+                                                     f"times_utc, got shape {self.quaternions.shape}")
 
     def frames(self, scenario: Scenario) -> np.ndarray:
         t0 = self.times_utc[0]

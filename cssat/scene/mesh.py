@@ -70,6 +70,11 @@ class Mesh:
         for name, arr in (("mesh.cd", self.cd), ("mesh.cs", self.cs)):
             if np.any(arr < 0) or not np.isfinite(arr).all():
                 raise FieldError(name, "reflection coefficients must be finite and >= 0")
+        over = np.flatnonzero(self.cd + self.cs > 1 + 1e-12)
+        if len(over):
+            i = int(over[0])
+            raise FieldError("mesh.cs", f"cd + cs = {self.cd[i] + self.cs[i]:g} > 1 on {len(over)} facet(s) (the first: "
+                                        f"facet {i}): a surface cannot reflect more light than arrives (cd + cs <= 1)")
 
     def __len__(self) -> int:
         return len(self.faces)

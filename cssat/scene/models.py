@@ -245,6 +245,9 @@ def get_model(name: str = "astra_like", path: str | None = None, scale: float = 
     for fname, val in (("cd", cd), ("cs", cs)):
         if val is not None and not (isinstance(val, (int, float)) and not isinstance(val, bool) and math.isfinite(val) and val >= 0):
             raise FieldError(fname, f"must be a number >= 0, got {val!r}")
+    if (0.8 if cd is None else cd) + (0.2 if cs is None else cs) > 1 + 1e-12:
+        raise FieldError("cs", f"cd + cs = {(0.8 if cd is None else cd) + (0.2 if cs is None else cs):g} > 1: a surface "
+                               "cannot reflect more light than arrives (cd + cs <= 1; defaults 0.8 and 0.2)")
     if not (isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0):
         raise FieldError("scale", f"must be a number > 0 (the model's units in metres), got {scale!r}")
     if name == "file":
