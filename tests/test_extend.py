@@ -105,3 +105,143 @@ def test_a_yaml_only_experiment_recombines_the_stages(conf):
     arrays = np.load(conf / "mine" / "arrays.npz")
     flat = np.full_like(arrays["truth"], arrays["truth"].mean())
     assert met["psnr"] > 10 * np.log10(1 / np.mean((flat - arrays["truth"]) ** 2)) + 3
+
+
+TOY_MODEL = '''"""A forward model of one's own: y = A x with a Gaussian A (2n, n) and a positive x (n,)."""
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from cssat._checks import int_param
+from cssat.experiments.build import build_solver
+from cssat.experiments.files import write_npz
+from cssat.experiments.forward.base import ForwardModel
+from cssat.models import register
+
+
+@dataclass
+class ToyConfig:
+    _target_: str = "cssat_ext_demo.toy.Toy"
+    n: int = 16
+
+    def __post_init__(self):
+        int_param(self.n, "forward.n", 2, 1000)
+
+
+class Toy(ForwardModel):
+    name = "toy"
+    needs = {"measure": ("plan",), "solve": ("plan", "measure"), "score": ("measure", "solve"),
+             "write": ("measure", "solve", "score")}
+
+    def __init__(self, **settings):
+        self.config = ToyConfig(**settings)
+
+    def plan(self, cfg, run):
+        self.n = self.config.n
+        self.solver = build_solver(cfg.solver, 2 * self.n, self.n)
+
+    def measure(self, run):
+        rng = np.random.default_rng(run.seed)
+        self.A = rng.normal(size=(2 * self.n, self.n))
+        self.x = np.abs(rng.normal(size=self.n))
+        self.y = self.A @ self.x
+
+    def solve(self, run):
+        from cssat.sparse import MatrixOperator
+        from cssat.sparse.problem import Problem
+
+        xhat, self.info = self.solver(Problem(MatrixOperator(torch.as_tensor(self.A)), (self.n,)), torch.as_tensor(self.y))
+        self.xhat = xhat.numpy()
+
+    def score(self, run):
+        return {"psnr": None, "ssim": None, "n": self.n, "solver": self.solver.name,
+                "relative_error": float(np.linalg.norm(self.xhat - self.x) / np.linalg.norm(self.x))}
+
+    def write(self, run, metrics):
+        write_npz(run.out_dir / "arrays.npz", A=self.A, x=self.x, y=self.y, xhat=self.xhat)
+
+
+register("toy", ToyConfig)
+'''
+
+TOY_SOLVER = '''"""A solver of one's own: least squares, solver(problem, y) -> (x, info)."""
+import torch
+
+
+class LeastSquares:
+    name = "lstsq"
+    unknown = "any"
+
+    def __call__(self, problem, y):
+        A = problem.operator.matrix()
+        x = torch.linalg.lstsq(A, y[:, None].to(A.dtype)).solution[:, 0]
+        return x.reshape(problem.x_shape), {"solver_iterations": 1}
+'''
+
+TOY_EXPERIMENT = """# @package _global_
+# A YAML-only experiment: the forward model and the solver of one's own package.
+defaults:
+  - override /forward: toy
+  - override /solver: lstsq
+  - _self_
+
+experiment_name: toy
+optimized_metric: null
+tiny:
+  - "forward.n=8"
+forward:
+  n: 24
+"""
+
+
+def test_a_forward_model_a_solver_and_a_yaml_experiment_of_your_own(tmp_path, monkeypatch):
+    """One package of one's own (on sys.path, nothing of cssat edited): a forward model with its
+    typed config registered as forward/toy, a solver in the solver group, and an experiment that is
+    one YAML; run end to end through the library at the YAML's own tiny size."""
+    import importlib
+
+    from hydra.core.config_store import ConfigStore
+    from hydra.errors import ConfigCompositionException
+
+    from cssat._checks import FieldError
+    from cssat.models import FORWARD_CONFIGS
+    from cssat.smoke import TINY, tiny_overrides
+
+    pkg = tmp_path / "pkg" / "cssat_ext_demo"
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "toy.py").write_text(TOY_MODEL)
+    (pkg / "solvers.py").write_text(TOY_SOLVER)
+    conf = tmp_path / "conf"
+    (conf / "solver").mkdir(parents=True)
+    (conf / "experiment").mkdir()
+    (conf / "solver" / "lstsq.yaml").write_text("_target_: cssat_ext_demo.solvers.LeastSquares\n")
+    (conf / "experiment" / "toy.yaml").write_text(TOY_EXPERIMENT)
+    monkeypatch.syspath_prepend(str(tmp_path / "pkg"))
+    try:
+        importlib.import_module("cssat_ext_demo.toy")  # registers forward/toy
+
+        def compose_toy(*overrides):
+            return compose_with(tmp_path, "experiment=toy", *overrides)
+
+        tiny = tiny_overrides("toy", conf)
+        assert tiny == ["forward.n=8"] and "toy" not in TINY  # its size read from its own YAML
+        met = run_experiment(compose_toy(*tiny), tmp_path / "run")
+        assert met["status"] == "ok" and met["experiment"] == "toy" and met["solver"] == "lstsq" and met["n"] == 8
+        a = np.load(tmp_path / "run" / "arrays.npz")
+        assert a["A"].shape == (16, 8)
+        np.testing.assert_allclose(a["y"], a["A"] @ a["x"], rtol=1e-12)
+        # least squares on a consistent, full-rank system returns the truth (numpy's own solve as the reference)
+        np.testing.assert_allclose(a["xhat"], np.linalg.lstsq(a["A"], a["y"], rcond=None)[0], rtol=1e-8, atol=1e-10)
+        assert met["relative_error"] < 1e-8
+        assert {"seconds_setup", "seconds_measure", "seconds_solve", "seconds_score", "seconds_write"} <= set(met)
+        # the YAML's own default size, and the typed config's schema and checks
+        assert compose_toy().forward.n == 24
+        with pytest.raises(ConfigCompositionException, match="forward.m"):
+            compose_toy("forward.m=3")
+        with pytest.raises(FieldError, match=r"^forward\.n: must be in \[2, 1000\], got 1"):
+            run_experiment(compose_toy("forward.n=1"), tmp_path / "bad")
+    finally:
+        FORWARD_CONFIGS.pop("toy", None)
+        ConfigStore.instance().repo.get("forward", {}).pop("toy.yaml", None)

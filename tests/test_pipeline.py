@@ -21,12 +21,22 @@ CONF = Path(cssat.conf.__file__).parent
 EXPERIMENTS = sorted(p.stem for p in (CONF / "experiment").glob("*.yaml"))
 GROUPS = ("atmosphere", "noise", "solver", "denoiser")
 
-#: the groups each experiment reads (measured: an option of any other group leaves every array
+#: the groups each forward model reads (measured: an option of any other group leaves every array
 #: and table it writes unchanged — the light curve reconstructs nothing, the inversions have no
-#: atmosphere or image solver, the occultation has its own forward model and solver)
-READS = {"sim1": GROUPS, "sim2": GROUPS, "sim3": GROUPS, "solvers": GROUPS, "realism": GROUPS,
-         "lightcurve": ("atmosphere", "noise"), "inversion": ("noise",), "inversion_tumbling": ("noise",),
-         "occultation": (), "characterise": ()}
+#: atmosphere or image solver, the occultation has its own forward model and solver); a model not
+#: listed is tried with none
+READS_BY_MODEL = {"PixelSensing": GROUPS, "SceneLightCurve": ("atmosphere", "noise"), "EGILightCurve": ("noise",),
+                  "Shadow": (), "Observed": ()}
+
+
+def _forward_model(experiment):
+    """The class name of the forward model ``conf/experiment/<experiment>.yaml`` composes."""
+    with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
+        return compose(config_name="config", overrides=[f"experiment={experiment}"]).forward._target_.rsplit(".", 1)[-1]
+
+
+#: the groups each experiment reads: its forward model's (derived from conf/experiment/*.yaml)
+READS = {e: READS_BY_MODEL.get(_forward_model(e), ()) for e in EXPERIMENTS}
 #: options made quick (their numbers are not what these tests check)
 QUICK = {
     ("solver", "pnp"): ["solver.max_iter=2", "solver.denoiser.n_iter=1"],

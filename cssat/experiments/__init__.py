@@ -134,7 +134,7 @@ def _write_status(out_dir: Path, metrics: dict[str, Any]) -> None:
 #: config keys that do not change a run's results (left out of its config hash). ``threads`` is
 #: *in* the hash: BLAS sums in another order on another thread count (sim3's minimum-norm PSNR moves
 #: by ~1e-5 dB between 1 and 2 threads), so results of another thread count are not "the same".
-_NOT_RESULTS = ("resume", "hydra", "optimized_metric")  # and "progress" at any depth: config_sha
+_NOT_RESULTS = ("resume", "hydra", "optimized_metric", "tiny")  # and "progress" at any depth: config_sha (tiny: the test size)
 
 
 def provenance() -> dict[str, Any]:
