@@ -1,1 +1,2 @@
-"""The EGI forward model (``forward: egi``): its config (the model: :class:`cssat.experiments.forward.egi.EGILightCurve`)."""
+"""The EGI forward model (``forward: egi``): its config (the model:
+:class:`cssat.experiments.forward.egi.EGILightCurve`)."""

@@ -1,1 +1,2 @@
-"""The paper's pixel sensing (``forward: pixels``): its config (the model: :class:`cssat.experiments.forward.PixelSensing`)."""
+"""The paper's pixel sensing (``forward: pixels``): its config (the model:
+:class:`cssat.experiments.forward.PixelSensing`)."""

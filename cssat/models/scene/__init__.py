@@ -1,1 +1,2 @@
-"""The scene forward model (``forward: scene``): its config (the model: :class:`cssat.experiments.forward.scene.SceneLightCurve`)."""
+"""The scene forward model (``forward: scene``): its config (the model:
+:class:`cssat.experiments.forward.scene.SceneLightCurve`)."""

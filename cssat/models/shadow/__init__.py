@@ -1,1 +1,2 @@
-"""The occultation's shadow forward model (``forward: shadow``): its config (the model: :class:`cssat.experiments.forward.shadow.Shadow`)."""
+"""The occultation's shadow forward model (``forward: shadow``): its config (the model:
+:class:`cssat.experiments.forward.shadow.Shadow`)."""

@@ -12,8 +12,9 @@ class ShadowConfig:
     """A silhouette through Fresnel diffraction onto a line of telescopes: a star's occultation by a
     satellite, ``y`` = the recorded series (:class:`cssat.experiments.forward.shadow.Shadow`).
 
-    The model's settings are the experiment's ``star``, ``optics``, ``event``, ``array``, ``silhouette``, ``invert``, ``scenario``, ``model``
-    and ``attitude``, and the ``solver`` group's solver for the linearised model (each checked, with its full key, when the
-    model is planned); its ``forward`` node names the model only."""
+    The model's settings are the experiment's ``star``, ``optics``, ``event``, ``array``,
+    ``silhouette``, ``invert``, ``scenario``, ``model`` and ``attitude``, and the ``solver`` group's
+    solver for the linearised model (each checked, with its full key, when the model is planned);
+    its ``forward`` node names the model only."""
 
     _target_: str = "cssat.experiments.forward.shadow.Shadow"
