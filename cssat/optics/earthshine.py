@@ -143,12 +143,19 @@ def earthshine_brightness(mesh: Mesh, sat_km: Array, sun_km: Array, observer_km:
     if brdf is None:
         mesh = dataclasses.replace(mesh, cs=np.zeros(len(mesh)))
     out = torch.zeros(T, len(mesh), dtype=torch.float64, device=x.device)
+    posed = None
+    if getattr(mesh, "joints", ()):  # articulated parts: posed by the Sun's direction in the body frame
+        s = _positions(sun_km, "sun_km", T).to(x.device)
+        sun_body = (s - x) / torch.linalg.vector_norm(s - x, dim=1, keepdim=True)
+        if rotation is not None:
+            sun_body = torch.einsum("tij,tj->ti", Rm.expand(T, 3, 3), sun_body)
+        posed = {int(t): m for idx, m in mesh.poses(sun_body) for t in idx}
     for t in range(T):
         keep = E[t] > 0
         if not bool(keep.any()):
             continue
         k = int(keep.sum())
-        b = facet_brightness(mesh, dirs[t][keep], v[t].expand(k, 3), range_km=rng[t], irradiance=1.0,
+        b = facet_brightness(mesh if posed is None else posed[t], dirs[t][keep], v[t].expand(k, 3), range_km=rng[t], irradiance=1.0,
                              brdf=brdf, materials=materials)
         out[t] = (E[t][keep][:, None] * b).sum(0)
     return out

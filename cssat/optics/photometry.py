@@ -99,6 +99,10 @@ def facet_brightness(
     multi-body mesh (``mesh.part_names``) gets its own. ``brdf=None`` is Eq. 8–9 above, unchanged.
     """
     mesh = as_mesh(mesh)
+    if getattr(mesh, "joints", ()):  # articulated parts (Sun-tracking arrays): posed at every sample
+        return _per_pose(mesh, sun, observer, facet_brightness, dict(
+            range_km=range_km, sun_range_km=sun_range_km, visible=visible, sunlit=sunlit, irradiance=irradiance,
+            specular_window_deg=specular_window_deg, shadows=shadows, brdf=brdf, materials=materials))
     sl = torch.as_tensor(sunlit, dtype=torch.float64)
     if not bool(torch.isfinite(sl).all()) or bool((sl < 0).any()) or bool((sl > 1).any()):
         raise FieldError("sunlit", "the sunlit fraction of the solar disk must be in [0, 1]")
@@ -171,6 +175,36 @@ def facet_brightness(
     return out
 
 
+#: the keyword arguments of facet_brightness / shadow_mask that hold one value per sample (or one for all)
+_PER_SAMPLE = ("range_km", "sun_range_km", "sunlit", "visible", "candidates")
+
+
+def _per_pose(mesh: Mesh, sun: Any, observer: Any, fn: Any, kwargs: dict) -> Tensor:
+    """``fn(posed mesh, sun[idx], observer[idx], **kwargs[idx])`` for each pose of an articulated
+    mesh (:class:`cssat.scene.attitudes.ArticulatedMesh`: its pose follows the body-frame Sun),
+    the rows put back in time order: ``(T, F)``."""
+    sun_t = check_unit(sun, "sun")
+    obs_t = check_unit(observer, "observer")
+    T = sun_t.shape[0]
+    if obs_t.shape[0] != T:
+        raise FieldError("observer", f"{obs_t.shape[0]} directions for {T} Sun directions")
+    out = None
+    for idx, posed in mesh.poses(sun_t):
+        sel = torch.as_tensor(idx)
+        kw = {}
+        for k, v in kwargs.items():
+            if k in _PER_SAMPLE and v is not None and not isinstance(v, (int, float)):
+                t = torch.as_tensor(v)
+                if t.ndim and t.shape[0] == T:
+                    v = t[sel.to(t.device)]
+            kw[k] = v
+        part = fn(posed, sun_t[sel.to(sun_t.device)], obs_t[sel.to(obs_t.device)], **kw)
+        if out is None:
+            out = torch.zeros((T,) + tuple(part.shape[1:]), dtype=part.dtype, device=part.device)
+        out[sel.to(part.device)] = part
+    return out
+
+
 def _brdf_table(brdf: Any, materials: Any, F: int, mesh: Mesh) -> tuple[list, np.ndarray | None]:
     """``([BRDF, ...], materials (F,) or None)`` checked; a ``{part name: BRDF}`` mapping (and
     ``"default"`` for the parts it does not name) becomes the mesh's parts as materials."""
@@ -212,6 +246,8 @@ def shadow_mask(
     else trimesh's pure-Python intersector (``engine="triangle"``, ~100× slower).
     """
     mesh = as_mesh(mesh)
+    if getattr(mesh, "joints", ()):  # articulated parts: the rays of each sample against its own pose
+        return _per_pose(mesh, sun, observer, shadow_mask, dict(candidates=candidates, offset=offset, engine=engine))
     sun_t = check_unit(sun, "sun").double().cpu()
     obs_t = check_unit(observer, "observer").double().cpu()
     T, F = sun_t.shape[0], len(mesh)

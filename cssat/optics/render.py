@@ -100,6 +100,17 @@ def render(
         fov_m = default_fov(mesh)
     if not (isinstance(fov_m, (int, float)) and math.isfinite(fov_m) and fov_m > 0):
         raise FieldError("fov_m", f"must be a positive number of metres, got {fov_m!r}")
+    if getattr(mesh, "joints", ()):  # articulated parts (Sun-tracking arrays): each view in its own pose
+        sun_t = check_unit(sun, "sun")
+        images = None
+        for idx, posed in mesh.poses(sun_t):
+            sel = torch.as_tensor(idx)
+            part = render(posed, sun_t[sel], obs[sel], size, fov_m=fov_m, brightness=brightness[sel.to(brightness.device)],
+                          up=up, dtype=dtype, views_per_chunk=views_per_chunk, backend=backend, progress=False)
+            if images is None:
+                images = torch.zeros((T, size, size), dtype=part.dtype, device=part.device)
+            images[sel.to(part.device)] = part
+        return images
     dev = brightness.device
     # geometry in float32: pixel coordinates below 10⁴ and depths within the model's size need no more
     obs = obs.to(device=dev, dtype=torch.float64)

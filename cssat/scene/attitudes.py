@@ -10,6 +10,10 @@
 ``quaternions`` user-supplied quaternions at UTC instants, interpolated by slerp
 =============  ==========================================================================
 
+Articulated parts (:class:`Joint`, :class:`ArticulatedMesh`): parts of a mesh a 1-axis drive
+turns relative to the body, e.g. solar arrays that track the Sun; their pose at each sample
+follows from the Sun's direction in the body frame these attitudes give.
+
 Quaternions are [x, y, z, w] (scalar last) and rotate body-frame vectors into GCRS (scipy's
 convention). ``epoch_utc`` (null: the scenario's first time) is when a spin has its phase or a
 tumbling body its initial state.
@@ -17,18 +21,22 @@ tumbling body its initial state.
 
 from __future__ import annotations
 
+import dataclasses
+import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param
 from cssat.scene.attitude import interpolated_frames, nadir_pointing_frame, quaternion_frames, spin_frame, torque_free
+from cssat.scene.mesh import Mesh
 from cssat.scene.orbit import utc_times
 
 if TYPE_CHECKING:
     from cssat.scene.orbit import Scenario
 
-__all__ = ["Attitude", "Nadir", "Inertial", "Spin", "Tumbling", "Quaternions"]
+__all__ = ["Attitude", "Nadir", "Inertial", "Spin", "Tumbling", "Quaternions", "Joint", "ArticulatedMesh", "TRACKING_CHOICES"]
 
 
 def _seconds(scenario: Scenario, epoch_utc: Any) -> np.ndarray:
@@ -163,3 +171,160 @@ class Quaternions(Attitude):
         t0 = self.times_utc[0]
         sec = lambda t: (t - t0).astype(np.int64) * 1e-6  # noqa: E731
         return interpolated_frames(sec(scenario.times), sec(self.times_utc), self.quaternions)
+
+
+# ---------------------------------------------------------------- articulated parts (Sun-tracking solar arrays)
+
+#: how an articulated part moves: ``fixed`` at the angle it was built at, ``sun`` its drive turned to the Sun
+TRACKING_CHOICES = ("fixed", "sun")
+
+
+def check_limits(limits_deg: Any, field: str = "array_limits_deg") -> tuple[float, float]:
+    """``(lo, hi)`` drive-angle limits (deg) with ``-180 <= lo < hi <= 180``; a FieldError naming
+    ``field`` otherwise. ``(-180, 180)`` is an unlimited (continuously rotating) drive."""
+    try:
+        lo, hi = (float(x) for x in limits_deg)
+        ok = all(not isinstance(x, bool) for x in limits_deg)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or not (np.isfinite(lo) and np.isfinite(hi) and -180.0 <= lo < hi <= 180.0):
+        raise FieldError(field, f"expected [lo, hi] degrees with -180 <= lo < hi <= 180 ([-180, 180]: no limit), "
+                                f"got {limits_deg!r}")
+    return lo, hi
+
+
+def _rotation(axis: np.ndarray, angle_rad: float) -> np.ndarray:
+    """The (3, 3) right-handed rotation by ``angle_rad`` about the unit ``axis`` (Rodrigues)."""
+    a = axis
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    return np.eye(3) + math.sin(angle_rad) * K + (1.0 - math.cos(angle_rad)) * (K @ K)
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A 1-axis drive carrying some facets of a mesh (a solar-array wing and its yoke).
+
+    facets : (k,) int indices of the facets it carries (their vertices are theirs alone)
+    axis : (3,) unit drive axis (body frame), through ``pivot`` (3,) (m)
+    normal : (3,) unit normal of the face that tracks (the cells), perpendicular to ``axis``,
+        in the mesh as built, where the drive angle is ``angle0_deg``
+    tracking : ``"sun"`` (the drive turns the cells to the Sun) or ``"fixed"`` (stays at ``angle0_deg``)
+    limits_deg : (lo, hi) the drive's mechanical limits (deg, on the drive angle; (-180, 180): none)
+
+    The drive angle θ turns ``normal`` about ``axis`` by ``θ − angle0_deg`` (right-handed).
+    Sun tracking minimises the angle between the cells' normal and the Sun: with ``b = axis ×
+    normal``, the best angle is ``angle0 + atan2(b·s, normal·s)``, which puts the normal on the
+    Sun's direction projected on the plane perpendicular to the axis. A real 1-axis drive cannot
+    follow the Sun out of that plane: the residual angle between the cells and the Sun is the
+    Sun's elevation out of the plane (for a nadir-pointing GEO bus, whose array axis is the orbit
+    normal, the Sun's angle from the orbit plane: up to ~23.4° at the solstices, a cos loss of
+    up to 8 %). Beyond the limits, the drive stops at the limit nearer the Sun (in angle).
+    """
+
+    facets: np.ndarray
+    axis: np.ndarray
+    pivot: np.ndarray
+    normal: np.ndarray
+    angle0_deg: float = 0.0
+    tracking: str = "sun"
+    limits_deg: tuple = (-180.0, 180.0)
+    name: str = ""
+
+    def __post_init__(self):
+        axis = np.asarray(self.axis, dtype=np.float64)
+        axis = axis / np.linalg.norm(axis)
+        normal = np.asarray(self.normal, dtype=np.float64)
+        normal = normal - (normal @ axis) * axis
+        if not np.linalg.norm(normal) > 1e-9:
+            raise FieldError("joint.normal", "the tracking face's normal must not be along the drive axis")
+        object.__setattr__(self, "axis", axis)
+        object.__setattr__(self, "normal", normal / np.linalg.norm(normal))
+        object.__setattr__(self, "pivot", np.asarray(self.pivot, dtype=np.float64).reshape(3))
+        object.__setattr__(self, "facets", np.asarray(self.facets, dtype=np.int64).reshape(-1))
+        object.__setattr__(self, "tracking", choice_param(self.tracking, "array_tracking", TRACKING_CHOICES))
+        object.__setattr__(self, "limits_deg", check_limits(self.limits_deg))
+
+    def angles_deg(self, sun: np.ndarray) -> np.ndarray:
+        """The drive angle (deg) at each body-frame Sun direction ``sun (T, 3)``: ``(T,)``."""
+        s = np.asarray(sun, dtype=np.float64).reshape(-1, 3)
+        if self.tracking == "fixed":
+            return np.full(len(s), float(self.angle0_deg))
+        b = np.cross(self.axis, self.normal)
+        best = self.angle0_deg + np.degrees(np.arctan2(s @ b, s @ self.normal))
+        best = (best + 180.0) % 360.0 - 180.0  # in [-180, 180)
+        lo, hi = self.limits_deg
+        if hi - lo >= 360.0:
+            return best
+        inside = (best >= lo) & (best <= hi)
+        gap = lambda a, b: np.abs((a - b + 180.0) % 360.0 - 180.0)  # noqa: E731 - circular distance
+        nearer = np.where(gap(best, lo) <= gap(best, hi), lo, hi)
+        return np.where(inside, best, nearer)
+
+    def rotation(self, angle_deg: float) -> np.ndarray:
+        """The (3, 3) rotation taking the built pose to drive angle ``angle_deg``."""
+        return _rotation(self.axis, math.radians(angle_deg - self.angle0_deg))
+
+    def scaled(self, factor: float) -> "Joint":
+        return dataclasses.replace(self, pivot=self.pivot * factor)
+
+
+@dataclass
+class ArticulatedMesh(Mesh):
+    """A :class:`~cssat.scene.Mesh` (in its built pose) with ``joints``: parts a drive turns.
+
+    The pose depends only on the Sun's direction in the body frame, which the photometry and the
+    renderer are given: :func:`cssat.optics.facet_brightness`, :func:`cssat.optics.shadow_mask`,
+    :func:`cssat.optics.render` and :func:`cssat.optics.earthshine_brightness` pose it at every
+    time sample (:meth:`poses`) — a light curve over a night has its arrays' angle per epoch.
+    The facets keep their order and number in every pose."""
+
+    joints: tuple = ()
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.joints = tuple(self.joints)
+        owner = np.full(len(self.vertices), -1)
+        for k, j in enumerate(self.joints):
+            if not isinstance(j, Joint):
+                raise FieldError("joints", f"expected Joint objects, got {type(j).__name__}")
+            if len(j.facets) and (j.facets.min() < 0 or j.facets.max() >= len(self.faces)):
+                raise FieldError("joints", f"joint {j.name or k}: facet index out of range")
+            owner[np.unique(self.faces[j.facets])] = k
+        for k, j in enumerate(self.joints):
+            rest = np.setdiff1d(np.arange(len(self.faces)), j.facets)
+            if np.any(owner[self.faces[rest]] == k):
+                raise FieldError("joints", f"joint {j.name or k}: its vertices are shared with facets it does not carry")
+
+    @property
+    def rigid(self) -> Mesh:
+        """The mesh in its built pose, as a plain :class:`~cssat.scene.Mesh`."""
+        return Mesh(self.vertices, self.faces, self.cd, self.cs, name=self.name, part=self.part, part_names=self.part_names)
+
+    def angles_deg(self, sun: np.ndarray) -> np.ndarray:
+        """``(T, J)`` drive angles (deg) of the joints at body-frame Sun directions ``sun (T, 3)``."""
+        s = np.asarray(sun, dtype=np.float64).reshape(-1, 3)
+        return np.stack([j.angles_deg(s) for j in self.joints], axis=1) if self.joints else np.zeros((len(s), 0))
+
+    def posed(self, angles_deg: Sequence[float]) -> Mesh:
+        """A plain :class:`~cssat.scene.Mesh` with every joint at its drive angle ``angles_deg (J,)``."""
+        verts = self.vertices.copy()
+        for j, ang in zip(self.joints, angles_deg):
+            if ang == j.angle0_deg:
+                continue
+            idx = np.unique(self.faces[j.facets])
+            verts[idx] = (verts[idx] - j.pivot) @ j.rotation(float(ang)).T + j.pivot
+        return Mesh(verts, self.faces, self.cd, self.cs, name=self.name, part=self.part, part_names=self.part_names)
+
+    def poses(self, sun: Any) -> list[tuple[np.ndarray, Mesh]]:
+        """``[(time indices, posed mesh), ...]`` over body-frame Sun directions ``sun (T, 3)``:
+        the samples that share a pose grouped (a fixed drive: one group)."""
+        s = np.asarray(sun.detach().cpu() if hasattr(sun, "detach") else sun, dtype=np.float64).reshape(-1, 3)
+        ang = self.angles_deg(s)
+        uniq, inv = np.unique(ang, axis=0, return_inverse=True)
+        inv = inv.reshape(-1)
+        return [(np.flatnonzero(inv == k), self.posed(uniq[k])) for k in range(len(uniq))]
+
+    def scaled(self, factor: float) -> "ArticulatedMesh":
+        """The mesh and its joints' pivots scaled by ``factor``."""
+        return ArticulatedMesh(self.vertices * factor, self.faces, self.cd, self.cs, name=self.name, part=self.part,
+                               part_names=self.part_names, joints=tuple(j.scaled(factor) for j in self.joints))

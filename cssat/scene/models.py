@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cssat._checks import FieldError, float_param
+from cssat._checks import FieldError, choice_param, float_param
 from cssat.scene.materials import check_material, paint
 from cssat.scene.mesh import Mesh, load_mesh, merge
 
@@ -160,7 +160,8 @@ def _halves(mesh: Mesh, first: str, second: str) -> list:
 
 
 def astra_like(cd: float | None = None, cs: float | None = None, array_angle_deg: float = 0.0,
-               material: str | None = None) -> Mesh:
+               material: str | None = None, array_tracking: str = "fixed",
+               array_limits_deg: Sequence[float] = (-180.0, 180.0)) -> Mesh:
     """A procedural GEO communications satellite like Astra 1KR (paper Fig. 3b), 4,028 facets
     like the paper's model.
 
@@ -181,7 +182,19 @@ def astra_like(cd: float | None = None, cs: float | None = None, array_angle_deg
     array angle: +z, the Sun at local midnight, at 90°) and CFRP on their backs, reflectors behind
     germanium-coated Kapton sunshields (CFRP behind), aluminium yokes and plate. ``material="uniform"``: every facet
     ``cd``, ``cs`` (default 0.8, 0.2, the paper's).
+
+    ``array_tracking``: ``"fixed"`` (default: the wings stay at ``array_angle_deg``, a plain
+    :class:`~cssat.scene.Mesh`) or ``"sun"``: each wing (panels and yoke) on a 1-axis drive about
+    body +y through the bus centre, turned at every time sample to bring the cells' normal as
+    close to the Sun as ``array_limits_deg`` (``[lo, hi]`` on the drive angle, deg; ``[-180,
+    180]``: no limit) allow — an :class:`~cssat.scene.attitudes.ArticulatedMesh` in its built pose
+    (``array_angle_deg``) that the photometry and the renderer pose per sample. A 1-axis drive
+    cannot follow the Sun out of the orbit plane (:class:`~cssat.scene.attitudes.Joint`).
     """
+    from cssat.scene.attitudes import TRACKING_CHOICES, check_limits  # the articulation lives with the attitudes
+
+    choice_param(array_tracking, "array_tracking", TRACKING_CHOICES)
+    limits = check_limits(array_limits_deg)
     real, cd, cs = _dress(material, cd, cs)
     ang = math.radians(float_param(array_angle_deg, "array_angle_deg", -360.0, 360.0))
     v = 2.4 * np.array([math.sin(ang), 0.0, math.cos(ang)])
@@ -197,7 +210,20 @@ def astra_like(cd: float | None = None, cs: float | None = None, array_angle_deg
         pieces.append((d, _halves(d, "ge_kapton", "panel_back")))
     # a two-sided telemetry plate on the anti-Earth face (4 facets): 4,028 facets in all
     pieces.append((panel((0.5, 0, 0), (0, 0.5, 0), (-0.25, -0.25, -1.85), cd=cd, cs=cs), "aluminium"))
-    return _assemble(pieces, real, "astra_like")
+    mesh = _assemble(pieces, real, "astra_like")
+    if array_tracking == "fixed":
+        return mesh
+    from cssat.scene.attitudes import ArticulatedMesh, Joint
+
+    start = np.cumsum([0] + [len(m) for m, _ in pieces])
+    joints = []
+    for w, side in enumerate((1, -1)):  # pieces 1 + 6w .. 5 + 6w: the yoke and the four panels of that wing
+        facets = np.concatenate([np.arange(start[k], start[k + 1]) for k in range(1 + 6 * w, 6 + 6 * w)])
+        joints.append(Joint(facets, axis=(0.0, 1.0, 0.0), pivot=(0.0, 0.0, 0.0), normal=(-math.cos(ang), 0.0, math.sin(ang)),
+                            angle0_deg=math.degrees(ang), tracking=array_tracking, limits_deg=limits,
+                            name="+y wing" if side > 0 else "-y wing"))
+    return ArticulatedMesh(mesh.vertices, mesh.faces, mesh.cd, mesh.cs, name=mesh.name, part=mesh.part,
+                           part_names=mesh.part_names, joints=tuple(joints))
 
 
 def tess_like(cd: float | None = None, cs: float | None = None, material: str | None = None) -> Mesh:
@@ -229,12 +255,16 @@ MODELS = {"astra_like": astra_like, "tess_like": tess_like}
 
 
 def get_model(name: str = "astra_like", path: str | None = None, scale: float = 1.0, cd: float | None = None,
-              cs: float | None = None, array_angle_deg: float | None = None, material: str | None = None) -> Mesh:
+              cs: float | None = None, array_angle_deg: float | None = None, material: str | None = None,
+              array_tracking: str = "fixed", array_limits_deg: Sequence[float] = (-180.0, 180.0)) -> Mesh:
     """A satellite model from config: a procedural one by ``name`` (``astra_like``, ``tess_like``)
     or, with ``name="file"``, the mesh file at ``path`` (scaled to metres by ``scale``). ``scale``
     multiplies a procedural model too (its native size is metres); the result must be a satellite:
     at most :data:`MAX_RADIUS_M` from its centre to its farthest vertex. ``array_angle_deg``: the
     ``astra_like`` model's solar-array angle (null: 0; an error for the other models).
+    ``array_tracking``: ``fixed`` (the arrays stay at that angle) or ``sun`` (``astra_like`` only:
+    its arrays turn to the Sun at every sample within ``array_limits_deg``, ``[lo, hi]`` deg,
+    ``[-180, 180]`` unlimited; :func:`astra_like`).
 
     ``material``: ``"satellite"`` dresses a procedural model's parts in real materials
     (:mod:`cssat.scene.materials`; the default unless ``cd``/``cs`` are given), ``"uniform"``
@@ -261,12 +291,23 @@ def get_model(name: str = "astra_like", path: str | None = None, scale: float = 
         raise FieldError("name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
     else:
         extra = {}
+        from cssat.scene.attitudes import TRACKING_CHOICES, check_limits  # the articulation lives with the attitudes
+
+        choice_param(array_tracking, "array_tracking", TRACKING_CHOICES)
+        limits = check_limits(array_limits_deg)
+        if array_tracking != "fixed":
+            if name != "astra_like":
+                raise FieldError("array_tracking", f"only the astra_like model has solar-array drives, not {name!r} "
+                                                   f"(expected 'fixed' for it)")
+            extra.update(array_tracking=array_tracking, array_limits_deg=limits)
         if array_angle_deg is not None:
             if name != "astra_like":
                 raise FieldError("array_angle_deg", f"only the astra_like model has solar arrays to turn, not {name!r}")
             extra["array_angle_deg"] = array_angle_deg
         mesh = MODELS[name](cd=cd, cs=cs, material=material, **extra)
-        if scale != 1.0:
+        if scale != 1.0 and hasattr(mesh, "joints"):
+            mesh = mesh.scaled(float(scale))
+        elif scale != 1.0:
             mesh = Mesh(mesh.vertices * float(scale), mesh.faces, mesh.cd, mesh.cs, name=mesh.name, part=mesh.part,
                         part_names=mesh.part_names)
     if not mesh.radius <= MAX_RADIUS_M:
