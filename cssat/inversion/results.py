@@ -1,16 +1,10 @@
 """The results of the inversion's estimators as objects: :class:`PeriodResult` (a period search),
 :class:`SpinSolution` (a principal-axis spin) and :class:`TumblingSolution` (a tumbling state).
 
-Each is a read-only mapping of its keys (``r["period_s"]``, ``dict(r)``, ``r.keys()``, ``"fap" in
-r``: what scripts and the experiments have always read) with typed attributes for the documented
-ones (``r.period_s``) and, for any other key, attribute access too. A result is a
-:class:`~collections.abc.Mapping` over the estimator's own dict rather than a dataclass of fixed
-fields because the keys are open: each period method records its own (the default 36, a plain
-periodogram a dozen, a registered method whatever it has), and an absent key stays absent —
-``r.get("photometric_period_s", r["best_period_s"])`` reads as it did on the dict, where a
-dataclass's default ``None`` would be a present value. ``dict(r)`` is the estimator's dict, key
-for key; :meth:`Result.to_json` writes it as JSON (arrays as lists), :meth:`Result.from_json`
-reads it back (the array keys as arrays).
+Each is a :class:`cssat.results.Result`: a read-only mapping of its keys (``r["period_s"]``,
+``dict(r)``, ``r.keys()``: what scripts and the experiments have always read) with typed
+attributes for the documented keys (``r.period_s``), attribute access to the others, and JSON
+(``to_json``/``from_json``).
 
 :func:`series_fit` fits the light-curve model a period result's :meth:`PeriodResult.model`
 evaluates: a Fourier series at one period plus each stretch's polynomial trend and each camera
@@ -20,121 +14,15 @@ and ``zero_points``.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
-from typing import Any, ClassVar, Iterator
+from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, FieldTypeError
+from cssat._checks import FieldError
+from cssat.results import Result, jsonable  # noqa: F401  (the base, re-exported)
 
 __all__ = ["Result", "PeriodResult", "SpinSolution", "TumblingSolution", "series_fit", "jsonable"]
-
-
-def jsonable(value: Any) -> Any:
-    """``value`` with numpy arrays as lists, numpy scalars as Python numbers, tuples as lists,
-    mappings (results included) as dicts with string keys; other objects (a BRDF, a state) as
-    their ``repr`` — JSON of them is a record, not a way back."""
-    if isinstance(value, Mapping):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    return repr(value)
-
-
-class Result(Mapping):
-    """A read-only mapping of an estimator's keys with attribute access (the module's
-    docstring). ``Result(d)`` or ``Result(**kw)``; ``Result(r)`` of a result copies its keys.
-    Subclasses name the keys they require (:attr:`required`, a FieldError naming the missing
-    ones) and the keys :meth:`from_json` makes arrays again (:attr:`array_keys`, dotted for a
-    nested mapping)."""
-
-    __slots__ = ("_data",)
-    required: ClassVar[tuple[str, ...]] = ()
-    array_keys: ClassVar[tuple[str, ...]] = ()
-
-    def __init__(self, data: Mapping[str, Any] | None = None, /, **kw: Any):
-        if data is not None and not isinstance(data, Mapping):
-            raise FieldTypeError(self._name(), f"expected a mapping of the result's keys, got {type(data).__name__}")
-        d = {**(dict(data._data) if isinstance(data, Result) else dict(data or {})), **kw}
-        missing = [k for k in self.required if k not in d]
-        if missing:
-            raise FieldError(self._name(), f"missing {', '.join(missing)}; a {type(self).__name__} needs "
-                                           f"{', '.join(self.required)}")
-        object.__setattr__(self, "_data", d)
-
-    @classmethod
-    def _name(cls) -> str:
-        return cls.__name__
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Any:
-        """``data`` as this class: a result of it returned as it is (idempotent), a dict wrapped."""
-        return data if type(data) is cls else cls(data)
-
-    def __getitem__(self, key: str) -> Any:
-        return self._data[key]
-
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._data)
-
-    def __len__(self) -> int:
-        return len(self._data)
-
-    def __contains__(self, key: object) -> bool:
-        return key in self._data
-
-    def __getattr__(self, name: str) -> Any:  # only for names that are not attributes: the other keys
-        if name.startswith("_"):
-            raise AttributeError(name)
-        try:
-            return self._data[name]
-        except KeyError:
-            raise AttributeError(f"{type(self).__name__} has no {name!r}; its keys: {', '.join(self._data)}") from None
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        raise AttributeError(f"a {type(self).__name__} is read-only: make a new one, "
-                             f"{type(self).__name__}({{**r, {name!r}: ...}})")
-
-    def __delattr__(self, name: str) -> None:
-        raise AttributeError(f"a {type(self).__name__} is read-only")
-
-    def __reduce__(self) -> tuple:  # pickled across joblib workers as its dict
-        return (type(self), (self._data,))
-
-    def __dir__(self) -> list[str]:
-        return sorted(set(super().__dir__()) | {k for k in self._data if isinstance(k, str) and k.isidentifier()})
-
-    def __repr__(self) -> str:
-        keys = ", ".join(list(self._data)[:8]) + (", …" if len(self._data) > 8 else "")
-        return f"{type(self).__name__}({keys})"
-
-    def to_dict(self) -> dict[str, Any]:
-        """A (shallow) copy of the keys as a plain dict: ``dict(r)``."""
-        return dict(self._data)
-
-    def to_json(self, **kw: Any) -> str:
-        """The keys as JSON (:func:`jsonable`; ``kw`` to :func:`json.dumps`; NaN as ``NaN``)."""
-        return json.dumps(jsonable(self._data), **kw)
-
-    @classmethod
-    def from_json(cls, text: str) -> Any:
-        """A result from :meth:`to_json`'s text, :attr:`array_keys` as float arrays."""
-        d = json.loads(text)
-        for key in cls.array_keys:
-            *outer, last = key.split(".")
-            node = d
-            for k in outer:
-                node = node.get(k) if isinstance(node, dict) else None
-            if isinstance(node, dict) and node.get(last) is not None:
-                node[last] = np.asarray(node[last], dtype=np.float64)
-        return cls(d)
 
 
 class PeriodResult(Result):
@@ -182,22 +70,30 @@ class PeriodResult(Result):
     @property
     def alternatives(self) -> list[dict[str, Any]]:
         """The other periods the method weighed (dicts with at least ``period_s``)."""
-        return self._data.get("alternatives") or []
+        return _or(self._data.get("alternatives"), [])
 
     @property
     def warnings(self) -> list[str]:
         """The method's warnings."""
-        return self._data.get("warnings") or []
+        return _or(self._data.get("warnings"), [])
 
     @property
     def periodogram(self) -> dict[str, np.ndarray] | None:
         """``{"frequency_hz": (F,), "power": (F,)}``, or None."""
         return self._data.get("periodogram")
 
-    @property
-    def why(self) -> str | None:
-        """One sentence: why this verdict (``verdict_why``), else why this period (``why``)."""
-        return self._data.get("verdict_why") or self._data.get("why")
+    def with_model(self, times_s: Any, flux: Any, *, sigma: Any = None, segments: Any = None, zero_points: Any = None,
+                   detrend: int = 2) -> PeriodResult:
+        """This result with the keys :meth:`model` evaluates (:func:`series_fit` of the data the
+        method was given, at the result's photometric period — else ``period_s`` — with its
+        ``n_harmonics``, default 2); itself where it has them already or has no finite period."""
+        d = self._data
+        P = next((d[k] for k in ("photometric_period_s", "period_s") if d.get(k) is not None), None)
+        if d.get("coefficients") is not None or P is None or not np.isfinite(P) or not P > 0:
+            return self
+        fit = series_fit(times_s, flux, float(P), int(d.get("n_harmonics") or 2), sigma=sigma, segments=segments,
+                         detrend=detrend, zero_points=zero_points)
+        return type(self)(d, **fit)
 
     def model(self, times_s: Any, *, trend: bool = True, channels: Any = None) -> np.ndarray:
         """The fitted light curve ``(T,)`` at ``times_s (T,)`` (s, the origin of the times the
@@ -231,6 +127,11 @@ class PeriodResult(Result):
                 raise FieldError("channels", f"no zero point for {', '.join(unknown)}; the channels: {', '.join(zp)}")
             out = out + np.array([zp[k] for k in ch])
         return out
+
+
+def _or(value: Any, empty: Any) -> Any:
+    """``value`` itself (the stored object), or ``empty`` where the key is absent or None."""
+    return empty if value is None else value
 
 
 def _trend(t: np.ndarray, stretches: list[Mapping[str, Any]]) -> np.ndarray:
@@ -357,14 +258,7 @@ class SpinSolution(Result):
     @property
     def alternatives(self) -> list[dict[str, Any]]:
         """The other refined minima (pole, period, ``delta_chi2``, ``separation_deg``)."""
-        return self._data.get("alternatives") or []
-
-    @property
-    def synodic(self) -> Any:
-        """The light curve's synodic period result (a :class:`PeriodResult` where the search ran)."""
-        s = self._data.get("synodic")
-        return PeriodResult(s) if isinstance(s, Mapping) and not isinstance(s, PeriodResult) and \
-            all(k in s for k in PeriodResult.required) else s
+        return _or(self._data.get("alternatives"), [])
 
     def frames(self, times_s: Any) -> np.ndarray:
         """The body frames ``(T, 3, 3)`` of this spin at ``times_s`` (same origin as the fit's)."""
@@ -425,12 +319,12 @@ class TumblingSolution(Result):
     @property
     def errors(self) -> dict[str, float]:
         """The 1σ of the state's parameters (the class docstring)."""
-        return self._data.get("errors") or {}
+        return _or(self._data.get("errors"), {})
 
     @property
     def alternatives(self) -> list[dict[str, Any]]:
         """The other refined minima."""
-        return self._data.get("alternatives") or []
+        return _or(self._data.get("alternatives"), [])
 
     def frames(self, times_s: Any) -> np.ndarray:
         """The body frames ``(T, 3, 3)`` at ``times_s``."""

@@ -1,6 +1,7 @@
 """The spin state of a principal-axis rotator from its light curve (issue 24, point 4): the pole
 and the sidereal period by the convex-inversion search over the EGI (:func:`estimate_spin`), its
-solution (:class:`SpinSolution`). The light curve's own (synodic) period and its verdict are
+solution (:class:`~cssat.inversion.results.SpinSolution`: a read-only mapping of its keys with
+attributes). The light curve's own (synodic) period and its verdict are
 :mod:`cssat.inversion.period`'s; a tumbler's two frequencies are
 :mod:`cssat.inversion.frequencies`' (both re-exported here).
 
@@ -17,60 +18,15 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
-from cssat.inversion.egi import egi_light_curve, fibonacci_sphere, geometry_matrix, split_lobes
+from cssat.inversion.egi import fibonacci_sphere, geometry_matrix, split_lobes
 from cssat.inversion.frequencies import estimate_tumbling_periods
 from cssat.inversion.period import estimate_period
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
+from cssat.inversion.results import SpinSolution
 from cssat.inversion.spin_errors import _night_split, _separation_deg, _spin_errors
-from cssat.scene.attitude import spin_frame, to_body
+from cssat.scene.attitude import spin_frame
 
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution", "MODEL_FITS_CHI2"]
-
-
-class SpinSolution:
-    """What :func:`estimate_spin` returns. The spin of :func:`cssat.scene.attitude.spin_frame`
-    (body +z along the pole, phase 0 at ``times_s = 0``): ``pole_lon_deg``, ``pole_lat_deg``
-    (ecliptic λ, β or equatorial α, δ — ``frame``), the sidereal ``period_s`` (> 0: the pole is
-    the one the body turns counter-clockwise about), their 1σ (``lon_err_deg``, ``lat_err_deg``,
-    ``pole_err_deg`` — the pole's angular 1σ —, ``period_err_s``), the EGI in that body frame
-    (``normals (K, 3)``, ``areas (K,)``, only those with area; with a :class:`~cssat.inversion.egi.Lobes`
-    ``brdf`` the areas summed over the lobes and each lobe's in ``lobe_areas ((L+1), K)``), ``chi2`` (weighted; unweighted
-    without ``sigma``), ``residual (T,)`` (flux − fit), the light curve's synodic period
-    (``synodic``, :func:`estimate_period`'s output) and ``alternatives``: the other local minima
-    refined at full resolution (``pole_lon_deg``, ``pole_lat_deg``, ``period_s``, ``chi2``,
-    ``delta_chi2`` over the best in units of the reduced χ², ``separation_deg`` from the best
-    pole); ``ambiguous`` is true when one of them, more than 10° away, is within Δχ² < 9 (3σ).
-    ``model_fits``: the reduced χ² is at most :data:`MODEL_FITS_CHI2` (``None`` without
-    ``sigma``). When false the model misses the data by more than the noise (self-shadowing,
-    glints, materials the BRDF does not have) and the 1σ, scaled by the reduced χ², still counts
-    that misfit as white noise: it does not cover a pole the misfit moved (measured: a box-wing
-    with real materials and shadows, χ²/ν 15, pole 84° off at 1σ 0.4°)."""
-
-    def __init__(self, **kw: Any):
-        self.__dict__.update(kw)
-
-    def frames(self, times_s: Any) -> np.ndarray:
-        """The body frames ``(T, 3, 3)`` of this spin at ``times_s`` (same origin as the fit's)."""
-        return spin_frame(np.asarray(times_s, dtype=np.float64), self.pole_lon_deg, self.pole_lat_deg, self.period_s,
-                          0.0, self.frame)
-
-    def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
-        """The fitted model's light curve ``(T,)`` (flux units of the fit) at ``times_s`` for
-        inertial ``sun``/``obs (T, 3)`` directions: e.g. a night held out of the fit."""
-        R = self.frames(times_s)
-        return egi_light_curve(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
-                               self.normals, self.areas, self.brdf, self.lobe_areas)
-
-    def describe(self) -> dict[str, Any]:
-        keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "lon_err_deg", "lat_err_deg", "pole_err_deg", "period_err_s",
-                "formal_pole_err_deg", "grid_pole_shift_deg", "split_pole_err_deg", "split_period_err_s", "chi2",
-                "reduced_chi2", "model_fits", "ambiguous", "frame")
-        return {f"spin_{k}": getattr(self, k) for k in keys}
-
-    def __repr__(self) -> str:
-        return (f"SpinSolution(pole ({self.pole_lon_deg:.2f}°, {self.pole_lat_deg:.2f}°) ± {self.pole_err_deg:.2g}°, "
-                f"period {self.period_s:.6f} ± {self.period_err_s:.2g} s, reduced χ² {self.reduced_chi2:.3g}"
-                f"{', ambiguous' if self.ambiguous else ''})")
 
 
 def _pole_rotation(lon: float, lat: float, frame: str) -> np.ndarray:

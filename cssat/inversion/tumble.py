@@ -1,6 +1,7 @@
 """The spin state of a tumbling object — a torque-free rigid body in non-principal-axis rotation
 — and its EGI from a light curve (issue 24, point 4; Kaasalainen 2001, Pravec et al. 2005):
-:func:`estimate_tumbling` and its :class:`TumblingSolution`.
+:func:`estimate_tumbling` and its :class:`~cssat.inversion.results.TumblingSolution` (a read-only
+mapping of its keys with attributes).
 
 The state, its motion and its light curve's EGI fit are :mod:`cssat.inversion.tumble_state`'s
 (:class:`TumblingState`, :func:`tumbling_rates`, :func:`torque_free_invariants`, re-exported
@@ -19,58 +20,15 @@ import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
+from cssat.inversion.results import TumblingSolution
 from cssat.inversion.tumble_fit import _alternatives, _continuation, _errors, _refine
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
-from cssat.scene.attitude import to_body
 
 __all__ = ["TumblingState", "TumblingSolution", "tumbling_rates", "estimate_tumbling", "check_tumbling_options",
            "torque_free_invariants"]
 
 log = logging.getLogger("cssat")
-
-
-class TumblingSolution:
-    """What :func:`estimate_tumbling` returns: ``state`` (:class:`TumblingState`, the body frame
-    its principal frame), ``normals (K, 3)``/``areas (K,)`` (the EGI in that frame, those with
-    area), ``chi2``, ``reduced_chi2``, ``model_fits`` (with ``sigma``: the reduced χ² at most
-    :data:`~cssat.inversion.period_verdict.MODEL_FITS_CHI2`, else None; false means the 1σ count
-    the model's misfit — glints, shadows, materials it lacks — as white noise), ``residual (T,)`` (flux − fit on every sample), ``errors``
-    (1σ of ``i1, i2, P_omega_s, P_phi_s, t0_s, L_lon_deg, L_lat_deg, phi0_deg`` and
-    ``L_err_deg``, the angular 1σ of ``L``: the formal Gauss–Newton 1σ on the state and the
-    support's areas, scaled by the reduced χ² when above 1, added in quadrature to the shift of the
-    fit on a grid of normals turned at random — ``formal_L_err_deg``, ``grid_L_shift_deg``),
-    ``lattice_hz`` (the light curve's two fundamental frequencies the search started from),
-    ``frequency_pairs`` (the ``(P_ω, P_φ)`` hypotheses searched), ``alternatives`` (other refined
-    minima with ``delta_chi2`` in units of the reduced χ² and ``separation_deg`` of their ``L``)
-    and ``ambiguous`` (one of them within Δχ² < 9 and more than 10° away)."""
-
-    def __init__(self, **kw: Any):
-        self.__dict__.update(kw)
-
-    def frames(self, times_s: Any) -> np.ndarray:
-        return self.state.frames(times_s)
-
-    def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
-        """The fitted light curve ``(T,)`` at ``times_s`` for inertial ``sun``/``obs (T, 3)``."""
-        from cssat.inversion.egi import egi_light_curve  # heavy: cssat.inversion.egi imports torch
-
-        R = self.frames(times_s)
-        return egi_light_curve(to_body(R, np.asarray(sun, dtype=np.float64)), to_body(R, np.asarray(obs, dtype=np.float64)),
-                               self.normals, self.areas, self.brdf, self.lobe_areas)
-
-    def describe(self) -> dict[str, Any]:
-        out = self.state.describe()
-        out.update(tumble_chi2=self.chi2, tumble_reduced_chi2=self.reduced_chi2, tumble_model_fits=self.model_fits,
-                   tumble_ambiguous=self.ambiguous,
-                   **{f"tumble_err_{k}": v for k, v in self.errors.items()})
-        return out
-
-    def __repr__(self) -> str:
-        s = self.state
-        return (f"TumblingSolution(L ({s.lon_deg:.2f}°, {s.lat_deg:.2f}°) ± {self.errors['L_err_deg']:.2g}°, "
-                f"P_ω {1 / s.f_omega_hz:.4f} s, P_φ {1 / s.f_phi_hz:.4f} s, I₁/I₃ {s.i1:.3f}, I₂/I₃ {s.i2:.3f}, "
-                f"{'SAM' if s.short_axis else 'LAM'}, reduced χ² {self.reduced_chi2:.3g})")
 
 
 def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = None, brdf: Any = None,

@@ -13,7 +13,9 @@ superellipses (a sparse model) fitted to the series; :mod:`cssat.occultation.rat
 such occultations happen; :mod:`cssat.occultation.spectrum`: the star's photons through a
 passband as quadrature wavelengths for a polychromatic shadow; :mod:`cssat.occultation.nuisance`:
 frozen scintillation gains, the shadow's offset, speed, gains and the star's diameter for a
-given silhouette; :mod:`cssat.occultation.event`: the silhouette and those nuisances together.
+given silhouette; :mod:`cssat.occultation.event`: the silhouette and those nuisances together;
+:mod:`cssat.occultation.results`: the fits' results (``EventFit``, ``SilhouetteFit``: read-only
+mappings with attributes).
 """
 
 from cssat.occultation.fresnel import aperture_field, fresnel_scale, shadow
@@ -27,8 +29,10 @@ from cssat.occultation.spectrum import band_wavelengths, teff_from_bv
 from cssat.occultation.record import noisy, pattern_kernel, photons, record, smooth
 from cssat.occultation.nuisance import dip_offset, fit_nuisances, mask_centroid, scintillation_gains
 from cssat.occultation.event import event_geometry, invert_event
+from cssat.occultation.results import EventFit, SilhouetteFit
 
 __all__ = ["bar_target", "shadow", "aperture_field", "fresnel_scale", "plane_basis", "ground_to_plane", "plane_to_ground", "shadow_track", "silhouette", "star_direction",
            "invert_silhouette", "iou", "registered_iou", "resample_mask", "edge_width", "feature_contrast", "ShadowOperator", "invert_linear", "occultation_rate", "stars_brighter_than", "fit_shapes", "heldout_chi2", "render_shapes",
            "shapes_from_mask", "band_wavelengths", "teff_from_bv", "noisy", "pattern_kernel", "photons", "record", "smooth",
-           "dip_offset", "fit_nuisances", "mask_centroid", "scintillation_gains", "invert_event", "event_geometry"]
+           "dip_offset", "fit_nuisances", "mask_centroid", "scintillation_gains", "invert_event", "event_geometry",
+           "EventFit", "SilhouetteFit"]

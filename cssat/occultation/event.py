@@ -46,6 +46,7 @@ from cssat.occultation.invert import invert_silhouette
 from cssat.occultation.linear import invert_linear
 from cssat.occultation.nuisance import dip_offset, fit_nuisances, gap_sigma, mask_centroid
 from cssat.occultation.record import pattern_kernel
+from cssat.occultation.results import EventFit
 
 __all__ = ["invert_event", "event_geometry"]
 
@@ -74,13 +75,14 @@ def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, 
                  positions_m: Any, velocity_m_s: Any, times_s: Any, *, weights: Any = None, aperture_m: float,
                  exposure_s: float, limb_darkening: float = 0.6, diameters_m: Any = (0.0,), known: dict | None = None,
                  solver: Any = None, tv: float = 0.3, iters: int = 300, rounds: int = 2,
-                 ground: Any = None, seed: int = 0) -> tuple[np.ndarray, dict[str, Any]]:
+                 ground: Any = None, seed: int = 0) -> tuple[np.ndarray, EventFit]:
     """The silhouette ``(H, W)`` on a grid centred on the shadow's fitted offset, and the event's
     nuisances (the module's docstring): ``series (J, K)``, ``sigma`` as for
     :func:`~cssat.occultation.invert_silhouette`; ``positions_m (J, 2)`` relative to the
     predicted shadow centre's track (which passes the plane's origin at t = 0), ``velocity_m_s``
     the predicted one; ``diameters_m`` the star's diameter grid (m at the satellite's distance).
-    Returns ``(mask, info)``: ``grid_centre_m`` (east, north), ``offset_m`` and ``offset_cov``
+    Returns ``(mask, info)``, ``info`` an :class:`~cssat.occultation.results.EventFit` (a
+    read-only mapping with attributes): ``grid_centre_m`` (east, north), ``offset_m`` and ``offset_cov``
     (the silhouette's centroid), ``speed_error`` (±σ), ``gains`` (±σ), ``diameter_m`` (the prior's
     mean ± σ, its range ``diameter_range2_m``; diagnostics ``diameter_profile``,
     ``diameter_profile_best_m``), ``chi2_per_sample``, the rounds' offsets and the linear solver's
@@ -147,10 +149,10 @@ def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, 
     cov = np.zeros((2, 2))
     if "offset_m" not in known:  # the χ² curvature's, the grey pixels' and the gaps'
         cov = (0.0 if nui is None else nui["offset_cov"]) + np.diag(c_sig ** 2) + g_sig ** 2 * np.outer(across, across)
-    return mask, {"grid_centre_m": est["offset_m"], "offset_m": est["offset_m"] + c, "centroid_m": c, "offset_cov": cov,
+    return mask, EventFit({"grid_centre_m": est["offset_m"], "offset_m": est["offset_m"] + c, "centroid_m": c, "offset_cov": cov,
                   "centroid_sigma_m": c_sig, "gap_sigma_m": g_sig, "speed_error": est["speed_error"],
                   "speed_error_sigma": 0.0 if nui is None or "speed_error" in known else nui["speed_error_sigma"],
                   "gains": est["gains"], "gains_sigma": np.zeros(len(P)) if nui is None or "gains" in known else nui["gains_sigma"],
                   "diameter_m": est["diameter_m"], **dia, "chi2_per_sample": info["chi2_per_sample"],
                   "chi2_per_dof_nuisances": math.nan if nui is None else nui["chi2_per_dof"],
-                  "offsets_by_round": np.array(history), "known": sorted(known), "linear": linear}
+                  "offsets_by_round": np.array(history), "known": sorted(known), "linear": linear})

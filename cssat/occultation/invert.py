@@ -32,6 +32,7 @@ from torch import Tensor
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.occultation.fresnel import shadow
 from cssat.occultation.record import record, smooth
+from cssat.occultation.results import SilhouetteFit
 
 __all__ = ["invert_silhouette", "iou", "registered_iou", "resample_mask", "edge_width", "feature_contrast"]
 
@@ -199,7 +200,8 @@ def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: 
     (:func:`~cssat.occultation.record.pattern_kernel`; None: none). ``init``: a mask ``(H, W)``
     in [0, 1] for the first start (e.g. :func:`~cssat.occultation.invert_linear`'s; clipped to
     [0.02, 0.98] before its logit), else the empty mask. ``ground``: the pattern's grid when
-    larger than the mask's (:func:`~cssat.occultation.shadow`). Returns ``(mask, info)``:
+    larger than the mask's (:func:`~cssat.occultation.shadow`). Returns ``(mask, info)``,
+    ``info`` a :class:`~cssat.occultation.results.SilhouetteFit` (a read-only mapping):
     ``loss``, ``chi2_per_sample`` of the kept start, every start's ``losses``."""
     H, W = (int_param(v, "shape", 1, 1 << 12) for v in shape)
     tv = float_param(tv, "tv", 0.0)
@@ -254,4 +256,4 @@ def invert_silhouette(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: 
             losses.append(float(final))
             if best is None or float(final) < best[0]:
                 best = (float(final), m.detach().cpu().numpy(), float((r * r).sum() / n))
-    return best[1], {"loss": best[0], "chi2_per_sample": best[2], "losses": losses}
+    return best[1], SilhouetteFit({"loss": best[0], "chi2_per_sample": best[2], "losses": losses})
