@@ -18,7 +18,10 @@ area ``A`` lit by irradiance ``E`` and seen from range ``r`` then sends
                        weighted lobe ``(n + 1)/(8π) (n·h)ⁿ / ((h·l) max(n·l, n·v)) F(h·l)`` and
                        their coupled diffuse ``28 rd/(23π) (1 − rs)(1 − (1 − n·l/2)⁵)(1 − (1 − n·v/2)⁵)``
 ``PaperBRDF(cd, cs)``  the paper's Eq. 8–9: ``cd/π`` and a mirror glint of ``cs (r_Sun/a_Sun)²/(n·v)``
-                       inside ``window_deg`` of the mirror direction
+                       inside ``window_deg`` of the mirror direction (``glint="paper"``: the paper's
+                       Eq. 9, ≈11× a flat mirror's energy over the Sun's disk), or
+                       ``cs (r_Sun/a_Sun)²/(π (n·l))`` inside the Sun's disk (``glint="physical"``:
+                       a real mirror of reflectance ``cs``)
 =====================  =========================================================================
 
 Assumptions: opaque, isotropic surfaces (no transmission, no polarisation), a point light (the
@@ -34,7 +37,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, float_param
-from cssat.optics.photometry import SUN_RADIUS_KM
+from cssat.optics.photometry import SUN_RADIUS_KM, check_glint
 
 __all__ = ["BRDF", "Lambert", "Phong", "BlinnPhong", "CookTorrance", "AshikhminShirley", "PaperBRDF", "BRDFS"]
 
@@ -188,21 +191,35 @@ class AshikhminShirley(BRDF):
 
 
 class PaperBRDF(BRDF):
-    """The paper's Eq. 8–9 as a BRDF: ``cd/π`` plus, when the mirror direction of the Sun lies
-    within ``window_deg`` of the viewer, ``cs (r_Sun/a_Sun)²/(n·v)`` — a glint whose brightness
+    """The paper's Eq. 8–9 as a BRDF: ``cd/π`` plus a glint whose brightness
     :func:`cssat.optics.facet_brightness` documents (``sun_range_km``: the object–Sun distance).
-    Not reciprocal (the window and the ``1/(n·v)`` are the paper's)."""
+
+    ``glint`` (None: :data:`cssat.optics.photometry.DEFAULT_GLINT`):
+
+    * ``"paper"``: the paper's Eq. 9 (≈11× a flat mirror's energy over the Sun's disk):
+      ``cs (r_Sun/a_Sun)²/(n·v)`` when the mirror direction of the Sun lies within
+      ``window_deg`` of the viewer. Not reciprocal (the window and the ``1/(n·v)`` are the paper's).
+    * ``"physical"``: a mirror of reflectance ``cs`` reflecting the Sun's disk (a top-hat, uniform
+      disk): ``cs (r_Sun/a_Sun)²/(π (n·l))`` when the viewer lies within the Sun's angular radius
+      ``asin(a_Sun/r_Sun)`` of the mirror direction (``window_deg`` unused); over the viewing
+      directions it reflects ``cs`` of the incident flux."""
 
     name = "paper"
 
-    def __init__(self, cd: float = 0.8, cs: float = 0.2, window_deg: float = 0.5, sun_range_km: float = 149_597_870.7):
+    def __init__(self, cd: float = 0.8, cs: float = 0.2, window_deg: float = 0.5, sun_range_km: float = 149_597_870.7,
+                 glint: str | None = None):
         self.cd, self.cs = _fraction(cd, "cd"), _fraction(cs, "cs")
         _lobe_sum(self.cd, self.cs, ("cd", "cs"))
         self.window_deg = float_param(window_deg, "window_deg", 0.0, 180.0)
         self.sun_range_km = float_param(sun_range_km, "sun_range_km", 1e3, open_lo=True)
+        self.glint = check_glint(glint)
 
     def _f(self, n, l, v, nl, nv):
         r = 2 * nl[..., None] * n - l
+        if self.glint == "physical":
+            sin_a = SUN_RADIUS_KM / self.sun_range_km
+            tau = _dot(r, v) >= math.sqrt(1 - sin_a**2)
+            return self.cd / math.pi + tau * self.cs / (math.pi * sin_a**2 * nl)
         tau = _dot(r, v) >= math.cos(math.radians(self.window_deg))
         return self.cd / math.pi + tau * self.cs * (self.sun_range_km / SUN_RADIUS_KM) ** 2 / nv
 

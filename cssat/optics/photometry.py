@@ -23,6 +23,8 @@ if TYPE_CHECKING:
     from cssat._types import Array, Vectors
 
 __all__ = [
+    "DEFAULT_GLINT",
+    "GLINT_CHOICES",
     "SOLAR_IRRADIANCE_W_M2",
     "SUN_RADIUS_KM",
     "AU_KM",
@@ -36,6 +38,20 @@ SOLAR_IRRADIANCE_W_M2 = 1361.0  # I₀, total solar irradiance at 1 AU (Kopp & L
 SUN_RADIUS_KM = 695_700.0
 AU_KM = 149_597_870.7
 SUN_MAGNITUDE_V = -26.74  # apparent V magnitude of the Sun at 1 AU
+
+#: the specular term of Eq. 8–9 (:func:`facet_brightness`, :class:`cssat.optics.PaperBRDF`) when
+#: none is asked for: ``"paper"`` (the paper's Eq. 9, ≈11× a flat mirror's energy over the Sun's
+#: disk) or ``"physical"`` (a real mirror of reflectance ``C_s`` reflecting the Sun's disk)
+DEFAULT_GLINT = "paper"
+GLINT_CHOICES = ("paper", "physical")
+
+
+def check_glint(glint: str | None, field: str = "glint") -> str:
+    """``glint`` (None: :data:`DEFAULT_GLINT`) if it is one of :data:`GLINT_CHOICES`, else a FieldError."""
+    g = DEFAULT_GLINT if glint is None else glint
+    if not isinstance(g, str) or g not in GLINT_CHOICES:
+        raise FieldError(field, f"expected one of {list(GLINT_CHOICES)} (or null: {DEFAULT_GLINT!r}), got {glint!r}")
+    return g
 
 
 def check_unit(v: Vectors, name: str, tol: float = 1e-6) -> Tensor:
@@ -70,6 +86,7 @@ def facet_brightness(
     shadows: bool = False,
     brdf: Any = None,
     materials: Any = None,
+    glint: str | None = None,
 ) -> Tensor:
     """Brightness of every facet at every step, ``(T, F)``, paper Eq. 8–9.
 
@@ -91,6 +108,19 @@ def facet_brightness(
     The term is Eq. 8 as printed; a perfect mirror reflecting the Sun's disk would give
     ``r²/a²`` without the factor π, so this glint is π times that mirror's (a 1 m² facet with
     ``C_s = 0.2`` glints ≈ 2.9·10⁴ times as bright as a Lambertian ``C_d = 1`` facet at normal view).
+    Integrated over the viewing directions, the window's 0.5° (against the Sun's angular radius
+    ``α = asin(a_Sun/r_Sun)`` = 0.2665° at 1 AU) makes its energy ``2π(1 − cos 0.5°) (r_Sun/a_Sun)² C_s``
+    = 11.06 ``C_s`` times the incident flux at 1 AU: ≈11× a flat mirror's.
+
+    ``glint`` (None: :data:`DEFAULT_GLINT`): ``"paper"`` is the paper's Eq. 9 as above (≈11× a
+    flat mirror's energy over the Sun's disk); ``"physical"`` is a real mirror of reflectance
+    ``C_s`` reflecting the Sun's disk, a top-hat (uniform disk, no limb darkening): radiance
+    ``C_s L_Sun`` (``L_Sun = I_0/(π sin²α)``, the disk's radiance) where ``V`` lies within ``α``
+    of the mirror direction ``R`` — the term ``C_s (r_Sun/a_Sun)² τ_α (V·N)/(S·N)`` in the
+    braces, ``τ_α = 1`` when ``angle(R, V) ≤ α`` (``specular_window_deg`` unused). Its energy over
+    the viewing directions is ``C_s`` times the incident flux (exact for a uniform disk: the mean
+    of ``V·N`` over the cap is ``(R·N)(1 + cos α)/2``, the cap ``2π(1 − cos α)``, their product
+    ``π sin²α (S·N)``), except near grazing where part of the cap lies below the surface.
 
     **Other BRDFs** (:mod:`cssat.optics.brdf`): with ``brdf`` a BRDF object, every facet sends
     ``I_0 A_i f(N_i, S, V) (S·N_i)(V·N_i) / r_topo²`` (the mesh's ``cd``/``cs`` unused); with a
@@ -99,10 +129,11 @@ def facet_brightness(
     multi-body mesh (``mesh.part_names``) gets its own. ``brdf=None`` is Eq. 8–9 above, unchanged.
     """
     mesh = as_mesh(mesh)
+    glint = check_glint(glint)
     if getattr(mesh, "joints", ()):  # articulated parts (Sun-tracking arrays): posed at every sample
         return _per_pose(mesh, sun, observer, facet_brightness, dict(
             range_km=range_km, sun_range_km=sun_range_km, visible=visible, sunlit=sunlit, irradiance=irradiance,
-            specular_window_deg=specular_window_deg, shadows=shadows, brdf=brdf, materials=materials))
+            specular_window_deg=specular_window_deg, shadows=shadows, brdf=brdf, materials=materials, glint=glint))
     sl = torch.as_tensor(sunlit, dtype=torch.float64)
     if not bool(torch.isfinite(sl).all()) or bool((sl < 0).any()) or bool((sl > 1).any()):
         raise FieldError("sunlit", "the sunlit fraction of the solar disk must be in [0, 1]")
@@ -156,7 +187,12 @@ def facet_brightness(
         # mirror direction R = 2 (S·N) N − S; τ = 1 when angle(R, V) <= window
         tau = (2 * sn * vn - (S * V).sum(1, keepdim=True)) >= cos_win
         rs, rt, li = (x if x.shape[0] == 1 else x[s:e] for x in (r_sun, r_topo_m, lit))
-        if brdf is None:
+        if brdf is None and glint == "physical":  # a mirror of reflectance cs reflecting the Sun's disk (top-hat)
+            cos_disk = torch.sqrt(1 - (SUN_RADIUS_KM / rs) ** 2)  # (t or 1, 1): cos of the Sun's angular radius
+            tau = (2 * sn * vn - (S * V).sum(1, keepdim=True)) >= cos_disk
+            spec = cs * (rs / SUN_RADIUS_KM) ** 2 * tau * vn / sn.clamp_min(1e-300)
+            val = irradiance * A / (math.pi * rt**2) * sn * (cd * vn + spec)
+        elif brdf is None:
             spec = math.pi * cs * (rs / SUN_RADIUS_KM) ** 2 * tau
             val = irradiance * A / (math.pi * rt**2) * sn * (cd * vn + spec)
         else:
