@@ -287,3 +287,33 @@ def test_the_reader_s_refusal_of_a_setting_names_its_config_key(override, field)
     with pytest.raises(FieldError) as err:  # a file's own fault keeps the file's name
         read_observations(_cfg(f"observations={REAL / 'absent.txt'}"))
     assert err.value.field == "observations", str(err.value)
+
+
+def test_apparent_magnitudes_are_reduced_to_1000_km_before_the_period_search(tmp_path):
+    """An MMT track (apparent ``Mag``, ``Distance`` in km) of a body whose magnitude at 1000 km is
+    a 20 s sinusoid, seen while its range grows from 700 to 1,900 km (2.2 mag of trend): the
+    period stage's values are ``Mag − 5 log10(r / 1000 km)``, computed here from the file's own
+    columns, and the period is the body's."""
+    from conftest import cfg_of
+
+    from cssat.experiments import run_experiment
+
+    t = np.arange(0.0, 240.0, 0.1)
+    r = 700.0 + 5.0 * t
+    mag = 7.0 + 0.3 * np.sin(2 * np.pi * t / 20.0) + 5 * np.log10(r / 1000.0)
+    mag += 0.01 * np.random.default_rng(4).standard_normal(t.size)
+    stamps = np.datetime64("2022-05-21T19:22:07.000", "ms") + (t * 1000).round().astype("timedelta64[ms]")
+    head = ("# satellite: 99002 TEST BODY\n# catalogue: 1 NORAD\n# variability: 0 Not variable\n# variability_period: None\n"
+            "# type: 0 U/SAT Uncertain Satellite\n# npoints: {}\n#\n# Date Time StdMag Mag Filter Penumbra Distance Phase "
+            "Channel Track\n").format(t.size)
+    rows = [f"{str(s)[:10]} {str(s)[11:]} {m - 5 * np.log10(d / 1000.0):.5f} {m:.5f} Clear 0 {d:.3f} 60.0 1 1001\n"
+            for s, m, d in zip(stamps, mag, r)]
+    f = tmp_path / "track.txt"
+    f.write_text(head + "".join(rows))
+    cols = [ln.split() for ln in rows]
+    want = np.array([float(c[3]) for c in cols]) - 5 * np.log10(np.array([float(c[6]) for c in cols]) / 1000.0)
+    m = run_experiment(cfg_of("experiment=characterise", f"observations={f}", "stages.tumbling=off", "stages.spin=off",
+                              "characterise.figures=false", "period.convention=photometric", "threads=1"), tmp_path / "run")
+    assert m["status"] == "ok" and m["period_magnitudes"] == "apparent, reduced to a range of 1000 km"
+    np.testing.assert_allclose(np.load(tmp_path / "run" / "arrays.npz")["values"], want, rtol=0, atol=1e-9)
+    assert m["verdict"] == "periodic" and m["period_s"] == pytest.approx(20.0, rel=1e-3)
