@@ -149,6 +149,18 @@ def _trend(t: np.ndarray, stretches: list[Mapping[str, Any]]) -> np.ndarray:
     return out
 
 
+def _plain(x: Any, times: bool = False) -> np.ndarray:
+    """``(T,)`` float64 of a list, numpy array, torch tensor or astropy Quantity (its value);
+    ``datetime64`` times as seconds from the earliest (as :func:`~cssat.inversion.estimate_period`
+    reads them)."""
+    if hasattr(x, "detach") and hasattr(x, "cpu"):
+        x = x.detach().cpu().numpy()
+    a = np.asarray(getattr(x, "value", x))
+    if times and np.issubdtype(a.dtype, np.datetime64):
+        a = (a.astype("datetime64[us]") - a.astype("datetime64[us]").min()).astype(np.int64) / 1e6
+    return a.astype(np.float64).reshape(-1)
+
+
 def series_fit(times_s: Any, flux: Any, period_s: float, n_harmonics: int, *, sigma: Any = None, segments: Any = None,
                detrend: int = 2, zero_points: Any = None) -> dict[str, Any]:
     """The keys of :meth:`PeriodResult.model`: the weighted least-squares fit (weights ``1/σ``;
@@ -163,11 +175,13 @@ def series_fit(times_s: Any, flux: Any, period_s: float, n_harmonics: int, *, si
     ``model_period_s``, ``time_origin_s`` (the earliest time: phase 0), ``trend`` (a dict a
     stretch: ``segment``, ``start_s``, ``stop_s``, ``centre_s``, ``scale_s``,
     ``coefficients``) and ``zero_points`` ({label: offset}, the first label's 0; ``None``
-    without labels)."""
+    without labels). A torch tensor or an astropy Quantity is read as its values; ``datetime64``
+    times as seconds from the earliest (the frame :meth:`PeriodResult.model` then takes)."""
     from cssat.data.observations import stretches as _stretches  # cssat.data: torch on import
 
-    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
-    y = np.asarray(flux, dtype=np.float64).reshape(-1)
+    t, y = _plain(times_s, times=True), _plain(flux)
+    if sigma is not None:
+        sigma = _plain(sigma) if np.ndim(getattr(sigma, "value", sigma)) else float(getattr(sigma, "value", sigma))
     if y.shape != t.shape or not len(t):
         raise FieldError("flux", f"expected times and values of one length (T,), got {t.shape} and {y.shape}")
     if not (np.isfinite(period_s) and period_s > 0):
