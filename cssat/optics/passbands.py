@@ -7,9 +7,13 @@ band is that of the Sun dimmed by ``F / I₀``:
 .. math::
     m_{band} = m_{\\odot, band} - 2.5 \\log_{10}(F / I_0)                                   (P1)
 
-**Assumption: grey reflectance** — the surfaces reflect every wavelength alike, so the object has
-the Sun's colours (real paints, solar cells and MLI are not grey; their colour indices then differ
-from the Sun's by a few tenths of a magnitude).
+**Assumption: grey reflectance** by default — the surfaces reflect every wavelength alike, so the
+object has the Sun's colours (real paints, solar cells and MLI are not grey; their colour indices
+then differ from the Sun's by a few tenths of a magnitude). With ``spectral=True`` and a ``band``
+(:func:`cssat.optics.facet_brightness`), each facet of a known material
+(:data:`cssat.scene.materials.SPECTRA`) reflects its band-averaged albedo instead
+(:func:`band_coefficients`): the flux ``F`` is then the band's, and Eq. P1 gives the object's
+own colours.
 
 ``m_☉,band`` comes from the Sun's spectrum ``F_λ`` (:func:`sun_spectrum`) through the band's
 throughput ``T(λ)``, in AB (Oke & Gunn 1983: ``m_AB = −2.5 log10(⟨f_ν⟩ / 3631 Jy)``) with
@@ -35,7 +39,7 @@ import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -48,7 +52,8 @@ if TYPE_CHECKING:
     from cssat._types import Array
 
 __all__ = ["Passband", "BANDS", "SYSTEMS", "passband", "sun_spectrum", "sun_magnitude", "magnitude", "flux_from_magnitude",
-           "ab_magnitude_at", "std_magnitude", "lambert_sphere_phase", "resolve_band"]
+           "ab_magnitude_at", "std_magnitude", "lambert_sphere_phase", "resolve_band", "bessell_b", "spectral_factor",
+           "band_coefficients"]
 
 DATA = Path(__file__).parent / "data"
 C_M_S = 299_792_458.0
@@ -142,6 +147,62 @@ def _builtin(name: str) -> Passband:
     d = np.loadtxt(DATA / f"band_{name}.txt")
     vega = _vega_ab(*_WILLMER_VEGA[name]) if name in _WILLMER_VEGA else None
     return Passband(name, d[:, 0], d[:, 1], _PHOTON[name], vega)
+
+
+@lru_cache(maxsize=1)
+def bessell_b() -> Passband:
+    """Johnson–Cousins B (Bessell 1990, energy response), with Vega's AB magnitude from Willmer
+    (2018, Table 4: Johnson B, 6.33795e-9 erg s⁻¹ cm⁻² Å⁻¹ at 0.4396 µm). Not one of the named
+    :data:`BANDS`: pass this object where a band is taken."""
+    d = np.loadtxt(DATA / "band_B.txt")
+    return Passband("B", d[:, 0], d[:, 1], False, _vega_ab(6.33795e-9, 0.4396))
+
+
+def _band_average(pb: Passband, weight: np.ndarray | None) -> float:
+    """``∫ S T R w dλ / ∫ S T w dλ`` on the solar table's 0.5 nm grid (``R = weight``; None: 1)."""
+    wl, sp = sun_spectrum()
+    lam = np.linspace(wl[0], wl[-1], int(round((wl[-1] - wl[0]) / 0.5)) + 1)
+    S = np.interp(lam, wl, sp)
+    T = np.interp(lam, pb.wavelength_nm, pb.throughput, left=0.0, right=0.0)
+    w = lam if pb.photon else np.ones_like(lam)
+    R = np.ones_like(lam) if weight is None else weight
+    return float(np.trapezoid(S * T * R * w, lam) / np.trapezoid(S * T * w, lam))
+
+
+def spectral_factor(material: str, band: str | Passband) -> float:
+    """The factor a material's broadband ``cd``, ``cs`` take in ``band``: its spectral reflectance
+    ``R(λ)`` (:data:`cssat.scene.materials.SPECTRA`) averaged over the Sun's light through the band,
+    over its Sun-weighted mean on 300–1100 nm, ``⟨R⟩_band / ⟨R⟩☉``. Exactly 1 for a grey (flat)
+    material and for a name without a table."""
+    from cssat.scene.materials import SPECTRA, SPECTRA_NM
+
+    if material not in SPECTRA or len(set(SPECTRA[material][0])) == 1:
+        return 1.0
+    pb = passband(band)
+    wl, sp = sun_spectrum()
+    lam = np.linspace(wl[0], wl[-1], int(round((wl[-1] - wl[0]) / 0.5)) + 1)
+    R = np.interp(lam, SPECTRA_NM, SPECTRA[material][0])
+    S = np.interp(lam, wl, sp)
+    solar_mean = float(np.trapezoid(S * R, lam) / np.trapezoid(S, lam))
+    return _band_average(pb, R) / solar_mean
+
+
+def band_coefficients(mesh: Any, band: str | Passband) -> Any:
+    """``mesh`` (any :class:`cssat.scene.Mesh`, its joints kept) with each facet's ``cd``, ``cs``
+    multiplied by :func:`spectral_factor` of its part's material in ``band`` (parts named by
+    :data:`cssat.scene.materials.MATERIALS`, as ``material="satellite"`` models are; other facets
+    and grey materials unchanged). Where a factor would make ``cd + cs`` exceed 1, both are scaled
+    down to a sum of 1."""
+    import dataclasses
+
+    if mesh.part is None or not len(mesh):
+        return mesh
+    factors = np.array([spectral_factor(n, band) for n in mesh.part_names])[mesh.part]
+    if np.all(factors == 1.0):
+        return mesh
+    cd, cs = mesh.cd * factors, mesh.cs * factors
+    over = np.maximum(cd + cs, 1.0)
+    return dataclasses.replace(mesh, cd=cd / over, cs=cs / over, _cache={})
 
 
 def passband(band: str | Passband) -> Passband:

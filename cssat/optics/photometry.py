@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_GLINT",
+    "DEFAULT_SPECTRAL",
     "GLINT_CHOICES",
     "SOLAR_IRRADIANCE_W_M2",
     "SUN_RADIUS_KM",
@@ -44,6 +45,12 @@ SUN_MAGNITUDE_V = -26.74  # apparent V magnitude of the Sun at 1 AU
 #: disk) or ``"physical"`` (a real mirror of reflectance ``C_s`` reflecting the Sun's disk)
 DEFAULT_GLINT = "paper"
 GLINT_CHOICES = ("paper", "physical")
+
+
+#: whether a ``band`` given to :func:`facet_brightness` colours the facets by their materials'
+#: spectral reflectance (:func:`cssat.optics.passbands.band_coefficients`) when ``spectral`` is
+#: None; False: every surface grey (the object has the Sun's colours)
+DEFAULT_SPECTRAL = False
 
 
 def check_glint(glint: str | None, field: str = "glint") -> str:
@@ -87,6 +94,8 @@ def facet_brightness(
     brdf: Any = None,
     materials: Any = None,
     glint: str | None = None,
+    band: Any = None,
+    spectral: bool | None = None,
 ) -> Tensor:
     """Brightness of every facet at every step, ``(T, F)``, paper Eq. 8–9.
 
@@ -127,9 +136,22 @@ def facet_brightness(
     sequence of BRDFs, ``materials (F,)`` gives each facet's index into it (materials as face
     attributes); with a ``{part name: BRDF}`` mapping (``"default"`` for the rest), each body of a
     multi-body mesh (``mesh.part_names``) gets its own. ``brdf=None`` is Eq. 8–9 above, unchanged.
+
+    **Colours.** ``band`` (a :class:`~cssat.optics.passbands.Passband` or a band name) with
+    ``spectral`` (None: :data:`DEFAULT_SPECTRAL`, False today): each facet's ``C_d``, ``C_s``
+    become its material's band averages (:func:`cssat.optics.passbands.band_coefficients`), so the
+    result is the flux in that band as a fraction of the Sun's flux through it (give it to
+    :func:`cssat.optics.passbands.magnitude` with the same band). Without ``spectral`` the band is
+    ignored (grey surfaces). BRDF objects (``brdf``) stay grey.
     """
     mesh = as_mesh(mesh)
     glint = check_glint(glint)
+    if spectral is not None and not isinstance(spectral, bool):
+        raise FieldError("spectral", f"expected true, false or null ({DEFAULT_SPECTRAL}), got {spectral!r}")
+    if band is not None and (DEFAULT_SPECTRAL if spectral is None else spectral):
+        from cssat.optics.passbands import band_coefficients  # heavy-ish: the solar table, only for colours
+
+        mesh = band_coefficients(mesh, band)
     if getattr(mesh, "joints", ()):  # articulated parts (Sun-tracking arrays): posed at every sample
         return _per_pose(mesh, sun, observer, facet_brightness, dict(
             range_km=range_km, sun_range_km=sun_range_km, visible=visible, sunlit=sunlit, irradiance=irradiance,

@@ -39,7 +39,42 @@ material            α      cd    cs    rough  source / assumption
 
 Assumptions: one broadband (solar-weighted) reflectance per material, beginning of life (UV and
 contamination darken white paint and MLI on orbit: Table 11.3 gives silicone white paint α 0.26
-→ 0.29 after 1000 h UV), no wavelength dependence (cssat's passbands use one albedo for all).
+→ 0.29 after 1000 h UV). By default no wavelength dependence (cssat's passbands use one albedo
+for all: the object has the Sun's colours).
+
+**Spectral reflectance** (:data:`SPECTRA`, used when a passband integrates the flux with
+``spectral=True``: :func:`cssat.optics.passbands.band_coefficients`). Each material's spectral
+reflectance ``R(λ)`` at :data:`SPECTRA_NM` (300–1100 nm) gives the SHAPE; the level stays the
+broadband ``cd``, ``cs`` above: ``cd(λ) = cd R(λ)/⟨R⟩☉``, ``cs(λ) = cs R(λ)/⟨R⟩☉`` with ``⟨R⟩☉``
+the Sun-weighted mean of ``R`` over 300–1100 nm (the diffuse and the specular part share the
+shape: an ASSUMPTION). The values are read off published curves or computed from published
+optical constants at normal incidence, rounded to 0.01 — representative, not a measurement of any
+one satellite's surfaces:
+
+==================  ==========================================================================
+``solar_cell``      ASSUMED shape of an AR-coated triple-junction cell under cover glass: a
+                    reflectance minimum at 500–700 nm rising to the blue (the AR coating's edge)
+                    and beyond ~850 nm (the GaAs band gap); cf. the laboratory spectra of solar
+                    cells in Jorgensen et al. 2004, Adv. Space Res. 34, 1021
+``mli``             aluminised Kapton, Kapton outside (amber): the polyimide's absorption edge
+                    (transmission of a 25 µm film ~0 below 450 nm, ~0.85 beyond 700 nm: DuPont
+                    Kapton HN data sheet) passed twice over the aluminium, plus the ~7 % front
+                    surface; cf. Jorgensen et al. 2004 (Kapton spectra)
+``mli_gold``        gold, normal-incidence reflectance from the optical constants of Johnson &
+                    Christy 1972, Phys. Rev. B 6, 4370 (the ~500 nm edge)
+``osr``             silver behind cerium-doped glass: the silver reflectance of Johnson & Christy
+                    1972 above 400 nm, the glass cutting the UV below ~350 nm (Gilmore, *Spacecraft
+                    Thermal Control Handbook*, 2002, ch. 4)
+``white_paint``     zinc-oxide silicate paint (Z-93 type): flat ~0.9 above 420 nm, the ZnO band
+                    edge at ~380 nm (Gilmore 2002, ch. 4, spectral reflectance of white paints)
+``aluminium``       aluminium from the optical constants of Rakić 1995, Appl. Opt. 34, 4755 (flat
+                    0.92, the interband dip to 0.87 near 830 nm)
+``ge_kapton``       ASSUMED a thick germanium film: bulk Ge at normal incidence from the optical
+                    constants of Aspnes & Studna 1983, Phys. Rev. B 27, 985 (0.4–0.5, bluish)
+``black_paint``     flat (grey): Aeroglaze Z306-type black is spectrally flat in the visible
+``panel_back``      flat (grey), ASSUMED (bare CFRP)
+``uniform``         flat (grey): the paper's single material
+==================  ==========================================================================
 """
 
 from __future__ import annotations
@@ -55,7 +90,7 @@ from cssat.scene.mesh import Mesh
 if TYPE_CHECKING:
     from typing import Sequence
 
-__all__ = ["MATERIALS", "Material", "paint"]
+__all__ = ["MATERIALS", "Material", "SPECTRA", "SPECTRA_NM", "paint"]
 
 
 @dataclass(frozen=True)
@@ -84,6 +119,31 @@ MATERIALS: dict[str, Material] = {m.name: m for m in (
     Material("black_paint", 0.04, 0.01, 0.6, 0.95, "Fortescue+ 2011 Tab. 11.3 (black epoxy paint)"),
     Material("uniform", 0.8, 0.2, 0.3, None, "the paper's Eq. 8 values, one material for every facet"),
 )}
+
+#: the wavelengths (nm) of the spectral reflectance tables :data:`SPECTRA`
+SPECTRA_NM = (300.0, 350.0, 400.0, 450.0, 500.0, 550.0, 600.0, 650.0, 700.0, 800.0, 900.0, 1000.0, 1100.0)
+
+#: each material's spectral reflectance R(λ) at :data:`SPECTRA_NM` (its shape; the level is the
+#: broadband cd, cs of :data:`MATERIALS`) and its source (module docstring)
+SPECTRA: dict[str, tuple[tuple[float, ...], str]] = {
+    "solar_cell": ((0.10, 0.12, 0.10, 0.08, 0.06, 0.05, 0.05, 0.05, 0.06, 0.07, 0.10, 0.12, 0.14),
+                   "assumption: AR-coated triple-junction cell under cover glass (cf. Jorgensen+ 2004 ASR 34, 1021)"),
+    "mli": ((0.06, 0.06, 0.07, 0.09, 0.20, 0.42, 0.58, 0.66, 0.70, 0.74, 0.76, 0.77, 0.78),
+            "Kapton HN absorption edge (DuPont data sheet) twice over aluminium (cf. Jorgensen+ 2004)"),
+    "mli_gold": ((0.33, 0.35, 0.38, 0.39, 0.48, 0.79, 0.91, 0.95, 0.96, 0.97, 0.98, 0.98, 0.98),
+                 "gold, Johnson & Christy 1972 optical constants, normal incidence"),
+    "osr": ((0.05, 0.50, 0.88, 0.92, 0.93, 0.94, 0.94, 0.95, 0.95, 0.95, 0.95, 0.95, 0.95),
+            "silver (Johnson & Christy 1972) behind cerium-doped glass (Gilmore 2002)"),
+    "white_paint": ((0.08, 0.10, 0.78, 0.86, 0.88, 0.89, 0.89, 0.90, 0.90, 0.90, 0.89, 0.88, 0.87),
+                    "ZnO silicate paint, Z-93 type (Gilmore 2002)"),
+    "aluminium": ((0.92, 0.92, 0.92, 0.92, 0.92, 0.915, 0.91, 0.90, 0.89, 0.87, 0.89, 0.93, 0.94),
+                  "aluminium, Rakic 1995 optical constants, normal incidence"),
+    "ge_kapton": ((0.50, 0.52, 0.47, 0.46, 0.48, 0.49, 0.49, 0.48, 0.46, 0.43, 0.41, 0.40, 0.39),
+                  "assumption: bulk germanium, Aspnes & Studna 1983 optical constants"),
+    "black_paint": ((0.05,) * 13, "flat (grey): Aeroglaze Z306-type black"),
+    "panel_back": ((0.08,) * 13, "assumption: flat (grey) bare CFRP"),
+    "uniform": ((1.0,) * 13, "flat (grey): the paper's single material"),
+}
 
 #: how a procedural model's facets are dressed: per-part real materials, or every facet one ``cd``/``cs``
 MATERIAL_CHOICES = ("satellite", "uniform")
