@@ -69,6 +69,7 @@ from cssat.inversion.fourier import _Curve, _design, check_grid, frame_step, lig
 from cssat.inversion.period_inputs import MIN_SAMPLES, _astropy_inputs, _check_track
 from cssat.inversion.period_aliases import FRINGE_DCHI2, Aliases, period_error, stretch_fit
 from cssat.inversion.period_null import count_maxima, stretch_power, surrogate_fap
+from cssat.inversion.results import PeriodResult
 from cssat.inversion.period_verdict import _constant, _verdict, _warnings, _why
 
 __all__ = ["estimate_period", "light_curve_scatter", "CONVENTIONS", "convention_for"]
@@ -105,7 +106,9 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     ``double_peaked``. ``fap_max``, ``min_cycles``: the verdict's thresholds; ``n_surrogates``,
     ``seed``: the null's draws.
 
-    Returns a dict: ``verdict`` (``"periodic"``, ``"not periodic"``, ``"undetermined"``),
+    Returns a :class:`~cssat.inversion.results.PeriodResult` (a read-only mapping, its keys also
+    attributes; ``.model(t)`` the fitted series and trend at times ``t``): ``verdict``
+    (``"periodic"``, ``"not periodic"``, ``"undetermined"``),
     ``periodic`` (True, False, None), ``verdict_why`` (one sentence), ``period_s`` and
     ``period_err_s`` (1σ; NaN unless periodic), ``photometric_period_s``, ``convention``,
     ``n_maxima`` (significant maxima a photometric cycle), ``fap`` and ``fap_all`` (surrogates;
@@ -127,7 +130,7 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
         raise FieldError("times_s", "the samples span no time (all stamps equal)")
     convention = choice_param(convention, "convention", CONVENTIONS)
     if np.ptp(y) == 0:
-        return _constant(t, convention)
+        return PeriodResult(_constant(t, convention))
     seg = stretches(t) if segments is None else seg_given
     lo, hi, d_frame, longest = _search_range(t, seg, zp, min_period_s, max_period_s)
     max_harmonics, m_fixed, n_peaks, spp, detrend, fap_max, min_cycles, n_sur, seed, min_repeat = _options(
@@ -198,18 +201,19 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     warns += _gap_warnings(cycle_count, fringes, err_phot)
     nan = float("nan")
     ok = verdict == "periodic"
-    return {"verdict": verdict, "periodic": periodic, "verdict_why": why_v,
-            "period_s": period if ok else nan, "period_err_s": period_err if ok else nan,
-            "photometric_period_s": p_phot, "convention": convention, "n_maxima": int(n_max),
-            "fap": null["fap"], "fap_all": null["fap_all"], "fap_surrogates_exceeding": null["exceeding"],
-            "n_surrogates": null["n"], "fap_white": fap_white, "repeat": rep, "variation_snr": variation_snr,
-            "best_period_s": period, "best_period_err_s": period_err, "alternatives": alts, "fringes": fringes, "cycle_count": cycle_count,
-            "why": _why(best, alts, k_conv, n_max), "n_harmonics": m, "chi2": float(chi2),
-            "chi2_per_sample": float(chi2_n), "model_fits": model_fits, "n_cycles": n_cycles,
-            "min_period_s": float(lo), "max_period_s": float(hi), "cadence_s": float(d_frame),
-            "f0_period_s": 1.0 / peaks[0], "doubled": bool(k_conv == 2 or best.get("k", 1) > 1), "warnings": warns,
-            "noise_sigma": float(scat) if sigma is None else None, "n_samples": int(N), "rss": float(rss),
-            "n_nuisance": int(cv.q), "periodogram": {"frequency_hz": freq, "power": power}}
+    return PeriodResult({"verdict": verdict, "periodic": periodic, "verdict_why": why_v,
+                         "period_s": period if ok else nan, "period_err_s": period_err if ok else nan,
+                         "photometric_period_s": p_phot, "convention": convention, "n_maxima": int(n_max),
+                         "fap": null["fap"], "fap_all": null["fap_all"], "fap_surrogates_exceeding": null["exceeding"],
+                         "n_surrogates": null["n"], "fap_white": fap_white, "repeat": rep, "variation_snr": variation_snr,
+                         "best_period_s": period, "best_period_err_s": period_err, "alternatives": alts, "fringes": fringes, "cycle_count": cycle_count,
+                         "why": _why(best, alts, k_conv, n_max), "n_harmonics": m, "chi2": float(chi2),
+                         "chi2_per_sample": float(chi2_n), "model_fits": model_fits, "n_cycles": n_cycles,
+                         "min_period_s": float(lo), "max_period_s": float(hi), "cadence_s": float(d_frame),
+                         "f0_period_s": 1.0 / peaks[0], "doubled": bool(k_conv == 2 or best.get("k", 1) > 1), "warnings": warns,
+                         "noise_sigma": float(scat) if sigma is None else None, "n_samples": int(N), "rss": float(rss),
+                         "n_nuisance": int(cv.q), "periodogram": {"frequency_hz": freq, "power": power}}).with_model(
+        times_s, flux, sigma=sigma, segments=segments, zero_points=zero_points, detrend=detrend)
 
 
 def _options(max_harmonics: Any, n_harmonics: Any, n_peaks: Any, samples_per_peak: Any, detrend: Any, fap_max: Any,
