@@ -275,14 +275,15 @@ def test_batch_omp_refuses_bad_precomputed_inputs_and_complex_data():
 
 @pytest.mark.slow
 def test_vector_figures_are_byte_reproducible_across_processes(tmp_path):
+    """Two processes, each a sweep over the figure formats (svg, pdf): the same bytes."""
+    outs = []
+    for k in range(2):
+        d = tmp_path / f"sweep{k}"
+        code, lines = run_app(["-m", *SMALL, "figure_format=svg,pdf", f"hydra.sweep.dir={d}"], tmp_path)
+        assert code == 0, lines
+        outs.append({fmt: (d / str(job) / "figures" / f"fig9_sim1.{fmt}").read_bytes() for job, fmt in enumerate(("svg", "pdf"))})
     for fmt in ("svg", "pdf"):
-        outs = []
-        for k in range(2):
-            d = tmp_path / f"{fmt}{k}"
-            code, lines = run_app([*SMALL, f"figure_format={fmt}", f"hydra.run.dir={d}"], tmp_path)
-            assert code == 0, lines
-            outs.append((d / "figures" / f"fig9_sim1.{fmt}").read_bytes())
-        assert outs[0] == outs[1], fmt
+        assert outs[0][fmt] == outs[1][fmt], fmt
 
 
 def test_threads_are_part_of_the_config_hash():
