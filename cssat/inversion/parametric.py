@@ -16,6 +16,22 @@ Parameters ``p (9,)`` (:data:`PARAM_NAMES`), metres, radians and albedos:
 ``panels=2`` puts a mirror pair of panels at ±y (a symmetric box-wing such as :func:`astra_like`),
 ``panels=1`` one panel at +y.
 
+**Reflector dishes** (``dishes=1`` or ``2``; default 0: the box-wing alone, as before): eight more
+parameters (:data:`DISH_PARAM_NAMES`) after the nine, ``p (17,)``:
+
+* ``dish_x, dish_y, dish_z``: the dish's vertex (m, body frame);
+* ``dish_tilt, dish_azimuth``: its axis (the concave side's direction), ``(sin t cos φ, sin t
+  sin φ, cos t)`` (rad);
+* ``dish_radius, dish_depth``: the aperture radius and depth of the paraboloid (m), as
+  :func:`cssat.scene.models.dish` builds it (``dish_rings × dish_segments`` cells, the same
+  triangles, two-sided);
+* ``cd_dish``: its diffuse albedo (both sides).
+
+``dishes=2`` mirrors the dish through the y–z plane (vertex ``(−x, y, z)``, axis ``(−a_x, a_y,
+a_z)``), the pair on the ±x faces of :func:`cssat.scene.models.astra_like`. The dishes cast and
+take shadows like every other facet. Their specular part is not in the family (Lambertian, as the
+rest).
+
 ASSUMPTIONS: Lambertian parts (no specular lobe: glints in the data are outliers the fit must
 down-weight); the panels are two-sided zero-thickness plates centred on the bus's mid-plane
 ``z = 0``; the bus is an axis-aligned box in the body frame (the body frame is the attitude's: a
@@ -46,9 +62,19 @@ from cssat._checks import FieldError
 from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, check_unit, shadow_mask
 from cssat.scene.mesh import Mesh
 
-__all__ = ["PARAM_NAMES", "box_wing", "box_wing_mesh", "box_wing_light_curve", "box_wing_visibility"]
+__all__ = ["PARAM_NAMES", "DISH_PARAM_NAMES", "param_names", "box_wing", "box_wing_mesh", "box_wing_light_curve",
+           "box_wing_visibility"]
 
 PARAM_NAMES = ("a", "b", "c", "length", "width", "hinge", "gap", "cd_bus", "cd_panel")
+#: the parameters of the dishes (``dishes=1`` or ``2``), after :data:`PARAM_NAMES`
+DISH_PARAM_NAMES = ("dish_x", "dish_y", "dish_z", "dish_tilt", "dish_azimuth", "dish_radius", "dish_depth", "cd_dish")
+
+
+def param_names(dishes: int = 0) -> tuple[str, ...]:
+    """The names of ``p``'s entries: :data:`PARAM_NAMES`, and :data:`DISH_PARAM_NAMES` with dishes."""
+    if isinstance(dishes, bool) or dishes not in (0, 1, 2):
+        raise FieldError("dishes", f"expected 0, 1 or 2, got {dishes!r}")
+    return PARAM_NAMES + (DISH_PARAM_NAMES if dishes else ())
 
 
 def _quad_faces(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -61,8 +87,10 @@ def _quad_faces(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return s.ravel(), t.ravel(), faces
 
 
-def check_params(p: Any, panels: int, divisions: int) -> Tensor:
-    """``p`` as a float tensor ``(9,)`` (float64 unless a tensor) with positive sizes and albedos; errors name the field."""
+def check_params(p: Any, panels: int, divisions: int, dishes: int = 0) -> Tensor:
+    """``p`` as a float tensor ``(9,)`` (``(17,)`` with dishes; float64 unless a tensor) with
+    positive sizes and albedos; errors name the field."""
+    names = param_names(dishes)
     if panels not in (1, 2):
         raise FieldError("panels", f"expected 1 or 2, got {panels!r}")
     if isinstance(divisions, bool) or not isinstance(divisions, int) or divisions < 1:
@@ -70,23 +98,60 @@ def check_params(p: Any, panels: int, divisions: int) -> Tensor:
     t = p if isinstance(p, Tensor) else torch.as_tensor(np.asarray(p, dtype=np.float64))
     if not t.is_floating_point():
         t = t.double()
-    if t.shape != (len(PARAM_NAMES),):
-        raise FieldError("params", f"expected {len(PARAM_NAMES)} values {PARAM_NAMES}, got shape {tuple(t.shape)}")
-    for k, name in enumerate(PARAM_NAMES):
+    if t.shape != (len(names),):
+        raise FieldError("params", f"expected {len(names)} values {names}, got shape {tuple(t.shape)}")
+    free_sign = ("hinge", "dish_x", "dish_y", "dish_z", "dish_tilt", "dish_azimuth")
+    for k, name in enumerate(names):
         v = float(t[k].detach())
-        rule = {"hinge": "finite", "gap": "finite and >= 0"}.get(name, "finite and > 0")
-        bad = not math.isfinite(v) or (name == "gap" and v < 0) or (name not in ("hinge", "gap") and v <= 0)
+        rule = {"gap": "finite and >= 0"}.get(name, "finite" if name in free_sign else "finite and > 0")
+        bad = not math.isfinite(v) or (name == "gap" and v < 0) or (name not in free_sign + ("gap",) and v <= 0)
         if bad:
             raise FieldError(f"params.{name}", f"must be {rule}, got {v}")
     return t
 
 
-def box_wing(p: Any, *, panels: int = 2, divisions: int = 4) -> tuple[Tensor, np.ndarray, np.ndarray, Tensor]:
+def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, np.ndarray]:
+    """One dish of the dish parameters ``q (8,)``: vertices ``(V, 3)`` and faces (two-sided), the
+    triangles of :func:`cssat.scene.models.dish` in its order, differentiable in ``q``."""
+    x, y, z, tilt, azim, radius, depth, _ = q.unbind()
+    sign = -1.0 if mirror else 1.0
+    zero = torch.zeros((), dtype=q.dtype, device=q.device)
+    c = torch.stack([sign * x, y + zero, z + zero])
+    a = torch.stack([sign * torch.sin(tilt) * torch.cos(azim), torch.sin(tilt) * torch.sin(azim), torch.cos(tilt)])
+    a = a / torch.linalg.vector_norm(a)
+    helper = torch.tensor([1.0, 0, 0] if abs(float(a[0].detach())) < 0.9 else [0, 1.0, 0], dtype=q.dtype, device=q.device)
+    e1 = torch.linalg.cross(a, helper)
+    e1 = e1 / torch.linalg.vector_norm(e1)
+    e2 = torch.linalg.cross(a, e1)
+    rr = torch.as_tensor(np.linspace(0, 1, rings + 1)[1:], dtype=q.dtype, device=q.device) * radius
+    th = torch.as_tensor(np.linspace(0, 2 * np.pi, segments, endpoint=False), dtype=q.dtype, device=q.device)
+    R, TH = torch.meshgrid(rr, th, indexing="ij")
+    H = depth * (R / radius) ** 2
+    pts = c + (R * torch.cos(TH))[..., None] * e1 + (R * torch.sin(TH))[..., None] * e2 + H[..., None] * a
+    verts = torch.cat([c[None], pts.reshape(-1, 3)])
+    idx = 1 + np.arange(rings * segments).reshape(rings, segments)
+    nxt = np.roll(idx, -1, axis=1)
+    fan = np.stack([np.zeros(segments, np.int64), idx[0], nxt[0]], -1)
+    quads = [np.stack([idx[:-1], idx[1:], nxt[1:]], -1).reshape(-1, 3), np.stack([idx[:-1], nxt[1:], nxt[:-1]], -1).reshape(-1, 3)]
+    faces = np.concatenate([fan] + quads)
+    with torch.no_grad():  # orient the concave side towards +axis, as models.dish
+        N, _ = _geometry(verts.detach(), faces)
+        if float((N @ a.detach()).mean()) < 0:
+            faces = faces[:, ::-1].copy()
+    return torch.cat([verts, verts]), np.concatenate([faces, faces[:, ::-1] + len(verts)])
+
+
+def box_wing(p: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0, dish_rings: int = 12,
+             dish_segments: int = 40) -> tuple[Tensor, np.ndarray, np.ndarray, Tensor]:
     """The box-wing's triangles as torch functions of ``p``: ``(vertices (V, 3) m, faces (F, 3),
-    part (F,) 0 bus / 1 panels, cd (F,))``; vertices and cd follow ``p``'s dtype and device and
-    carry its gradient. Every face of the bus and each panel side is ``divisions²`` cells."""
-    p = check_params(p, panels, divisions)
-    a, b, c, L, W, hinge, gap, cd_bus, cd_panel = p.unbind()
+    part (F,) 0 bus / 1 panels / 2 dishes, cd (F,))``; vertices and cd follow ``p``'s dtype and
+    device and carry its gradient. Every face of the bus and each panel side is ``divisions²``
+    cells; each dish ``dish_rings × dish_segments`` (``dishes`` 0, 1 or 2: module docstring)."""
+    p = check_params(p, panels, divisions, dishes)
+    for name, val, lo in (("dish_rings", dish_rings, 1), ("dish_segments", dish_segments, 3)):
+        if isinstance(val, bool) or not isinstance(val, int) or val < lo:
+            raise FieldError(name, f"expected an integer >= {lo}, got {val!r}")
+    a, b, c, L, W, hinge, gap, cd_bus, cd_panel = p[:len(PARAM_NAMES)].unbind()
     dev, dt = p.device, p.dtype
     s_np, t_np, quad = _quad_faces(divisions, divisions)
     s = torch.as_tensor(s_np, dtype=dt, device=dev)[:, None]
@@ -113,17 +178,30 @@ def box_wing(p: Any, *, panels: int = 2, divisions: int = 4) -> tuple[Tensor, np
         verts.append(o + s * u + t * v)
         faces.append(quad + k * len(s_np))
         part.append(np.full(len(quad), int(k >= n_bus)))
+    off = sum(len(v) for v in verts)
+    for k in range(dishes):
+        dv, df = _dish(p[len(PARAM_NAMES):], k == 1, dish_rings, dish_segments)
+        verts.append(dv)
+        faces.append(df + off)
+        part.append(np.full(len(df), 2))
+        off += len(dv)
     part_np = np.concatenate(part)
-    cd = torch.where(torch.as_tensor(part_np, device=dev) == 1, cd_panel, cd_bus)
+    part_t = torch.as_tensor(part_np, device=dev)
+    cd = torch.where(part_t == 1, cd_panel, cd_bus)
+    if dishes:
+        cd = torch.where(part_t == 2, p[-1], cd)
     return torch.cat(verts), np.concatenate(faces), part_np, cd
 
 
-def box_wing_mesh(p: Any, *, panels: int = 2, divisions: int = 4, cs: float = 0.0) -> Mesh:
-    """The box-wing as a :class:`cssat.scene.mesh.Mesh` (numpy; parts ``bus`` and ``panel``,
-    ``C_d`` per part from ``p``, ``C_s = cs``), e.g. to write as an OBJ or cast shadows on."""
-    v, f, part, cd = box_wing(p, panels=panels, divisions=divisions)
+def box_wing_mesh(p: Any, *, panels: int = 2, divisions: int = 4, cs: float = 0.0, dishes: int = 0, dish_rings: int = 12,
+                  dish_segments: int = 40) -> Mesh:
+    """The box-wing as a :class:`cssat.scene.mesh.Mesh` (numpy; parts ``bus``, ``panel`` and,
+    with ``dishes``, ``dish``; ``C_d`` per part from ``p``, ``C_s = cs``), e.g. to write as an
+    OBJ or cast shadows on."""
+    v, f, part, cd = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
+                              dish_segments=dish_segments)
     return Mesh(v.detach().cpu().double().numpy(), f, cd.detach().cpu().double().numpy(), cs,
-                name="box_wing", part=part, part_names=("bus", "panel"))
+                name="box_wing", part=part, part_names=("bus", "panel", "dish") if dishes else ("bus", "panel"))
 
 
 def _geometry(v: Tensor, f: np.ndarray) -> tuple[Tensor, Tensor]:
@@ -135,18 +213,23 @@ def _geometry(v: Tensor, f: np.ndarray) -> tuple[Tensor, Tensor]:
     return cross / twice[:, None], twice / 2
 
 
-def box_wing_visibility(p: Any, sun: Any, observer: Any, *, panels: int = 2, divisions: int = 4) -> Tensor:
+def box_wing_visibility(p: Any, sun: Any, observer: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0,
+                        dish_rings: int = 12, dish_segments: int = 40) -> Tensor:
     """``(T, F)`` bool: each sub-facet neither self- nor observer-shadowed (Embree rays from its
-    centroid, :func:`cssat.optics.photometry.shadow_mask`) at the box-wing ``p``."""
-    return shadow_mask(box_wing_mesh(p, panels=panels, divisions=divisions), sun, observer)
+    centroid, :func:`cssat.optics.photometry.shadow_mask`) at the box-wing ``p`` (with its dishes)."""
+    return shadow_mask(box_wing_mesh(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
+                                     dish_segments=dish_segments), sun, observer)
 
 
 def box_wing_light_curve(p: Tensor, sun: Any, observer: Any, visible: Tensor | None = None, *, panels: int = 2,
-                         divisions: int = 4, range_km: Any = 1.0, irradiance: float = SOLAR_IRRADIANCE_W_M2) -> Tensor:
+                         divisions: int = 4, range_km: Any = 1.0, irradiance: float = SOLAR_IRRADIANCE_W_M2,
+                         dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40) -> Tensor:
     """The box-wing's diffuse light curve ``(T,)`` in W/m² at ``range_km`` (module docstring's
-    equation), differentiable in ``p (9,)``; ``sun, observer (T, 3)`` body-frame unit vectors from
-    the object; ``visible (T, F)`` the fixed visibility (None: unshadowed, i.e. convex-like)."""
-    v, f, _, cd = box_wing(p, panels=panels, divisions=divisions)
+    equation), differentiable in ``p (9,)`` (``(17,)`` with ``dishes``); ``sun, observer (T, 3)``
+    body-frame unit vectors from the object; ``visible (T, F)`` the fixed visibility (None:
+    unshadowed, i.e. convex-like)."""
+    v, f, _, cd = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
+                           dish_segments=dish_segments)
     N, A = _geometry(v, f)
     S = check_unit(sun, "sun").to(device=v.device, dtype=v.dtype)
     V = check_unit(observer, "observer").to(device=v.device, dtype=v.dtype)

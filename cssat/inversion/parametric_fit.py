@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError, float_param, int_param
-from cssat.inversion.parametric import PARAM_NAMES, box_wing_light_curve, box_wing_visibility
+from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 
 __all__ = ["box_wing_start", "fit_box_wing"]
 
@@ -52,22 +52,36 @@ def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.
 
 
 def _to_p(z: torch.Tensor) -> torch.Tensor:
-    """The free variables ``z`` (log sizes, hinge, softplus⁻¹ gap, log albedos) as ``p``."""
+    """The free variables ``z`` (log sizes, hinge, softplus⁻¹ gap, log albedos; with dishes also
+    the dish's position and axis angles as they are, log radius, depth and albedo) as ``p``."""
+    if len(z) > 9:
+        return torch.cat([z[:5].exp(), z[5:6], torch.nn.functional.softplus(z[6:7]), z[7:9].exp(), z[9:14], z[14:].exp()])
     return torch.cat([z[:5].exp(), z[5:6], torch.nn.functional.softplus(z[6:7]), z[7:].exp()])
 
 
 def _to_z(p: np.ndarray) -> torch.Tensor:
     g = max(float(p[6]), 1e-6)
     gap = g + math.log(-math.expm1(-g))  # softplus⁻¹
+    if len(p) > 9:
+        return torch.as_tensor(np.r_[np.log(p[:5]), p[5], gap, np.log(p[7:9]), p[9:14], np.log(p[14:])], dtype=torch.float64)
     return torch.as_tensor(np.r_[np.log(p[:5]), p[5], gap, np.log(p[7:])], dtype=torch.float64)
 
 
 def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None, panels: int = 2, divisions: int = 4,
-                 outer: int = 5, inner: int = 40, huber: float = 3.0) -> tuple[np.ndarray, dict[str, Any]]:
+                 outer: int = 5, inner: int = 40, huber: float = 3.0, dishes: int = 0, dish_rings: int = 12,
+                 dish_segments: int = 40, fixed: Any = ()) -> tuple[np.ndarray, dict[str, Any]]:
     """The box-wing ``p (9,)`` fitting ``y (T,)`` (flux per unit irradiance at 1 m, i.e. m²) at
     body-frame ``sun, observer (T, 3)``, from ``p0 (9,)``; ``sigma (T,)`` the 1σ (None: ones).
-    Returns ``(p, info)`` with ``info``: ``loss``, ``rms_over_noise`` (the fit's χ-rms) and
-    ``params`` (a name → value dict)."""
+    With ``dishes`` (1 or 2, :mod:`cssat.inversion.parametric`), ``p0`` and ``p`` are ``(17,)``:
+    the reflector dishes' position, axis, size and albedo fitted too. ``fixed``: names of
+    parameters (:func:`~cssat.inversion.parametric.param_names`) held at ``p0`` (e.g. a bus whose
+    size is known). Returns ``(p, info)`` with ``info``: ``loss``, ``rms_over_noise`` (the fit's
+    χ-rms) and ``params`` (a name → value dict)."""
+    names = param_names(dishes)
+    fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
+    unknown = [n for n in fixed if n not in names]
+    if unknown:
+        raise FieldError("fixed", f"expected names among {list(names)}, got {unknown}")
     outer = int_param(outer, "outer", 1, 100)
     inner = int_param(inner, "inner", 1, 1000)
     huber = float_param(huber, "huber", 0.0, open_lo=True)
@@ -76,31 +90,47 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     if sg.shape != yt.shape or bool((sg <= 0).any()):
         raise FieldError("sigma", f"expected {tuple(yt.shape)} positive values, got {tuple(sg.shape)}")
     S, V = np.asarray(sun, dtype=np.float64), np.asarray(observer, dtype=np.float64)
-    kw = dict(panels=panels, divisions=divisions, range_km=1e-3, irradiance=1.0)
+    geo = dict(panels=panels, divisions=divisions, **(dict(dishes=dishes, dish_rings=dish_rings, dish_segments=dish_segments)
+                                                      if dishes else {}))
+    kw = dict(geo, range_km=1e-3, irradiance=1.0)
     from scipy.optimize import minimize  # heavy: scipy.optimize (torch.optim would import torch._dynamo, ~4 s)
 
     def loss_of(z, vis):
         r = (yt - box_wing_light_curve(_to_p(z), S, V, vis, **kw)) / sg
         return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
 
+    p0 = np.asarray(p0, dtype=np.float64)
+    if p0.shape != (len(names),):
+        raise FieldError("p0", f"expected {len(names)} values {names}, got shape {p0.shape}")
+    z0 = _to_z(p0)
+    free = np.array([n not in fixed for n in names])
+
+    free_idx = torch.as_tensor(np.flatnonzero(free))
+
+    def full(x):
+        """All of ``z``: the free variables ``x`` (differentiable) among the fixed ones of ``p0``."""
+        xt = torch.as_tensor(x, dtype=torch.float64)
+        return xt if free.all() else z0.index_put((free_idx,), xt)
+
     def value_and_grad(x, vis):
-        z = torch.as_tensor(x, dtype=torch.float64).requires_grad_(True)
+        xt = torch.as_tensor(x, dtype=torch.float64).requires_grad_(True)
+        z = full(xt)
         loss = loss_of(z, vis)
-        (g,) = torch.autograd.grad(loss, z)
+        (g,) = torch.autograd.grad(loss, xt)
         return float(loss.detach()), g.numpy()
 
-    z = _to_z(np.asarray(p0, dtype=np.float64))
+    z = z0
     best = (math.inf, z)
     for _ in range(outer):
-        vis = box_wing_visibility(_to_p(z), S, V, panels=panels, divisions=divisions)
-        sol = minimize(value_and_grad, z.numpy(), args=(vis,), jac=True, method="L-BFGS-B", options={"maxiter": inner})
-        z = torch.as_tensor(sol.x, dtype=torch.float64)
+        vis = box_wing_visibility(_to_p(z), S, V, **geo)
+        sol = minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", options={"maxiter": inner})
+        z = full(sol.x)
         with torch.no_grad():  # score with the visibility recast at the new parameters
-            val = float(loss_of(z, box_wing_visibility(_to_p(z), S, V, panels=panels, divisions=divisions)))
+            val = float(loss_of(z, box_wing_visibility(_to_p(z), S, V, **geo)))
         if val < best[0]:
             best = (val, z)
     p = _to_p(best[1]).numpy()
-    vis = box_wing_visibility(p, S, V, panels=panels, divisions=divisions)
+    vis = box_wing_visibility(p, S, V, **geo)
     r = (yt - box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw)) / sg
     return p, {"loss": best[0], "rms_over_noise": float(torch.sqrt((r**2).mean())),
-               "params": dict(zip(PARAM_NAMES, map(float, p)))}
+               "params": dict(zip(names, map(float, p)))}
