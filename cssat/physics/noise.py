@@ -12,12 +12,21 @@ from cssat._checks import FieldError, choice_param, float_param, opt
 from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V
 from cssat.physics.photometry import ccd_snr, magnitude_to_photon_rate, photon_rate_to_magnitude
 
-__all__ = ["NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise"]
+__all__ = ["NoiseModel", "NoNoise", "GaussianNoise", "PhotometricNoise", "MAX_FLOOR", "add_floor"]
+
+#: the largest photometric floor a noise model takes (10 %: all-sky photometry of GEO objects has 1–3 %)
+MAX_FLOOR = 0.1
 
 
 class NoiseModel:
     """``noise(y, generator) -> y_noisy`` for light curves ``y (B, m)``; all randomness from
-    ``generator`` (a CPU ``torch.Generator``), so the same seed gives the same noise."""
+    ``generator`` (a CPU ``torch.Generator``), so the same seed gives the same noise.
+
+    ``floor`` (the Gaussian and photometric models; 0 to :data:`MAX_FLOOR`, default 0): a
+    relative 1σ added in quadrature to every sample's error — the 1–3 % floor of real all-sky
+    photometry of GEO objects (transparency, calibration, comparison stars) — drawn as
+    ``+ floor · y · ε`` (``y`` the noiseless sample) after the model's own noise; its
+    :meth:`variance` gains ``(floor · y)²``."""
 
     name = "noise"
     #: the scene's V magnitude where the model takes one (the realism maps set it on every model);
@@ -40,7 +49,28 @@ class NoiseModel:
 
     def describe(self) -> dict[str, Any]:
         """Flat settings for ``metrics.json`` (``noise``, ``noise_*``)."""
-        return {"noise": self.name}
+        return {"noise": self.name, **self._describe_floor()}
+
+    # --- the photometric floor: a relative 1σ added in quadrature to every sample's error ---
+    #: the floor's relative rms (0: none, today's default); at most :data:`MAX_FLOOR`
+    floor: float = 0.0
+
+    def _set_floor(self, floor: float | None) -> None:
+        self.floor = float(opt(floor, float_param, "floor", 0.0, MAX_FLOOR) or 0.0)
+
+    def _add_floor(self, noisy: Tensor, clean: Tensor, generator: torch.Generator) -> Tensor:
+        """``noisy + floor · clean · ε``, ``ε ~ N(0, 1)`` per sample, drawn after the model's own
+        draws (nothing is drawn when ``floor`` is 0: the generator's stream is as without it)."""
+        if not self.floor:
+            return noisy
+        eps = torch.randn(clean.shape, generator=generator, dtype=torch.float64).to(clean.device)
+        return (noisy.double() + self.floor * clean.double() * eps).to(noisy.dtype)
+
+    def _floor_variance(self, var: Tensor, y: Tensor) -> Tensor:
+        return var + (self.floor * y.double()) ** 2 if self.floor else var
+
+    def _describe_floor(self) -> dict[str, Any]:
+        return {"noise_floor": self.floor} if self.floor else {}
 
 
 class NoNoise(NoiseModel):
@@ -48,8 +78,12 @@ class NoNoise(NoiseModel):
 
     name = "none"
 
-    def __init__(self, *, magnitude: float | None = None):
+    def __init__(self, *, magnitude: float | None = None, floor: float | None = None):
         self._record_magnitude(magnitude)  # noiseless at any brightness
+        self._set_floor(floor)
+        if self.floor:
+            raise FieldError("floor", f"a photometric floor ({self.floor:g}) is noise: use the gaussian or photometric "
+                                      "noise model (the none model takes floor 0)")
 
     def __call__(self, y: Tensor, generator: torch.Generator | None = None, *, flux: Tensor | None = None) -> Tensor:
         return y
@@ -74,8 +108,10 @@ class GaussianNoise(NoiseModel):
 
     name = "gaussian"
 
-    def __init__(self, relative: float | None = None, sigma: float | None = None, *, magnitude: float | None = None):
+    def __init__(self, relative: float | None = None, sigma: float | None = None, *, magnitude: float | None = None,
+                 floor: float | None = None):
         self._record_magnitude(magnitude)  # σ is set by relative or sigma, not by the brightness
+        self._set_floor(floor)
         relative, sigma = opt(relative, float_param, "relative", 0.0), opt(sigma, float_param, "sigma", 0.0)
         if relative and sigma:
             raise FieldError("sigma", f"give either relative ({relative}) or sigma ({sigma}), not both")
@@ -84,22 +120,24 @@ class GaussianNoise(NoiseModel):
 
     def __call__(self, y: Tensor, generator: torch.Generator, *, flux: Tensor | None = None) -> Tensor:
         if self.relative == 0 and self.sigma == 0:
-            return y
+            return self._add_floor(y, y, generator)
         eps = torch.randn(*y.shape, generator=generator, dtype=y.dtype).to(y.device)
         if self.relative > 0:
             scale = y.pow(2).mean(-1, keepdim=True).sqrt() * self.relative
         else:
             scale = self.sigma
-        return y + scale * eps
+        return self._add_floor(y + scale * eps, y, generator)
 
     def variance(self, y: Tensor, *, flux: Tensor | None = None) -> Tensor:
         yy = y.double()
         if self.relative > 0:  # rms(y_noisy)² = rms(y)² (1 + relative²)
-            return (yy.pow(2).mean(-1, keepdim=True) * self.relative ** 2 / (1 + self.relative ** 2)).expand_as(yy)
-        return torch.full_like(yy, self.sigma ** 2)
+            var = (yy.pow(2).mean(-1, keepdim=True) * self.relative ** 2 / (1 + self.relative ** 2)).expand_as(yy)
+        else:
+            var = torch.full_like(yy, self.sigma ** 2)
+        return self._floor_variance(var, yy)
 
     def describe(self) -> dict[str, Any]:
-        return {"noise": self.name, "noise_relative": self.relative, "noise_sigma": self.sigma}
+        return {"noise": self.name, "noise_relative": self.relative, "noise_sigma": self.sigma, **self._describe_floor()}
 
     def __repr__(self) -> str:
         return f"GaussianNoise(relative={self.relative:g}, sigma={self.sigma:g})"
@@ -143,7 +181,8 @@ class PhotometricNoise(NoiseModel):
                  throughput: float = 0.5, exposure_s: float = 1.0, sky_mag_arcsec2: float = 21.0,
                  aperture_radius_arcsec: float = 3.0, pixel_scale_arcsec: float = 0.5, dark_e_per_s: float = 0.01,
                  read_noise_e: float = 5.0, full_well_e: float | None = 1.0e5, seeing_fwhm_arcsec: float = 1.5,
-                 saturation: str = "flag", readout_s: float = 0.0, systematic: float = 1.0e-3):
+                 saturation: str = "flag", readout_s: float = 0.0, systematic: float = 1.0e-3, floor: float | None = None):
+        self._set_floor(floor)
         self.magnitude = opt(magnitude, float_param, "magnitude")  # null: the light curve in W/m²
         self.diameter_m = float_param(diameter_m, "diameter_m", 0.0, open_lo=True)
         self.obstruction = float_param(obstruction, "obstruction", 0.0)
@@ -254,7 +293,7 @@ class PhotometricNoise(NoiseModel):
         read = torch.randn(counts.shape, generator=generator, dtype=torch.float64) * (self.read_noise_e * math.sqrt(self.n_pix))
         measured = counts + read - bg  # background-subtracted electrons
         measured = self._detector(measured, signal.cpu(), generator)
-        return (measured.to(y.device) / scale).to(y.dtype)
+        return self._add_floor((measured.to(y.device) / scale).to(y.dtype), y, generator)
 
     def _detector(self, measured: Tensor, signal: Tensor, generator: torch.Generator) -> Tensor:
         """Saturation and the systematic floor on background-subtracted electrons (CPU, float64)."""
@@ -281,7 +320,7 @@ class PhotometricNoise(NoiseModel):
         scale = self._scale(y, flux)
         S = y.double() * scale
         e = S.abs() + self.n_pix * (self.sky_e_per_pixel + self.dark_e_per_pixel + self.read_noise_e ** 2)
-        return (e + (self.systematic * S) ** 2) / scale ** 2
+        return self._floor_variance((e + (self.systematic * S) ** 2) / scale ** 2, y)
 
     def describe(self) -> dict:
         out = {"noise": self.name, "noise_magnitude": self.magnitude, "noise_diameter_m": self.diameter_m,
@@ -293,10 +332,24 @@ class PhotometricNoise(NoiseModel):
                        noise_peak_e=self.peak_electrons(self.electrons(self.magnitude)), noise_reachable=self.reachable())
         if self.saturated == self.saturated:  # after a call
             out["noise_saturated"] = self.saturated
+        out.update(self._describe_floor())
         return out
 
     def __repr__(self) -> str:
         return f"PhotometricNoise(magnitude={self.magnitude}, diameter_m={self.diameter_m:g}, exposure_s={self.exposure_s:g})"
+
+
+def add_floor(y: Tensor, sigma: Tensor | None, floor: float, generator: torch.Generator) -> tuple[Tensor, Tensor]:
+    """A photometric floor on an already-noisy light curve: ``(y + floor · y · ε, sqrt(σ² + (floor · y)²))``
+    with ``ε ~ N(0, 1)`` from ``generator`` (``y`` the measured values standing in for the
+    noiseless ones; ``sigma`` None: 0). For code that draws its noise without a noise model."""
+    floor = float_param(floor, "floor", 0.0, MAX_FLOOR)
+    yy = torch.as_tensor(y, dtype=torch.float64)
+    sg = torch.zeros_like(yy) if sigma is None else torch.as_tensor(sigma, dtype=torch.float64)
+    if not floor:
+        return yy, sg
+    eps = torch.randn(yy.shape, generator=generator, dtype=torch.float64).to(yy.device)
+    return yy + floor * yy * eps, torch.sqrt(sg**2 + (floor * yy) ** 2)
 
 
 #: above this mean, photon counts are drawn from the normal law N(λ, λ) (its relative error is
