@@ -107,3 +107,24 @@ def test_tracking_arrays_light_a_geo_night_and_brighten_it():
     assert (share["sun"] > 0.3).all()  # the cells' share of the light, tracked: about half
     assert (share["fixed"] < 0.05).all()  # fixed at 0°: edge-on to a Sun in the orbit plane at local midnight
     assert (fluxes["sun"][0][lit] > fluxes["fixed"][0][lit]).all()
+
+
+def test_scaled_model_and_earthshine_follow_the_pose():
+    from cssat.optics import earthshine_brightness
+
+    mesh = get_model("astra_like", array_tracking="sun", scale=2.0)
+    s = np.array([0.5, 0.3, -0.81])
+    s /= np.linalg.norm(s)
+    (_, posed), = mesh.poses(s[None])
+    np.testing.assert_allclose(posed.normals[_cells(mesh)][0], _projected(s, np.array([0.0, 1.0, 0.0])), atol=1e-12)
+    assert mesh.radius == pytest.approx(2 * get_model("astra_like").radius)
+    # earthshine: each sample against the mesh posed for the Sun seen from the satellite
+    sat = np.array([[7000.0, 0.0, 0.0], [0.0, 7200.0, 100.0]])
+    sun_km = np.array([1.5e8, 2e7, 0.0])
+    obs = np.array([6378.0, 0.0, 0.0])
+    got = earthshine_brightness(mesh, sat, sun_km, obs, n_theta=8, n_phi=16)
+    for t in range(2):
+        d = sun_km - sat[t]
+        ang = mesh.angles_deg((d / np.linalg.norm(d))[None])[0]
+        want = earthshine_brightness(mesh.posed(ang), sat[t], sun_km, obs, n_theta=8, n_phi=16)
+        torch.testing.assert_close(got[t:t + 1], want, rtol=0, atol=0)
