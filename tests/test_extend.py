@@ -205,7 +205,7 @@ def test_a_forward_model_a_solver_and_a_yaml_experiment_of_your_own(tmp_path, mo
     from hydra.errors import ConfigCompositionException
 
     from cssat._checks import FieldError
-    from cssat.models import FORWARD_CONFIGS
+    from cssat.models import FORWARD_CONFIGS, unregister
     from cssat.smoke import TINY, tiny_overrides
 
     pkg = tmp_path / "pkg" / "cssat_ext_demo"
@@ -243,5 +243,5 @@ def test_a_forward_model_a_solver_and_a_yaml_experiment_of_your_own(tmp_path, mo
         with pytest.raises(FieldError, match=r"^forward\.n: must be in \[2, 1000\], got 1"):
             run_experiment(compose_toy("forward.n=1"), tmp_path / "bad")
     finally:
-        FORWARD_CONFIGS.pop("toy", None)
-        ConfigStore.instance().repo.get("forward", {}).pop("toy.yaml", None)
+        unregister("toy")
+    assert "toy" not in FORWARD_CONFIGS and "toy.yaml" not in ConfigStore.instance().repo["forward"]

@@ -21,7 +21,7 @@ it whenever it composes a config.
 from __future__ import annotations
 
 from dataclasses import fields, is_dataclass
-__all__ = ["FORWARD_CONFIGS", "register", "register_configs", "config_class"]
+__all__ = ["FORWARD_CONFIGS", "register", "unregister", "register_configs", "config_class"]
 
 #: the forward models' configs: option name → dataclass (filled by :func:`register`)
 FORWARD_CONFIGS: dict[str, type] = {}
@@ -37,6 +37,15 @@ def register(name: str, cls: type) -> type:
     if _STORED:
         _store(name, cls)
     return cls
+
+
+def unregister(name: str) -> None:
+    """Remove the forward model ``name`` (from :data:`FORWARD_CONFIGS` and Hydra's ConfigStore)."""
+    FORWARD_CONFIGS.pop(name, None)
+    if _STORED:
+        from hydra.core.config_store import ConfigStore  # heavy: hydra, only where a config is composed
+
+        ConfigStore.instance().repo.get("forward", {}).pop(f"{name}.yaml", None)
 
 
 _STORED: list[bool] = []
