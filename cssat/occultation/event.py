@@ -7,8 +7,8 @@ velocity and distance (the element set), the band's wavelengths and weights (the
 star's catalogue colour, :func:`~cssat.occultation.spectrum.band_wavelengths`), the apertures
 and the exposure. Not given: where the shadow passed (a time offset along the track, a path
 offset across it), the speed's small error, each telescope's gain (frozen scintillation,
-flat-field), the star's angular diameter (marginalised over a stated prior range, below; the limb
-darkening assumed, not fitted).
+flat-field), the star's angular diameter (fixed at the mean of a stated prior range, below; the
+limb darkening assumed, not fitted).
 
 Block-coordinate: a first offset from the dips (:func:`~cssat.occultation.nuisance.dip_offset`);
 then ``rounds`` times the silhouette on a grid centred on the current offset (the linear solver
@@ -26,10 +26,15 @@ The star's diameter is *not measured* at the default array: its blur (a 2 mas st
 and the silhouette's own grey edges (a grey edge blurs the shadow as a larger star does: both are
 convolutions, which commute with Fresnel propagation); the χ² profile over the diameter moves by
 Δχ² ≈ 1–9 from 0 to 3 mas and the inversion's discretisation (0.2 m pixels, bilinear sampling)
-shifts its minimum to the smallest star. So the diameter is marginalised over the stated prior —
-uniform over the grid ``diameters_m`` — and reported as that prior's mean ± its standard deviation
-(the silhouette fitted at the mean); the profile for the fitted silhouette and its minimum are kept
-as diagnostics (``diameter_profile``, ``diameter_profile_best_m``).
+shifts its minimum to the smallest star. So the diameter is **fixed at the prior's mean** — the
+middle of the grid ``diameters_m`` (1.5 mas for the experiment's [0, 3] mas) — and *not*
+marginalised: the silhouette and the offsets are those for that one star, and their 1σ carry no
+share of the diameter's uncertainty (``diameter_sigma_m`` is 0; ``diameter_treatment`` says
+"fixed at the prior's mean", ``diameter_prior_m`` the range). Marginalising for real — the
+silhouette, nuisances and likelihood at every node of the prior, the results mixed by the
+posterior weights — costs the whole fit once a node (8–16 fits a run) and was not taken. The
+profile for the fitted silhouette and its minimum are kept as diagnostics (``diameter_profile``,
+``diameter_profile_best_m``).
 ``known``: any nuisance handed over (the oracle), as ``offset_m``, ``speed_error``, ``gains``,
 ``diameter_m``.
 """
@@ -83,10 +88,11 @@ def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, 
     the predicted one; ``diameters_m`` the star's diameter grid (m at the satellite's distance).
     Returns ``(mask, info)``, ``info`` an :class:`~cssat.occultation.results.EventFit` (a
     read-only mapping with attributes): ``grid_centre_m`` (east, north), ``offset_m`` and ``offset_cov``
-    (the silhouette's centroid), ``speed_error`` (±σ), ``gains`` (±σ), ``diameter_m`` (the prior's
-    mean ± σ, its range ``diameter_range2_m``; diagnostics ``diameter_profile``,
-    ``diameter_profile_best_m``), ``chi2_per_sample``, the rounds' offsets and the linear solver's
-    first estimate ``linear`` (None without a ``solver``)."""
+    (the silhouette's centroid), ``speed_error`` (±σ), ``gains`` (±σ), ``diameter_m`` (fixed at the
+    prior's mean: ``diameter_sigma_m`` 0, ``diameter_treatment``, the prior's range
+    ``diameter_prior_m``; diagnostics ``diameter_profile``, ``diameter_profile_best_m``),
+    ``chi2_per_sample``, the rounds' offsets and the linear solver's first estimate ``linear``
+    (None without a ``solver``)."""
     y = np.asarray(series, dtype=np.float64)
     s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape).copy()
     P = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
@@ -135,14 +141,14 @@ def invert_event(series: Any, sigma: Any, shape: Sequence[int], pixel_m: float, 
             est["gains"] = nui["gains"]
         history.append(est["offset_m"].copy())
     dia = {"diameter_sigma_m": 0.0, "diameter_range2_m": [est["diameter_m"]] * 2, "diameter_profile": np.zeros(0),
-           "diameter_profile_best_m": est["diameter_m"]}
+           "diameter_profile_best_m": est["diameter_m"],
+           "diameter_treatment": "given" if "diameter_m" in known else "fixed at the prior's mean",
+           "diameter_prior_m": [float(dias.min()), float(dias.max())]}
     if "diameter_m" not in known and len(dias) > 1:
-        # marginalised over the prior (uniform on the grid's range): its mean ± its standard deviation;
-        # the χ² profile for the fitted silhouette is kept as a diagnostic (biased, the module's docstring)
-        lo, hi = float(dias.min()), float(dias.max())
+        # fixed at the prior's mean (not estimated: no σ of its own); the χ² profile for the fitted
+        # silhouette is kept as a diagnostic (biased, the module's docstring)
         prof = nuisances(dias)
-        dia = {"diameter_sigma_m": (hi - lo) / math.sqrt(12), "diameter_range2_m": [lo, hi],
-               "diameter_profile": prof["profile"], "diameter_profile_best_m": prof["diameter_m"]}
+        dia.update(diameter_profile=prof["profile"], diameter_profile_best_m=prof["diameter_m"])
     c, c_sig = mask_centroid(mask, pixel_m)
     across = np.array([-v[1], v[0]]) / speed
     g_sig = gap_sigma(mask, pixel_m, (P - est["offset_m"]) @ across, across, aperture_m)

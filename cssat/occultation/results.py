@@ -12,7 +12,7 @@ import numpy as np
 
 from cssat.results import Result
 
-__all__ = ["EventFit", "SilhouetteFit"]
+__all__ = ["EventFit", "SilhouetteFit", "PriorChoice"]
 
 
 class SilhouetteFit(Result):
@@ -89,3 +89,35 @@ class EventFit(Result):
     def linear(self) -> Any:
         """The linear solver's first silhouette ``(H, W)``, or None."""
         return self._data.get("linear")
+
+
+class PriorChoice(Result):
+    """What :func:`~cssat.occultation.prior.choose_prior` chose: ``used`` (``pixels`` or
+    ``shapes``), ``params (K, 6)`` of the kept superellipses (None for pixels), ``n_shapes`` and
+    ``start`` of the kept candidate (``kept_candidate`` its index), ``chi2_per_sample_shapes``,
+    ``heldout_chi2_pixels``, ``heldout_chi2_shapes`` (summed over the two folds), ``candidates``
+    (one dict per number of shapes and start: ``n_shapes``, ``start``, ``heldout_chi2``,
+    ``chi2_per_sample``, ``area_m2``, ``centroid_east_m``, ``centroid_north_m``),
+    ``candidate_masks (C, H, W)``, ``near_best`` (indices of the candidates within Δχ² = 4 of the
+    lowest held-out χ²) and ``spread`` (their ranges: ``heldout_chi2``, ``area_m2``,
+    ``centroid_east_m``, ``centroid_north_m`` as ``[min, max]``, ``n_near_best``, ``n_shapes``)."""
+
+    required = ("used",)
+    array_keys = ("params", "candidate_masks")
+
+    @property
+    def used(self) -> str:
+        """The prior kept: ``pixels`` or ``shapes``."""
+        return self._data["used"]
+
+    def metrics(self) -> dict[str, Any]:
+        """The choice as flat, JSON-ready metrics (no masks, no parameters)."""
+        d = self._data
+        out = {"prior_used": d["used"]}
+        if d.get("heldout_chi2_pixels") is not None:
+            out["heldout_chi2_pixels"] = d["heldout_chi2_pixels"]
+            out["heldout_chi2_shapes"] = d["heldout_chi2_shapes"]
+        if d.get("candidates"):
+            out.update(n_shapes=d["n_shapes"], shape_start=d["start"], chi2_per_sample_shapes=d["chi2_per_sample_shapes"],
+                       shape_candidates=[dict(c) for c in d["candidates"]], shape_spread=dict(d["spread"]))
+        return out

@@ -32,7 +32,7 @@ from torch import Tensor
 from cssat._checks import FieldError, float_param, int_param
 from cssat.occultation.invert import invert_silhouette, recorded
 
-__all__ = ["render_shapes", "fit_shapes", "shapes_from_mask", "heldout_chi2"]
+__all__ = ["render_shapes", "fit_shapes", "fit_shape_params", "shapes_from_mask", "heldout_chi2"]
 
 
 def render_shapes(params: Any, shape: tuple[int, int], pixel_m: float, *, softness: float = 0.25) -> Tensor:
@@ -92,10 +92,25 @@ def fit_shapes(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, 
     :func:`~cssat.occultation.invert_silhouette`). Returns ``(mask (H, W), params (K, 6),
     info)`` with ``chi2_per_sample``, ``n_shapes``. Raises :class:`~cssat._checks.FieldError`
     (``init_mask``) when the start has no component of ``min_area_m2``."""
-    H, W = (int_param(v, "shape", 1, 1 << 14) for v in shape)
     start = shapes_from_mask(init_mask, pixel_m, min_area_m2=min_area_m2, max_shapes=max_shapes)
     if not len(start):
         raise FieldError("init_mask", f"no component of at least {min_area_m2} m² to start the shapes from")
+    return fit_shape_params(series, sigma, shape, pixel_m, wavelength_m, distance_m, positions_m, velocity_m_s, times_s,
+                            start=start, kernel=kernel, weights=weights, ground=ground, iters=iters, softness=softness)
+
+
+def fit_shape_params(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, wavelength_m: Any, distance_m: float,
+                     positions_m: Any, velocity_m_s: Any, times_s: Any, *, start: Any, kernel: Any = None,
+                     weights: Any = None, ground: Any = None, iters: int = 200,
+                     softness: float = 0.25) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """:func:`fit_shapes` from given starting shapes ``start (K, 6)`` (rows as in
+    :func:`render_shapes`) instead of a pixel mask's components: L-BFGS through the full forward
+    model, edges softened 4× then 2× first, the exponents freed at the last stage. Returns
+    ``(mask (H, W), params (K, 6), info)`` with ``chi2_per_sample`` and ``n_shapes``."""
+    H, W = (int_param(v, "shape", 1, 1 << 14) for v in shape)
+    start = np.asarray(start, dtype=np.float64)
+    if start.ndim != 2 or start.shape[1] != 6 or not len(start) or not np.isfinite(start).all():
+        raise FieldError("start", f"expected finite starting shapes (K ≥ 1, 6), got shape {start.shape}")
     y = torch.as_tensor(np.asarray(series, dtype=np.float64))
     s = torch.as_tensor(np.broadcast_to(np.asarray(sigma, dtype=np.float64), tuple(y.shape)).copy())
     th = torch.tensor(start, requires_grad=True)
