@@ -25,11 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_npz
-from cssat.occultation import (edge_width, event_geometry, feature_contrast, fit_shapes, heldout_chi2, invert_event, iou,
-                               mask_centroid, registered_iou, resample_mask)
+from cssat.occultation import (choose_prior, edge_width, event_geometry, feature_contrast, invert_event, iou, mask_centroid,
+                               registered_iou, resample_mask)
 from cssat.plots import save_figure
 from cssat.plots.occultation import occultation_figures
 
@@ -50,7 +49,7 @@ def solve_event(m: Any, run: Run) -> None:
                                   weights=m.wts_inv, aperture_m=m.D, exposure_s=m.t_exp, limb_darkening=limb,
                                   diameters_m=np.linspace(0.0, m.dia_max, m.n_dia) * mas_m, known=known, solver=m.solver,
                                   tv=m.tv_weight, iters=m.iters, rounds=m.rounds, ground=m.ground, seed=run.seed)
-    m.info, m.linear, m.used, m.shapes = info, info["linear"], "pixels", None
+    m.info, m.linear, m.used, m.shapes, m.candidates = info, info["linear"], "pixels", None, None
     if m.solver is not None:
         m.metrics["solver_linear"] = getattr(m.solver, "name", type(m.solver).__name__)
     m.geo, m.kernel_inv = event_geometry(m.y.numpy(), m.sig.numpy(), (m.size_inv, m.size_inv), m.pixel, m.lams_inv, m.z, m.pos,
@@ -66,22 +65,13 @@ def solve_event(m: Any, run: Run) -> None:
 
 
 def _prior(m: Any, mask: np.ndarray, run: Run) -> np.ndarray:
-    """``shapes``: the union of superellipses; ``auto``: the prior the held-out telescopes prefer."""
-    kw = {"kernel": m.kernel_inv, "weights": m.wts_inv, "ground": m.ground}
-    try:
-        ms, params, sinfo = fit_shapes(*m.geo, init_mask=mask, iters=m.shape_iters, **kw)
-    except FieldError as e:
-        if m.prior == "shapes":
-            raise
-        log.info("occultation: no shapes fitted (%s)", e)
-        return mask
-    m.metrics.update(chi2_per_sample_shapes=sinfo["chi2_per_sample"], n_shapes=sinfo["n_shapes"])
-    if m.prior == "auto":
-        held = heldout_chi2(*m.geo, tv=m.tv_weight, iters=m.iters, shape_iters=m.shape_iters, seed=run.seed, **kw)
-        m.metrics.update(heldout_chi2_pixels=held["pixels"], heldout_chi2_shapes=held["shapes"])
-        if held["shapes"] >= held["pixels"]:
-            return mask
-    m.used, m.shapes = "shapes", params
+    """``shapes``: the union of superellipses (a multi-start over their number and starts, the one
+    held-out telescopes predict best); ``auto``: that or the pixels, as held-out telescopes prefer
+    (:func:`~cssat.occultation.choose_prior`)."""
+    ms, choice = choose_prior(*m.geo, init_mask=mask, prior=m.prior, kernel=m.kernel_inv, weights=m.wts_inv, ground=m.ground,
+                              tv=m.tv_weight, iters=m.iters, shape_iters=m.shape_iters, seed=run.seed)
+    m.metrics.update(choice.metrics())
+    m.used, m.shapes, m.candidates = choice.used, choice["params"], choice["candidate_masks"]
     return ms
 
 
@@ -110,6 +100,7 @@ def _offsets(m: Any) -> dict[str, Any]:
             "centroid_sigma_m": [float(x) for x in info["centroid_sigma_m"]], "gap_sigma_m": info["gap_sigma_m"],
             "speed_error_true": m.eps_true, "speed_error": info["speed_error"], "speed_error_sigma": info["speed_error_sigma"],
             "star_diameter_true_mas": m.diam_mas, "star_diameter_mas": d_est, "star_diameter_sigma_mas": d_sig,
+            "star_diameter": info.get("diameter_treatment"),
             "star_diameter_range2_mas": [x / mas_m for x in info["diameter_range2_m"]],
             "star_diameter_profile_best_mas": info["diameter_profile_best_m"] / mas_m,
             "star_diameter_error_sigmas": sig(d_est - m.diam_mas, d_sig),
@@ -143,6 +134,9 @@ def score_event(m: Any) -> dict[str, Any]:
     m.metrics["silhouette_recovered"] = bool((np.asarray(m.m) >= 0.5).any())  # else the offsets' 1σ is not to be trusted
     if m.linear is not None:
         m.metrics["iou_linear"] = registered(m.linear)["iou"]
+    if m.candidates is not None:  # each shape candidate's IoU, for diagnosis (not known at fit time)
+        for c, mk in zip(m.metrics.get("shape_candidates", []), m.candidates):
+            c["iou"] = registered(mk)["iou"]
     return m.metrics
 
 
