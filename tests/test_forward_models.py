@@ -148,6 +148,61 @@ def test_a_model_whose_declared_needs_the_order_violates_is_refused(tmp_path):
         run_model(Typo(), {}, Run.from_config({}, tmp_path))
 
 
+def test_a_stage_reads_only_the_results_its_model_declares(tmp_path):
+    """``run.result(stage)`` gives a stage what an earlier stage returned, and refuses a stage its
+    model's needs do not declare (the result is there, but reading it is not declared)."""
+    from cssat.experiments.context import Run, StageOrderError
+    from cssat.experiments.forward.base import ForwardModel, run_model
+
+    seen = {}
+
+    class Typed(ForwardModel):
+        needs = {"measure": ("plan",), "solve": ("measure",), "score": ("solve",), "write": ("score",)}
+
+        def plan(self, cfg, run):
+            pass
+
+        def measure(self, run):
+            return [1.0, 2.0]
+
+        def solve(self, run):
+            return sum(run.result("measure"))
+
+        def score(self, run):
+            seen["solve"] = run.result("solve")
+            return {"x": seen["solve"]}
+
+        def write(self, run, metrics):
+            run.result("measure")  # not declared by write: refused
+
+    with pytest.raises(StageOrderError, match=r"stage 'write' reads the result of 'measure', which its model's needs do not"):
+        run_model(Typed(), {}, Run.from_config({}, tmp_path))
+    assert seen == {"solve": 3.0}
+
+
+def test_the_scene_model_hands_on_a_typed_measurement(tmp_path):
+    """The light curve's measure stage returns a SceneMeasured that score and write read: the
+    arrays written are its fields, the magnitudes those of its flux (Pogson, against the Sun's V)."""
+    from cssat.experiments.context import Run
+    from cssat.experiments.forward.base import run_model
+    from cssat.experiments.forward.scene import SceneLightCurve, SceneMeasured
+
+    cfg = cfg_of("experiment=lightcurve", "scenario.n_steps=3", "render.size=8", "threads=1")
+    run = Run.from_config(cfg, tmp_path)
+    metrics = run_model(SceneLightCurve(), cfg, run)
+    m = run.results["measure"]
+    assert isinstance(m, SceneMeasured) and run.results["score"] is metrics
+    a = np.load(tmp_path / "arrays.npz")
+    np.testing.assert_array_equal(a["flux"], m.flux.numpy())
+    np.testing.assert_array_equal(a["flux_pixelwise"], m.pixelwise.numpy())
+    assert m.images.shape == (3, 8, 8) and metrics["n_steps"] == 3
+    lit = m.flux.numpy() > 0
+    from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
+
+    sun_v = -26.74  # the Sun's V magnitude, at SOLAR_IRRADIANCE_W_M2
+    np.testing.assert_allclose(m.magnitude[lit], sun_v - 2.5 * np.log10(m.flux.numpy()[lit] / SOLAR_IRRADIANCE_W_M2), rtol=1e-9)
+
+
 def tiny(name: str) -> list[str]:
     """The experiment at the smoke run's tiny size (``cssat.smoke.TINY``), one thread."""
     from cssat.smoke import TINY

@@ -20,10 +20,15 @@ from cssat._checks import FieldError, choice_param, device_param, dtype_param, f
 if TYPE_CHECKING:
     import torch
 
-__all__ = ["Run", "as_field", "FIGURE_FORMATS"]
+__all__ = ["Run", "as_field", "FIGURE_FORMATS", "StageOrderError"]
 
 #: the figure file formats (``figure_format``)
 FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+class StageOrderError(RuntimeError):
+    """A forward model's stage run before a stage it needs, or reading the result of a stage it
+    does not declare in its model's ``needs``."""
 
 
 @contextmanager
@@ -51,6 +56,9 @@ class Run:
     memory_limit_gb: float | None = None
     seconds: dict[str, float] = field(default_factory=dict)
     stages_done: list[str] = field(default_factory=list)  #: the forward model's stages run so far, in order
+    results: dict[str, Any] = field(default_factory=dict)  #: each stage's result (what its method returned), by stage
+    needs: dict[str, tuple[str, ...]] = field(default_factory=dict)  #: the running model's declared needs
+    current: str | None = None  #: the stage running now
 
     @classmethod
     def from_config(cls, cfg: Any, out_dir: str | Path) -> Run:
@@ -78,6 +86,16 @@ class Run:
             yield
         finally:
             self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - t
+
+    def result(self, stage: str) -> Any:
+        """The result of ``stage`` (what its method returned) for the stage running now, which must
+        declare ``stage`` among its model's ``needs`` (a :class:`StageOrderError` otherwise)."""
+        if self.current is not None and stage not in self.needs.get(self.current, ()):
+            raise StageOrderError(f"stage {self.current!r} reads the result of {stage!r}, which its model's needs do not "
+                                  f"declare ({self.current!r} needs {self.needs.get(self.current, ())!r})")
+        if stage not in self.results:
+            raise StageOrderError(f"the result of {stage!r} is asked for before {stage!r} ran")
+        return self.results[stage]
 
     def add_seconds(self, name: str, value: float) -> None:
         self.seconds[name] = self.seconds.get(name, 0.0) + float(value)

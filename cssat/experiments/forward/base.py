@@ -22,10 +22,13 @@ same stages, run by :func:`run_model` in this order, each timed into ``seconds_<
 ``write``
     ``arrays.npz``, tables and figures.
 
-A model keeps what its stages hand on as attributes of itself and declares, in :attr:`ForwardModel.needs`,
-which earlier stages each stage reads from: :func:`run_model` owns the loop, refuses an order that
-runs a stage before one it needs (:class:`StageOrderError`), the timings and the headline line in
-the log. A new forward model is one subclass and its typed
+A model declares, in :attr:`ForwardModel.needs`, which earlier stages each stage reads from. A
+stage hands on its result by returning it (a typed dataclass: the scene model's
+:class:`~cssat.experiments.forward.scene.SceneMeasured`); a later stage reads it with
+``run.result(stage)``, which refuses a stage its needs do not declare (the other models still keep
+what their stages hand on as attributes of themselves, their needs declared). :func:`run_model`
+owns the loop, refuses an order that runs a stage before one it needs (:class:`StageOrderError`),
+the timings and the headline line in the log. A new forward model is one subclass and its typed
 config registered as ``forward/<name>`` (:func:`cssat.models.register`); an experiment that uses it
 is an overlay in ``conf/experiment/``.
 """
@@ -36,7 +39,7 @@ import logging
 from typing import Any, Mapping
 
 from cssat._checks import FieldError
-from cssat.experiments.context import Run
+from cssat.experiments.context import Run, StageOrderError
 
 __all__ = ["ForwardModel", "run_model", "STAGES", "NEEDS", "StageOrderError", "check_needs"]
 
@@ -48,10 +51,6 @@ STAGES = ("plan", "measure", "estimate", "solve", "score", "write")
 #: what each stage reads by default: what the stage before it handed on (a model declares its own)
 NEEDS: Mapping[str, tuple[str, ...]] = {"plan": (), "measure": ("plan",), "estimate": ("measure",), "solve": ("estimate",),
                                         "score": ("solve",), "write": ("score",)}
-
-
-class StageOrderError(RuntimeError):
-    """A stage about to run before a stage it needs (a model's :attr:`ForwardModel.needs`)."""
 
 
 def check_needs(model: Any) -> dict[str, tuple[str, ...]]:
@@ -124,7 +123,7 @@ def run_model(model: ForwardModel, cfg: Any, run: Run, stages: tuple[str, ...] |
         raise StageOrderError(f"the stages to run {order!r} are not the stages {STAGES!r}")
     names = {"plan": "setup"}
     done: list[str] = []
-    run.stages_done = done
+    run.stages_done, run.needs, run.results = done, needs, {}
     metrics: dict[str, Any] = {}
     for stage in order:
         missing = [s for s in needs[stage] if s not in done]
@@ -133,14 +132,17 @@ def run_model(model: ForwardModel, cfg: Any, run: Run, stages: tuple[str, ...] |
                                   f"(the order: {order!r}; its needs: {needs[stage]!r})")
         method = getattr(model, stage)
         args = {"plan": (cfg, run), "write": (run, metrics)}.get(stage, (run,))
+        run.current = stage
         if stage in model.timed_inside and stage not in ("score", "write"):
             out = method(*args)
         else:
             with run.stage(names.get(stage, stage)):
                 out = method(*args)
+        run.results[stage] = out
         if stage == "score":
             metrics = out
         done.append(stage)
+    run.current = None
     metrics.update(run.timings())
     line = model.headline(metrics)
     if line:

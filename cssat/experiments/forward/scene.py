@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import logging
 import math
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,7 +42,10 @@ from cssat.experiments.resources import check_memory
 from cssat.experiments.scene import build_scenario, read_observations
 from cssat.plots import atmosphere_figure, lightcurve_figure, observations_figure, save_figure
 
-__all__ = ["SceneLightCurve", "memory_parts"]
+if TYPE_CHECKING:
+    import torch
+
+__all__ = ["SceneLightCurve", "SceneMeasured", "memory_parts"]
 
 log = logging.getLogger("cssat")
 
@@ -56,13 +60,30 @@ def memory_parts(n_steps: int, size: int, n_facets: int = 0) -> dict[str, int]:
             "Φ (facet-wise)": f, "Φ ⊙ facets": f, "facet visibility": 2 * f}
 
 
+@dataclass
+class SceneMeasured:
+    """What the scene's ``measure`` stage hands on (``T`` time steps, ``S = render.size``)."""
+
+    scenario: Any  #: the scenario (:class:`cssat.scene.Scenario`, ``T`` steps)
+    flux: torch.Tensor  #: ``(T,)`` the atmosphere-free light curve, W/m²
+    images: torch.Tensor  #: ``(T, S, S)`` the renders, float64, W/m² per pixel
+    fov_m: float  #: the renders' field of view (m)
+    facetwise: torch.Tensor  #: ``(T,)`` the facet-wise attenuated noisy curve (Eq. 11; NaN: none)
+    pixelwise: torch.Tensor  #: ``(T,)`` the pixel-wise attenuated noisy curve (Eq. 12)
+    magnitude: np.ndarray  #: ``(T,)`` the magnitudes of ``flux`` in the ``magnitudes`` band
+    magnitude_facetwise: np.ndarray  #: ``(T,)`` those of ``|facetwise|``
+    magnitude_pixelwise: np.ndarray  #: ``(T,)`` those of ``|pixelwise|``
+    marks: np.ndarray  #: the marked steps (``render.n_images``, spread over the lit part)
+    earthshine: bool  #: whether earthshine was simulated (``auto`` decided)
+
+
 class SceneLightCurve(ForwardModel):
     """A mesh in a scenario, its light curve rendered and attenuated (the module's docstring has the stages)."""
 
     name = "scene"
     timed_inside = ("measure", "estimate", "solve")
     #: nothing is estimated or solved: the magnitudes (score) come from the curves of measure
-    needs = {"measure": ("plan",), "score": ("plan", "measure"), "write": ("measure", "score")}
+    needs = {"measure": ("plan",), "score": ("plan", "measure"), "write": ("plan", "measure", "score")}
 
     def plan(self, cfg: Any, run: Run) -> None:
         self.cfg = cfg
@@ -90,70 +111,76 @@ class SceneLightCurve(ForwardModel):
         check_memory(memory_parts(n_steps, self.size, len(self.mesh.faces)), run.memory_limit_gb,
                      "lower render.size or scenario.n_steps")
 
-    def measure(self, run: Run) -> None:
+    def measure(self, run: Run) -> SceneMeasured:
         import torch  # heavy: torch (~1 s); the module imports without it
 
         from cssat.optics import default_fov, render, simulate_light_curve  # heavy: cssat.optics imports torch
 
         with run.stage("scene"):
-            self.scenario = build_scenario(self.cfg, self.times)
+            scenario = build_scenario(self.cfg, self.times)
         with run.stage("light_curve"):
-            if self.earthshine == "auto":  # decided once, here: the metrics report what was simulated
+            earthshine = self.earthshine
+            if earthshine == "auto":  # decided once, here: the metrics report what was simulated
                 from cssat.optics.lightcurve import earthshine_matters  # heavy: cssat.optics imports torch
 
-                self.earthshine = earthshine_matters(self.scenario)
-            self.lc = simulate_light_curve(self.mesh, self.scenario, shadows=self.shadows, attitude=self.attitude,
-                                           brdf=self.brdf, earthshine=self.earthshine, earth_albedo=self.earth_albedo)
-            self.flux = self.lc.flux
+                earthshine = earthshine_matters(scenario)
+            lc = simulate_light_curve(self.mesh, scenario, shadows=self.shadows, attitude=self.attitude,
+                                      brdf=self.brdf, earthshine=earthshine, earth_albedo=self.earth_albedo)
         with run.stage("render"):  # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
-            self.fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)
-            self.images = render(self.mesh, self.lc.sun, self.lc.observer, self.size, fov_m=self.fov_m,
-                                 brightness=self.lc.facets.to(run.device), dtype=torch.float64, progress=run.progress).cpu()
+            fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)
+            images = render(self.mesh, lc.sun, lc.observer, self.size, fov_m=fov_m,
+                            brightness=lc.facets.to(run.device), dtype=torch.float64, progress=run.progress).cpu()
         with run.stage("atmosphere"):
-            self._attenuate(run)
+            facetwise, pixelwise = self._attenuate(run, lc, images)
+        from cssat.optics import apparent_magnitude, magnitude  # heavy: cssat.optics imports torch
 
-    def _attenuate(self, run: Run) -> None:
-        """The facet-wise (Eq. 11) and pixel-wise (Eq. 12) attenuated noisy curves."""
+        to_mag = apparent_magnitude if self.band is None else (lambda v: magnitude(v, *self.band))
+        mag, mag_f, mag_p = (to_mag(v).numpy() for v in (lc.flux, facetwise.abs(), pixelwise.abs()))
+        return SceneMeasured(scenario, lc.flux, images, fov_m, facetwise, pixelwise, mag, mag_f, mag_p,
+                             _mark_steps(lc.flux.numpy(), self.n_marks), bool(earthshine))
+
+    def _attenuate(self, run: Run, lc: Any, images: Any) -> tuple[Any, Any]:
+        """The facet-wise (Eq. 11) and pixel-wise (Eq. 12) attenuated noisy curves ``(T,)`` of the
+        light curve ``lc`` and its renders ``images (T, S, S)``."""
         import torch  # heavy: torch (~1 s); the module imports without it
 
         from cssat.physics import Measurement  # heavy: cssat.physics imports torch
 
-        atm, noise, seed, flux = self.atm, self.noise, run.seed, self.flux
+        atm, noise, seed, flux = self.atm, self.noise, run.seed, lc.flux
         T = len(flux)
         if getattr(atm, "spatial", False):  # weights over the sky's pixels: no facet-wise form (Eq. 11)
             log.info("lightcurve: the %s atmosphere weights pixels by direction: no facet-wise curve", atm.name)
-            self.facetwise = torch.full_like(flux, float("nan"))
+            facetwise = torch.full_like(flux, float("nan"))
         else:
-            self.facetwise = Measurement(atm.operator(T, self.lc.facets.shape[1], seed=seed, dtype=torch.float64), noise,
-                                         seed=seed + 2).frames(self.lc.facets)
-        self.pixelwise = Measurement(atm.operator(T, self.size * self.size, seed=seed + 1, dtype=torch.float64), noise,
-                                     seed=seed + 3).frames(self.images)
+            facetwise = Measurement(atm.operator(T, lc.facets.shape[1], seed=seed, dtype=torch.float64), noise,
+                                    seed=seed + 2).frames(lc.facets)
+        pixelwise = Measurement(atm.operator(T, self.size * self.size, seed=seed + 1, dtype=torch.float64), noise,
+                                seed=seed + 3).frames(images)
+        return facetwise, pixelwise
 
     def solve(self, run: Run) -> None:
         """Nothing is reconstructed: the light curves are the result."""
 
     def score(self, run: Run) -> dict[str, Any]:
-        from cssat.optics import apparent_magnitude, magnitude  # heavy: cssat.optics imports torch
-
-        to_mag = apparent_magnitude if self.band is None else (lambda v: magnitude(v, *self.band))
-        self.mag, self.mag_f, self.mag_p = (to_mag(v).numpy() for v in (self.flux, self.facetwise.abs(), self.pixelwise.abs()))
-        self.marks = _mark_steps(self.flux.numpy(), self.n_marks)
+        m: SceneMeasured = run.result("measure")
         atm, attitude, brdf = self.atm, self.attitude, self.brdf
-        return {**_metrics(self.scenario, self.mesh, self.flux, self.images, self.mag, self.mag_f, self.mag_p),
+        return {**_metrics(m.scenario, self.mesh, m.flux, m.images, m.magnitude, m.magnitude_facetwise,
+                           m.magnitude_pixelwise),
                 "image_size": self.size, **atm.describe(),
                 **(attitude.describe() if attitude is not None else {"attitude": "nadir"}),
                 **(brdf.describe() if brdf is not None else {"brdf": "mesh"}), **self.noise.describe(), "seed": run.seed,
                 **({"magnitude_band": f"{self.band[0].name} ({self.band[1]})"} if self.band is not None else {}),
-                **({"earthshine_albedo": self.earth_albedo} if self.earthshine else {})}
+                **({"earthshine_albedo": self.earth_albedo} if m.earthshine else {})}
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
-        sc, flux, mag, marks, images = self.scenario, self.flux, self.mag, self.marks, self.images
+        m: SceneMeasured = run.result("measure")
+        sc, flux, mag, marks, images = m.scenario, m.flux, m.magnitude, m.marks, m.images
         minutes = (sc.times - sc.times[0]) / np.timedelta64(1, "m")
         epoch = sc.times[0]
         seconds = (sc.times - epoch) / np.timedelta64(1, "s")
         phase = np.degrees(np.arccos(np.clip((sc.sun_dir * sc.obs_dir).sum(1), -1.0, 1.0)))
         write_npz(run.out_dir / "arrays.npz", times=seconds, epoch_utc=np.array(str(epoch)), minutes=minutes, flux=flux,
-                  flux_facetwise=self.facetwise, flux_pixelwise=self.pixelwise, magnitude=mag, sunlit=sc.sunlit,
+                  flux_facetwise=m.facetwise, flux_pixelwise=m.pixelwise, magnitude=mag, sunlit=sc.sunlit,
                   lit=flux.numpy() > 0, above_horizon=sc.elevation_deg > 0, phase_angle_deg=phase,
                   elevation_deg=sc.elevation_deg, azimuth_deg=sc.azimuth_deg, range_km=sc.range_km,
                   mark_steps=marks, mark_images=images[marks])
@@ -161,16 +188,16 @@ class SceneLightCurve(ForwardModel):
             {"time_utc": f"{np.datetime_as_string(t, unit='s')}Z", "flux_W_m2": float(f), "magnitude": float(mm),
              "phase_angle_deg": float(a), "sunlit": float(s_), "elevation_deg": float(e)}
             for t, f, mm, a, s_, e in zip(sc.times, flux.numpy(), mag, phase, sc.sunlit, sc.elevation_deg)])
-        save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, sc.times, sc.sunlit, self.fov_m),
+        save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, sc.times, sc.sunlit, m.fov_m),
                     run.figure("fig4_lightcurve"))
-        save_figure(atmosphere_figure(minutes, mag, self.mag_f, self.mag_p, getattr(self.atm, "name", ""), epoch=epoch),
-                    run.figure("fig5_atmosphere"))
+        save_figure(atmosphere_figure(minutes, mag, m.magnitude_facetwise, m.magnitude_pixelwise, getattr(self.atm, "name", ""),
+                                      epoch=epoch), run.figure("fig5_atmosphere"))
         if self.observed is not None:
             metrics.update(_compare(self.observed, mag, epoch, run))
 
     def headline(self, metrics: dict[str, Any]) -> str:
         return "lightcurve: %d steps, %s (%d facets), magnitude %.2f..%.2f, eclipse %s-%s, %.1f s" % (
-            len(self.scenario), self.mesh.name, len(self.mesh), metrics["magnitude_min"] or math.nan,
+            metrics["n_steps"], self.mesh.name, len(self.mesh), metrics["magnitude_min"] or math.nan,
             metrics["magnitude_max"] or math.nan, metrics["eclipse_start_utc"], metrics["eclipse_end_utc"],
             sum(v for k, v in metrics.items() if k.startswith("seconds_")))
 
