@@ -233,3 +233,32 @@ def cfg_of(*overrides):
 
     with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
         return compose(config_name="config", overrides=list(overrides))
+
+
+@pytest.mark.parametrize("band", [None, "r"])
+def test_magnitude_errors_become_flux_errors_by_the_derivative(tmp_path, band):
+    """A magnitude's 1σ as a flux's: ``σ_F = |dF/dm| σ_m``, the derivative taken here by a central
+    difference of the reader's own magnitude→flux conversion (files shifted by ±1e-6 mag); and
+    back: the fluxes written with those errors read as a flux file give the magnitudes' 1σ."""
+    from cssat.data import read_light_curve
+
+    rng = np.random.default_rng(8)
+    m = rng.uniform(4.0, 12.0, 20)
+    s = rng.uniform(0.002, 0.2, 20)
+    stamps = [f"2021-01-01T00:00:{i:02d}" for i in range(20)]
+
+    def read(values, errors=None, kind="magnitude", name="lc.csv"):
+        f = tmp_path / name
+        col = "magnitude" if kind == "magnitude" else "flux_W_m2"
+        rows = [f"{t},{v!r}" + ("" if errors is None else f",{e!r}") for t, v, e in zip(stamps, map(float, values),
+                                                                                          map(float, s if errors is None else errors))]
+        f.write_text(f"time_utc,{col}" + ("" if errors is None else f",{col}_err") + "\n" + "\n".join(rows) + "\n")
+        return read_light_curve(f, kind=kind, value_col=col, error_col=None if errors is None else f"{col}_err", band=band)
+
+    lc = read(m, s)
+    h = 1e-6
+    dF_dm = (read(m + h, name="hi.csv").fluxes() - read(m - h, name="lo.csv").fluxes()) / (2 * h)
+    np.testing.assert_allclose(lc.flux_errors(), np.abs(dF_dm) * s, rtol=1e-6)
+    back = read(lc.fluxes(), lc.flux_errors(), kind="flux", name="flux.csv")
+    np.testing.assert_allclose(back.magnitude_errors(), s, rtol=1e-9)
+    np.testing.assert_allclose(back.magnitudes(), m, rtol=0, atol=1e-9)
