@@ -80,9 +80,11 @@ def test_the_spin_search_finds_the_pole_and_the_sidereal_period(spin_case):
     sol, (ra, dec, period), *_ = spin_case
     assert _separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (ra, dec)) < 3.0, sol
     assert abs(sol.period_s / period - 1) < 1e-5, sol
-    assert abs(sol.period_s - period) < 3 * sol.period_err_s and sol.pole_err_deg < 5.0  # its 1σ covers the error
+    assert abs(sol.period_s - period) < 3 * sol.period_err_s  # its 1σ covers the error
     assert abs(sol.synodic["period_s"] / period - 1) > 1e-4  # the light curve's own period is the synodic one
-    assert sol.pole_err_deg > 0 and sol.period_err_s > 0 and not sol.ambiguous
+    assert sol.period_err_s > 0 and not sol.ambiguous
+    # noise-free, no sigma: nothing to test the model against, so no pole 1σ is reported
+    assert sol.verdict == "unreliable" and "sigma" in sol.verdict_why and math.isnan(sol.pole_err_deg)
 
 
 def test_the_fitted_spin_predicts_a_night_held_out(spin_case):
@@ -184,6 +186,9 @@ def test_the_experiment_inverts_its_own_light_curve_file(tmp_path, inversion_sim
     # the same fit (NNLS's support may differ in atoms of negligible area)
     assert np.allclose(ea["model"], eb["model"], rtol=1e-5) and ea["areas"].sum() == pytest.approx(eb["areas"].sum(), rel=1e-5)
     assert "egi_recovered_share" not in b  # no truth for a measured curve
+    # the EGI in m²: the flux per unit irradiance and range (W/m² × r² / I₀, r in metres) recovers the
+    # true facets' total area within a factor 2 (Lambert assumed, a glinting, shadowed truth: 13 of 16 m²)
+    assert 0.5 < ea["areas"].sum() / ea["true_areas"].sum() < 2.0, (ea["areas"].sum(), ea["true_areas"].sum())
     saved = json.loads((tmp_path / "obs" / "metrics.json").read_text())
     assert saved["status"] == "ok" and "pole_error_deg" not in saved
 

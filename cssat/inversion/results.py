@@ -296,7 +296,25 @@ class SpinSolution(Result):
         keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "lon_err_deg", "lat_err_deg", "pole_err_deg", "period_err_s",
                 "formal_pole_err_deg", "grid_pole_shift_deg", "split_pole_err_deg", "split_period_err_s", "chi2",
                 "reduced_chi2", "model_fits", "ambiguous", "frame")
-        return {f"spin_{k}": self._data[k] for k in keys}
+        out = {f"spin_{k}": self._data[k] for k in keys}
+        # the verdict (estimate_spin step 6), where the solution has one
+        out.update({f"spin_{k}": self._data[k] for k in ("verdict", "verdict_why", "heldout_chi2", "heldout_n",
+                                                           "heldout_threshold", "laplace_pole_err_deg") if k in self._data})
+        prof = self._data.get("pole_interval")
+        if prof:  # the profile-likelihood region's radii (estimate_spin step 7)
+            out.update(spin_pole_radius_68_deg=prof["radius_68_deg"], spin_pole_radius_95_deg=prof["radius_95_deg"])
+        return out
+
+    @property
+    def verdict(self) -> str | None:
+        """``"reliable"`` or ``"unreliable"`` (:func:`~cssat.inversion.estimate_spin` step 6: the
+        model tested on held-out data against the noise); when unreliable the pole's 1σ are NaN."""
+        return self._data.get("verdict")
+
+    @property
+    def verdict_why(self) -> str | None:
+        """The verdict's reason, one sentence."""
+        return self._data.get("verdict_why")
 
     def __repr__(self) -> str:
         d = self._data
@@ -359,7 +377,20 @@ class TumblingSolution(Result):
         out = self.state.describe()
         out.update(tumble_chi2=d["chi2"], tumble_reduced_chi2=d["reduced_chi2"], tumble_model_fits=d["model_fits"],
                    tumble_ambiguous=d["ambiguous"], **{f"tumble_err_{k}": v for k, v in d["errors"].items()})
+        out.update({f"tumble_{k}": d[k] for k in ("verdict", "verdict_why", "heldout_chi2", "heldout_n", "heldout_threshold",
+                                                  "L_interval") if k in d})
         return out
+
+    @property
+    def verdict(self) -> str | None:
+        """``"reliable"`` or ``"unreliable"`` (:func:`~cssat.inversion.estimate_tumbling` step 5);
+        when unreliable the 1σ of ``L`` are NaN."""
+        return self._data.get("verdict")
+
+    @property
+    def verdict_why(self) -> str | None:
+        """The verdict's reason, one sentence."""
+        return self._data.get("verdict_why")
 
     def __repr__(self) -> str:
         s, d = self.state, self._data

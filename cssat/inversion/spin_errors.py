@@ -30,17 +30,8 @@ def _spin_errors(fine: Any, lon: float, lat: float, f: float, chi2: float, span:
     the formal Gauss–Newton 1σ ``(3,)`` of ``(λ, β, f)`` with the support's areas, the reduced χ²
     and the covariance's scale (the reduced χ², at least 1 when ``weighted``)."""
     a, _ = fine.solve(lon, lat, f)
-    A = fine.matrix(lon, lat, f) * fine.w[:, None]
     sup = a > 1e-9 * max(float(a.max()), 1e-300)
-    h = np.array([1e-3, 1e-3, 1e-3 / (360.0 * span)])
-    cols = []
-    for i in range(3):
-        x_hi, x_lo = np.array([lon, lat, f]), np.array([lon, lat, f])
-        x_hi[i] += h[i]
-        x_lo[i] -= h[i]
-        x_hi[1], x_lo[1] = min(x_hi[1], 90.0), max(x_lo[1], -90.0)
-        cols.append((fine.matrix(*x_hi) - fine.matrix(*x_lo)) @ a * fine.w / (x_hi[i] - x_lo[i]))
-    J = np.column_stack(cols + [A[:, sup]])
+    J = _spin_jacobian(fine, lon, lat, f, a, sup, span)
     dof = max(len(fine.t) - J.shape[1], 1)
     red = chi2 / dof
     scale2 = max(red, 1.0) if weighted else red
@@ -80,3 +71,157 @@ def _night_split(search: Any, t: np.ndarray, y: np.ndarray, S: np.ndarray, O: np
             "split_period_err_s": float(np.sqrt(np.sum((P - P.mean()) ** 2) / (g * (g - 1)))),
             "split_poles": [{"pole_lon_deg": s_.pole_lon_deg, "pole_lat_deg": s_.pole_lat_deg, "period_s": s_.period_s,
                              "separation_deg": _separation_deg((lon, lat), (s_.pole_lon_deg, s_.pole_lat_deg))} for s_ in sols]}
+
+
+#: the tail probability of the held-out test: a model whose held-out χ² is above its (1 − α)
+#: quantile under "the model is right and the noise is the stated σ" is called unreliable
+HELDOUT_ALPHA = 1e-3
+
+
+def _spin_jacobian(fit: Any, lon: float, lat: float, f: float, a: np.ndarray, sup: np.ndarray, span: float) -> np.ndarray:
+    """The whitened Jacobian ``(T, 3 + S)`` of the EGI model on ``fit``'s samples in ``(λ, β, f)``
+    (central differences) and the support's ``S`` areas: the columns of :func:`_spin_errors`."""
+    A = fit.matrix(lon, lat, f) * fit.w[:, None]
+    h = np.array([1e-3, 1e-3, 1e-3 / (360.0 * span)])
+    cols = []
+    for i in range(3):
+        x_hi, x_lo = np.array([lon, lat, f]), np.array([lon, lat, f])
+        x_hi[i] += h[i]
+        x_lo[i] -= h[i]
+        x_hi[1], x_lo[1] = min(x_hi[1], 90.0), max(x_lo[1], -90.0)
+        cols.append((fit.matrix(*x_hi) - fit.matrix(*x_lo)) @ a * fit.w / (x_hi[i] - x_lo[i]))
+    return np.column_stack(cols + [A[:, sup]])
+
+
+def heldout_threshold(J_fit: np.ndarray, J_held: np.ndarray, alpha: float = HELDOUT_ALPHA) -> dict[str, float]:
+    """The held-out χ² a right model reaches at the stated noise, and its ``1 − alpha`` quantile.
+
+    With white Gaussian noise of the stated σ and a right model, the held-out residual is the
+    held-out noise less the prediction error of the fitted parameters: ``r = e_h − J_h δ``, ``δ ~
+    N(0, C)``, ``C = (J_fᵀ J_f)⁺`` (``J_fit (n_f, p)``, ``J_held (n_h, p)``: the whitened
+    Jacobians of the model on the fitted and held-out samples). Its χ² ``rᵀr`` is then a
+    generalised χ², ``χ²_{n_h − r} + Σᵢ (1 + λᵢ) zᵢ²`` with ``λᵢ`` the ``r`` non-zero
+    eigenvalues of ``P = J_h C J_hᵀ`` (those of ``C^{1/2} J_hᵀ J_h C^{1/2}``, ``p × p``): mean
+    ``n_h + tr P``. Its quantile: the 20 largest weights drawn exactly, the rest (weights near
+    1) as Satterthwaite's scaled χ² of the same mean and variance, 200,000 draws of a fixed seed
+    (the quantile to ~1 %). Returns ``mean``, ``threshold`` (the quantile) and ``leverage``
+    (``tr P``), in units of χ² (divide by ``n_h`` for the reduced χ²)."""
+    n_h = J_held.shape[0]
+    ev, V = np.linalg.eigh(J_fit.T @ J_fit)
+    keep = ev > ev.max() * 1e-12 if ev.size and ev.max() > 0 else np.zeros(ev.shape, bool)
+    half = V[:, keep] / np.sqrt(ev[keep])  # C^{1/2} on the fitted parameters' range
+    Q = half.T @ (J_held.T @ J_held) @ half
+    lam = np.clip(np.linalg.eigvalsh((Q + Q.T) / 2), 0.0, None)[::-1][:min(n_h, Q.shape[0])]
+    big, small = lam[:20], lam[20:]
+    wts = np.concatenate([1.0 + small, np.ones(max(n_h - len(lam), 0))])  # the weights ~1: Satterthwaite
+    rng = np.random.default_rng(12345)
+    m = 200_000
+    draws = (1.0 + big) @ rng.standard_normal((len(big), m)) ** 2 if big.size else np.zeros(m)
+    if wts.size:
+        k, nu = float((wts ** 2).sum() / wts.sum()), float(wts.sum() ** 2 / (wts ** 2).sum())
+        draws = draws + k * rng.chisquare(nu, m)
+    return {"mean": float(n_h + lam.sum()), "threshold": float(np.quantile(draws, 1.0 - alpha)),
+            "leverage": float(lam.sum())}
+
+
+def judge(chi2_held: float | None, n_held: int, threshold: float | None, *, chi2_fit: float, n_fit: int,
+          fit_threshold: float | None, sigma_given: bool, what: str) -> tuple[str, str]:
+    """``(verdict, why)``: ``"reliable"`` when the model predicts data it was not fitted to
+    within what the noise allows (``chi2_held`` of ``n_held`` samples at most ``threshold``, from
+    :func:`heldout_threshold`), ``"unreliable"`` otherwise — and when it cannot be tested: no
+    noise level given, or no held-out data and a fitted χ² above ``fit_threshold`` (without
+    held-out data a fit that passes is called reliable with the caveat in ``why``: a flexible
+    model can pass the fitted samples' test by overfitting). ``what``: the quantity whose 1σ
+    is at stake, for the sentence."""
+    if not sigma_given:
+        return "unreliable", (f"no noise level (sigma) was given, so the model cannot be tested against the noise: "
+                              f"{what}'s 1σ is not reported")
+    if chi2_held is not None and n_held > 0:
+        red, lim = chi2_held / n_held, threshold / n_held
+        if chi2_held > threshold:
+            return "unreliable", (f"the model predicts the {n_held} held-out samples at χ²/n {red:.3g}, above the "
+                                  f"{lim:.3g} the noise allows (p < {HELDOUT_ALPHA:g}): the model does not describe "
+                                  f"this object, so {what} may be wrong by more than any 1σ and none is reported")
+        return "reliable", (f"the model predicts the {n_held} held-out samples at χ²/n {red:.3g}, within the {lim:.3g} "
+                            f"the noise allows")
+    red = chi2_fit / max(n_fit, 1)
+    if fit_threshold is not None and chi2_fit > fit_threshold:
+        return "unreliable", (f"the model misses its own fitted samples (χ²/ν {red:.3g}, above the "
+                              f"{fit_threshold / max(n_fit, 1):.3g} the noise allows) and no data were held out: "
+                              f"{what}'s 1σ is not reported")
+    return "reliable", (f"no data were held out; the fitted samples' χ²/ν {red:.3g} is within the noise, a test a "
+                        f"flexible model can pass by overfitting")
+
+
+#: Δχ² of a 2-parameter (the pole's) profile-likelihood region holding 68.27 % and 95.45 %
+POLE_DELTA_CHI2 = {"68": 2.2957, "95": 6.1801}
+
+
+def _offset_pole(lon: float, lat: float, bearing_deg: float, dist_deg: float) -> tuple[float, float]:
+    """The pole ``dist_deg`` from ``(lon, lat)`` along the great circle at ``bearing_deg``."""
+    p = _pole_vector(lon, lat)
+    east = np.array([-np.sin(np.radians(lon)), np.cos(np.radians(lon)), 0.0])
+    north = np.cross(p, east)
+    b, d = np.radians(bearing_deg), np.radians(dist_deg)
+    q = np.cos(d) * p + np.sin(d) * (np.cos(b) * north + np.sin(b) * east)
+    return float(np.degrees(np.arctan2(q[1], q[0]))), float(np.degrees(np.arcsin(np.clip(q[2], -1, 1))))
+
+
+def profile_chi2(chi2_fn: Any, lon: float, lat: float, f0: float, span: float, width: float = 0.05) -> tuple[float, float]:
+    """The pole's profile χ² at ``(lon, lat)``: ``min_f chi2_fn(lon, lat, f)`` (bounded Brent
+    over ``f0 ± width/span`` Hz; the EGI's areas are profiled inside ``chi2_fn`` by NNLS).
+    Returns ``(χ², f)``."""
+    from scipy.optimize import minimize_scalar  # heavy: scipy.optimize, only here
+
+    res = minimize_scalar(lambda df: chi2_fn(lon, lat, f0 + df / span), bounds=(-width, width), method="bounded",
+                          options={"xatol": 1e-5})
+    return float(res.fun), float(f0 + res.x / span)
+
+
+def pole_profile_interval(chi2_fn: Any, lon: float, lat: float, f: float, span: float, scale: float,
+                          n_dirs: int = 8, start_deg: float = 0.05, max_deg: float = 30.0) -> dict[str, Any]:
+    """The pole's profile-likelihood region about the minimum ``(lon, lat, f)`` of ``chi2_fn(λ, β,
+    f)``: along ``n_dirs`` bearings, the distance at which the profile ``Δχ²/scale`` (``scale``:
+    the reduced χ² where above 1) reaches 1, 2.30 and 6.18 (the 68.27 % and 95.45 % regions of
+    two parameters), found by doubling the step from ``start_deg`` and interpolating
+    ``√Δχ²`` linearly (exact for a cone, the profile's kinked minimum, and for a paraboloid
+    between the bracketing steps to their ratio). A profile lower than the minimum on the way
+    moves the minimum there (``moved_deg``) and the search restarts once. Returns ``radius_1_deg
+    (n_dirs,)``, ``radius_68_deg``, ``radius_95_deg`` (their largest over the bearings),
+    ``pole_err_deg`` (the radial 1σ, ``√(2 mean ρ₁²)``: for an elliptical profile of Δχ² = 1
+    half-axes ``a, b``, ``√(2ab)``; ``√(σ_λ² cos²β + σ_β²)`` of a circular Gaussian), the
+    minimum's ``chi2``, ``lon``, ``lat``, ``f`` and ``evaluations``."""
+    n_eval = [0]
+
+    def fn(lo, la, ff):
+        n_eval[0] += 1
+        return chi2_fn(lo, la, ff)
+
+    c0, f = profile_chi2(fn, lon, lat, f, span)
+    moved = 0.0
+    for _restart in range(2):
+        radii = {k: np.full(n_dirs, np.nan) for k in ("1", "68", "95")}
+        better = None
+        for i, b in enumerate(np.arange(n_dirs) * 360.0 / n_dirs):
+            prev_d, prev_q, d = 0.0, 0.0, start_deg
+            while d <= max_deg:
+                lo, la = _offset_pole(lon, lat, b, d)
+                c, fb = profile_chi2(fn, lo, la, f, span)
+                if c < c0 - 1e-9 * max(abs(c0), 1.0) and (better is None or c < better[0]):
+                    better = (c, lo, la, fb)
+                q = np.sqrt(max(c - c0, 0.0) / scale)
+                for k, lvl in (("1", 1.0), ("68", POLE_DELTA_CHI2["68"]), ("95", POLE_DELTA_CHI2["95"])):
+                    if np.isnan(radii[k][i]) and q >= np.sqrt(lvl):
+                        radii[k][i] = prev_d + (d - prev_d) * (np.sqrt(lvl) - prev_q) / max(q - prev_q, 1e-300)
+                if q >= np.sqrt(POLE_DELTA_CHI2["95"]):
+                    break
+                prev_d, prev_q, d = d, q, 2 * d
+        if better is None:
+            break
+        moved += separation_deg((lon, lat), better[1:3])
+        c0, lon, lat, f = better
+    r1 = np.where(np.isnan(radii["1"]), max_deg, radii["1"])
+    return {"radius_1_deg": r1.tolist(), "radius_68_deg": float(np.nanmax(np.where(np.isnan(radii["68"]), max_deg, radii["68"]))),
+            "radius_95_deg": float(np.nanmax(np.where(np.isnan(radii["95"]), max_deg, radii["95"]))),
+            "pole_err_deg": float(np.sqrt(2 * np.mean(r1 ** 2))), "chi2": float(c0), "lon": float(lon), "lat": float(lat),
+            "f": float(f), "moved_deg": float(moved), "evaluations": int(n_eval[0]), "scale": float(scale)}

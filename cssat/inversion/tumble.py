@@ -21,7 +21,7 @@ import numpy as np
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import TumblingSolution
-from cssat.inversion.tumble_fit import _alternatives, _continuation, _errors, _refine
+from cssat.inversion.tumble_fit import _alternatives, _check_tumble, _continuation, _errors, _refine
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
 
@@ -38,7 +38,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
                       n_pairs: int = 3, screen_moments: int = 6, screen_poles: int = 20, n_screen: int = 24, n_starts: int = 8,
                       n_refine: int = 4, coarse_normals: int = 64, coarse_samples: int = 160, mid_normals: int = 150,
                       mid_samples: int = 400, n_normals: int = 600, max_samples: int = 1200, growth: float = 3.0,
-                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60) -> TumblingSolution:
+                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, heldout: Any = None) -> TumblingSolution:
     """The torque-free tumbling state (:class:`TumblingState`) and EGI of an object from its light
     curve ``flux (T,)`` at ``times_s (T,)``, the Sun and observer directions ``sun``, ``obs (T, 3)``
     (inertial unit vectors from the object), ``sigma`` its 1σ, ``brdf`` (default Lambert): the
@@ -72,6 +72,13 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        stay coherent while the span grows) up to every sample, then fitted on ``max_samples``
        samples and ``n_normals`` normals (``final_fev``).
     4. 1σ by Gauss–Newton and the EGI grid's bias (:class:`TumblingSolution`).
+    5. The verdict (``verdict``, ``verdict_why``, as :func:`~cssat.inversion.estimate_spin`'s
+       step 6): ``heldout = (times_s, flux, sun, obs, sigma)`` predicted and its χ² tested against
+       what a right model reaches at the noise (the ``1 − 10⁻³`` quantile of
+       :func:`~cssat.inversion.spin_errors.heldout_threshold`); without it the fitted samples'
+       χ²; without ``sigma`` unreliable. When unreliable the 1σ of ``L`` (``L_err_deg``,
+       ``L_lon_deg``, ``L_lat_deg``, ``formal_L_err_deg``, ``grid_L_shift_deg`` in ``errors``)
+       are NaN.
 
     Assumptions: torque-free rigid rotation (no damping, no torques) over the span, a convex body
     (no self-shadowing), one BRDF shape, samples dense enough to resolve the light curve's
@@ -133,6 +140,11 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     a, chi2 = final.solve(state)
     # 4. 1σ: Gauss–Newton on the eight numbers and the support's areas, and the EGI grid's bias
     errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev)
+    # 5. the verdict: the model tested on held-out data against the noise; no 1σ of L when unreliable
+    check = _check_tumble(final, state, x, a, sup, chi2, span, sig, heldout)
+    if check["verdict"] == "unreliable":
+        errors.update({k: float("nan") for k in ("L_lon_deg", "L_lat_deg", "L_err_deg", "formal_L_err_deg",
+                                                 "grid_L_shift_deg")})
     alts = _alternatives(cur[1:], x, chi2, red, state)
     full = _TFit(t, y, w, S, O, fine_N, brdf)
     resid = y - full.matrix(state) @ a
@@ -144,6 +156,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
                             residual=resid, errors=errors, lattice_hz=np.asarray(lattice),
                             frequency_pairs=[(1 / fw, 1 / fp) for fw, fp in pairs], alternatives=alts,
                             ambiguous=any(al["delta_chi2"] < 9 and al["separation_deg"] > 10 for al in alts), brdf=brdf,
+                            **check,
                             coarse=[{"chi2": float(r[0]), "P_omega_s": float(1 / r[1][2]), "P_phi_s": float(1 / r[1][3]),
                                      "i1": float(r[1][0]), "i2": float(r[1][1])} for r in table[:20]])
 

@@ -73,14 +73,12 @@ def _continuation(samples: tuple, cur: list[tuple], arc_s: float, growth: float,
     return cur
 
 
-def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float,
-                   weighted: bool) -> tuple[np.ndarray, float, np.ndarray]:
-    """Gauss–Newton on the eight numbers ``x (8,)`` and the support's areas of the EGI ``a (K,)``:
-    the 1σ ``(8,)`` (scaled by the reduced χ² — when above 1 if ``weighted``), the reduced χ² and
-    the support ``(K,)`` (bool)."""
+def _tumble_jacobian(fit: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, sup: np.ndarray,
+                     span: float) -> np.ndarray:
+    """The whitened Jacobian ``(T, 8 + S)`` of the EGI model on ``fit``'s samples in the eight
+    numbers ``x (8,)`` (central differences) and the support's ``S`` areas of ``a (K,)``."""
     t_ref, frame = state.t_ref_s, state.frame
-    sup = a > 1e-9 * max(float(a.max()), 1e-300)
-    A = final.matrix(state) * final.w[:, None]
+    A = fit.matrix(state) * fit.w[:, None]
     h = np.array([1e-4, 1e-4, 1e-4 / (360 * span), 1e-4 / (360 * span), 1e-4 / (360 * x[2]), 1e-3, 1e-3, 1e-3])
     cols = []
     for i in range(8):
@@ -89,10 +87,54 @@ def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndar
         lo[i] -= h[i]
         s_hi, s_lo = (TumblingState.from_vector(v, state.alpha, t_ref, frame) for v in (hi, lo))
         if s_hi is None or s_lo is None:
-            cols.append(np.zeros(len(final.t)))
+            cols.append(np.zeros(len(fit.t)))
             continue
-        cols.append((final.matrix(s_hi) - final.matrix(s_lo)) @ a * final.w / (2 * h[i]))
-    J = np.column_stack(cols + [A[:, sup]])
+        cols.append((fit.matrix(s_hi) - fit.matrix(s_lo)) @ a * fit.w / (2 * h[i]))
+    return np.column_stack(cols + [A[:, sup]])
+
+
+def _check_tumble(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, sup: np.ndarray, chi2: float,
+                  span: float, sig: Any, heldout: Any) -> dict[str, Any]:
+    """``estimate_tumbling``'s verdict on ``state`` with the EGI ``a`` (support ``sup``) fitted on
+    ``final``: the ``heldout = (times_s, flux, sun, obs, sigma)`` data predicted and tested against
+    the noise (:func:`~cssat.inversion.spin_errors.heldout_threshold`, :func:`~cssat.inversion.spin_errors.judge`),
+    else the fitted samples' χ²: the keys ``verdict``, ``verdict_why``, ``heldout_chi2``,
+    ``heldout_n``, ``heldout_threshold``."""
+    from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only here
+
+    from cssat._checks import FieldError
+    from cssat.inversion.spin import _check_light_curve  # heavy: cssat.inversion.spin imports torch
+    from cssat.inversion.spin_errors import HELDOUT_ALPHA, heldout_threshold, judge
+
+    out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
+    J_fit = _tumble_jacobian(final, state, x, a, sup, span)
+    if heldout is not None and sig is not None:
+        try:
+            th, yh, Sh, Oh, sh = heldout
+        except (TypeError, ValueError) as e:
+            raise FieldError("heldout", "expected (times_s, flux, sun, obs, sigma): the held-out samples, their Sun and "
+                                        "observer directions and the flux's 1σ") from e
+        if sh is None:
+            raise FieldError("heldout", "the held-out samples need their sigma (the flux's 1σ) to be tested")
+        th, yh, Sh, Oh, wh, _ = _check_light_curve(th, yh, Sh, Oh, sh)
+        held = _TFit(th, yh, wh, Sh, Oh, final.N, final.brdf)
+        r = (yh - held.matrix(state) @ a) * wh
+        lim = heldout_threshold(J_fit, _tumble_jacobian(held, state, x, a, sup, span))
+        out.update(heldout_chi2=float(r @ r), heldout_n=int(len(th)), heldout_threshold=lim["threshold"])
+    dof = max(len(final.t) - J_fit.shape[1], 1)
+    verdict, why = judge(out["heldout_chi2"], out["heldout_n"], out["heldout_threshold"], chi2_fit=chi2, n_fit=dof,
+                         fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sig is not None,
+                         what="the angular momentum's direction")
+    return {"verdict": verdict, "verdict_why": why, **out}
+
+
+def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float,
+                   weighted: bool) -> tuple[np.ndarray, float, np.ndarray]:
+    """Gauss–Newton on the eight numbers ``x (8,)`` and the support's areas of the EGI ``a (K,)``:
+    the 1σ ``(8,)`` (scaled by the reduced χ² — when above 1 if ``weighted``), the reduced χ² and
+    the support ``(K,)`` (bool)."""
+    sup = a > 1e-9 * max(float(a.max()), 1e-300)
+    J = _tumble_jacobian(final, state, x, a, sup, span)
     dof = max(len(final.t) - J.shape[1], 1)
     red = chi2 / dof
     cov = np.linalg.pinv(J.T @ J)[:8, :8] * (max(red, 1.0) if weighted else red)
