@@ -241,18 +241,22 @@ class EGILightCurve(ForwardModel):
         args = (self.t[fit], self.y[fit], self.sun_in[fit], self.obs_in[fit])
         kw = dict(sigma=None if sigma is None else sigma[fit], brdf=self.model_brdf, frame=getattr(self.attitude, "frame", "ecliptic"))
         self.sol = sol = None
+        held = self.held if sigma is not None and self.held.any() else None  # the nights held out test the model
+        heldout = None if held is None else (self.t[held], self.y[held], self.sun_in[held], self.obs_in[held], sigma[held])
         if spin_mode == "search":
-            self.sol = sol = estimate_spin(*args, **kw, n_normals=self.search_normals, **self.search)
+            self.sol = sol = estimate_spin(*args, **kw, n_normals=self.search_normals, heldout=heldout, **self.search)
             frames = sol.frames(self.t)
             self.metrics.update(sol.describe())
             self.metrics["spin_synodic_period_s"] = float(sol.synodic["period_s"])
         elif spin_mode == "tumbling":
-            self.sol = sol = estimate_tumbling(*args, **kw, **self.tumble)
+            self.sol = sol = estimate_tumbling(*args, **kw, heldout=heldout, **self.tumble)
             frames = sol.frames(self.t)
             self.metrics.update(sol.describe())
         else:
             frames = self.true_frames
-        if sol is not None and sol.model_fits is False:
+        if sol is not None and sol.get("verdict") == "unreliable":
+            log.warning("inversion: unreliable — %s", sol["verdict_why"])
+        elif sol is not None and sol.model_fits is False:
             kind, what, err = (("spin", "the pole's", sol.pole_err_deg) if spin_mode == "search"
                                else ("tumbling", "the angular momentum's", sol.errors["L_err_deg"]))
             log.warning("inversion: the %s model misses the light curve by more than its noise (reduced χ² %.3g): "
