@@ -48,10 +48,11 @@ def build(node: Any, field: str, *, optional: dict[str, Any] | None = None, **kw
     if isinstance(node, DictConfig):
         node = OmegaConf.to_container(node, resolve=True)
     settings = {k: build(v, f"{field}.{k}") if _is_node(v) else v for k, v in node.items() if k != "_target_"}
+    name = node["_target_"]
     try:
-        target = get_method(node["_target_"])
+        target = get_method(name)
     except Exception as err:
-        raise FieldError(f"{field}._target_", f"cannot import {node['_target_']!r}: {err}") from None
+        raise FieldError(f"{field}._target_", f"cannot import {name!r}: {err}") from None
     if optional:
         kwargs.update({k: v for k, v in optional.items() if _takes(target, k) and k not in settings})
     try:
