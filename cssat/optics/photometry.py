@@ -43,7 +43,7 @@ SUN_MAGNITUDE_V = -26.74  # apparent V magnitude of the Sun at 1 AU
 #: the specular term of Eq. 8–9 (:func:`facet_brightness`, :class:`cssat.optics.PaperBRDF`) when
 #: none is asked for: ``"paper"`` (the paper's Eq. 9, ≈11× a flat mirror's energy over the Sun's
 #: disk) or ``"physical"`` (a real mirror of reflectance ``C_s`` reflecting the Sun's disk)
-DEFAULT_GLINT = "paper"
+DEFAULT_GLINT = "physical"
 GLINT_CHOICES = ("paper", "physical")
 
 
