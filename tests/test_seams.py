@@ -49,6 +49,8 @@ SEARCHED = ["inversion.spin=search", "inversion.n_poles=8", "inversion.n_starts=
 READ_FLUX = ["observed.kind=flux", "observed.value_col=flux_W_m2", "observed.error_col=flux_err_W_m2"]
 #: the metrics of the fits (the spin search, the EGI, the box-wing, the geometry's observability)
 FITTED = ("spin_", "lc_", "egi_", "inversion_", "parametric_", "convex_fit_", "fit_", "observability_", "shape_volume")
+#: what tests a fit on the held-out nights (estimate_spin's verdict) and the 1σ it withholds when unreliable
+VERDICT = ("heldout", "verdict", "err_deg", "pole_interval")
 
 
 def test_no_held_out_sample_enters_any_fit(tmp_path, inversion_sim):
@@ -56,7 +58,8 @@ def test_no_held_out_sample_enters_any_fit(tmp_path, inversion_sim):
     a measured light curve whose held-out night is changed wildly (fluxes ×0.05–20, errors ×7)
     gives bit-identical fits — the searched spin, the EGI's normals and areas, the box-wing, the
     model on every sample (a prediction from the fit and the geometry alone) — while the
-    held-out residuals change (the changed samples were read)."""
+    held-out residuals and the spin's verdict on the held-out night change (the changed samples
+    were read, by what tests the fit and by nothing that makes it)."""
     from cssat.experiments import run_experiment
     from conftest import cfg_of
 
@@ -74,11 +77,16 @@ def test_no_held_out_sample_enters_any_fit(tmp_path, inversion_sim):
     np.testing.assert_array_equal(fa["flux"][~held], fb["flux"][~held])
     for key in ("normals", "areas", "sun_body", "obs_body", "model", "singular_values", "leverage"):
         np.testing.assert_array_equal(fa[key], fb[key], err_msg=key)
-    fitted = sorted(k for k in a if k.startswith(FITTED))
-    assert {"spin_pole_lon_deg", "spin_period_s", "egi_area_m2", "fit_rms", "parametric_a"} <= set(fitted)
+    # the held-out nights test the fitted spin (its verdict, and the 1σ a verdict of "unreliable"
+    # withholds): those keys read them; every other key of a fit must not
+    fitted = sorted(k for k in a if k.startswith(FITTED) and not any(w in k for w in VERDICT))
+    assert {"spin_pole_lon_deg", "spin_pole_lat_deg", "spin_period_s", "spin_chi2", "egi_area_m2", "fit_rms",
+            "parametric_a"} <= set(fitted)
     changed = {k: (a[k], b.get(k)) for k in fitted if not (a[k] == b.get(k) or a[k] != a[k] and b.get(k) != b.get(k))}
     assert not changed, changed
     assert a["heldout_rms"] != b["heldout_rms"]
+    if "spin_heldout_n" in a:  # the verdict read the held-out night
+        assert a["spin_heldout_n"] == int(held.sum()) and a["spin_heldout_chi2"] != b["spin_heldout_chi2"]
 
 
 # ---------------------------------------------------------------------------------------------
