@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -61,13 +62,13 @@ def write_mmt(path: Path, tr: dict, k: int) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def astropy_loop(files: list[str]) -> tuple[float, int]:
-    """(c): seconds for every file, and how many astropy could read. The columns are the file's
-    own ``# Date Time ...`` line (the real exports have no ``Track`` column: it is a header line)."""
+def astropy_loop(files: list[str]) -> tuple[float, int, float]:
+    """(c): seconds for every file, how many astropy could read, and the CPU seconds. The columns
+    are the file's own ``# Date Time ...`` line (the real exports have no ``Track`` column: it is a header line)."""
     from astropy.io import ascii
     from astropy.timeseries import LombScargle
 
-    t0, ok = time.perf_counter(), 0
+    t0, ok, c0 = time.perf_counter(), 0, time.process_time()
     for f in files:
         try:
             with open(f) as fh:
@@ -81,31 +82,41 @@ def astropy_loop(files: list[str]) -> tuple[float, int]:
         LombScargle(t, y).autopower(minimum_frequency=2 / t[-1], maximum_frequency=0.5 / np.median(np.diff(t)),
                                     samples_per_peak=10)
         ok += 1
-    return time.perf_counter() - t0, ok
+    return time.perf_counter() - t0, ok, time.process_time() - c0
 
 
-def cssat_loop(files: list[str]) -> tuple[float, list[dict]]:
-    """(b): seconds for every file through characterise_file, and the rows."""
+def cssat_loop(files: list[str]) -> tuple[float, list[dict], float]:
+    """(b): seconds for every file through characterise_file, the rows, and the CPU seconds."""
     import torch
 
     from cssat.catalogue import characterise_file
 
     torch.set_num_threads(1)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     rows = [characterise_file(f) for f in files]
-    return time.perf_counter() - t0, rows
+    return time.perf_counter() - t0, rows, time.process_time() - c0
 
 
-def shard_sweep(tracks: Path, sweep: Path, jobs: int, shard_size: int) -> tuple[float, int, float]:
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of this process's finished children and their descendants."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def shard_sweep(tracks: Path, sweep: Path, jobs: int, shard_size: int) -> tuple[float, int, float, float]:
     """(a): wall seconds of the whole command, its exit status, and the seconds the shards' jobs
     spent inside their runs (``seconds`` of each job's ``metrics.json``: the files characterised
     and the table written, without Python's and Hydra's start-up, the launching and the join;
-    on a shared machine wall x jobs also counts the cores others took)."""
+    on a shared machine wall x jobs also counts the cores others took), and the CPU seconds of
+    the whole command with its workers (start-up, Hydra, joblib, the jobs, the join: core-seconds
+    this command used, whatever others took of the machine)."""
+    c0 = _children_cpu()
     t0 = time.perf_counter()
     res = subprocess.run([sys.executable, "-m", "cssat.app", "-m", "experiment=characterise", f"observations={tracks}",
                           f"catalogue.shard_size={shard_size}", "launcher=local", f"hydra.launcher.n_jobs={jobs}",
                           f"hydra.sweep.dir={sweep}"], capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    cpu = _children_cpu() - c0
     if res.returncode != 0:
         print(res.stderr[-2000:], file=sys.stderr)
     try:
@@ -113,7 +124,7 @@ def shard_sweep(tracks: Path, sweep: Path, jobs: int, shard_size: int) -> tuple[
             inside = sum(float(r["seconds"]) for r in csv.DictReader(f) if r.get("seconds"))
     except OSError:
         inside = float("nan")
-    return wall, res.returncode, inside
+    return wall, res.returncode, inside, cpu
 
 
 def same_rows(catalogue: Path, rows: list[dict]) -> bool:
@@ -161,17 +172,22 @@ def main() -> None:
         print(f"load before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} "
               f"on {os.cpu_count()} cores")
         sweeps, cpus, loops, bases, agree, rows = [], [], [], [], [], []
+        cpu_a_all, cpu_b_all, cpu_c_all = [], [], []
         for r in range(args.repeats):
-            wall, rc, cpu = shard_sweep(tracks, work / f"sweep{r}", args.jobs, size)
+            wall, rc, cpu, cpu_cmd = shard_sweep(tracks, work / f"sweep{r}", args.jobs, size)
+            cpu_a_all.append(cpu_cmd)
             sweeps.append(wall)
             cpus.append(cpu)
-            loop, rows = cssat_loop(files)
+            loop, rows, cpu_b = cssat_loop(files)
+            cpu_b_all.append(cpu_b)
             loops.append(loop)
-            base, n_astropy = astropy_loop(files)
+            base, n_astropy, cpu_c = astropy_loop(files)
+            cpu_c_all.append(cpu_c)
             bases.append(base)
             agree.append(rc == 0 and same_rows(work / f"sweep{r}" / "catalogue.csv", rows))
             print(f"  run {r + 1}: (a) {wall:.1f} s wall, {cpu:.1f} s in the jobs (rc {rc}), (b) {loop:.1f} s, (c) {base:.1f} s "
-                  f"[load {os.getloadavg()[0]:.2f}]", flush=True)
+                  f"[load {os.getloadavg()[0]:.2f}]; CPU s: (a) {cpu_cmd:.1f} (the command and its workers), (b) {cpu_b:.1f}, "
+                  f"(c) {cpu_c:.1f}", flush=True)
         wall, loop, base = (statistics.median(v) for v in (sweeps, loops, bases))
         ok = sum(r["status"] == "ok" for r in rows)
         verdicts = {v: sum(r["verdict"] == v for r in rows) for v in ("periodic", "not periodic", "undetermined", "failed")}
@@ -187,14 +203,21 @@ def main() -> None:
               f"{1 / per_c:.1f} tracks/s, {per_c * 1e3:.1f} ms a track")
         print(f"ratios: (b)/(c) = {loop / n / per_c:.2f}; (a) per core / (c) = {core_a / per_c:.2f}; "
               f"(a) per core / (b) = {core_a / (loop / n):.2f}")
-        for name, per in (("(a)", core_a), ("(a) inside the jobs", cpu_a), ("(b)", loop / n), ("(c)", per_c)):
+        cpu_cmd_a = statistics.median(cpu_a_all) / n
+        cpu_b = statistics.median(cpu_b_all) / n
+        cpu_c = statistics.median(cpu_c_all) / max(n_astropy, 1)
+        print(f"CPU (core-ms a track, what this benchmark itself used, not the load of others): (a) {cpu_cmd_a * 1e3:.1f} "
+              f"(the whole command: start-up, Hydra, workers, join), (b) {cpu_b * 1e3:.1f}, (c) {cpu_c * 1e3:.1f}")
+        for name, per in (("(a) CPU", cpu_cmd_a), ("(b) CPU", cpu_b), ("(a) wall x jobs", core_a),
+                          ("(a) inside the jobs", cpu_a), ("(b) wall", loop / n), ("(c) CPU", cpu_c)):
             hours = ARCHIVE_TRACKS * per / 3600
             print(f"MMT archive, {ARCHIVE_TRACKS:,} tracks by {name}: {hours:.1f} core-hours "
                   f"({'within' if hours <= TARGET_CORE_HOURS else 'over'} the {TARGET_CORE_HOURS:g}), "
                   f"{hours / args.jobs:.1f} h on {args.jobs} cores")
         print("all runs (s): (a) " + ", ".join(f"{v:.1f}" for v in sweeps) + " (inside the jobs " + ", ".join(f"{v:.1f}" for v in cpus)
               + "); (b) " + ", ".join(f"{v:.1f}" for v in loops)
-              + "; (c) " + ", ".join(f"{v:.1f}" for v in bases))
+              + "; (c) " + ", ".join(f"{v:.1f}" for v in bases)
+              + "; CPU (a) " + ", ".join(f"{v:.1f}" for v in cpu_a_all) + "; CPU (b) " + ", ".join(f"{v:.1f}" for v in cpu_b_all))
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
