@@ -178,7 +178,8 @@ def test_the_experiment_inverts_its_own_light_curve_file(tmp_path, inversion_sim
               "figures/inversion_lightcurve.png", "figures/inversion_shapes.png", "figures/inversion_observability.png"):
         assert (sim / f).is_file(), f
     b = run_experiment(cfg_of("experiment=inversion", *TINY, f"observations={sim / 'lightcurve.csv'}",
-                              "observed.kind=flux", "observed.value_col=flux_W_m2", "observed.error_col=flux_err_W_m2"),
+                              "observed.kind=flux", "observed.value_col=flux_W_m2", "observed.error_col=flux_err_W_m2",
+                              "nights.fit=null"),  # the default, all nights but the last: the simulation's nights.fit=1 of 2
                        tmp_path / "obs")
     assert b["status"] == "ok" and b["n_samples"] == a["n_samples"] and b["n_fit"] == a["n_fit"]
     ea, eb = np.load(sim / "arrays.npz"), np.load(tmp_path / "obs" / "arrays.npz")
