@@ -121,3 +121,48 @@ def test_the_heldout_tuple_is_checked():
     with pytest.raises(FieldError) as e:
         estimate_spin(t, 1 + 0.1 * np.cos(t / 60), sun, obs, sigma=0.01, period_s=377.0, heldout=(t, t), **SMALL)
     assert e.value.field == "heldout"
+
+
+def test_the_profile_region_matches_a_brute_force_scan():
+    """On a tiny spin problem (60 samples, 60 normals, areas on the grid: in class), the radii where
+    the profile Δχ² reaches 1, 2.30 and 6.18 along 4 bearings against a brute-force scan: poles every
+    1/40 of the bracket along each bearing, the period minimised on a dense grid at each."""
+    from cssat.inversion import fibonacci_sphere
+    from cssat.inversion.spin import _Fit, _refine_spin
+    from cssat.inversion.spin_errors import POLE_DELTA_CHI2, _offset_pole, pole_profile_interval
+    from cssat.scene.attitude import spin_frame, to_body
+
+    rng = np.random.default_rng(5)
+    t = np.sort(np.concatenate([d * 86400.0 + rng.uniform(0, 5 * 3600.0, 20) for d in range(3)]))
+    sun, obs = _geometry(t)
+    N = fibonacci_sphere(60).numpy()
+    a = np.zeros(60)
+    a[rng.choice(60, 10, replace=False)] = rng.uniform(0.3, 1.0, 10)
+    ra, dec, period = 40.0, 30.0, 500.0
+    R = spin_frame(t, ra, dec, period, 0.0, "equatorial")
+    clean = (a / np.pi * np.clip(to_body(R, sun) @ N.T, 0, None) * np.clip(to_body(R, obs) @ N.T, 0, None)).sum(1)
+    s = 0.02 * clean.mean()
+    y = clean + s * rng.normal(size=t.size)
+    fit = _Fit(t, y, np.full(t.size, 1 / s), sun, obs, N, None, "equatorial")
+    span = float(t[-1] - t[0])
+    c, lon, lat, f = _refine_spin(fit, (ra, dec, 1 / period), 1.0, 5.0, span)
+    c, lon, lat, f = _refine_spin(fit, (lon, lat, f), 0.2, 1.0, span)
+    prof = pole_profile_interval(fit.chi2, lon, lat, f, span, 1.0, n_dirs=4)
+    assert prof["moved_deg"] == 0.0
+    c0 = prof["chi2"]
+    dfs = f + np.linspace(-0.05, 0.05, 201) / span
+    for i, bearing in enumerate((0.0, 90.0, 180.0, 270.0)):
+        top = 1.5 * prof["radius_95_by_dir_deg"][i]
+        prev = (0.0, 0.0)
+        crossing = None
+        for d in np.linspace(0, top, 31)[1:]:
+            lo, la = _offset_pole(lon, lat, bearing, d)
+            dchi = min(fit.chi2(lo, la, ff) for ff in dfs) - c0
+            assert dchi >= -1e-6 * c0  # the minimum is the minimum along the bearing too
+            if dchi >= POLE_DELTA_CHI2["95"]:
+                crossing = prev[0] + (d - prev[0]) * (POLE_DELTA_CHI2["95"] - prev[1]) / (dchi - prev[1])
+                break
+            prev = (d, dchi)
+        assert crossing is not None
+        assert prof["radius_95_by_dir_deg"][i] == pytest.approx(crossing, rel=0.05), (i, crossing, prof["radius_95_by_dir_deg"])
+    assert prof["radius_95_deg"] > prof["radius_68_deg"] > 0

@@ -187,7 +187,8 @@ def pole_profile_interval(chi2_fn: Any, lon: float, lat: float, f: float, span: 
     ``√Δχ²`` linearly (exact for a cone, the profile's kinked minimum, and for a paraboloid
     between the bracketing steps to their ratio). A profile lower than the minimum on the way
     moves the minimum there (``moved_deg``) and the search restarts once. Returns ``radius_1_deg
-    (n_dirs,)``, ``radius_68_deg``, ``radius_95_deg`` (their largest over the bearings),
+    (n_dirs,)`` and ``radius_95_by_dir_deg (n_dirs,)`` along the bearings (clockwise from north),
+    ``radius_68_deg``, ``radius_95_deg`` (the largest over the bearings),
     ``pole_err_deg`` (the radial 1σ, ``√(2 mean ρ₁²)``: for an elliptical profile of Δχ² = 1
     half-axes ``a, b``, ``√(2ab)``; ``√(σ_λ² cos²β + σ_β²)`` of a circular Gaussian), the
     minimum's ``chi2``, ``lon``, ``lat``, ``f`` and ``evaluations``."""
@@ -221,7 +222,8 @@ def pole_profile_interval(chi2_fn: Any, lon: float, lat: float, f: float, span: 
         moved += separation_deg((lon, lat), better[1:3])
         c0, lon, lat, f = better
     r1 = np.where(np.isnan(radii["1"]), max_deg, radii["1"])
-    return {"radius_1_deg": r1.tolist(), "radius_68_deg": float(np.nanmax(np.where(np.isnan(radii["68"]), max_deg, radii["68"]))),
+    r95 = np.where(np.isnan(radii["95"]), max_deg, radii["95"])
+    return {"radius_1_deg": r1.tolist(), "radius_95_by_dir_deg": r95.tolist(), "radius_68_deg": float(np.nanmax(np.where(np.isnan(radii["68"]), max_deg, radii["68"]))),
             "radius_95_deg": float(np.nanmax(np.where(np.isnan(radii["95"]), max_deg, radii["95"]))),
             "pole_err_deg": float(np.sqrt(2 * np.mean(r1 ** 2))), "chi2": float(c0), "lon": float(lon), "lat": float(lat),
             "f": float(f), "moved_deg": float(moved), "evaluations": int(n_eval[0]), "scale": float(scale)}
