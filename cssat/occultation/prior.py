@@ -13,24 +13,29 @@ each, and the candidate kept is the one that best predicts telescopes it was not
   connectivity), seeded k-means++ starts, each cluster's second moments a superellipse (the
   half-axes of the equivalent ellipse, exponent 6); starts after the first also jittered
   (centres by 0.2 of the minor half-axis, half-axes by 20 %, angles by 0.2 rad).
+- **Every candidate on all telescopes**: each (number of shapes, start) fitted through the full
+  forward model (:func:`~cssat.occultation.fit_shape_params`); per number of shapes the start
+  with the lowest χ² (rounded to ``decimals``; equal optima tie, the first start kept).
 - **Held-out χ²**: the telescopes split into two folds (alternate rows); on each fold the pixels
-  (TV, from the empty mask) and every candidate started from that fold's pixels fitted, and each
-  scored by the χ² of the other fold's series, summed over the folds.
-- **The choice**: among the candidates whose held-out χ² is within ``parsimony`` (Δχ² = 1) of
-  the lowest, the fewest components, then the lowest held-out χ² rounded to ``decimals``, then the
-  lowest start index. Each candidate is also fitted on all telescopes from the full data's pixels
-  (the same ``K`` and start); the kept candidate's full fit is the answer. ``auto``: the shapes
-  are kept when their held-out χ² (rounded) is below the pixels'.
-- **The spread**: over the *near-best* candidates (held-out χ² within ``near`` = 4 of the lowest:
-  the starts the data cannot tell from the best), the range of the held-out χ², of the
-  silhouette's area (m², pixels ≥ 0.5) and of its centroid (east, north, m).
+  (TV, from the empty mask) fitted and, per number of shapes, its best start's index started
+  from that fold's pixels and fitted; each scored by the χ² of the other fold's series, summed
+  over the folds (one refit per number of shapes and fold, not per start: the starts are told
+  apart by the χ² on all telescopes, the number of shapes by telescopes held out).
+- **The choice**: the fewest shapes whose held-out χ² is within ``parsimony`` (Δχ² = 1) of the
+  lowest; the answer is that number's best start on all telescopes. ``auto``: the shapes are
+  kept when their held-out χ² (rounded) is below the pixels'.
+- **The spread**: over the *near-best* candidates (their number of shapes' held-out χ² within
+  ``near`` = 4 of the lowest, their χ² on all telescopes within 4 of that number's best: what the
+  data cannot tell from the answer), the range of the held-out χ², of the silhouette's area (m²,
+  pixels ≥ 0.5) and of its centroid (east, north, m).
 
-Why this does not flip: no discrete decision is taken on a quantity that moves with the last
+Why this flips far less: no discrete decision is taken on a quantity that moves with the last
 bits — the number of components is enumerated, not read off a thresholded mask; the starts are
-continuous in the mask; the choice compares χ² differences of order 1 and more (a 1e-9 change
-moves them by far less than the rounding), so thread counts and 1e-9 changes of a constant give
-the same candidate. What it does not fix: two optima whose held-out χ² agree to within the
-rounding are told apart by the tie rules, not by the data (the spread says so).
+continuous in the mask; the choices compare χ² differences of order 1 and more (rounded), which a
+1e-9 change or another thread count does not reach unless an L-BFGS path itself diverges into
+another local optimum (possible: then the best of the starts, not one start, decides). Tested at
+one and two threads and after a 1e-9 change. What it does not fix: two optima whose χ² agree to
+within the rounding are told apart by the tie rules, not by the data (the spread says so).
 """
 
 from __future__ import annotations
