@@ -262,3 +262,21 @@ def test_magnitude_errors_become_flux_errors_by_the_derivative(tmp_path, band):
     back = read(lc.fluxes(), lc.flux_errors(), kind="flux", name="flux.csv")
     np.testing.assert_allclose(back.magnitude_errors(), s, rtol=1e-9)
     np.testing.assert_allclose(back.magnitudes(), m, rtol=0, atol=1e-9)
+
+
+def test_a_sample_s_night_is_the_local_evening_s_date(tmp_path):
+    """``nights(utc_offset_h)``: a night runs from local noon to local noon and is named by the
+    date of its evening (local times worked out here for each stamp) — at UTC+10 a sample at
+    11:00 UTC (21:00 local) is that day's night and one at 01:00 UTC (11:00 local, before noon)
+    the previous day's; at UTC−7, 04:00 UTC (21:00 local the day before) is the previous day's
+    night and 20:00 UTC (13:00 local) that day's."""
+    from cssat.data import read_light_curve
+
+    stamps = ["2021-01-01T01:00:00", "2021-01-01T11:00:00", "2021-01-02T04:00:00", "2021-01-02T20:00:00"]
+    f = _write(tmp_path / "n.csv", "time_utc,magnitude\n" + "".join(f"{t},10.0\n" for t in stamps))
+    lc = read_light_curve(f)
+    # local: Jan 1 11:00, Jan 1 21:00, Jan 2 14:00, Jan 3 06:00
+    assert list(lc.nights(10.0)) == ["2020-12-31", "2021-01-01", "2021-01-02", "2021-01-02"]
+    # local: Dec 31 18:00, Jan 1 04:00, Jan 1 21:00, Jan 2 13:00
+    assert list(lc.nights(-7.0)) == ["2020-12-31", "2020-12-31", "2021-01-01", "2021-01-02"]
+    assert list(lc.nights(0.0)) == ["2020-12-31", "2020-12-31", "2021-01-01", "2021-01-02"]
