@@ -77,6 +77,28 @@ def _parent_keys(cfg: Any, key: str) -> str:
     return f"; {parent or 'the config'} has: {', '.join(map(str, keys))}" if keys else ""
 
 
+def _typed_refusal(cfg: Any, key: str) -> str | None:
+    """Why ``key`` cannot be set when its parent node is a typed config (a dataclass: a forward
+    model's ``forward`` node, the characterise groups) that has no such field — not even with
+    ``+`` —, or ``None``."""
+    import dataclasses  # startup: stdlib
+
+    from omegaconf import OmegaConf  # startup: omegaconf; this module imports without it
+
+    parent, _, leaf = key.rpartition(".")
+    node = OmegaConf.select(cfg, parent, default=None) if parent else None
+    if not OmegaConf.is_dict(node):
+        return None
+    typ = OmegaConf.get_type(node)
+    if not (isinstance(typ, type) and dataclasses.is_dataclass(typ)):
+        return None
+    names = [f.name for f in dataclasses.fields(typ)]
+    if leaf in names:
+        return None
+    return (f"{key}: no such key; {parent} is a typed config ({typ.__module__}.{typ.__qualname__}) that takes only: "
+            f"{', '.join(names)}")
+
+
 def _bad_option(compose, config_name, paths, o, group, value, loader) -> str | None:
     """Why ``group=value`` is not an option (Hydra's own list of the options, which includes the
     command line's ``hydra.searchpath``), or ``None``."""
@@ -135,10 +157,15 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
             rest = [o for o in rest if o.key_or_group != "hydra.searchpath"]
             firsts = [_text(o, _values(o)[0]) if _values(o) else o.input_line for o in rest if _values(o) is not None]
             try:  # the usual case: everything composes, one composition
-                compose(config_name, overrides=[*groups, *firsts], return_hydra_config=True)
-                return None
+                cfg = compose(config_name, overrides=[*groups, *firsts], return_hydra_config=True)
             except (HydraException, ValueError):
                 pass
+            else:  # a key added with + to a typed config composes, and its dataclass refuses it later
+                for o in rest:
+                    why = _typed_refusal(cfg, o.key_or_group) if o.is_add() or o.is_force_add() else None
+                    if why:
+                        return why
+                return None
             try:
                 base = compose(config_name, overrides=groups, return_hydra_config=True)
             except HydraException as err:  # e.g. an option whose own defaults fail
@@ -147,6 +174,9 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
             for o in rest:
                 key = o.key_or_group
                 values = _values(o)
+                typed = _typed_refusal(base, key)
+                if typed and not key.startswith("hydra."):
+                    return typed
                 if not (o.is_add() or o.is_force_add() or key.startswith("hydra.")) and \
                         OmegaConf.select(base, key, default=_MISSING, throw_on_missing=False) is _MISSING:
                     return f"{key}: no such key{_parent_keys(base, key)} (add a new one with +{key}=...)"

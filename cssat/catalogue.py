@@ -41,6 +41,8 @@ import time
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
+from cssat.models.observed.config import CatalogueConfig  # startup: stdlib dataclasses only
+
 __all__ = ["characterise_file", "catalogue_files", "listing_sha", "shard_files", "n_shards", "ROW_COLUMNS",
            "DEFAULT_SHARD_SIZE", "read_rows", "write_rows", "shard_table", "literal_override"]
 
@@ -54,8 +56,9 @@ _INT_COLUMNS = {"n_samples"}
 _BOOL_COLUMNS = {"tumbling"}
 #: the verdicts of a row: estimate_period's three, and ``failed`` (the file could not be characterised)
 VERDICTS = ("periodic", "not periodic", "undetermined", "failed")
-#: files per shard when ``catalogue.shard_size`` is not given (conf/experiment/characterise.yaml's)
-DEFAULT_SHARD_SIZE = 500
+#: files per shard when ``catalogue.shard_size`` is not given (the characterise experiment's:
+#: :class:`cssat.models.observed.config.CatalogueConfig`)
+DEFAULT_SHARD_SIZE = CatalogueConfig.shard_size
 #: the experiment whose stages a catalogue runs
 EXPERIMENT = "characterise"
 #: the stage modes of a catalogue row unless given: the period where the data allow, no tumbling
@@ -157,15 +160,14 @@ class _Config(dict):
 
 @functools.lru_cache(maxsize=1)
 def _experiment_defaults() -> dict[str, Any]:
-    """The characterise experiment's groups as its YAML gives them (read as plain YAML: no
-    interpolation), so a row uses the experiment's own defaults."""
-    import yaml  # startup: PyYAML, only when a row is made
+    """The characterise experiment's groups with their defaults (their typed configs:
+    :mod:`cssat.models.observed.config`), so a row uses the experiment's own defaults."""
+    from dataclasses import asdict  # startup: stdlib
 
-    import cssat.conf  # startup: the packaged configs (cssat/conf), not at import
+    from cssat.models.observed.config import CharacteriseConfig, PeriodConfig, ReadConfig, TumblingConfig  # startup: light
 
-    path = Path(cssat.conf.__file__).parent / "experiment" / f"{EXPERIMENT}.yaml"
-    data = yaml.safe_load(path.read_text()) or {}
-    return {k: dict(data.get(k) or {}) for k in ("observed", "characterise", "period", "tumbling")}
+    return {"observed": asdict(ReadConfig()), "characterise": asdict(CharacteriseConfig()),
+            "period": asdict(PeriodConfig()), "tumbling": asdict(TumblingConfig())}
 
 
 def _plain(node: Any) -> dict[str, Any]:
@@ -272,21 +274,21 @@ def _characterise(row: dict[str, Any], options: dict[str, Any]) -> None:
     """The stages of :func:`characterise_file` into ``row`` (what was known before a failure
     too: the exception's ``partial_metrics`` where the experiment leaves them)."""
     from cssat.experiments.context import Run  # heavy: the experiments' package imports numpy
+    from cssat.experiments.forward.base import run_stages  # heavy: the experiments' package imports numpy
     from cssat.experiments.forward.observed import Observed  # heavy: imports torch
 
     cfg = _Config(options, observations=row["file"], scenario=_Config(tle=None))
     run_ = Run(out_dir=Path("."), dtype=None, device=None, seed=0)  # nothing written, nothing drawn
-    model = Observed()
     try:
-        model.plan(cfg, run_)
-        model.measure(run_)
-        _describe(row, model.metrics, getattr(model, "lc", None))
-        model.estimate(run_)
+        verdicts = run_stages(Observed(), cfg, run_, ("plan", "measure", "estimate"))
     except Exception as err:
-        known = {**getattr(model, "metrics", {}), **(getattr(err, "partial_metrics", None) or {})}
-        _describe(row, known, getattr(model, "lc", None))
+        measured = run_.results.get("measure")
+        known = {**(measured.metrics if measured is not None else {}), **(getattr(err, "partial_metrics", None) or {})}
+        _describe(row, known, measured.lc if measured is not None else None)
         raise
-    m, res = model.metrics, model.res
+    measured = run_.results["measure"]
+    _describe(row, measured.metrics, measured.lc)
+    m, res = verdicts.metrics, verdicts.period
     if res is not None:
         verdict = m.get("verdict") or res.get("verdict") or ("periodic" if res["periodic"] else "not periodic")
         periodic = verdict == "periodic"

@@ -22,21 +22,16 @@ log = logging.getLogger("cssat")
 
 
 def _catalogue_settings(cfg: Any) -> dict[str, Any]:
-    """The ``catalogue`` group checked (a FieldError naming the key)."""
-    from cssat._checks import FieldError, bool_param, int_param  # startup: not at import (stdlib only)
-    from cssat.experiments.build import settings  # startup: not at import (stdlib only)
+    """The ``catalogue`` group checked (:class:`~cssat.models.observed.config.CatalogueConfig`; a
+    FieldError naming the key), its ``shard`` required."""
+    from dataclasses import asdict  # startup: stdlib
 
-    cat = settings(cfg.get("catalogue"))
-    allowed = {"shard", "shard_size", "n_files", "listing_sha", "tumbling"}
-    for k in cat:
-        if k not in allowed:
-            raise FieldError(f"catalogue.{k}", f"not a setting; the settings: {', '.join(sorted(allowed))}")
-    out = {"shard": int_param(cat.get("shard"), "catalogue.shard", 0),
-           "shard_size": int_param(cat.get("shard_size", DEFAULT_SHARD_SIZE), "catalogue.shard_size", 1),
-           "tumbling": bool_param(cat.get("tumbling", False), "catalogue.tumbling"),
-           "n_files": None if cat.get("n_files") is None else int_param(cat["n_files"], "catalogue.n_files", 1),
-           "listing_sha": None if cat.get("listing_sha") is None else str(cat["listing_sha"])}
-    return out
+    from cssat._checks import int_param  # startup: not at import (stdlib only)
+    from cssat.models.observed.config import CatalogueConfig, typed_group  # startup: stdlib dataclasses only
+
+    cat = typed_group(CatalogueConfig, cfg.get("catalogue"), "catalogue")
+    int_param(cat.shard, "catalogue.shard", 0)
+    return asdict(cat)
 
 
 def options_of(cfg: Any) -> dict[str, Any]:
@@ -44,13 +39,13 @@ def options_of(cfg: Any) -> dict[str, Any]:
     ``characterise``, ``period`` and ``tumbling`` groups; the stages ``stages.period``, the
     tumbling stage only with ``catalogue.tumbling=true`` (then ``stages.tumbling``'s mode), no spin."""
     from cssat.experiments.build import settings  # startup: not at import (stdlib only)
+    from cssat.models.observed.config import CatalogueConfig, StagesConfig, typed_group  # startup: stdlib only
 
-    st = settings(cfg.get("stages"))
-    tumble = bool(settings(cfg.get("catalogue")).get("tumbling", False))
+    st = typed_group(StagesConfig, cfg.get("stages"), "stages")
+    tumble = typed_group(CatalogueConfig, cfg.get("catalogue"), "catalogue").tumbling
     return {"observed": settings(cfg.get("observed")), "characterise": settings(cfg.get("characterise")),
             "period": settings(cfg.get("period")), "tumbling": settings(cfg.get("tumbling")),
-            "stages": {"period": st.get("period", "auto"), "tumbling": st.get("tumbling", "auto") if tumble else "off",
-                       "spin": "off"}}
+            "stages": {"period": st.period, "tumbling": st.tumbling if tumble else "off", "spin": "off"}}
 
 
 def check_config(cfg: Any) -> None:

@@ -325,7 +325,7 @@ def test_the_sweep_is_cut_into_shards_and_the_file_names_never_become_overrides(
             expand_file_sweeps(argv[:3] + [f"catalogue.shard_size={bad}"])
     with pytest.raises(ValueError, match=r"^observations: no file matches"):
         expand_file_sweeps(["-m", "experiment=characterise", f"observations={tmp_path}/*.fits"])
-    # the experiment's YAML default is the one the command line assumes
+    # the experiment's default (its typed config's) is the one the command line assumes
     assert _compose(["experiment=characterise"]).catalogue.shard_size == C.DEFAULT_SHARD_SIZE
 
 
@@ -353,8 +353,8 @@ def test_a_bad_catalogue_setting_is_refused_before_any_job(tmp_path):
 
     for i in range(2):
         mmt_file(tmp_path / f"f{i}.txt", 90080 + i, None, seed=i, n=60)
-    for arg, key in (("catalogue.tumbling=maybe", "catalogue.tumbling: expected true or false"),
-                     ("+period.min_periods=3", "period.min_periods: not an option of estimate_period")):
+    for arg, key in (("catalogue.tumbling=maybe", "catalogue.tumbling: cannot set it to 'maybe'"),
+                     ("+period.min_periods=3", "period.min_periods: no such key; period is a typed config")):
         code, lines = run_cli(["-m", "experiment=characterise", f"observations={tmp_path}", arg,
                                f"hydra.sweep.dir={tmp_path / 'sweep'}"], tmp_path)
         assert code == 2 and len(lines) == 1 and lines[0].startswith(f"bad input: {key}"), lines

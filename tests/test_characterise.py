@@ -30,19 +30,16 @@ def _cfg(*overrides):
 
 def _model(tmp_path, *overrides, stop="estimate"):
     """The characterise model planned and run up to ``stop`` (``measure``, ``estimate`` or
-    ``write``) on the config of ``overrides``; returns ``(model, run)``."""
+    ``write``) on the config of ``overrides``; returns ``(model, run)``: each stage's typed
+    result in ``run.results``."""
     from cssat.experiments.context import Run
+    from cssat.experiments.forward.base import STAGES, run_stages
     from cssat.experiments.forward.observed import Observed
 
     cfg = _cfg(*overrides)
     run = Run.from_config(cfg, tmp_path)
     model = Observed()
-    model.plan(cfg, run)
-    model.measure(run)
-    if stop in ("estimate", "write"):
-        model.estimate(run)
-    if stop == "write":
-        model.write(run, model.score(run))
+    run_stages(model, cfg, run, STAGES[:STAGES.index(stop) + 1])
     return model, run
 
 
@@ -55,10 +52,10 @@ def test_the_figure_names_the_object_track_epoch_and_magnitude(tmp_path):
     from cssat.experiments.forward.verdicts import fitted_model
     from cssat.plots.characterise import characterise_figure, figure_labels
 
-    model, _ = _model(tmp_path, f"observations={STARLINK}", "characterise.figures=false")
-    m = model.score(None)
-    labels = figure_labels(model.lc.meta, m, model.lc.kind, m["band"])
-    fig = characterise_figure(model.t, model.y, None, model.res, None, labels=labels, verdict=m["verdict"])
+    model, run = _model(tmp_path, f"observations={STARLINK}", "characterise.figures=false")
+    m, d = model.score(run), run.results["measure"]
+    labels = figure_labels(d.lc.meta, m, d.lc.kind, m["band"])
+    fig = characterise_figure(d.t, d.y, None, run.results["estimate"].period, None, labels=labels, verdict=m["verdict"])
     title = fig._suptitle.get_text()
     assert "51722" in title and "STARLINK-3535" in title and "20416355" in title and "2022-05-21 19:22:07.790" in title
     light, periodogram, fold, resid = fig.axes
@@ -66,11 +63,11 @@ def test_the_figure_names_the_object_track_epoch_and_magnitude(tmp_path):
     assert "Clear magnitude" in light.get_ylabel() and "1000 km" in light.get_ylabel()
 
     rb = read_light_curve(EXAMPLE_TRACK)  # MMT's label: 2 Periodic, 18.888 s
-    mb, _ = _model(tmp_path / "rb", f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]",
-                   "characterise.figures=false", "stages.tumbling=off", "stages.spin=off")
-    mm = mb.score(None)
-    model_y, trend = fitted_model(mb.t, mb.y, mb.res, 1, mb.tracks)
-    fig = characterise_figure(mb.t, mb.y, None, mb.res, model_y, trend=trend, verdict=mm["verdict"],
+    mb, rb_run = _model(tmp_path / "rb", f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]",
+                        "characterise.figures=false", "stages.tumbling=off", "stages.spin=off")
+    mm, db, res = mb.score(rb_run), rb_run.results["measure"], rb_run.results["estimate"].period
+    model_y, trend = fitted_model(db.t, db.y, res, 1, db.tracks)
+    fig = characterise_figure(db.t, db.y, None, res, model_y, trend=trend, verdict=mm["verdict"],
                               labels=figure_labels(rb.meta, mm, rb.kind, mm["band"]))
     _, periodogram, fold, _ = fig.axes
     assert "track 101" in fig._suptitle.get_text() and "99001" in fig._suptitle.get_text()
@@ -83,8 +80,8 @@ def test_the_figure_names_the_object_track_epoch_and_magnitude(tmp_path):
 def test_the_metrics_are_a_catalogue_row(tmp_path):
     """One verdict word, the file's track, one sentence why, the warnings as one string and real
     booleans; every value JSON's own type (summary.csv keeps the scalars)."""
-    model, _ = _model(tmp_path, f"observations={STARLINK}", "characterise.figures=false", "stages.spin=off")
-    m = model.score(None)
+    model, run = _model(tmp_path, f"observations={STARLINK}", "characterise.figures=false", "stages.spin=off")
+    m = model.score(run)
     assert m["verdict"] == "not periodic" and m["periodic"] is False  # MMT: 0 Not variable
     assert m["track"] == "20416355" and m["object_id"] == "51722"
     assert isinstance(m["why"], str) and m["why"] and "\n" not in m["why"]
@@ -111,9 +108,9 @@ def test_undetermined_is_not_not_periodic(tmp_path, monkeypatch):
     real = cssat.inversion.estimate_period
     monkeypatch.setattr(cssat.inversion, "estimate_period",
                         functools.wraps(real)(lambda *a, **k: _undetermined(real(*a, **k))))
-    model, _ = _model(tmp_path, f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]",
-                      "characterise.figures=false")
-    m = model.score(None)
+    model, run = _model(tmp_path, f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]",
+                        "characterise.figures=false")
+    m = model.score(run)
     assert m["verdict"] == "undetermined" and m["periodic"] is None
     assert m["why"] == "one cycle and a half: too few to tell" and "period_vs_published" not in m
     assert "periodic light curve (the period is undetermined)" in m["stage_spin"]
@@ -157,10 +154,11 @@ def test_tumbling_auto_runs_only_where_the_period_stage_asks(kind, skipped):
     stage); two periods (no single period fits) run it."""
     from cssat.experiments.context import Run
     from cssat.experiments.forward.verdicts import period_stage, tumbling_stage, variation_over_noise
+    from cssat.models.observed.config import ObservedSettings, StagesConfig
 
     t, y = _curve(kind)
     tracks = np.zeros(len(t), dtype=str)
-    opt = {"modes": {"period": "auto", "tumbling": "auto", "spin": "off"}, "period": {}, "tumbling": {}, "min_samples": 20}
+    opt = ObservedSettings(observations="(synthetic)", stages=StagesConfig(spin="off"))
     run = Run(out_dir=Path("."), dtype=None, device=None, seed=0)
     m = {"variation_over_noise": variation_over_noise(t, y, None, tracks)}
     res = period_stage(run, opt, t, y, None, tracks, m)
@@ -217,6 +215,7 @@ def test_spin_on_with_one_night_is_refused_before_the_period_search(tmp_path):
     nights, before the period stage has run (its timing absent)."""
     from cssat.data import ObservedLightCurve, write_light_curve
     from cssat.experiments.context import Run
+    from cssat.experiments.forward.base import run_stages
     from cssat.experiments.forward.observed import Observed
 
     t = np.datetime64("2020-04-01T21:00:00", "us") + (np.linspace(0, 600, 300) * 1e6).astype("timedelta64[us]")
@@ -224,12 +223,11 @@ def test_spin_on_with_one_night_is_refused_before_the_period_search(tmp_path):
     write_light_curve(tmp_path / "one.csv", ObservedLightCurve(t, y, np.full(300, 0.02), "magnitude"))
     cfg = _cfg(f"observations={tmp_path / 'one.csv'}", "stages.spin=on", TLE)
     run = Run.from_config(cfg, tmp_path / "r")
-    model = Observed()
-    model.plan(cfg, run)
     with pytest.raises(FieldError) as err:
-        model.measure(run)
+        run_stages(Observed(), cfg, run, ("plan", "measure", "estimate"))
     assert err.value.field == "stages.spin" and "nights" in err.value.detail
-    assert "seconds_period" not in run.timings() and model.metrics.get("stage_period") is None
+    assert "seconds_period" not in run.timings() and set(run.results) == {"plan"}
+    assert "stage_period" not in err.value.partial_metrics
 
 
 @pytest.mark.parametrize("key, value", [("min_period_s", -1), ("max_harmonics", 0), ("fap_max", 2.0)])
@@ -263,9 +261,12 @@ def test_a_failed_file_leaves_what_was_known(tmp_path):
 
 
 @pytest.mark.parametrize("overrides, field", [
-    (["tumbling.order=x"], "tumbling.order"),  # was a ValueError's traceback from int("x") at the tumbling stage
     (["tumbling.min_period_s=-5"], "tumbling.min_period_s"),  # was never checked where auto skips the search
-    (["characterise.max_epoch_days=abc"], "characterise.max_epoch_days"),  # was float("abc")'s traceback
+    (["tumbling.order=11"], "tumbling.order"),
+    (["stages.tumbling=maybe"], "stages.tumbling"),
+    (["characterise.min_samples=3"], "characterise.min_samples"),
+    (["period.method=bogus"], "period.method"),
+    (["+period.min_periods=3"], "period.min_periods"),  # added past the schema: refused when planned
     (["stages.period=off", "stages.spin=on", TLE], "stages.spin"),  # can never be served: refused before reading
 ])
 def test_settings_refused_in_plan_naming_the_key(overrides, field):
@@ -274,6 +275,51 @@ def test_settings_refused_in_plan_naming_the_key(overrides, field):
     with pytest.raises(FieldError) as err:
         observed_settings(_cfg(f"observations={EXAMPLE_TRACK}", *overrides))
     assert err.value.field == field, str(err.value)
+
+
+@pytest.mark.parametrize("override, key", [("tumbling.order=x", "tumbling.order"),  # was int("x")'s traceback
+                                           ("characterise.max_epoch_days=abc", "characterise.max_epoch_days"),
+                                           ("period.min_periods=3", "period.min_periods"),
+                                           ("stages.bogus=on", "stages.bogus")])
+def test_the_schema_refuses_a_wrong_type_or_an_unknown_key_when_composed(override, key):
+    """The groups are typed (cssat.models.observed.config): a value of the wrong type, or a key
+    that is no field, is refused by Hydra's composition, naming the key."""
+    from hydra.errors import ConfigCompositionException
+
+    with pytest.raises(ConfigCompositionException, match=key.replace(".", r"\.")):
+        _cfg(f"observations={EXAMPLE_TRACK}", override)
+
+
+def test_a_group_given_as_a_mapping_is_checked_by_its_dataclass():
+    """Without Hydra (a catalogue's rows): the same refusals, each naming its full key and, for
+    an unknown key, the group's settings."""
+    from cssat.models.observed.config import CharacteriseConfig, PeriodConfig, StagesConfig, TumblingConfig, typed_group
+
+    for cls, key, values, field in [(TumblingConfig, "tumbling", {"order": "x"}, "tumbling.order"),
+                                    (CharacteriseConfig, "characterise", {"max_epoch_days": "abc"},
+                                     "characterise.max_epoch_days"),
+                                    (CharacteriseConfig, "characterise", {"max_epoch_days": 0}, "characterise.max_epoch_days"),
+                                    (StagesConfig, "stages", {"spin": True}, "stages.spin"),
+                                    (PeriodConfig, "period", {"min_periods": 3}, "period.min_periods")]:
+        with pytest.raises(FieldError) as err:
+            typed_group(cls, values, key)
+        assert err.value.field == field, str(err.value)
+    with pytest.raises(FieldError) as err:
+        typed_group(PeriodConfig, {"min_periods": 3}, "period")
+    assert "estimate_period" in err.value.detail and "n_surrogates" in err.value.detail and "method" in err.value.detail
+
+
+def test_period_method_picks_a_registered_method(tmp_path):
+    """``period.method``: null is estimate_period; a registered method's name runs that method
+    (the library's lombscargle, a periodogram's peak on its grid: its period on the example
+    track's first track within 2 % of MMT's published 18.888 s or its double, not refined as
+    estimate_period's is, to 1e-4)."""
+    model, run = _model(tmp_path, f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]", "period.method=lombscargle",
+                        "characterise.figures=false", "stages.tumbling=off", "stages.spin=off")
+    p = model.score(run)["period_s"]
+    assert run.results["plan"].period.method == "lombscargle"
+    assert min(abs(p / 18.888 - 1), abs(p / (2 * 18.888) - 1)) < 0.02, p
+    assert abs(p / 18.888 - 1) > 1e-3, p
 
 
 @pytest.mark.parametrize("override, field", [("observed.format=bogus", "observed.format"),  # was "format"

@@ -128,3 +128,78 @@ def test_the_forward_models_configs_are_typed_dataclasses_in_one_place():
     with pytest.raises(FieldError, match=r"^forward\.step_s: must be a finite number in \(0\.0, inf\]"):
         MovingConfig(step_s=0)
     assert math.isclose(MovingConfig(step_s=3).step_s, 3.0)
+
+
+def test_the_observed_models_settings_are_typed_with_one_set_of_defaults():
+    """The characterise experiment's groups (observations, observed, stages, characterise,
+    period, tumbling, catalogue) come from their dataclasses (its YAML repeats none of them);
+    the overrides keep their meaning and reach the model's typed settings."""
+    import yaml
+    from omegaconf import OmegaConf
+
+    from cssat.experiments.forward.observed import observed_settings
+    from cssat.models.observed.config import ObservedConfig
+
+    own = yaml.safe_load((CONF / "experiment" / "characterise.yaml").read_text())
+    groups = [k for k in ObservedConfig.SETTINGS if k != "observations"]
+    assert not set(groups) & set(own), "a group's defaults repeated in characterise.yaml"
+    cfg = compose_cfg("experiment=characterise")
+    for k in groups:
+        assert OmegaConf.get_type(cfg[k]) is ObservedConfig.SETTINGS[k], k
+    assert cfg.observations is None and cfg.catalogue.shard_size == 500 and cfg.characterise.min_samples == 20
+    s = observed_settings(compose_cfg("experiment=characterise", "observations=some/file.txt", "period.n_surrogates=5",
+                                      "stages.tumbling=off", "characterise.tracks=[101]", "period.method=pdm",
+                                      "tumbling.order=2", "observed.kind=flux"))
+    assert (s.observations, s.period.n_surrogates, s.period.method, s.stages.tumbling, s.characterise.track_list(),
+            s.tumbling.order, s.observed.kind) == ("some/file.txt", 5, "pdm", "off", [101], 2, "flux")
+    assert s.period.options() == {"n_surrogates": 5}  # the method's own defaults for the rest; method apart
+    assert "settings" not in compose_cfg("experiment=lightcurve") and "period" not in compose_cfg("experiment=lightcurve")
+
+
+@pytest.mark.parametrize("overrides, start", [
+    (["forward.foo=1"], "forward.foo: no such key; forward is a typed config (cssat.models.pixels.config.PixelsConfig)"),
+    (["+forward.foo=1"], "forward.foo: no such key; forward is a typed config"),
+    (["experiment=characterise", "+period.foo=1"], "period.foo: no such key; period is a typed config"),
+    (["experiment=characterise", "stages.bogus=on"], "stages.bogus: no such key; stages is a typed config"),
+])
+def test_the_command_line_check_does_not_suggest_adding_a_key_to_a_typed_config(overrides, start):
+    """A typed node (a forward model's config, the characterise groups) takes no other key, not
+    even with '+': the one-line refusal lists its fields and suggests no '+key=...'; an untyped
+    node still gets the suggestion."""
+    from cssat._cli_check import check
+
+    why = check(overrides)
+    assert why.startswith(start) and "+" not in why and "takes only: " in why, why
+    field = overrides[-1].lstrip("+").split("=")[0].split(".")[0]
+    fields = {"forward": "dtype", "period": "n_surrogates", "stages": "tumbling"}[field]
+    assert fields in why.split("takes only: ")[1].split(", ")
+    assert check(["cs.foo=1"]).endswith("(add a new one with +cs.foo=...)")
+    assert check(["experiment=characterise", "period.n_surrogates=5", "stages.spin=off"]) is None
+
+
+def test_the_scene_models_settings_are_typed_with_one_set_of_defaults():
+    """The light curve's own settings (render.*, shadows, earthshine, earth_albedo, magnitudes.*,
+    observations, observed.*) come from cssat.models.scene.config; lightcurve.yaml keeps only
+    what differs (observed.time_col); a wrong type is refused when composed, a bad value when
+    planned, naming the key."""
+    import yaml
+    from hydra.errors import ConfigCompositionException
+    from omegaconf import OmegaConf
+
+    from cssat._checks import FieldError
+    from cssat.models.scene.config import RenderConfig, SceneConfig, SceneSettings
+
+    own = yaml.safe_load((CONF / "experiment" / "lightcurve.yaml").read_text())
+    assert set(own) & set(SceneConfig.SETTINGS) == {"observed"} and own["observed"] == {"time_col": "time_utc"}
+    cfg = compose_cfg("experiment=lightcurve", "render.size=8", "shadows=false", "magnitudes.band=R")
+    assert OmegaConf.get_type(cfg.render) is RenderConfig and cfg.earthshine == "auto" and cfg.earth_albedo == 0.3
+    s = SceneSettings.from_config(cfg)
+    assert (s.render.size, s.render.n_images, s.shadows, s.magnitudes.band, s.observed.time_col) == (8, 5, False, "R",
+                                                                                                      "time_utc")
+    with pytest.raises(ConfigCompositionException, match=r"render\.size"):
+        compose_cfg("experiment=lightcurve", "render.size=big")
+    for override, key in (("render.n_images=30", "render.n_images"), ("shadows=maybe", "shadows"),
+                          ("earth_albedo=1.5", "earth_albedo"), ("earthshine=sometimes", "earthshine")):
+        with pytest.raises(FieldError) as err:
+            SceneSettings.from_config(compose_cfg("experiment=lightcurve", override))
+        assert err.value.field == key, (override, str(err.value))

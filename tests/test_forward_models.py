@@ -290,3 +290,34 @@ def test_the_models_settings_are_refused_before_work(tmp_path, base, bad, field)
     with pytest.raises(FieldError, match=field):
         run_experiment(cfg_of(*base, *bad), tmp_path / "bad")
     assert not (tmp_path / "bad" / "arrays.npz").exists()
+
+
+def test_the_observed_and_scene_models_hand_on_typed_results_and_keep_nothing(tmp_path):
+    """Each stage's result is a typed object in ``run.results`` (the settings, the measurement,
+    the verdicts), read by the later stages; the model object itself holds nothing after a run.
+    The characterise arrays are the measurement handed on, its metrics the verdicts'."""
+    from cssat.experiments.context import Run
+    from cssat.experiments.forward.base import run_model
+    from cssat.experiments.forward.observed import Observed, ObservedMeasured, ObservedVerdicts
+    from cssat.experiments.forward.scene import SceneLightCurve, SceneMeasured, ScenePlan
+    from cssat.models.observed.config import ObservedSettings
+    from cssat.smoke import EXAMPLE_TRACK
+
+    cases = [("lightcurve", SceneLightCurve(), ["experiment=lightcurve", "scenario.n_steps=3", "render.size=8"],
+              {"plan": ScenePlan, "measure": SceneMeasured}),
+             ("characterise", Observed(), ["experiment=characterise", f"observations={EXAMPLE_TRACK}",
+                                           "characterise.tracks=[101]", "characterise.figures=false", "stages.tumbling=off"],
+              {"plan": ObservedSettings, "measure": ObservedMeasured, "estimate": ObservedVerdicts})]
+    for name, model, overrides, types in cases:
+        cfg = cfg_of(*overrides, "threads=1")
+        run = Run.from_config(cfg, tmp_path / name)
+        metrics = run_model(model, cfg, run)
+        assert vars(model) == {}, (name, sorted(vars(model)))
+        for stage, typ in types.items():
+            assert isinstance(run.results[stage], typ), (name, stage, type(run.results[stage]))
+    d, v = run.results["measure"], run.results["estimate"]
+    a = np.load(tmp_path / "characterise" / "arrays.npz")
+    np.testing.assert_array_equal(a["values"], d.y)
+    assert metrics["n_samples"] == len(d.t) == 600 and {str(k) for k in d.tracks} == {"101"}  # the file's track 101: 600 rows
+    assert metrics["period_s"] == v.period["period_s"] and abs(metrics["period_s"] / 18.888 - 1) < 1e-3  # MMT's period
+    assert run.results["plan"].characterise.track_list() == [101] and run.results["plan"].stages.tumbling == "off"

@@ -12,6 +12,11 @@ Each dataclass checks its values in ``__post_init__`` and raises a
 :class:`~cssat._checks.FieldError` naming the full key (``forward.dtype``), so the model built
 from it gets values already checked.
 
+A model whose settings are top-level groups (the observed model's ``observations``, ``period``,
+``stages``, …) names their dataclasses in a ``SETTINGS`` class variable of its config: they are
+stored as the config ``settings/<name>`` (those keys at the root), which its experiments include
+in their defaults list (``- /settings/<name>``), so those groups are typed too.
+
 A forward model of one's own registers its config here with :func:`register` (its module, imported
 before Hydra composes: e.g. from a ``conf`` package's ``__init__``), or ships a YAML in a
 ``forward/`` group on Hydra's search path. This package imports no numpy or torch: Hydra imports
@@ -55,6 +60,10 @@ def _store(name: str, cls: type) -> None:
     from hydra.core.config_store import ConfigStore  # heavy: hydra, only where a config is composed
 
     ConfigStore.instance().store(group="forward", name=name, node=cls)
+    groups = getattr(cls, "SETTINGS", None)
+    if groups:  # the top-level groups the model reads, typed: the config settings/<name> at the root
+        ConfigStore.instance().store(group="settings", name=name, node=dict(groups),
+                                     package="_global_")
 
 
 def _builtin() -> None:

@@ -24,9 +24,13 @@ same stages, run by :func:`run_model` in this order, each timed into ``seconds_<
 
 A model declares, in :attr:`ForwardModel.needs`, which earlier stages each stage reads from. A
 stage hands on its result by returning it (a typed dataclass: the scene model's
-:class:`~cssat.experiments.forward.scene.SceneMeasured`); a later stage reads it with
-``run.result(stage)``, which refuses a stage its needs do not declare (the other models still keep
-what their stages hand on as attributes of themselves, their needs declared). :func:`run_model`
+:class:`~cssat.experiments.forward.scene.ScenePlan` and
+:class:`~cssat.experiments.forward.scene.SceneMeasured`, the observed model's settings,
+:class:`~cssat.experiments.forward.observed.ObservedMeasured` and
+:class:`~cssat.experiments.forward.observed.ObservedVerdicts`); a later stage reads it with
+``run.result(stage)``, which refuses a stage its needs do not declare (the models not yet so
+converted keep what their stages hand on as attributes of themselves, their needs declared).
+:func:`run_stages` runs the first stages alone (a catalogue's row). :func:`run_model`
 owns the loop, refuses an order that runs a stage before one it needs (:class:`StageOrderError`),
 the timings and the headline line in the log. A new forward model is one subclass and its typed
 config registered as ``forward/<name>`` (:func:`cssat.models.register`); an experiment that uses it
@@ -41,7 +45,7 @@ from typing import Any, Mapping
 from cssat._checks import FieldError
 from cssat.experiments.context import Run, StageOrderError
 
-__all__ = ["ForwardModel", "run_model", "STAGES", "NEEDS", "StageOrderError", "check_needs"]
+__all__ = ["ForwardModel", "run_model", "run_stages", "STAGES", "NEEDS", "StageOrderError", "check_needs"]
 
 log = logging.getLogger("cssat")
 
@@ -148,3 +152,32 @@ def run_model(model: ForwardModel, cfg: Any, run: Run, stages: tuple[str, ...] |
     if line:
         log.info("%s", line)
     return metrics
+
+
+def run_stages(model: ForwardModel, cfg: Any, run: Run, stages: tuple[str, ...]) -> Any:
+    """The first stages of a run of ``model`` on ``cfg`` — ``stages``, in :data:`STAGES`' order
+    from ``plan`` (e.g. ``("plan", "measure", "estimate")``: a catalogue's row, a test) — with
+    :func:`run_model`'s bookkeeping (each result in ``run.results``, read by the next with
+    ``run.result``; a stage whose needs have not run refused) but no timing around them (the
+    parts a stage times itself still are) and no metrics. Returns the last stage's result; when
+    a stage fails, ``run.results`` keeps those of the stages before it."""
+    needs = check_needs(model)
+    order = tuple(stages)
+    if order != STAGES[:len(order)]:
+        raise StageOrderError(f"run_stages runs a prefix of {STAGES!r}, got {order!r}")
+    done: list[str] = []
+    run.stages_done, run.needs, run.results = done, needs, {}
+    out = None
+    try:
+        for stage in order:
+            missing = [s for s in needs[stage] if s not in done]
+            if missing:  # a model that declares a need on a later stage
+                raise StageOrderError(f"{model.name}: stage {stage!r} needs {missing}, which have not run")
+            run.current = stage
+            args = {"plan": (cfg, run), "write": (run, run.results.get("score"))}.get(stage, (run,))
+            out = run.results[stage] = getattr(model, stage)(*args)
+            done.append(stage)
+    finally:
+        run.current = None
+    return out
+

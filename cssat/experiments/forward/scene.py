@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cssat._checks import bool_param, choice_param, float_param, int_param
+from cssat._checks import int_param
 from cssat.experiments.build import build, build_model
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_csv, write_npz
@@ -40,12 +40,13 @@ from cssat.experiments.forward import Geometry
 from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.resources import check_memory
 from cssat.experiments.scene import build_scenario, read_observations
+from cssat.models.scene.config import SceneSettings
 from cssat.plots import atmosphere_figure, lightcurve_figure, observations_figure, save_figure
 
 if TYPE_CHECKING:
     import torch
 
-__all__ = ["SceneLightCurve", "SceneMeasured", "memory_parts"]
+__all__ = ["SceneLightCurve", "ScenePlan", "SceneMeasured", "memory_parts"]
 
 log = logging.getLogger("cssat")
 
@@ -77,102 +78,102 @@ class SceneMeasured:
     earthshine: bool  #: whether earthshine was simulated (``auto`` decided)
 
 
+@dataclass
+class ScenePlan:
+    """What the scene's ``plan`` stage hands on: the typed settings and the objects built from
+    the groups, checked before any work."""
+
+    settings: SceneSettings  #: the model's own settings (``render.*``, ``shadows``, ``earthshine``, …)
+    scenario_cfg: Any  #: the config ``build_scenario`` reads (its ``scenario`` node)
+    mesh: Any  #: the ``model`` group's mesh
+    attitude: Any  #: the ``attitude`` group's object (``None``: nadir)
+    brdf: Any  #: the ``brdf`` group's object (``None``: the mesh's own, Eq. 8–9)
+    atmosphere: Any  #: the ``atmosphere`` group's object (its weights)
+    noise: Any  #: the ``noise`` group's object
+    band: Any  #: the magnitudes' band (``None``: V with the Sun at -26.74)
+    observed: Any  #: the measured light curve of ``observations`` (``None``: none)
+
+    @property
+    def times(self) -> Any:
+        """The measured file's UTC stamps (``None``: the scenario's grid)."""
+        return self.observed.times_utc if self.observed is not None else None
+
+
 class SceneLightCurve(ForwardModel):
-    """A mesh in a scenario, its light curve rendered and attenuated (the module's docstring has the stages)."""
+    """A mesh in a scenario, its light curve rendered and attenuated (the module's docstring has
+    the stages): ``plan`` returns a :class:`ScenePlan`, ``measure`` a :class:`SceneMeasured`;
+    ``score`` and ``write`` read them with ``run.result(stage)``."""
 
     name = "scene"
     timed_inside = ("measure", "estimate", "solve")
     #: nothing is estimated or solved: the magnitudes (score) come from the curves of measure
     needs = {"measure": ("plan",), "score": ("plan", "measure"), "write": ("plan", "measure", "score")}
 
-    def plan(self, cfg: Any, run: Run) -> None:
-        self.cfg = cfg
-        self.size = int_param(cfg.render.size, "render.size", 1, 4096)
-        self.n_marks = int_param(cfg.render.get("n_images", 5), "render.n_images", 1, 20)
+    def plan(self, cfg: Any, run: Run) -> ScenePlan:
+        s = SceneSettings.from_config(cfg)
         geometry = build(cfg.geometry, "geometry") if cfg.get("geometry") is not None else Geometry()
-        self.atm = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs())
-        self.noise = build(cfg.get("noise"), "noise")
-        self.fov = cfg.render.get("fov_m")
-        if self.fov is not None:
-            float_param(self.fov, "render.fov_m", 0.0, open_lo=True)
-        self.mesh = build_model(cfg.model)
-        self.attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
-        self.shadows = bool_param(cfg.get("shadows", True), "shadows")
-        self.earthshine = choice_param(cfg.get("earthshine", False), "earthshine", [True, False, "auto"])
-        self.earth_albedo = float_param(cfg.get("earth_albedo", 0.3), "earth_albedo", 0.0, 1.0)
+        atm = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs())
+        noise = build(cfg.get("noise"), "noise")
+        mesh = build_model(cfg.model)
+        attitude = build(cfg.attitude, "attitude") if cfg.get("attitude") is not None else None
         from cssat.optics.passbands import resolve_band  # heavy: cssat.optics imports torch
 
-        mags = cfg.get("magnitudes") or {}
-        self.band = resolve_band(mags.get("band"), mags.get("system", "Vega"), field="magnitudes.band")
-        self.brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
-        self.observed = read_observations(cfg)
-        self.times = self.observed.times_utc if self.observed is not None else None
-        n_steps = len(self.times) if self.times is not None else int_param(cfg.scenario.n_steps, "scenario.n_steps", 1)
-        check_memory(memory_parts(n_steps, self.size, len(self.mesh.faces)), run.memory_limit_gb,
+        band = resolve_band(s.magnitudes.band, s.magnitudes.system, field="magnitudes.band")
+        brdf = build(cfg.brdf, "brdf") if cfg.get("brdf") is not None and cfg.brdf.get("_target_") else None
+        observed = read_observations({"observations": s.observations, "observed": asdict(s.observed)})
+        n_steps = len(observed.times_utc) if observed is not None else int_param(cfg.scenario.n_steps,
+                                                                                 "scenario.n_steps", 1)
+        check_memory(memory_parts(n_steps, s.render.size, len(mesh.faces)), run.memory_limit_gb,
                      "lower render.size or scenario.n_steps")
+        return ScenePlan(s, cfg, mesh, attitude, brdf, atm, noise, band, observed)
 
     def measure(self, run: Run) -> SceneMeasured:
         import torch  # heavy: torch (~1 s); the module imports without it
 
         from cssat.optics import default_fov, render, simulate_light_curve  # heavy: cssat.optics imports torch
 
+        p: ScenePlan = run.result("plan")
+        s = p.settings
         with run.stage("scene"):
-            scenario = build_scenario(self.cfg, self.times)
+            scenario = build_scenario(p.scenario_cfg, p.times)
         with run.stage("light_curve"):
-            earthshine = self.earthshine
+            earthshine = s.earthshine
             if earthshine == "auto":  # decided once, here: the metrics report what was simulated
                 from cssat.optics.lightcurve import earthshine_matters  # heavy: cssat.optics imports torch
 
                 earthshine = earthshine_matters(scenario)
-            lc = simulate_light_curve(self.mesh, scenario, shadows=self.shadows, attitude=self.attitude,
-                                      brdf=self.brdf, earthshine=earthshine, earth_albedo=self.earth_albedo)
+            lc = simulate_light_curve(p.mesh, scenario, shadows=s.shadows, attitude=p.attitude,
+                                      brdf=p.brdf, earthshine=earthshine, earth_albedo=s.earth_albedo)
         with run.stage("render"):  # rendering follows `device`; the photometry stays float64 (magnitudes span many decades)
-            fov_m = default_fov(self.mesh) if self.fov is None else float(self.fov)
-            images = render(self.mesh, lc.sun, lc.observer, self.size, fov_m=fov_m,
+            fov_m = default_fov(p.mesh) if s.render.fov_m is None else float(s.render.fov_m)
+            images = render(p.mesh, lc.sun, lc.observer, s.render.size, fov_m=fov_m,
                             brightness=lc.facets.to(run.device), dtype=torch.float64, progress=run.progress).cpu()
         with run.stage("atmosphere"):
-            facetwise, pixelwise = self._attenuate(run, lc, images)
+            facetwise, pixelwise = _attenuate(run, p, lc, images)
         from cssat.optics import apparent_magnitude, magnitude  # heavy: cssat.optics imports torch
 
-        to_mag = apparent_magnitude if self.band is None else (lambda v: magnitude(v, *self.band))
+        to_mag = apparent_magnitude if p.band is None else (lambda v: magnitude(v, *p.band))
         mag, mag_f, mag_p = (to_mag(v).numpy() for v in (lc.flux, facetwise.abs(), pixelwise.abs()))
         return SceneMeasured(scenario, lc.flux, images, fov_m, facetwise, pixelwise, mag, mag_f, mag_p,
-                             _mark_steps(lc.flux.numpy(), self.n_marks), bool(earthshine))
-
-    def _attenuate(self, run: Run, lc: Any, images: Any) -> tuple[Any, Any]:
-        """The facet-wise (Eq. 11) and pixel-wise (Eq. 12) attenuated noisy curves ``(T,)`` of the
-        light curve ``lc`` and its renders ``images (T, S, S)``."""
-        import torch  # heavy: torch (~1 s); the module imports without it
-
-        from cssat.physics import Measurement  # heavy: cssat.physics imports torch
-
-        atm, noise, seed, flux = self.atm, self.noise, run.seed, lc.flux
-        T = len(flux)
-        if getattr(atm, "spatial", False):  # weights over the sky's pixels: no facet-wise form (Eq. 11)
-            log.info("lightcurve: the %s atmosphere weights pixels by direction: no facet-wise curve", atm.name)
-            facetwise = torch.full_like(flux, float("nan"))
-        else:
-            facetwise = Measurement(atm.operator(T, lc.facets.shape[1], seed=seed, dtype=torch.float64), noise,
-                                    seed=seed + 2).frames(lc.facets)
-        pixelwise = Measurement(atm.operator(T, self.size * self.size, seed=seed + 1, dtype=torch.float64), noise,
-                                seed=seed + 3).frames(images)
-        return facetwise, pixelwise
+                             _mark_steps(lc.flux.numpy(), s.render.n_images), bool(earthshine))
 
     def solve(self, run: Run) -> None:
         """Nothing is reconstructed: the light curves are the result."""
 
     def score(self, run: Run) -> dict[str, Any]:
+        p: ScenePlan = run.result("plan")
         m: SceneMeasured = run.result("measure")
-        atm, attitude, brdf = self.atm, self.attitude, self.brdf
-        return {**_metrics(m.scenario, self.mesh, m.flux, m.images, m.magnitude, m.magnitude_facetwise,
+        atm, attitude, brdf = p.atmosphere, p.attitude, p.brdf
+        return {**_metrics(m.scenario, p.mesh, m.flux, m.images, m.magnitude, m.magnitude_facetwise,
                            m.magnitude_pixelwise),
-                "image_size": self.size, **atm.describe(),
+                "image_size": p.settings.render.size, **atm.describe(),
                 **(attitude.describe() if attitude is not None else {"attitude": "nadir"}),
-                **(brdf.describe() if brdf is not None else {"brdf": "mesh"}), **self.noise.describe(), "seed": run.seed,
-                **({"magnitude_band": f"{self.band[0].name} ({self.band[1]})"} if self.band is not None else {}),
-                **({"earthshine_albedo": self.earth_albedo} if m.earthshine else {})}
+                **(brdf.describe() if brdf is not None else {"brdf": "mesh"}), **p.noise.describe(), "seed": run.seed,
+                **({"magnitude_band": f"{p.band[0].name} ({p.band[1]})"} if p.band is not None else {}),
+                **({"earthshine_albedo": p.settings.earth_albedo} if m.earthshine else {})}
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
+        p: ScenePlan = run.result("plan")
         m: SceneMeasured = run.result("measure")
         sc, flux, mag, marks, images = m.scenario, m.flux, m.magnitude, m.marks, m.images
         minutes = (sc.times - sc.times[0]) / np.timedelta64(1, "m")
@@ -190,16 +191,36 @@ class SceneLightCurve(ForwardModel):
             for t, f, mm, a, s_, e in zip(sc.times, flux.numpy(), mag, phase, sc.sunlit, sc.elevation_deg)])
         save_figure(lightcurve_figure(minutes, mag, images[marks].numpy(), marks, sc.times, sc.sunlit, m.fov_m),
                     run.figure("fig4_lightcurve"))
-        save_figure(atmosphere_figure(minutes, mag, m.magnitude_facetwise, m.magnitude_pixelwise, getattr(self.atm, "name", ""),
-                                      epoch=epoch), run.figure("fig5_atmosphere"))
-        if self.observed is not None:
-            metrics.update(_compare(self.observed, mag, epoch, run))
+        save_figure(atmosphere_figure(minutes, mag, m.magnitude_facetwise, m.magnitude_pixelwise,
+                                      getattr(p.atmosphere, "name", ""), epoch=epoch), run.figure("fig5_atmosphere"))
+        if p.observed is not None:
+            metrics.update(_compare(p.observed, mag, epoch, run))
 
     def headline(self, metrics: dict[str, Any]) -> str:
         return "lightcurve: %d steps, %s (%d facets), magnitude %.2f..%.2f, eclipse %s-%s, %.1f s" % (
-            metrics["n_steps"], self.mesh.name, len(self.mesh), metrics["magnitude_min"] or math.nan,
+            metrics["n_steps"], metrics["model"], metrics["n_facets"], metrics["magnitude_min"] or math.nan,
             metrics["magnitude_max"] or math.nan, metrics["eclipse_start_utc"], metrics["eclipse_end_utc"],
             sum(v for k, v in metrics.items() if k.startswith("seconds_")))
+
+
+def _attenuate(run: Run, p: ScenePlan, lc: Any, images: Any) -> tuple[Any, Any]:
+    """The facet-wise (Eq. 11) and pixel-wise (Eq. 12) attenuated noisy curves ``(T,)`` of the
+    light curve ``lc`` and its renders ``images (T, S, S)``."""
+    import torch  # heavy: torch (~1 s); the module imports without it
+
+    from cssat.physics import Measurement  # heavy: cssat.physics imports torch
+
+    atm, noise, seed, flux, size = p.atmosphere, p.noise, run.seed, lc.flux, p.settings.render.size
+    T = len(flux)
+    if getattr(atm, "spatial", False):  # weights over the sky's pixels: no facet-wise form (Eq. 11)
+        log.info("lightcurve: the %s atmosphere weights pixels by direction: no facet-wise curve", atm.name)
+        facetwise = torch.full_like(flux, float("nan"))
+    else:
+        facetwise = Measurement(atm.operator(T, lc.facets.shape[1], seed=seed, dtype=torch.float64), noise,
+                                seed=seed + 2).frames(lc.facets)
+    pixelwise = Measurement(atm.operator(T, size * size, seed=seed + 1, dtype=torch.float64), noise,
+                            seed=seed + 3).frames(images)
+    return facetwise, pixelwise
 
 
 def _compare(observed: Any, mag: np.ndarray, epoch: Any, run: Run) -> dict[str, Any]:

@@ -22,13 +22,12 @@ import numpy as np
 from cssat._checks import FieldError
 from cssat.experiments.context import Run
 from cssat.experiments.scene import build_scenario, check_elements
+from cssat.models.observed.config import VERDICT_STAGES, ObservedSettings
 
 __all__ = ["VERDICT_STAGES", "VERDICTS", "MAX_RANGE_MISMATCH", "MAX_PHASE_MISMATCH_DEG", "TUMBLING_MIN_VARIATION",
            "period_verdict", "period_why", "variation_over_noise", "count_nights", "period_stage", "per_track",
-           "tumbling_stage", "spin_stage", "compare_geometry", "fitted_model"]
+           "tumbling_stage", "spin_stage", "compare_geometry", "fitted_model", "scenario_config"]
 
-#: the stages of the verdict (each a key of the ``stages`` group and a ``seconds_<stage>`` timing)
-VERDICT_STAGES = ("period", "tumbling", "spin")
 #: the words of the ``verdict`` metric (``failed``: the run stopped; its ``error`` says why)
 VERDICTS = ("periodic", "not periodic", "undetermined", "failed")
 #: ``stages.tumbling: auto`` runs the tumbling search on a curve the period stage did not call
@@ -114,7 +113,7 @@ def _period_error(err: FieldError) -> FieldError:
     return FieldError("observations", err.detail) if err.field in _DATA_ARGS else err.within("period")
 
 
-def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
+def period_stage(run_: Run, s: ObservedSettings, t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
                  tracks: np.ndarray, m: dict[str, Any], channels: np.ndarray | None = None) -> dict[str, Any] | None:
     """The period stage: the whole selection (its tracks' offsets and slopes fitted), and, when
     it holds several tracks, each track apart (``tracks.csv``); the whole may be out of reach
@@ -129,13 +128,13 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
     another registered period method (:func:`~cssat.inversion.period_method`)."""
     from cssat.inversion import period_method  # heavy: cssat.inversion imports torch
 
-    if opt["modes"]["period"] == "off":
+    if s.stages.period == "off":
         m.update(stage_period="off", verdict="undetermined", why="the period stage is off (stages.period=off)")
         return None
     from cssat.inversion.period import convention_for  # heavy: cssat.inversion imports torch
 
-    kw = dict(opt["period"])
-    method = kw.pop("method", None)
+    kw = s.period.options()
+    method = s.period.method
     estimate_period = period_method(method, field="period.method")
     kw.setdefault("convention", convention_for(m.get("object_name")))
     m["period_convention"] = kw["convention"]
@@ -149,7 +148,7 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
             if "trial frequencies" not in err.detail or len(set(tracks)) < 2:
                 raise _period_error(err) from None
             why_not = err.detail
-        rows = per_track(t, y, sig, tracks, kw, opt["min_samples"], method) if len(set(tracks)) > 1 else []
+        rows = per_track(t, y, sig, tracks, kw, s.characterise.min_samples, method) if len(set(tracks)) > 1 else []
     if rows:
         m["n_tracks_periodic"] = sum(r["verdict"] == "periodic" for r in rows)
         m["track_periods_s"] = [r["period_s"] for r in rows if r["verdict"] == "periodic"]
@@ -187,7 +186,7 @@ def period_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, s
     if pub and verdict == "periodic":
         m["period_vs_published"] = float(res["period_s"] / pub - 1.0)
     m["stage_period"] = "ok"
-    if opt["modes"]["period"] == "on" and verdict != "periodic":
+    if s.stages.period == "on" and verdict != "periodic":
         if verdict == "undetermined":
             raise FieldError("stages.period", f"the period is undetermined: {m['why']}; stages.period=auto records that "
                                               "as the answer")
@@ -247,7 +246,7 @@ def _tumbling_not_asked(m: dict[str, Any], res: dict[str, Any] | None) -> str | 
             f"{TUMBLING_MIN_VARIATION:g}×): nothing for two periods to explain (stages.tumbling=on runs it)")
 
 
-def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
+def tumbling_stage(run_: Run, s: ObservedSettings, t: np.ndarray, y: np.ndarray, sig: np.ndarray | None,
                    res: dict[str, Any] | None, m: dict[str, Any]) -> None:
     """The tumbling stage: :func:`~cssat.inversion.estimate_tumbling_periods`'s verdict when the
     curve holds enough samples (and cycles) for its 2-D series of order ``tumbling.order`` and —
@@ -255,11 +254,11 @@ def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray,
     the search costs several times the period's). ``tumbling`` (bool), ``tumbling_periods_s``."""
     from cssat.inversion import estimate_tumbling_periods  # heavy: cssat.inversion imports torch
 
-    mode = opt["modes"]["tumbling"]
+    mode = s.stages.tumbling
     if mode == "off":
         m["stage_tumbling"] = "off"
         return
-    order = int(opt["tumbling"].get("order", 3))
+    order = int(s.tumbling.order if s.tumbling.order is not None else 3)
     need = 2 * (2 * len([1 for j in range(order + 1) for k in range(-order, order + 1) if 0 < j + abs(k) <= order]) + 1)
     why = None
     if str(m.get("stage_period", "")).startswith("skipped (whole curve)"):
@@ -280,7 +279,7 @@ def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray,
             return
     with run_.stage("tumbling"):
         try:
-            tp = estimate_tumbling_periods(t, y, sigma=sig, **opt["tumbling"])
+            tp = estimate_tumbling_periods(t, y, sigma=sig, **s.tumbling.options())
         except FieldError as err:
             if "trial frequencies" not in err.detail or mode == "on":
                 raise err.within("tumbling") from None
@@ -293,13 +292,13 @@ def tumbling_stage(run_: Run, opt: dict[str, Any], t: np.ndarray, y: np.ndarray,
     m["stage_tumbling"] = "ok"
 
 
-def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray, res: dict[str, Any] | None,
+def spin_stage(run_: Run, s: ObservedSettings, lc: Any, t: np.ndarray, res: dict[str, Any] | None,
                m: dict[str, Any]) -> None:
     """The spin stage: the pole, sidereal period and convex shape (``shape.obj``, written here)
     from a periodic curve over ``characterise.min_nights`` nights and the object's element set,
     whose range and phase angle must agree with the file's (``MAX_RANGE_MISMATCH``,
     ``MAX_PHASE_MISMATCH_DEG``)."""
-    mode = opt["modes"]["spin"]
+    mode = s.stages.spin
     if mode == "off":
         m["stage_spin"] = "off"
         return
@@ -308,10 +307,11 @@ def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray,
     verdict = period_verdict(res)
     if verdict != "periodic":
         missing.append(f"a periodic light curve (the period is {verdict})")
-    if cfg.scenario.get("tle") is None:
+    if s.tle is None:
         missing.append("the object's element set (scenario.tle)")
-    if nights < opt["min_nights"]:
-        missing.append(f"{opt['min_nights']} nights (the file holds {nights}: one pass does not constrain a pole)")
+    min_nights = s.characterise.min_nights
+    if nights < min_nights:
+        missing.append(f"{min_nights} nights (the file holds {nights}: one pass does not constrain a pole)")
     if missing:
         why = "needs " + ", ".join(missing)
         if mode == "on":
@@ -321,8 +321,9 @@ def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray,
     from cssat.inversion import estimate_spin, minkowski  # heavy: cssat.inversion imports torch
     from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2  # heavy: cssat.optics.photometry imports torch
 
+    cfg = scenario_config(s)
     with run_.stage("spin"):
-        check_elements(cfg, lc, opt["max_epoch_days"])
+        check_elements(cfg, lc, s.characterise.max_epoch_days)
         sc = build_scenario(cfg, lc.times_utc, lc.sites)  # the file's observer of each sample, where it gives them
         compare_geometry(sc, lc, m)
         rel = m.get("range_diff_km_median", 0.0) / float(np.median(lc.ranges_km)) if lc.ranges_km is not None else 0.0
@@ -341,6 +342,17 @@ def spin_stage(run_: Run, cfg: Any, opt: dict[str, Any], lc: Any, t: np.ndarray,
         mesh.export(run_.out_dir / "shape.obj")
         m["shape_converged"] = bool(info.get("converged"))
     m["stage_spin"] = "ok"
+
+
+def scenario_config(s: ObservedSettings) -> Any:
+    """The ``scenario`` node of ``s`` as a config of its own (``cfg.scenario``: what
+    :func:`~cssat.experiments.scene.build_scenario` and :func:`~cssat.experiments.scene.check_elements`
+    read)."""
+    from omegaconf import OmegaConf  # heavy: omegaconf; library code, importable without Hydra
+
+    node = s.scenario
+    node = OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
+    return OmegaConf.create({"scenario": node})
 
 
 def compare_geometry(sc: Any, lc: Any, m: dict[str, Any]) -> None:
