@@ -14,8 +14,8 @@ from it gets values already checked.
 
 A model whose settings are top-level groups (the observed model's ``observations``, ``period``,
 ``stages``, …) names their dataclasses in a ``SETTINGS`` class variable of its config: they are
-stored as the config ``settings/<name>`` (those keys at the root), which its experiments include
-in their defaults list (``- /settings/<name>``), so those groups are typed too.
+stored as the config ``<name>_settings`` (those keys at the root), which its experiments include
+in their defaults list (``- /<name>_settings``), so those groups are typed too.
 
 A forward model of one's own registers its config here with :func:`register` (its module, imported
 before Hydra composes: e.g. from a ``conf`` package's ``__init__``), or ships a YAML in a
@@ -51,6 +51,7 @@ def unregister(name: str) -> None:
         from hydra.core.config_store import ConfigStore  # heavy: hydra, only where a config is composed
 
         ConfigStore.instance().repo.get("forward", {}).pop(f"{name}.yaml", None)
+        ConfigStore.instance().repo.pop(f"{name}_settings.yaml", None)
 
 
 _STORED: list[bool] = []
@@ -61,8 +62,8 @@ def _store(name: str, cls: type) -> None:
 
     ConfigStore.instance().store(group="forward", name=name, node=cls)
     groups = getattr(cls, "SETTINGS", None)
-    if groups:  # the top-level groups the model reads, typed: the config settings/<name> at the root
-        ConfigStore.instance().store(group="settings", name=name, node=dict(groups),
+    if groups:  # the top-level groups the model reads, typed: the config <name>_settings at the root
+        ConfigStore.instance().store(name=f"{name}_settings", node=dict(groups),
                                      package="_global_")
 
 

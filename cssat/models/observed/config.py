@@ -3,7 +3,7 @@
 The model's ``forward`` node names it only (:class:`ObservedConfig`); what it reads are the
 experiment's top-level groups, each a typed dataclass here — the single source of its keys and
 defaults — stored in Hydra's ConfigStore with the model (:data:`ObservedConfig.SETTINGS`: the
-config ``settings/observed``, which ``conf/experiment/characterise.yaml`` includes):
+config ``observed_settings``, which ``conf/experiment/characterise.yaml`` includes):
 
 ========================  ==========================================================================
 ``observations``          the light-curve file (a path; required)

@@ -2,7 +2,7 @@
 
 The model's ``forward`` node names it only (:class:`SceneConfig`); its own settings are the
 experiment's top-level keys of :data:`SceneConfig.SETTINGS` — the single source of their keys
-and defaults, stored in Hydra's ConfigStore as the config ``settings/scene`` (which
+and defaults, stored in Hydra's ConfigStore as the config ``scene_settings`` (which
 ``conf/experiment/lightcurve.yaml`` includes):
 
 ==================  =========================================================================
