@@ -134,7 +134,10 @@ def test_blind_recovery_of_a_tumbler(tumbler):
     assert np.sqrt(np.mean((pred - y[held]) ** 2)) < 2 * sig
     assert sol.reduced_chi2 < 3.0  # 200 grid normals for 8 off-grid facets: the grid's bias, not the search
     sep = _separation_deg((st.lon_deg, st.lat_deg), (truth.lon_deg, truth.lat_deg))
-    assert 0 < sol.errors["L_err_deg"] and sep < 5 * sol.errors["L_err_deg"], (sep, sol.errors)
+    # the grid's bias is above the 1 % noise, so the verdict (no held-out data here: the fitted samples'
+    # χ² against the χ²_{n-p} quantile) calls the model unreliable and withholds L's 1σ — though L is right
+    assert sol.verdict == "unreliable" and "fitted samples" in sol.verdict_why, sol.verdict_why
+    assert math.isnan(sol.errors["L_err_deg"]) and math.isnan(sol.errors["L_lon_deg"]) and sep < 1.0
 
 
 def test_bad_input_names_the_field():
