@@ -242,8 +242,9 @@ def characterise_file(path: str | os.PathLike, *, observed: Mapping[str, Any] | 
     (``characterise``: penumbra, ``min_samples``, range to 1000 km), ``period``
     (:func:`cssat.experiments.forward.verdicts.period_stage`; ``period``: the options of
     :func:`cssat.inversion.estimate_period`) and — only when ``stages={"tumbling": "auto"}`` or
-    ``"on"`` — ``tumbling`` (``tumbling``: its options). Each group is the experiment's YAML
-    default with the given keys over it; the spin stage never runs.
+    ``"on"`` — ``tumbling`` (``tumbling``: its options). Each group is the experiment's default
+    (its typed config, :mod:`cssat.models.observed.config`) with the given keys over it; the spin
+    stage never runs.
 
     The row: ``file`` (as given), ``track`` (the file's track ids, ``;``-joined),
     ``object_id``, ``object_name``, ``verdict`` (``periodic`` | ``not periodic`` |

@@ -179,6 +179,7 @@ def test_a_new_period_method_is_one_module_run_through_the_period_stage(plugin_p
     from cssat.experiments.context import Run
     from cssat.experiments.forward.verdicts import period_stage
     from cssat.inversion import PeriodResult, find_period, period_methods
+    from cssat.models.observed.config import ObservedSettings, PeriodConfig
 
     importlib.import_module("cssat_plugins_test.bruteforce")
     assert "bruteforce" in period_methods()
@@ -188,12 +189,12 @@ def test_a_new_period_method_is_one_module_run_through_the_period_stage(plugin_p
     assert abs(res.period_s - 137.0) < 0.2  # the grid's 0.1 s step
     run = Run(out_dir=Path("."), dtype=None, device=None, seed=0)
     m: dict = {}
-    opt = {"modes": {"period": "auto"}, "period": {"method": "bruteforce"}, "min_samples": 20}
+    opt = ObservedSettings(observations="(synthetic)", period=PeriodConfig(method="bruteforce"))
     out = period_stage(run, opt, t, y, np.full(len(t), 0.05), np.zeros(len(t), dtype=int).astype(str), m)
     assert out.method == "bruteforce" and m["verdict"] == "periodic" and m["period_s"] == res.period_s
     assert m["why"] == "the brute-force fit's best period" and m["stage_period"] == "ok"
     # an option the method does not take: a FieldError naming the option under period.
-    opt["period"] = {"method": "bruteforce", "fap_max": 0.01}
+    opt.period = PeriodConfig(method="bruteforce", fap_max=0.01)
     with pytest.raises(FieldError) as err:
         period_stage(run, opt, t, y, None, np.zeros(len(t)).astype(str), {})
     assert err.value.field == "period.fap_max" and "periods" in err.value.detail
@@ -205,13 +206,18 @@ def test_unknown_period_method_names_the_key_and_the_methods():
     from cssat.experiments.context import Run
     from cssat.experiments.forward.verdicts import period_stage
     from cssat.inversion import find_period, register_period_method
+    from cssat.models.observed.config import ObservedSettings, PeriodConfig
 
     t, y = _signal(200)
     with pytest.raises(FieldError) as err:
         find_period(t, y, method="nosuch")
     assert err.value.field == "method" and all(k in err.value.detail for k in ("cssat", "lombscargle", "pdm"))
     run = Run(out_dir=Path("."), dtype=None, device=None, seed=0)
-    opt = {"modes": {"period": "auto"}, "period": {"method": "nosuch"}, "min_samples": 20}
+    with pytest.raises(FieldError) as err:  # refused by the period settings' own check, before any stage
+        PeriodConfig(method="nosuch")
+    assert err.value.field == "period.method" and "cssat, lombscargle, pdm" in err.value.detail
+    opt = ObservedSettings(observations="(synthetic)")
+    opt.period.method = "nosuch"  # past that check: the period stage names it too
     with pytest.raises(FieldError) as err:
         period_stage(run, opt, t, y, None, np.zeros(len(t)).astype(str), {})
     assert err.value.field == "period.method" and "cssat, lombscargle, pdm" in err.value.detail
