@@ -173,6 +173,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     """
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
     t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
+    if heldout is not None:  # checked before any work (step 6 reads it)
+        _check_heldout(heldout)
     interval = choice_param(interval, "interval", ("profile", "laplace"))
     profile_grids = int_param(profile_grids, "profile_grids", 1, 64)
     T = len(t)
@@ -288,14 +290,7 @@ def _check_spin(fine: _Fit, a: np.ndarray, sup: np.ndarray, lon: float, lat: flo
     out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
     J_fit = _spin_jacobian(fine, lon, lat, f, a, sup, span)
     if heldout is not None and sig is not None:
-        try:
-            th, yh, Sh, Oh, sh = heldout
-        except (TypeError, ValueError) as e:
-            raise FieldError("heldout", "expected (times_s, flux, sun, obs, sigma): the held-out samples, their Sun and "
-                                        "observer directions and the flux's 1σ") from e
-        if sh is None:
-            raise FieldError("heldout", "the held-out samples need their sigma (the flux's 1σ) to be tested")
-        th, yh, Sh, Oh, wh, _ = _check_light_curve(th, yh, Sh, Oh, sh)
+        th, yh, Sh, Oh, wh = _check_heldout(heldout)
         held = _Fit(th, yh, wh, Sh, Oh, fine.N, brdf, frame)
         r = (yh - held.matrix(lon, lat, f) @ a) * wh
         lim = heldout_threshold(J_fit, _spin_jacobian(held, lon, lat, f, a, sup, span))
@@ -305,6 +300,22 @@ def _check_spin(fine: _Fit, a: np.ndarray, sup: np.ndarray, lon: float, lat: flo
                          fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sig is not None,
                          what="the pole")
     return {"verdict": verdict, "verdict_why": why, **out}
+
+
+def _check_heldout(heldout: Any) -> tuple[np.ndarray, ...]:
+    """``heldout = (times_s, flux, sun, obs, sigma)`` checked: ``t, y (T,), S, O (T, 3), w = 1/σ (T,)``."""
+    try:
+        th, yh, Sh, Oh, sh = heldout
+    except (TypeError, ValueError) as e:
+        raise FieldError("heldout", "expected (times_s, flux, sun, obs, sigma): the held-out samples, their Sun and "
+                                    "observer directions and the flux's 1σ") from e
+    if sh is None:
+        raise FieldError("heldout", "the held-out samples need their sigma (the flux's 1σ) to be tested")
+    try:
+        th, yh, Sh, Oh, wh, _ = _check_light_curve(th, yh, Sh, Oh, sh)
+    except FieldError as e:
+        raise FieldError("heldout", f"the held-out samples: {e.detail}") from e
+    return th, yh, Sh, Oh, wh
 
 
 def _synodic_period(t: np.ndarray, y: np.ndarray, w: np.ndarray, sigma: Any, period_s: float | None, min_period_s: float,

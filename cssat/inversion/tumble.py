@@ -90,6 +90,10 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     clock = time.perf_counter()
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
     t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
+    if heldout is not None:  # checked before any work (step 5 reads it)
+        from cssat.inversion.spin import _check_heldout
+
+        _check_heldout(heldout)
     samples = (t, y, w, S, O)
     t_ref = float(t[0])
     span = float(t[-1] - t[0])

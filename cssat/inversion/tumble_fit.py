@@ -102,21 +102,13 @@ def _check_tumble(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarr
     ``heldout_n``, ``heldout_threshold``."""
     from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only here
 
-    from cssat._checks import FieldError
-    from cssat.inversion.spin import _check_light_curve  # heavy: cssat.inversion.spin imports torch
+    from cssat.inversion.spin import _check_heldout  # heavy: cssat.inversion.spin imports torch
     from cssat.inversion.spin_errors import HELDOUT_ALPHA, heldout_threshold, judge
 
     out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
     J_fit = _tumble_jacobian(final, state, x, a, sup, span)
     if heldout is not None and sig is not None:
-        try:
-            th, yh, Sh, Oh, sh = heldout
-        except (TypeError, ValueError) as e:
-            raise FieldError("heldout", "expected (times_s, flux, sun, obs, sigma): the held-out samples, their Sun and "
-                                        "observer directions and the flux's 1σ") from e
-        if sh is None:
-            raise FieldError("heldout", "the held-out samples need their sigma (the flux's 1σ) to be tested")
-        th, yh, Sh, Oh, wh, _ = _check_light_curve(th, yh, Sh, Oh, sh)
+        th, yh, Sh, Oh, wh = _check_heldout(heldout)
         held = _TFit(th, yh, wh, Sh, Oh, final.N, final.brdf)
         r = (yh - held.matrix(state) @ a) * wh
         lim = heldout_threshold(J_fit, _tumble_jacobian(held, state, x, a, sup, span))
