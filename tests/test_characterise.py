@@ -103,10 +103,10 @@ def test_undetermined_is_not_not_periodic(tmp_path, monkeypatch):
     ``stages.period=on`` refuses it as undetermined, not as "no significant period"."""
     import functools
 
-    import cssat.inversion
+    import cssat.inversion.period
 
-    real = cssat.inversion.estimate_period
-    monkeypatch.setattr(cssat.inversion, "estimate_period",
+    real = cssat.inversion.period.estimate_period
+    monkeypatch.setattr(cssat.inversion.period, "estimate_period",
                         functools.wraps(real)(lambda *a, **k: _undetermined(real(*a, **k))))
     model, run = _model(tmp_path, f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]",
                         "characterise.figures=false")

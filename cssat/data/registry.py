@@ -45,6 +45,8 @@ __all__ = ["Format", "register_format", "unregister_format", "registered_formats
 
 #: cssat's own formats, in the order they are listed (registered by their modules)
 BUILTIN_FORMATS = ("csv", "mmt", "score", "alcdef", "ecsv", "fits", "astropy")
+#: the modules of cssat.data that register them when imported (alcdef; ecsv, fits, astropy; mmt; score; csv)
+BUILTIN_MODULES = ("alcdef", "astro", "mmt", "score", "text")
 #: the characters of a file's start that ``identify`` sees (as lines)
 HEAD_CHARS = 8192
 
@@ -162,7 +164,7 @@ def identify_format(path: str | os.PathLike, first_lines: list[str] | None = Non
 def read_bytes(path: str | os.PathLike) -> bytes:
     """The bytes of the file ``path``, read with the input cap (1 GiB) and recorded
     (:func:`cssat._record.read_input`; a FieldError naming ``observations``)."""
-    from cssat._record import read_input  # the recording of inputs: stdlib only
+    from cssat._record import read_input  # local: the recording of inputs (stdlib only), only for reading
 
     return read_input(Path(path), 1 << 30, "observations")
 
@@ -189,8 +191,7 @@ def _builtins() -> None:
     if _LOADED:
         return
     _LOADED = True
-    import cssat.data.alcdef  # noqa: F401  registers alcdef
-    import cssat.data.astro  # noqa: F401  registers ecsv, fits, astropy
-    import cssat.data.mmt  # noqa: F401  registers mmt
-    import cssat.data.score  # noqa: F401  registers score
-    import cssat.data.text  # noqa: F401  registers csv
+    import importlib  # local: plugins by module name (the modules import this one to register)
+
+    for module in BUILTIN_MODULES:
+        importlib.import_module(f"cssat.data.{module}")

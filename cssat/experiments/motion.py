@@ -70,7 +70,7 @@ class MovingScene(PixelSensing):
     def __init__(self, start_utc: str = "2020-04-01T21:00:00", step_s: float | None = None, tle: Any = None,
                  lat_deg: float = 51.17, lon_deg: float = 10.45, alt_m: float = 0.0, shadows: bool = True,
                  dtype: str | None = None, draw_dtype: str | None = None):
-        from cssat.models.moving.config import MovingConfig
+        from cssat.models.moving.config import MovingConfig  # local: the typed configs' package, only to build one
 
         c = self.config = MovingConfig(start_utc=start_utc, step_s=step_s, tle=tle, lat_deg=lat_deg, lon_deg=lon_deg,
                                        alt_m=alt_m, shadows=shadows, dtype=dtype, draw_dtype=draw_dtype)  # checked

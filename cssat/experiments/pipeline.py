@@ -28,7 +28,7 @@ from cssat.experiments import report
 from cssat.experiments.build import build, build_denoiser, build_solver
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.estimators import Known
-from cssat.experiments.forward import Geometry, PixelSensing, measurements, phi_stats
+from cssat.experiments.forward.sensing import Geometry, measurements, phi_stats
 from cssat.experiments.report import FIGURES, repeats_summary
 from cssat.experiments.resources import check_memory
 from cssat.metrics import psnr
@@ -61,6 +61,10 @@ class Plan:
     information: int = 0  #: modes of the Fisher-information bound (0: none)
 
 
+#: the forward model of a config without one (by name: this module is what it runs)
+DEFAULT_FORWARD = "cssat.experiments.forward.PixelSensing"
+
+
 def _node(cfg: Any, key: str) -> Any:
     return cfg.get(key) if hasattr(cfg, "get") else None
 
@@ -72,7 +76,8 @@ def plan(cfg: Any, run: Run, forward: Any = None) -> Plan:
 
     target = build(cfg.target, "target")
     if forward is None:
-        forward = build(cfg.forward, "forward") if _node(cfg, "forward") is not None else PixelSensing()
+        node = cfg.forward if _node(cfg, "forward") is not None else {"_target_": DEFAULT_FORWARD}
+        forward = build(node, "forward")
     geometry = build(cfg.geometry, "geometry") if _node(cfg, "geometry") is not None else Geometry()
     atmosphere = build(cfg.get("atmosphere"), "atmosphere", optional=geometry.kwargs())
     if getattr(atmosphere, "emitters", "pixels") != "pixels":

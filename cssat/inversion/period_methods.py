@@ -139,12 +139,12 @@ def _peer_result(name: str, t: np.ndarray, y: np.ndarray, sigma: Any, segments: 
     (with each stretch's trend and each channel's zero point: :func:`series_fit`) for ``.model``
     and χ², its next peaks as alternatives, and "periodic" — a periodogram states a period on
     every curve."""
-    from cssat.inversion.period_verdict import MODEL_FITS_CHI2  # the threshold estimate_period uses
+    from cssat.inversion.period_verdict import MODEL_FITS_CHI2  # local: the threshold estimate_period uses, for a peer's result
 
     P = 1.0 / float(f[best])
     fit = series_fit(t, y, P, n_harmonics, sigma=sigma, segments=segments, detrend=detrend, zero_points=zero_points)
     res = PeriodResult({"period_s": P, "verdict": "periodic", "periodic": True}, **fit)
-    from cssat.inversion.fourier import light_curve_scatter  # the white-noise 1σ estimate_period uses without sigma
+    from cssat.inversion.fourier import light_curve_scatter  # heavy: cssat.inversion.fourier imports torch
 
     resid = y - res.model(t, channels=zero_points)
     n_par = 2 * n_harmonics + sum(len(s["coefficients"]) for s in fit["trend"]) + len(fit["zero_points"] or [1]) - 1
@@ -223,13 +223,13 @@ def pdm_period(times_s: Any, flux: Any, *, sigma: Any = None, segments: Any = No
 
 
 def _register_builtins() -> None:
-    from cssat.inversion.period import estimate_period
+    from cssat.inversion.period import estimate_period  # local: registered when the registry is first read
 
     @functools.wraps(estimate_period)
     def cssat_method(times_s: Any, flux: Any, **options: Any) -> Any:
-        import cssat.inversion  # the public name, looked up at each call: a patched estimate_period is the one run
+        from cssat.inversion import period  # local: its name looked up at each call (a patched estimate_period runs)
 
-        return cssat.inversion.estimate_period(times_s, flux, **options)
+        return period.estimate_period(times_s, flux, **options)
 
     register_period_method(DEFAULT_METHOD, cssat_method)
     register_period_method("lombscargle", lomb_scargle_period)

@@ -177,7 +177,7 @@ def series_fit(times_s: Any, flux: Any, period_s: float, n_harmonics: int, *, si
     ``coefficients``) and ``zero_points`` ({label: offset}, the first label's 0; ``None``
     without labels). A torch tensor or an astropy Quantity is read as its values; ``datetime64``
     times as seconds from the earliest (the frame :meth:`PeriodResult.model` then takes)."""
-    from cssat.data.observations import stretches as _stretches  # cssat.data: torch on import
+    from cssat.data.observations import stretches as _stretches  # heavy: cssat.data imports torch
 
     t, y = _plain(times_s, times=True), _plain(flux)
     if sigma is not None:

@@ -68,12 +68,12 @@ def _store(name: str, cls: type) -> None:
 
 
 def _builtin() -> None:
-    from cssat.models.egi.config import EGIConfig
-    from cssat.models.moving.config import MovingConfig
-    from cssat.models.observed.config import ObservedConfig
-    from cssat.models.pixels.config import PixelsConfig
-    from cssat.models.scene.config import SceneConfig
-    from cssat.models.shadow.config import ShadowConfig
+    from cssat.models.egi.config import EGIConfig  # local: each model's config module registers it; loaded on first use
+    from cssat.models.moving.config import MovingConfig  # local: each model's config module registers it; loaded on first use
+    from cssat.models.observed.config import ObservedConfig  # local: each model's config module registers it; loaded on first use
+    from cssat.models.pixels.config import PixelsConfig  # local: each model's config module registers it; loaded on first use
+    from cssat.models.scene.config import SceneConfig  # local: each model's config module registers it; loaded on first use
+    from cssat.models.shadow.config import ShadowConfig  # local: each model's config module registers it; loaded on first use
 
     for name, cls in (("pixels", PixelsConfig), ("moving", MovingConfig), ("egi", EGIConfig), ("scene", SceneConfig),
                       ("shadow", ShadowConfig), ("observed", ObservedConfig)):

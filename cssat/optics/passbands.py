@@ -1,7 +1,7 @@
 """Passbands, magnitude systems (AB, Vega) and the Sun's magnitude through each band.
 
 cssat computes a satellite's brightness as a flux ``F`` in W/m² at the observer, for the Sun's
-total irradiance ``I₀`` (:data:`cssat.optics.photometry.SOLAR_IRRADIANCE_W_M2`). Its magnitude in a
+total irradiance ``I₀`` (:data:`cssat.optics.sun.SOLAR_IRRADIANCE_W_M2`). Its magnitude in a
 band is that of the Sun dimmed by ``F / I₀``:
 
 .. math::
@@ -46,7 +46,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, choice_param, float_param
-from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2
+from cssat.optics.sun import SOLAR_IRRADIANCE_W_M2
 
 if TYPE_CHECKING:
     from cssat._types import Array
@@ -174,7 +174,7 @@ def spectral_factor(material: str, band: str | Passband) -> float:
     ``R(λ)`` (:data:`cssat.scene.materials.SPECTRA`) averaged over the Sun's light through the band,
     over its Sun-weighted mean on 300–1100 nm, ``⟨R⟩_band / ⟨R⟩☉``. Exactly 1 for a grey (flat)
     material and for a name without a table."""
-    from cssat.scene.materials import SPECTRA, SPECTRA_NM
+    from cssat.scene.materials import SPECTRA, SPECTRA_NM  # local: the materials' spectra, only for colours
 
     if material not in SPECTRA or len(set(SPECTRA[material][0])) == 1:
         return 1.0
@@ -193,7 +193,7 @@ def band_coefficients(mesh: Any, band: str | Passband) -> Any:
     :data:`cssat.scene.materials.MATERIALS`, as ``material="satellite"`` models are; other facets
     and grey materials unchanged). Where a factor would make ``cd + cs`` exceed 1, both are scaled
     down to a sum of 1."""
-    import dataclasses
+    import dataclasses  # local: only to copy a passband
 
     if mesh.part is None or not len(mesh):
         return mesh

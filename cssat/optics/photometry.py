@@ -17,6 +17,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
+from cssat.optics.sun import AU_KM, SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V, SUN_RADIUS_KM  # re-exported
 from cssat.scene.mesh import Mesh, as_mesh
 
 if TYPE_CHECKING:
@@ -34,11 +35,6 @@ __all__ = [
     "apparent_magnitude",
     "check_unit",
 ]
-
-SOLAR_IRRADIANCE_W_M2 = 1361.0  # I₀, total solar irradiance at 1 AU (Kopp & Lean 2011)
-SUN_RADIUS_KM = 695_700.0
-AU_KM = 149_597_870.7
-SUN_MAGNITUDE_V = -26.74  # apparent V magnitude of the Sun at 1 AU
 
 #: the specular term of Eq. 8–9 (:func:`facet_brightness`, :class:`cssat.optics.PaperBRDF`) when
 #: none is asked for: ``"paper"`` (the paper's Eq. 9, ≈11× a flat mirror's energy over the Sun's
@@ -149,7 +145,7 @@ def facet_brightness(
     if spectral is not None and not isinstance(spectral, bool):
         raise FieldError("spectral", f"expected true, false or null ({DEFAULT_SPECTRAL}), got {spectral!r}")
     if band is not None and (DEFAULT_SPECTRAL if spectral is None else spectral):
-        from cssat.optics.passbands import band_coefficients  # heavy-ish: the solar table, only for colours
+        from cssat.optics.passbands import band_coefficients  # heavy: the solar spectrum's table, only for colours
 
         mesh = band_coefficients(mesh, band)
     if getattr(mesh, "joints", ()):  # articulated parts (Sun-tracking arrays): posed at every sample

@@ -191,7 +191,7 @@ def astra_like(cd: float | None = None, cs: float | None = None, array_angle_deg
     (``array_angle_deg``) that the photometry and the renderer pose per sample. A 1-axis drive
     cannot follow the Sun out of the orbit plane (:class:`~cssat.scene.attitudes.Joint`).
     """
-    from cssat.scene.attitudes import TRACKING_CHOICES, check_limits  # the articulation lives with the attitudes
+    from cssat.scene.attitudes import TRACKING_CHOICES, check_limits  # local: the articulation lives with the attitudes
 
     choice_param(array_tracking, "array_tracking", TRACKING_CHOICES)
     limits = check_limits(array_limits_deg)
@@ -213,7 +213,7 @@ def astra_like(cd: float | None = None, cs: float | None = None, array_angle_deg
     mesh = _assemble(pieces, real, "astra_like")
     if array_tracking == "fixed":
         return mesh
-    from cssat.scene.attitudes import ArticulatedMesh, Joint
+    from cssat.scene.attitudes import ArticulatedMesh, Joint  # local: the articulation lives with the attitudes
 
     start = np.cumsum([0] + [len(m) for m, _ in pieces])
     joints = []
@@ -291,7 +291,7 @@ def get_model(name: str = "astra_like", path: str | None = None, scale: float = 
         raise FieldError("name", f"expected one of {sorted(MODELS) + ['file']}, got {name!r}")
     else:
         extra = {}
-        from cssat.scene.attitudes import TRACKING_CHOICES, check_limits  # the articulation lives with the attitudes
+        from cssat.scene.attitudes import TRACKING_CHOICES, check_limits  # local: the articulation lives with the attitudes
 
         choice_param(array_tracking, "array_tracking", TRACKING_CHOICES)
         limits = check_limits(array_limits_deg)

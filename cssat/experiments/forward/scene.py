@@ -36,7 +36,7 @@ from cssat._checks import int_param
 from cssat.experiments.build import build, build_model
 from cssat.experiments.context import Run
 from cssat.experiments.files import write_csv, write_npz
-from cssat.experiments.forward import Geometry
+from cssat.experiments.forward.sensing import Geometry
 from cssat.experiments.forward.base import ForwardModel
 from cssat.experiments.resources import check_memory
 from cssat.experiments.scene import build_scenario, read_observations
