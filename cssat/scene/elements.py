@@ -68,7 +68,7 @@ SATELLITE_FORMS = ("two TLE lines (line1, line2)", "three (name, line1, line2)",
                    "a skyfield EarthSatellite", "an sgp4 Satrec", "an OMM/GP record (a dict of CCSDS keys)")
 
 
-def earth_satellite(tle, ts, field: str = "scenario.tle"):
+def earth_satellite(tle: Any, ts: Any, field: str = "scenario.tle") -> tuple[Any, str]:
     """``(EarthSatellite, name)`` of any of :data:`SATELLITE_FORMS`; TLE lines are checked by
     :func:`check_tle` first (``name`` is ``""`` when the input carries none)."""
     from sgp4.api import Satrec  # heavy: sgp4, only for _satellite()

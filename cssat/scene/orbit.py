@@ -89,8 +89,9 @@ class Scenario:
 
 
 @lru_cache(maxsize=1)
-def skyfield_ephemeris():
-    """The timescale and DE421 ephemeris, loaded offline from ``skyfield-data``."""
+def skyfield_ephemeris() -> tuple[Any, Any]:
+    """``(timescale, ephemeris)``: skyfield's timescale and the DE421 ephemeris, loaded offline
+    from ``skyfield-data``."""
     import skyfield_data  # heavy: skyfield-data, only for skyfield_ephemeris()
     from skyfield.api import Loader  # heavy: skyfield, only for skyfield_ephemeris()
 
