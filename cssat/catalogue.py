@@ -1,4 +1,4 @@
-"""A catalogue of measured light curves at archive scale (issue 46, point 6).
+"""A catalogue of measured light curves at archive scale.
 
 :func:`characterise_file` is the characterise experiment's ``read → clean → period`` (``→
 tumbling`` when asked) on one file, in this process and without Hydra: one flat row (a ``dict``

@@ -1,4 +1,4 @@
-"""A catalogue's shard jobs (issue 46, point 6): the function each job of ``cssat -m
+"""A catalogue's shard jobs: the function each job of ``cssat -m
 experiment=characterise observations=<dir or glob>`` runs (:func:`run`: the job's slice of the
 sorted file list through :func:`cssat.catalogue.characterise_file`, its ``tracks_<shard>.csv``),
 the settings of the ``catalogue`` group checked once before any job (:func:`check_config`), and

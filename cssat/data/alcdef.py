@@ -1,5 +1,5 @@
-"""The Asteroid Lightcurve Data Exchange Format reader (ALCDEF, Warner et al. 2011; issues 34
-and 46): ``STARTMETADATA … ENDMETADATA`` blocks (one per session: a track) and
+"""The Asteroid Lightcurve Data Exchange Format reader (ALCDEF, Warner et al. 2011):
+``STARTMETADATA … ENDMETADATA`` blocks (one per session: a track) and
 ``DATA=JD|MAG|MAGERR`` lines (UTC Julian dates; the block's ``MAGBAND``, ``DELIMITER``, object and
 observers). Registered as the format ``alcdef`` (:mod:`cssat.data.registry`)."""
 

@@ -1,4 +1,4 @@
-"""astropy tables in (issues 34 and 46): a ``Table``/``QTable``/``TimeSeries`` object, or an
+"""astropy tables in: a ``Table``/``QTable``/``TimeSeries`` object, or an
 ECSV/FITS file read by astropy, with its ``Time`` columns in any scale (``TIMESYS`` honoured)
 made UTC by astropy and its units checked against the light curve's kind.
 

@@ -1,4 +1,4 @@
-"""What every reader's columns go through (issues 34 and 46): the reading options a fixed
+"""What every reader's columns go through: the reading options a fixed
 format accepts, a flux density in Jy made a magnitude, and :func:`finish` — values, dates and
 kind checked, rows sorted, duplicate stamps refused or merged within each camera channel."""
 

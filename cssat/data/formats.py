@@ -1,4 +1,4 @@
-"""Readers for the light-curve files observers publish (issues 34 and 46), and the checks every
+"""Readers for the light-curve files observers publish, and the checks every
 reader shares.
 
 Each reader returns the columns of :class:`~cssat.data.observations.ObservedLightCurve` as a

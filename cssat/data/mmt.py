@@ -1,5 +1,5 @@
 """The Mini-MegaTORTORA (MMT-9, Karpov et al. 2015) reader: per-track downloads and
-whole-object exports, and files that concatenate them (issues 34 and 46).
+whole-object exports, and files that concatenate them.
 
 An export is one or more **blocks**: ``# key: value`` header lines (``satellite: <NORAD> <NAME>
 / <country>``, ``track``, ``variability: 0|1|2 <label>``, ``variability_period``, ``npoints``),

@@ -1,5 +1,4 @@
-"""Measured light curves in: a table of time stamps, a magnitude or a flux, and its uncertainty
-(issues 23 and 34).
+"""Measured light curves in: a table of time stamps, a magnitude or a flux, and its uncertainty.
 
 :func:`read_light_curve` reads the files observers publish, chosen by ``format=`` or by the
 file's content (:mod:`cssat.data.formats`): Mini-MegaTORTORA (MMT-9) exports, SCORE/SatHub

@@ -1,4 +1,4 @@
-"""The IAU CPS SatHub SCORE reader (issues 34 and 46): one row per report with its observer's
+"""The IAU CPS SatHub SCORE reader: one row per report with its observer's
 site, RA/Dec, range, filter and object, the upload format and the database export (which adds
 SatChecker's computed columns, ``range_to_sat_km_satchecker``, ``phase_angle_deg_satchecker``…).
 

@@ -1,5 +1,5 @@
-"""Text tables of light curves: cssat's CSV and any comma- or whitespace-separated table
-(issues 23 and 34): the header in the first line or in the last ``#`` line, time from one or two
+"""Text tables of light curves: cssat's CSV and any comma- or whitespace-separated table:
+the header in the first line or in the last ``#`` line, time from one or two
 columns in any astropy time format and scale, values checked row by row; and the size check
 before any file is read."""
 

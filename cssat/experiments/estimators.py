@@ -2,7 +2,7 @@
 reference satellites (paper §4: Eq. 22–30).
 
 * :class:`Known` — Φ itself (Simulation 1; an oracle where Φ is an atmosphere's);
-* :class:`Statistics` — only Φ's statistics: ``E[Φ]`` and the light curve's scatter (issue 22);
+* :class:`Statistics` — only Φ's statistics: ``E[Φ]`` and the light curve's scatter;
 * :class:`FullRank` — ``Φ̂ = Y_ref X_ref⁻¹`` from ``N_ref = N`` references (Eq. 24, Simulation 2);
 * :class:`Sparse` — ``Φᵀ = ΨA``, ``A`` sparse, from ``N_ref < N`` references drawn from a pool
   in each of ``repeats`` draws (Eq. 26–30, Simulation 3), with the minimum-norm baseline beside it;
@@ -65,7 +65,7 @@ class Known:
 
 
 class Statistics(Known):
-    """Φ unknown, its statistics known (issue 22): the solver gets ``E[Φ] = 𝟙φ̄ᵀ`` — the mean
+    """Φ unknown, its statistics known: the solver gets ``E[Φ] = 𝟙φ̄ᵀ`` — the mean
     transmission of each pixel (the mean of Φ's rows; a long record gives it to ``O(m^−½)``) —
     and, as the noise it must fit to, the photon noise plus the atmosphere's own scatter of the
     light curve about ``φ̄ᵀx``, ``xᵀCx``, estimated from the data as ``var(y) − mean σ²``

@@ -1,4 +1,4 @@
-"""A scene that moves during the observation (issue 22): each sample sees the satellite as it is
+"""A scene that moves during the observation: each sample sees the satellite as it is
 at its own time.
 
 :class:`MovingScene` is the paper's pixel sensing with the image changing per sample: the mesh

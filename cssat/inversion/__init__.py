@@ -1,4 +1,4 @@
-"""Light-curve inversion (issue 24): the light curve is linear in the satellite's extended
+"""Light-curve inversion: the light curve is linear in the satellite's extended
 Gaussian image (area × albedo per surface normal), whose sensing matrix is known and real.
 
 :mod:`cssat.inversion.egi`: the geometric sensing operator ``G (T, K)``, ``fibonacci_sphere``

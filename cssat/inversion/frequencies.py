@@ -1,5 +1,5 @@
 """The two fundamental frequencies of a tumbling (non-principal-axis) rotator's light curve, by
-the 2-D Fourier series of Pravec et al. (2005) (issue 24, point 4): the verdict "tumbling" against
+the 2-D Fourier series of Pravec et al. (2005): the verdict "tumbling" against
 the one-period series of :func:`cssat.inversion.estimate_period`, by BIC."""
 
 from __future__ import annotations
@@ -58,8 +58,7 @@ def estimate_tumbling_periods(times_s: Any, flux: Any, *, sigma: Any = None, min
     signal's variance that no single period folds, median over windows of ``window_s``),
     ``tumbling`` and ``why``. The verdict is ``aperiodic > aperiodic_threshold`` (0.05, with
     ``window_s`` 5,400 s: set on the 100 + 100 glinting and 50 + 50 Lambertian synthetic GEO spinners
-    and tumblers of ``benchmarks/bench_tumbling_triage.py --seed 0``, checked on other draws;
-    issue 36):
+    and tumblers of ``benchmarks/bench_tumbling_triage.py --seed 0``, checked on other draws):
     not ``delta_bic`` alone, which over nights of changing geometry calls most spinners tumbling (a
     spinner's harmonics drift with the phase angle and a nearly commensurate pair tracks the
     drift). A curve without
@@ -155,4 +154,4 @@ def _not_tumbling(why: str) -> dict[str, Any]:
             "single_period_s": nan, "delta_bic": 0.0, "aperiodic": nan, "tumbling": False, "why": why}
 
 
-# --- the pole and the sidereal period (issue 24, point 4, second part) ---------------------------
+# --- the pole and the sidereal period ----------------------------------------------------------

@@ -1,4 +1,4 @@
-"""A parametric box-wing satellite and its differentiable, self-shadowed light curve (issue 36 point 2).
+"""A parametric box-wing satellite and its differentiable, self-shadowed light curve.
 
 Beyond the convex EGI: a bus box and one or two flat solar panels, whose facets' normals and areas
 are torch functions of nine parameters, so a light curve can be fitted by gradient descent.

@@ -1,5 +1,5 @@
 """Fitting the parametric box-wing (:mod:`cssat.inversion.parametric`) to a light curve, started
-from the convex EGI solution (issue 36 point 2).
+from the convex EGI solution.
 
 The fit minimises a robust (soft-L1) loss of the noise-normalised residuals
 ``r_t = (y_t − m_t(p)) / σ_t``: ``Σ 2 (sqrt(1 + (r_t/k)²) − 1) k²`` with ``k = huber`` (a glint

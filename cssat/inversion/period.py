@@ -1,4 +1,4 @@
-"""The period of a light curve, and whether it has one (issues 34 and 46).
+"""The period of a light curve, and whether it has one.
 
 :func:`estimate_period` is built for real tracks (Mini-MegaTORTORA, SCORE, a telescope's own
 photometry) with its defaults:

@@ -1,5 +1,5 @@
 """The candidate periods of a light curve and their aliases, for
-:func:`cssat.inversion.estimate_period` (issue 46): each candidate with its own least-BIC
+:func:`cssat.inversion.estimate_period`: each candidate with its own least-BIC
 number of harmonics, refined in frequency; the choice among the relatives ``P/4, P/3, P/2, P,
 2P, 3P`` by the least BIC alone (no margin for either side: a longer period's series nests the
 shorter one's, so its extra — odd — harmonics pay their ``ln N`` each or lose); across gaps,

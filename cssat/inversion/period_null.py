@@ -1,5 +1,5 @@
 """How likely is a period found in noise alone, and how many maxima does a cycle show?
-(:func:`cssat.inversion.estimate_period`'s verdict and convention, issue 46).
+(:func:`cssat.inversion.estimate_period`'s verdict and convention).
 
 **The false-alarm probability from the track's own noise** (:func:`surrogate_fap`). A real
 track's residuals are red (seeing, tracking, a slowly changing aspect): the white-noise F-test
@@ -22,7 +22,7 @@ by default; at least 10 frame steps): the noise is kept on every scale the detec
 (runs as long as the chosen period: a shorter ``L`` whitened red noise and called 39 of 40
 red-noise tracks significant at 0.1). Below ``1/n`` the FAP is the fitted
 tail's extrapolation (reported as such: ``fap_surrogates_exceeding``); its calibration on
-real non-variable tracks and on surrogates of real tracks is in BENCHMARKS.md (issue 46).
+real non-variable tracks and on surrogates of real tracks is in BENCHMARKS.md.
 Two grids are scored from the same surrogates: all periods searched, and the periods of at
 least ``min_cycles`` cycles (the detection).
 

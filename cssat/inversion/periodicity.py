@@ -1,5 +1,5 @@
 """Is a light curve periodic over short windows? The phase-folding test behind
-:func:`cssat.inversion.estimate_tumbling_periods`' verdict (issue 36, point 8): a principal-axis
+:func:`cssat.inversion.estimate_tumbling_periods`' verdict: a principal-axis
 spinner folds into one smooth curve over an hour or two whatever drift the geometry brings over
 the night; a tumbler (two incommensurate frequencies) folds at no single period."""
 

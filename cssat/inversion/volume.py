@@ -1,4 +1,4 @@
-"""Volume IoU of two meshes by Monte Carlo points (issue 36 point 2: the shape's score against the
+"""Volume IoU of two meshes by Monte Carlo points (the shape's score against the
 TRUE mesh, not its convex hull)."""
 
 from __future__ import annotations

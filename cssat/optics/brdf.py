@@ -1,4 +1,4 @@
-"""BRDF families (issue 23): the paper's and the standard analytic models, batched and device-following.
+"""BRDF families: the paper's and the standard analytic models, batched and device-following.
 
 Every model is an object with ``evaluate(normal, to_light, to_viewer) -> f`` for unit vectors
 ``(..., 3)`` (broadcast together; torch tensors or arrays), returning the BRDF in sr⁻¹ with the

@@ -1,4 +1,4 @@
-"""Measured BRDFs (issue 36): tables of lab measurements, the scatter models fitted to them (Harvey's
+"""Measured BRDFs: tables of lab measurements, the scatter models fitted to them (Harvey's
 ABg, Greynolds' binomial) and least-squares fits of those and of :class:`~cssat.optics.CookTorrance`.
 
 Table layout (lumos-sat's, ``lumos.brdf.tools.fit``): a text file of whitespace-separated rows

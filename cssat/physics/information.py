@@ -1,5 +1,5 @@
 """What the light curve can tell about the image without prior knowledge of it: Fisher information
-and Cramér–Rao bounds of the image's low-frequency modes (issue 22).
+and Cramér–Rao bounds of the image's low-frequency modes.
 
 For ``y = Φx + n`` with independent Gaussian noise of variance ``σᵢ²`` per sample (the photon,
 read and systematic noise of :meth:`cssat.physics.PhotometricNoise.variance`), the Fisher

@@ -160,7 +160,7 @@ class PhotometricNoise(NoiseModel):
     A sample whose expected source count is negative (the paper's zero-mean Gaussian weights) has
     no Poisson law: its shot noise is drawn as Gaussian of variance ``|S|``.
 
-    Detector limits (issue 22): the source falls on the CCD as a circular Gaussian of
+    Detector limits: the source falls on the CCD as a circular Gaussian of
     ``seeing_fwhm_arcsec``; its brightest pixel holds ``P = S f_peak + sky + dark`` electrons with
     ``f_peak = erf(p / (2√2 σ))²`` (``p`` the pixel scale, ``σ = FWHM/2.3548``). Above
     ``full_well_e`` the pixel saturates: ``saturation: flag`` keeps the counts and records the

@@ -1,4 +1,4 @@
-"""Surface materials real satellites carry (issue 36): each a diffuse albedo ``cd`` and a specular
+"""Surface materials real satellites carry: each a diffuse albedo ``cd`` and a specular
 fraction ``cs`` — the paper's Eq. 8–9 coefficients a facet carries (:class:`cssat.scene.Mesh`) —
 and a microfacet ``roughness`` (GGX α, for :class:`cssat.optics.CookTorrance` per part).
 

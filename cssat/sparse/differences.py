@@ -1,4 +1,4 @@
-"""Difference operators ``D`` for total variation, ``TV(x) = Σ_g ‖(Dx)_g‖₂`` (issue 35, point 2).
+"""Difference operators ``D`` for total variation, ``TV(x) = Σ_g ‖(Dx)_g‖₂``.
 
 One kind of object serves every TV solver: the image gradient (forward differences along both
 axes, Neumann boundary, grouped per pixel: the isotropic TV) and any graph's differences (one row

@@ -1,4 +1,4 @@
-"""The one protocol of a forward model, and the one loop that plans and executes it (issue 35, point 1).
+"""The one protocol of a forward model, and the one loop that plans and executes it.
 
 A forward model is how an unknown becomes a light curve — pixels through an atmosphere
 (:class:`~cssat.experiments.forward.PixelSensing`, a moving scene), the EGI through a scene and

@@ -1,5 +1,5 @@
 """A measured light curve as a forward model (``forward: observed``; ``cssat experiment=characterise
-observations=<file>``, issue 34, point 5): what a real track says, stage by stage, and why a stage
+observations=<file>``): what a real track says, stage by stage, and why a stage
 was skipped. Nothing is simulated: the light curve is the file's, and the verdicts are what is
 estimated from it.
 
