@@ -128,7 +128,8 @@ def test_invert_event_recovers_the_offset_within_its_reported_uncertainty():
     """The whole blind route on the box-wing: offset 1.3 m along and −0.8 m across, gains,
     a speed error — the silhouette's centroid placed within 3σ of the truth's (the truth's centroid
     is the grid's centre plus its own offset) and the silhouette's IoU after registration above
-    0.6 (an empty mask scores 0; the flat-image baseline)."""
+    0.6 (an empty mask scores 0; the flat-image baseline); the star's diameter fixed at the prior's
+    mean and said so."""
     from cssat.occultation import invert_event, mask_centroid, registered_iou
 
     e = _event(seed=1)
@@ -140,6 +141,9 @@ def test_invert_event_recovers_the_offset_within_its_reported_uncertainty():
     sd = np.sqrt(np.diag(info["offset_cov"]))
     assert (np.abs(err) < 3 * sd + 1e-9).all() and np.linalg.norm(err) < 0.3, (err, sd)
     assert registered_iou(m, e["truth"], pixel_m=e["px"], truth_pixel_m=e["px"])["iou"] > 0.6
+    # the star's diameter is fixed at the prior's mean (the grid's midpoint), not estimated: no σ of its own
+    assert info["diameter_m"] == pytest.approx(0.15) and info["diameter_sigma_m"] == 0.0
+    assert info["diameter_treatment"] == "fixed at the prior's mean" and info["diameter_prior_m"] == pytest.approx([0.0, 0.3])
 
 
 def test_held_out_telescopes_choose_the_prior_that_predicts_them():
