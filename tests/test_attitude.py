@@ -210,7 +210,8 @@ def test_three_nights_of_irregular_stamps_with_a_tumbling_model(tmp_path):
     stamps = np.unique(np.concatenate([t0 + np.timedelta64(d, "D") + rng.uniform(0, 6 * 3600e6, 40).astype("timedelta64[us]")
                                        for d in range(3)]))
     tumble = Tumbling([3000.0, 4000.0, 5000.0], [0, 0, 0, 1], [0.01, 0.005, 0.02], epoch_utc="2020-04-01T19:00:00")
-    lc = simulate_light_curve(astra_like(), make_scenario(times=stamps), attitude=tumble)
+    # the light-curve experiment's model (conf/model/astra_like.yaml): its arrays track the Sun
+    lc = simulate_light_curve(astra_like(array_tracking="sun"), make_scenario(times=stamps), attitude=tumble)
     assert lc.flux.shape == (len(stamps),) and float(lc.flux.std()) > 0.1 * float(lc.flux.mean())
     write_light_curve(tmp_path / "obs.csv", ObservedLightCurve(stamps, np.full(len(stamps), 10.0), None, "magnitude"))
     out = subprocess.run([sys.executable, "-m", "cssat.app", "experiment=lightcurve", f"observations={tmp_path / 'obs.csv'}",
