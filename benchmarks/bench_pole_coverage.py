@@ -173,8 +173,12 @@ def report(rows: list[dict]) -> None:
             m = len(sub)
             if not m:
                 continue
+            # inside the reported region: the truth's profile Δχ² under the level AND within the region's
+            # widest radius (a truth of lower χ² elsewhere — a search that stopped in another minimum — is a miss)
             d = np.array([r["delta_chi2_true"] for r in sub])
-            k68, k95 = int((d <= 2.2957).sum()), int((d <= 6.1801).sum())
+            sep = np.array([r["sep_deg"] for r in sub])
+            k68 = int(((d <= 2.2957) & (sep <= np.array([r["radius_68_deg"] for r in sub]))).sum())
+            k95 = int(((d <= 6.1801) & (sep <= np.array([r["radius_95_deg"] for r in sub]))).sum())
             z = np.array([r["sep_deg"] / r["pole_err_deg"] for r in sub])
             zl = np.array([r["sep_deg"] / r["laplace_pole_err_deg"] for r in sub])
             lo68, hi68 = _wilson(k68, m)
