@@ -11,7 +11,7 @@ Torppa 2001). ``G`` is known exactly from the geometry — compressed sensing wi
 matrix. Assumptions: no self-shadowing or occlusion (exact for convex bodies), single
 scattering, one BRDF shape for every facet (its albedo goes into ``a_k``).
 
-Unknown, mixed materials (issue 36, point 3): :class:`Lobes` gives every scattering lobe its own
+Unknown, mixed materials: :class:`Lobes` gives every scattering lobe its own
 EGI, ``y(t) = Σ_l Σ_k G_l(t, k) a_{l,k}`` — a diffuse (Lambert) one and specular Blinn–Phong
 lobes of fixed shininess, each normalised to unit reflectance at normal incidence — so each
 normal's diffuse and specular reflectance are fitted, non-negative, with its area: the

@@ -1,4 +1,4 @@
-"""What a geometry can observe of the EGI (issue 24, point 5).
+"""What a geometry can observe of the EGI.
 
 The light curve is ``y = G a``; the directions of the sphere it constrains are those in the row
 space of ``G``. With ``G = U S Vᵀ`` (singular values ``s_i``), the components of ``a`` along

@@ -1,4 +1,4 @@
-"""Sparse non-negative recovery of an EGI from a light curve (issue 24, point 2).
+"""Sparse non-negative recovery of an EGI from a light curve.
 
 ``min ‖W (G a − y)‖²`` over ``a ≥ 0`` with ``W = diag(1/σ_t)`` (the photometric
 uncertainties; none: unweighted) and, with ``closure``, three more rows ``w_c Nᵀ a = 0``: a

@@ -1,4 +1,4 @@
-"""The convex shape of an EGI (the Minkowski problem, issue 24 point 3).
+"""The convex shape of an EGI (the Minkowski problem).
 
 A convex polyhedron is determined, up to translation, by its facets' normals ``n_k`` and areas
 ``a_k`` (Minkowski 1897) when ``Σ a_k n_k = 0``. Little's (1983) convex program finds it: over

@@ -1,5 +1,5 @@
 """The spin state of a tumbling object — a torque-free rigid body in non-principal-axis rotation
-— and its EGI from a light curve (issue 24, point 4; Kaasalainen 2001, Pravec et al. 2005):
+— and its EGI from a light curve (Kaasalainen 2001, Pravec et al. 2005):
 :func:`estimate_tumbling` and its :class:`~cssat.inversion.results.TumblingSolution` (a read-only
 mapping of its keys with attributes).
 
@@ -91,7 +91,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
     t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
     if heldout is not None:  # checked before any work (step 5 reads it)
-        from cssat.inversion.spin import _check_heldout
+        from cssat.inversion.spin import _check_heldout  # heavy: cssat.inversion.spin imports the EGI operator (torch)
 
         _check_heldout(heldout)
     samples = (t, y, w, S, O)

@@ -103,7 +103,7 @@ def _check_tumble(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarr
     from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only here
 
     from cssat.inversion.spin import _check_heldout  # heavy: cssat.inversion.spin imports torch
-    from cssat.inversion.spin_errors import HELDOUT_ALPHA, heldout_threshold, judge
+    from cssat.inversion.spin_errors import HELDOUT_ALPHA, heldout_threshold, judge  # local: the verdict's, only when judged
 
     out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
     J_fit = _tumble_jacobian(final, state, x, a, sup, span)

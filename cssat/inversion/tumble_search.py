@@ -101,7 +101,7 @@ class _CoarseGrid:
         grid): its best ``(chi2, vector (8,), alpha, moment index)`` over ``pairs``, the roots ``α``
         and the phases."""
         from cssat.inversion.egi import fibonacci_sphere  # heavy: cssat.inversion.egi imports torch
-        from cssat.inversion.spin import _pole_rotation  # heavy: cssat.inversion.spin imports torch
+        from cssat.inversion.spin_search import _pole_rotation  # heavy: cssat.inversion.spin_search imports the EGI grid (torch)
 
         coarse, Rphi, n_t0, t_ref = self.fit, self.Rphi, self.n_t0, self.t_ref
         poles = fibonacci_sphere(n_dirs).numpy()

@@ -1,5 +1,5 @@
 """The spin state of a tumbling object — a torque-free rigid body in non-principal-axis rotation
-(issue 24, point 4; Kaasalainen 2001): its parametrisation, its motion, its two frequencies, the
+(Kaasalainen 2001): its parametrisation, its motion, its two frequencies, the
 invariants of a torque-free initial state, and the EGI fit of its light curve (:class:`_TFit`).
 Its search from a light curve is :func:`cssat.inversion.tumble.estimate_tumbling`.
 
@@ -144,7 +144,7 @@ class TumblingState:
 
     def frames(self, times_s: Any) -> np.ndarray:
         """Body (principal) frames ``(T, 3, 3)`` at ``times_s`` (``v_body = R v_inertial``)."""
-        from cssat.inversion.spin import _pole_rotation  # heavy: cssat.inversion.spin imports torch
+        from cssat.inversion.spin_search import _pole_rotation  # heavy: cssat.inversion.spin_search imports the EGI grid (torch)
 
         tau = np.asarray(times_s, dtype=np.float64).reshape(-1) - self.t_ref_s + self.t0_s
         return self.motion(tau) @ (_rz(np.float64(math.radians(self.phi0_deg)))

@@ -1,4 +1,4 @@
-"""The EGI forward model (``forward: egi``; ``cssat experiment=inversion``, issue 24): a satellite's
+"""The EGI forward model (``forward: egi``; ``cssat experiment=inversion``): a satellite's
 extended Gaussian image measured as its light curve through a scene and an attitude — compressed
 sensing whose sensing matrix is known and real (:mod:`cssat.inversion`).
 

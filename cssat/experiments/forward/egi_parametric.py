@@ -1,5 +1,5 @@
-"""The EGI forward model's optional non-convex stage (``inversion.shape=parametric``, issue 36
-point 2): a box-wing (:mod:`cssat.inversion.parametric`) fitted through its Embree-shadowed light
+"""The EGI forward model's optional non-convex stage (``inversion.shape=parametric``):
+a box-wing (:mod:`cssat.inversion.parametric`) fitted through its Embree-shadowed light
 curve, started from the convex EGI; its prediction of the held-out nights replaces the convex
 one in the headline metrics (the convex one kept as ``convex_*``), its mesh written as
 ``shape_parametric.obj`` and scored by volume IoU against the true mesh (``shape_iou_true``)."""
