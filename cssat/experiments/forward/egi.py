@@ -247,7 +247,9 @@ class EGILightCurve(ForwardModel):
             self.sol = sol = estimate_spin(*args, **kw, n_normals=self.search_normals, heldout=heldout, **self.search)
             frames = sol.frames(self.t)
             self.metrics.update(sol.describe())
-            self.metrics["spin_synodic_period_s"] = float(sol.synodic["period_s"])
+            # the synodic period the search started from (the period search's best candidate, whatever its verdict)
+            self.metrics["spin_synodic_period_s"] = float(sol.synodic.get("best_period_s", sol.synodic["period_s"]))
+            self.metrics["spin_synodic_verdict"] = sol.synodic.get("verdict", "given")
         elif spin_mode == "tumbling":
             self.sol = sol = estimate_tumbling(*args, **kw, heldout=heldout, **self.tumble)
             frames = sol.frames(self.t)
