@@ -6,7 +6,7 @@ Any object with ``x, info = solver(problem, y)`` is a solver: ``problem`` carrie
 closed form, ``x = Φᵀ(ΦΦᵀ + αI)⁻¹y``, clipped to the image range, compared with cssat's OMP,
 TV and projected Landweber on the same light curve, and with the flat image that the total flux
 alone gives. In a Hydra run the same class plugs in through a YAML with its ``_target_`` on the
-search path (README: "Extending cssat").
+search path (docs/guides/extending.md).
 
     python examples/custom_solver.py --size 32
 """
