@@ -49,7 +49,7 @@ import torch
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.occultation.invert import invert_silhouette, recorded
 from cssat.occultation.results import PriorChoice
-from cssat.occultation.shapes import fit_shape_params
+from cssat.occultation.shapes import fit_shape_params, heldout_inputs
 
 __all__ = ["shape_starts", "choose_prior"]
 
@@ -168,12 +168,8 @@ def choose_prior(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float
         raise FieldError("components", "give at least one number of superellipses to try")
     n_starts = int_param(n_starts, "n_starts", 1, 100)
     parsimony, near = float_param(parsimony, "parsimony", 0.0), float_param(near, "near", 0.0)
-    y = np.asarray(series, dtype=np.float64)
-    s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape)
-    P = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
+    y, s, P = heldout_inputs(series, sigma, positions_m)
     J = len(P)
-    if J < 2:
-        raise FieldError("positions_m", "a held-out test needs at least two telescopes")
     kw = {"kernel": kernel, "weights": weights, "ground": ground}
     n = y.size
 

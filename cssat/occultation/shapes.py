@@ -148,6 +148,17 @@ def fit_shape_params(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: f
     return mask, th.detach().numpy(), {"chi2_per_sample": c, "n_shapes": len(start)}
 
 
+def heldout_inputs(series: Any, sigma: Any, positions_m: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A held-out test's inputs checked: the series ``y`` (float64), its 1σ ``s`` broadcast to
+    ``y``'s shape and the telescopes' positions ``P (J, 2)`` (m), at least two of them."""
+    y = np.asarray(series, dtype=np.float64)
+    s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape)
+    P = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
+    if len(P) < 2:
+        raise FieldError("positions_m", "a held-out test needs at least two telescopes")
+    return y, s, P
+
+
 def heldout_chi2(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float, wavelength_m: Any, distance_m: float,
                  positions_m: Any, velocity_m_s: Any, times_s: Any, *, kernel: Any = None, weights: Any = None,
                  ground: Any = None, tv: float = 0.3, iters: int = 300, shape_iters: int = 200,
@@ -159,12 +170,8 @@ def heldout_chi2(series: Any, sigma: Any, shape: tuple[int, int], pixel_m: float
     the other fold's series; summed over the folds. ``{"pixels": χ², "shapes": χ²}``; ``shapes``
     is ``inf`` when a fold's pixel fit has no component to start the shapes from. The geometry's
     arguments as in :func:`fit_shapes`."""
-    y = np.asarray(series, dtype=np.float64)
-    s = np.broadcast_to(np.asarray(sigma, dtype=np.float64), y.shape)
-    P = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
+    y, s, P = heldout_inputs(series, sigma, positions_m)
     J = len(P)
-    if J < 2:
-        raise FieldError("positions_m", "a held-out test needs at least two telescopes")
     kw = {"kernel": kernel, "weights": weights, "ground": ground}
     held = {"pixels": 0.0, "shapes": 0.0}
     for fold in (0, 1):
