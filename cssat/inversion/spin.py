@@ -278,23 +278,15 @@ def _check_spin(fine: _Fit, a: np.ndarray, sup: np.ndarray, lon: float, lat: flo
     (support ``sup``) fitted on ``fine``, from the ``heldout`` data or, without them, from the
     fitted samples' χ² (the keys ``verdict``, ``verdict_why``, ``heldout_chi2``, ``heldout_n``,
     ``heldout_threshold``)."""
-    from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only here
+    from cssat.inversion.spin_errors import _spin_jacobian, verdict_keys  # local: the verdict's
 
-    from cssat.inversion.spin_errors import HELDOUT_ALPHA, _spin_jacobian, heldout_threshold, judge  # local: the verdict's
-
-    out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
     J_fit = _spin_jacobian(fine, lon, lat, f, a, sup, span)
+    held = None
     if heldout is not None and sig is not None:
         th, yh, Sh, Oh, wh = _check_heldout(heldout)
-        held = _Fit(th, yh, wh, Sh, Oh, fine.N, brdf, frame)
-        r = (yh - held.matrix(lon, lat, f) @ a) * wh
-        lim = heldout_threshold(J_fit, _spin_jacobian(held, lon, lat, f, a, sup, span))
-        out.update(heldout_chi2=float(r @ r), heldout_n=int(len(th)), heldout_threshold=lim["threshold"])
-    dof = max(len(fine.t) - J_fit.shape[1], 1)
-    verdict, why = judge(out["heldout_chi2"], out["heldout_n"], out["heldout_threshold"], chi2_fit=chi2, n_fit=dof,
-                         fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sig is not None,
-                         what="the pole")
-    return {"verdict": verdict, "verdict_why": why, **out}
+        fit_h = _Fit(th, yh, wh, Sh, Oh, fine.N, brdf, frame)
+        held = ((yh - fit_h.matrix(lon, lat, f) @ a) * wh, _spin_jacobian(fit_h, lon, lat, f, a, sup, span))
+    return verdict_keys(J_fit, len(fine.t), chi2, sig is not None, held, "the pole")
 
 
 def _check_heldout(heldout: Any) -> tuple[np.ndarray, ...]:

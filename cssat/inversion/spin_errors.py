@@ -157,6 +157,26 @@ def judge(chi2_held: float | None, n_held: int, threshold: float | None, *, chi2
 POLE_DELTA_CHI2 = {"68": 2.2957, "95": 6.1801}
 
 
+def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, held: tuple | None,
+                 what: str) -> dict[str, Any]:
+    """The verdict's keys (``verdict``, ``verdict_why``, ``heldout_chi2``, ``heldout_n``,
+    ``heldout_threshold``) of a fit of ``n_fit`` samples with Jacobian ``J_fit (n_fit, p)`` and
+    χ² ``chi2``: ``held = (r, J_held)`` the held-out samples' weighted residual ``r (n,)`` and
+    Jacobian ``(n, p)`` (:func:`heldout_threshold`), or None (no held-out data or no σ); then
+    :func:`judge`, the fitted χ² tested at ``1 − HELDOUT_ALPHA`` where nothing is held out."""
+    from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only for a verdict
+
+    out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
+    if held is not None:
+        r, J_held = held
+        out.update(heldout_chi2=float(r @ r), heldout_n=int(len(r)),
+                   heldout_threshold=heldout_threshold(J_fit, J_held)["threshold"])
+    dof = max(n_fit - J_fit.shape[1], 1)
+    verdict, why = judge(out["heldout_chi2"], out["heldout_n"], out["heldout_threshold"], chi2_fit=chi2, n_fit=dof,
+                         fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sigma_given, what=what)
+    return {"verdict": verdict, "verdict_why": why, **out}
+
+
 def _offset_pole(lon: float, lat: float, bearing_deg: float, dist_deg: float) -> tuple[float, float]:
     """The pole ``dist_deg`` from ``(lon, lat)`` along the great circle at ``bearing_deg``."""
     p = _pole_vector(lon, lat)

@@ -100,24 +100,16 @@ def _check_tumble(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarr
     the noise (:func:`~cssat.inversion.spin_errors.heldout_threshold`, :func:`~cssat.inversion.spin_errors.judge`),
     else the fitted samples' χ²: the keys ``verdict``, ``verdict_why``, ``heldout_chi2``,
     ``heldout_n``, ``heldout_threshold``."""
-    from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only here
-
     from cssat.inversion.spin import _check_heldout  # heavy: cssat.inversion.spin imports torch
-    from cssat.inversion.spin_errors import HELDOUT_ALPHA, heldout_threshold, judge  # local: the verdict's, only when judged
+    from cssat.inversion.spin_errors import verdict_keys  # local: the verdict's, only when judged
 
-    out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
     J_fit = _tumble_jacobian(final, state, x, a, sup, span)
+    held = None
     if heldout is not None and sig is not None:
         th, yh, Sh, Oh, wh = _check_heldout(heldout)
-        held = _TFit(th, yh, wh, Sh, Oh, final.N, final.brdf)
-        r = (yh - held.matrix(state) @ a) * wh
-        lim = heldout_threshold(J_fit, _tumble_jacobian(held, state, x, a, sup, span))
-        out.update(heldout_chi2=float(r @ r), heldout_n=int(len(th)), heldout_threshold=lim["threshold"])
-    dof = max(len(final.t) - J_fit.shape[1], 1)
-    verdict, why = judge(out["heldout_chi2"], out["heldout_n"], out["heldout_threshold"], chi2_fit=chi2, n_fit=dof,
-                         fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sig is not None,
-                         what="the angular momentum's direction")
-    return {"verdict": verdict, "verdict_why": why, **out}
+        fit_h = _TFit(th, yh, wh, Sh, Oh, final.N, final.brdf)
+        held = ((yh - fit_h.matrix(state) @ a) * wh, _tumble_jacobian(fit_h, state, x, a, sup, span))
+    return verdict_keys(J_fit, len(final.t), chi2, sig is not None, held, "the angular momentum's direction")
 
 
 def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float,
