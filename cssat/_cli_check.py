@@ -95,6 +95,9 @@ def _typed_refusal(cfg: Any, key: str) -> str | None:
     names = [f.name for f in dataclasses.fields(typ)]
     if leaf in names:
         return None
+    moved = getattr(typ, "MOVED", {}).get(leaf)
+    if moved:  # a key that moved to another group: where it went
+        return f"{key}: no such key; {moved}"
     return (f"{key}: no such key; {parent} is a typed config ({typ.__module__}.{typ.__qualname__}) that takes only: "
             f"{', '.join(names)}")
 

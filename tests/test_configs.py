@@ -203,3 +203,43 @@ def test_the_scene_models_settings_are_typed_with_one_set_of_defaults():
         with pytest.raises(FieldError) as err:
             SceneSettings.from_config(compose_cfg("experiment=lightcurve", override))
         assert err.value.field == key, (override, str(err.value))
+
+
+def test_the_egi_models_settings_are_typed_with_one_set_of_defaults():
+    """The inversion's own settings (nights.*, inversion.*, shadows, observations, observed.*) come
+    from cssat.models.egi.config: inversion.yaml sets none of their values but observed.time_col;
+    the tumbling experiment overrides two; a wrong type is refused when composed, an unknown key
+    or a bad value when planned, naming the key — a key that moved to the solver group says so."""
+    import yaml
+    from hydra.errors import ConfigCompositionException
+    from omegaconf import OmegaConf
+
+    from cssat._checks import FieldError
+    from cssat._cli_check import check
+    from cssat.models.egi.config import EGIConfig, EGISettings, InversionConfig, NightsConfig
+
+    own = yaml.safe_load((CONF / "experiment" / "inversion.yaml").read_text())
+    assert set(own) & set(EGIConfig.SETTINGS) == {"observed"} and own["observed"] == {"time_col": "time_utc"}
+    cfg = compose_cfg("experiment=inversion_tumbling", "nights.n=2", "inversion.parametric.panels=1")
+    assert OmegaConf.get_type(cfg.nights) is NightsConfig and OmegaConf.get_type(cfg.inversion) is InversionConfig
+    s = EGISettings.from_config(cfg)
+    # inversion_tumbling.yaml's own values over the typed defaults; the rest the defaults
+    assert (s.nights.n, s.nights.fit, s.inversion.spin, s.inversion.n_normals, s.inversion.parametric.panels,
+            s.inversion.search_normals, s.shadows, s.observations) == (2, None, "tumbling", 1000, 1, 1000, True, None)
+    assert s.inversion.search() == {"n_poles": 60, "n_starts": 6, "n_refine": 2, "coarse_normals": 200, "coarse_samples": 400,
+                                    "max_samples": 1200, "min_period_s": 120.0, "max_period_s": 3000.0, "split_nights": False}
+    with pytest.raises(ConfigCompositionException, match=r"nights\.n"):
+        compose_cfg("experiment=inversion", "nights.n=many")
+    with pytest.raises(ConfigCompositionException, match=r"inversion\.split_nights"):
+        compose_cfg("experiment=inversion", "inversion.split_nights=maybe")
+    for override, key in (("nights.n=0", "nights.n"), ("nights.fit=4", "nights.fit"), ("inversion.spin=guess", "inversion.spin"),
+                          ("inversion.n_normals=8", "inversion.n_normals"), ("inversion.closure=-1", "inversion.closure"),
+                          ("+inversion.lam=0.1", "inversion.lam"), ("+inversion.parametric.wings=2", "inversion.parametric.wings"),
+                          ("shadows=maybe", "shadows"), ("+observed.bogus=1", "observed.bogus")):
+        with pytest.raises(FieldError) as err:
+            EGISettings.from_config(compose_cfg("experiment=inversion", override))
+        assert err.value.field == key, (override, str(err.value))
+    with pytest.raises(FieldError, match=r"inversion\.method: the EGI's solve is the solver group's: solver=nnls"):
+        EGISettings.from_config(compose_cfg("experiment=inversion", "+inversion.method=tv"))
+    why = check(["experiment=inversion", "+inversion.lam=0.1"])
+    assert why.startswith("inversion.lam: no such key; the EGI's solve is the solver group's"), why

@@ -262,7 +262,6 @@ def test_total_variation_refuses_an_unknown_that_is_not_an_image():
     (EGI_TINY, ["inversion.brdf=phong"], r"inversion\.brdf: expected one of \[.lambert., .lobes., .simulated.\]"),
     (EGI_TINY, ["inversion.brdf=lobes", "inversion.lobes=[0.5]"], r"inversion\.lobes: expected a list of Blinn–Phong exponents"),
     (EGI_TINY, ["inversion.brdf=lobes", "inversion.lobes=abc"], r"inversion\.lobes: expected a list .* got 'abc'"),
-    (EGI_TINY, ["inversion.split_nights=maybe"], r"inversion\.split_nights: expected true or false"),
     # settings read without a check: any truthy shadows, a star's RA without its Dec
     (EGI_TINY, ["shadows=maybe"], r"shadows: expected true or false"),
     (["experiment=lightcurve", "scenario.n_steps=3", "render.size=8"], ["shadows=1"], r"shadows: expected true or false"),

@@ -92,11 +92,11 @@ def test_fit_recovers_an_in_class_box_wing():
 
 
 def test_experiment_refuses_a_bad_shape_setting():
-    from cssat.experiments.forward.egi_parametric import check_shape_settings
+    from cssat.models.egi.config import EGISettings
 
     with pytest.raises(FieldError, match="inversion.shape"):
-        check_shape_settings({"shape": "blob"})
+        EGISettings.from_config({"inversion": {"shape": "blob"}})
     with pytest.raises(FieldError, match="inversion.parametric.panels"):
-        check_shape_settings({"shape": "parametric", "parametric": {"panels": 3}})
+        EGISettings.from_config({"inversion": {"shape": "parametric", "parametric": {"panels": 3}}})
     with pytest.raises(FieldError, match="inversion.parametric.wings"):
-        check_shape_settings({"parametric": {"wings": 2}})
+        EGISettings.from_config({"inversion": {"parametric": {"wings": 2}}})

@@ -5,6 +5,7 @@ periods of the true attitude); the arrays, tables and figures."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ from cssat.plots import save_figure
 from cssat.scene.attitudes import Spin, Tumbling
 from cssat.scene.mesh import Mesh
 
-__all__ = ["solve_egi", "score_truth", "write_egi", "egi_recovered_share", "rms", "typical", "EGI_WEIGHT_SHARE",
+__all__ = ["EGISolution", "solve_egi", "true_egi", "score_truth", "write_egi", "egi_recovered_share", "rms", "typical", "EGI_WEIGHT_SHARE",
            "EGI_MATCH_DEG"]
 
 #: a recovered normal "carries weight" when it holds at least this share of the recovered area
@@ -59,65 +60,90 @@ def typical(resid: np.ndarray, sigma: np.ndarray | None, m: np.ndarray) -> float
 _rms, _typical = rms, typical  # the old private names, kept for old imports
 
 
-def solve_egi(f: Any) -> None:
+@dataclass
+class EGISolution:
+    """What the EGI model's ``solve`` stage hands on (``T`` samples, ``K`` normals with area)."""
+
+    res: Any  #: :func:`~cssat.inversion.invert_convex`'s result: ``normals (K, 3)``, ``areas (K,)``, the convex ``mesh``
+    model_unit: np.ndarray  #: ``(T,)`` the fitted model over every sample, per unit irradiance and range (m²)
+    grid: np.ndarray  #: ``(G, 3)`` the normals of the observability grid
+    obs_info: dict[str, Any]  #: :func:`~cssat.inversion.observability` on the fitted samples
+    metrics: dict[str, Any] = field(default_factory=dict)
+    convex_model_unit: Any = None  #: ``(T,)`` the convex model's, when a box-wing replaced it (``inversion.shape=parametric``)
+    param_mesh: Any = None  #: the fitted box-wing's mesh (metres, the fitted body frame), if fitted
+
+
+def solve_egi(p: Any, m: Any, a: Any) -> EGISolution:
     """The EGI on ``inversion.n_normals`` normals by the ``solver`` group's solver and its convex
-    shape from the fitted samples (:func:`~cssat.inversion.invert_convex`), the model over every sample, the fit and held-out
-    residuals against the noise, and the observability of the fitted geometry."""
+    shape from the fitted samples (:func:`~cssat.inversion.invert_convex`), the model over every
+    sample, the fit and held-out residuals against the noise, and the observability of the
+    fitted geometry; ``p``, ``m``, ``a``: the plan, the measured samples and the attitude."""
     from cssat.inversion import invert_convex, observability  # heavy: cssat.inversion imports torch
     from cssat.inversion.egi import Lobes  # heavy: cssat.inversion.egi imports torch
 
-    fit, held, sigma, y = f.fit, f.held, f.sigma, f.y
-    f.res = res = invert_convex(y[fit], f.sun_b[fit], f.obs_b[fit], brdf=f.model_brdf or "lambert", n_normals=f.n_normals,
-                                sigma=None if sigma is None else sigma[fit], closure=f.closure, solver=f.solver)
-    f.model_unit = res.predict(f.sun_b, f.obs_b)
-    resid = y - f.model_unit
+    fit, held, sigma, y, inv = m.fit, m.held, m.sigma, m.y, p.settings.inversion
+    res = invert_convex(y[fit], a.sun_b[fit], a.obs_b[fit], brdf=p.model_brdf or "lambert", n_normals=inv.n_normals,
+                        sigma=None if sigma is None else sigma[fit], closure=inv.closure, solver=p.solver)
+    model_unit = res.predict(a.sun_b, a.obs_b)
+    resid = y - model_unit
     noise_fit = rms(sigma, fit) if sigma is not None else None
     noise_held = rms(sigma, held) if sigma is not None else None
     rms_fit, rms_held = rms(resid, fit), rms(resid, held)
-    f.metrics.update(egi_n_normals=int(res.areas.size), egi_area_m2=float(res.areas.sum()), fit_rms=rms_fit,
-                     fit_rms_over_noise=(rms_fit / noise_fit) if noise_fit else None,
-                     heldout_rms=rms_held, heldout_rms_over_noise=(rms_held / noise_held) if noise_held and held.any() else None,
-                     heldout_rms_relative=(rms_held / float(np.sqrt(np.mean(y[held] ** 2)))) if held.any() else None,
-                     fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
-                     shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
-                     **{f"inversion_{k}": v for k, v in res.info.items() if isinstance(v, (int, float, str)) or v is None})
-    f.grid = _grid(f.n_normals)
+    metrics: dict[str, Any] = dict(
+        egi_n_normals=int(res.areas.size), egi_area_m2=float(res.areas.sum()), fit_rms=rms_fit,
+        fit_rms_over_noise=(rms_fit / noise_fit) if noise_fit else None,
+        heldout_rms=rms_held, heldout_rms_over_noise=(rms_held / noise_held) if noise_held and held.any() else None,
+        heldout_rms_relative=(rms_held / float(np.sqrt(np.mean(y[held] ** 2)))) if held.any() else None,
+        fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
+        shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
+        **{f"inversion_{k}": v for k, v in res.info.items() if isinstance(v, (int, float, str)) or v is None})
+    grid = _grid(inv.n_normals)
     # the observability of the EGI on the grid: for an EGI per lobe, of its diffuse one (the geometry's)
-    f.obs_info = observability(f.sun_b[fit], f.obs_b[fit], f.grid, brdf=None if isinstance(f.model_brdf, Lobes) else f.model_brdf)
-    f.metrics.update(observability_rank=f.obs_info["effective_rank"],
-                     observability_seen_share=float(f.obs_info["seen"].mean()))
+    obs_info = observability(a.sun_b[fit], a.obs_b[fit], grid, brdf=None if isinstance(p.model_brdf, Lobes) else p.model_brdf)
+    metrics.update(observability_rank=obs_info["effective_rank"], observability_seen_share=float(obs_info["seen"].mean()))
+    return EGISolution(res, model_unit, grid, obs_info, metrics)
 
 
-def score_truth(f: Any) -> dict[str, np.ndarray]:
-    """The recovered EGI and shape against the truth, in the fitted body frame at t = 0, and the
-    attitude's pole and periods against the true spin or tumbling state; returns the true EGI."""
+def true_egi(p: Any, m: Any, a: Any) -> dict[str, np.ndarray]:
+    """The true EGI (``true_normals (N, 3)``, ``true_areas (N,)``, m²) in the fitted body frame
+    at t = 0; ``p``, ``m``, ``a``: the plan, the measured samples (with the true frames), the attitude."""
     from cssat.inversion import egi  # heavy: cssat.inversion imports torch
-    from cssat.inversion.shape import convex_iou  # heavy: cssat.inversion.shape imports torch
 
-    res, metrics, attitude, sol = f.res, f.metrics, f.attitude, f.sol
-    mesh = f.mesh
-    if f.brdf is not None:  # one BRDF object reflects every facet alike (cd unused): the true EGI is the bare areas
+    mesh = p.mesh
+    if p.brdf is not None:  # one BRDF object reflects every facet alike (cd unused): the true EGI is the bare areas
         mesh = Mesh(mesh.vertices, mesh.faces, 1.0, 0.0, name=mesh.name)
     tn, ta = egi(mesh)
-    to_fit = f.frames[0] @ f.true_frames[0].T  # the true body normals in the fitted body frame at t = 0
-    tn_fit = tn @ to_fit.T
+    to_fit = a.frames[0] @ m.true_frames[0].T  # the true body normals in the fitted body frame at t = 0
+    return {"true_normals": tn @ to_fit.T, "true_areas": ta}
+
+
+def score_truth(p: Any, m: Any, a: Any, sol: EGISolution) -> dict[str, Any]:
+    """The recovered EGI and shape against the truth (:func:`true_egi`), in the fitted body frame
+    at t = 0, and the attitude's pole and periods against the true spin or tumbling state."""
+    from cssat.inversion.shape import convex_iou  # heavy: cssat.inversion.shape imports torch
+
+    res, attitude, spin = sol.res, p.attitude, a.sol
+    metrics: dict[str, Any] = {}
+    truth = true_egi(p, m, a)
+    tn_fit, ta = truth["true_normals"], truth["true_areas"]
+    to_fit = a.frames[0] @ m.true_frames[0].T
     metrics["egi_recovered_share"] = egi_recovered_share(tn_fit, ta, res.normals, res.areas)
     if res.mesh is not None:
         import trimesh  # heavy: trimesh, only for score_truth()
 
-        hull = trimesh.convex.convex_hull(np.asarray(f.mesh.vertices) @ to_fit.T)
+        hull = trimesh.convex.convex_hull(np.asarray(p.mesh.vertices) @ to_fit.T)
         metrics["shape_iou_hull"] = convex_iou(hull, res.mesh)
-    if isinstance(attitude, Tumbling) and f.spin_mode == "tumbling":
-        metrics.update(_tumbling_errors(attitude, sol.state))
-    if isinstance(attitude, Spin) and sol is not None:
+    if isinstance(attitude, Tumbling) and p.spin_mode == "tumbling":
+        metrics.update(_tumbling_errors(attitude, spin.state))
+    if isinstance(attitude, Spin) and spin is not None:
         from cssat.inversion.spin_errors import separation_deg  # heavy: cssat.inversion imports torch
 
-        metrics["period_error_relative"] = abs(sol.period_s - abs(attitude.period_s)) / abs(attitude.period_s)
+        metrics["period_error_relative"] = abs(spin.period_s - abs(attitude.period_s)) / abs(attitude.period_s)
         lon, lat = attitude.pole_lon_deg, attitude.pole_lat_deg
         if attitude.period_s < 0:  # a retrograde spin is a prograde one about the opposite pole
             lon, lat = lon + 180.0, -lat
-        metrics["pole_error_deg"] = separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (lon, lat))
-    return {"true_normals": tn_fit, "true_areas": ta}
+        metrics["pole_error_deg"] = separation_deg((spin.pole_lon_deg, spin.pole_lat_deg), (lon, lat))
+    return metrics
 
 
 def _tumbling_errors(attitude: Any, st: Any) -> dict[str, Any]:
@@ -136,37 +162,40 @@ def _tumbling_errors(attitude: Any, st: Any) -> dict[str, Any]:
                 tumble_true_i1=tr["i1"], tumble_true_i2=tr["i2"], tumble_mode_correct=st.short_axis == tr["short_axis"])
 
 
-def write_egi(f: Any, run: Run) -> None:
+def write_egi(p: Any, m: Any, a: Any, sol: EGISolution, truth: dict[str, np.ndarray], metrics: dict[str, Any],
+              run: Run) -> None:
     """``arrays.npz``, ``egi.csv``, ``lightcurve.csv``, ``shape.obj`` and the figures."""
-    out, res, t, sigma, truth = run.out_dir, f.res, f.t, f.sigma, f.truth
-    write_npz(out / "arrays.npz", times=t, epoch_utc=np.array(str(f.scenario.times[0])), night=f.night, fit=f.fit,
-              flux=f.y, sigma=sigma if sigma is not None else np.full_like(t, np.nan),
-              clean=f.clean_w * f.unit if f.clean_w is not None else np.full_like(t, np.nan), model=f.model_unit,
-              normals=res.normals, areas=res.areas, sun_body=f.sun_b, obs_body=f.obs_b,
-              singular_values=f.obs_info["singular_values"], leverage=f.obs_info["leverage"], grid_normals=f.grid, **truth)
-    write_csv(out / "egi.csv", [{"nx": float(n[0]), "ny": float(n[1]), "nz": float(n[2]), "area_m2": float(a)}
-                                for n, a in zip(res.normals, res.areas)])
-    sigma_w = f.sigma_w if f.sigma_w is not None else np.full_like(t, np.nan)
+    out, res, t, sigma = run.out_dir, sol.res, m.t, m.sigma
+    write_npz(out / "arrays.npz", times=t, epoch_utc=np.array(str(m.scenario.times[0])), night=m.night, fit=m.fit,
+              flux=m.y, sigma=sigma if sigma is not None else np.full_like(t, np.nan),
+              clean=m.clean_w * m.unit if m.clean_w is not None else np.full_like(t, np.nan), model=sol.model_unit,
+              normals=res.normals, areas=res.areas, sun_body=a.sun_b, obs_body=a.obs_b,
+              singular_values=sol.obs_info["singular_values"], leverage=sol.obs_info["leverage"], grid_normals=sol.grid,
+              **truth)
+    write_csv(out / "egi.csv", [{"nx": float(n[0]), "ny": float(n[1]), "nz": float(n[2]), "area_m2": float(ar)}
+                                for n, ar in zip(res.normals, res.areas)])
+    sigma_w = m.sigma_w if m.sigma_w is not None else np.full_like(t, np.nan)
     write_csv(out / "lightcurve.csv", [
         {"time_utc": f"{np.datetime_as_string(tt, unit='ms')}Z", "flux_W_m2": float(v), "flux_err_W_m2": float(s) if s == s else "",
-         "model_W_m2": float(m), "night": int(n), "fitted": bool(ff)}
-        for tt, v, s, m, n, ff in zip(f.scenario.times[f.keep], f.flux_w, sigma_w, f.model_unit / f.unit, f.night, f.fit)])
+         "model_W_m2": float(mu), "night": int(n), "fitted": bool(ff)}
+        for tt, v, s, mu, n, ff in zip(m.scenario.times[m.keep], m.flux_w, sigma_w, sol.model_unit / m.unit, m.night, m.fit)])
     if res.mesh is not None:
         atomic_write(out / "shape.obj", lambda tmp: res.mesh.export(str(tmp), file_type="obj"))
-    _figures(f, run)
+    _figures(p, m, a, sol, truth, metrics, run)
 
 
-def _figures(f: Any, run: Run) -> None:
+def _figures(p: Any, m: Any, a: Any, sol: EGISolution, truth: dict[str, np.ndarray], metrics: dict[str, Any],
+             run: Run) -> None:
     from cssat.plots.inversion import (  # heavy: cssat.plots.inversion imports matplotlib
         egi_figure, inversion_lightcurve_figure, observability_figure, shapes_figure)
 
-    res, truth, obs_info = f.res, f.truth, f.obs_info
-    save_figure(inversion_lightcurve_figure(f.t / 3600.0, f.y, f.sigma, f.model_unit, f.fit), run.figure("inversion_lightcurve"))
+    res, obs_info = sol.res, sol.obs_info
+    save_figure(inversion_lightcurve_figure(m.t / 3600.0, m.y, m.sigma, sol.model_unit, m.fit), run.figure("inversion_lightcurve"))
     save_figure(egi_figure(res.normals, res.areas, truth.get("true_normals"), truth.get("true_areas")), run.figure("inversion_egi"))
     if res.mesh is not None:
         true_mesh = None
         if truth:
-            true_mesh = (np.asarray(f.mesh.vertices) @ (f.frames[0] @ f.true_frames[0].T).T, np.asarray(f.mesh.faces))
-        save_figure(shapes_figure(res.mesh, true_mesh, f.metrics.get("shape_iou_hull")), run.figure("inversion_shapes"))
-    save_figure(observability_figure(f.grid, obs_info["leverage"], obs_info["seen"], obs_info["singular_values"]),
+            true_mesh = (np.asarray(p.mesh.vertices) @ (a.frames[0] @ m.true_frames[0].T).T, np.asarray(p.mesh.faces))
+        save_figure(shapes_figure(res.mesh, true_mesh, metrics.get("shape_iou_hull")), run.figure("inversion_shapes"))
+    save_figure(observability_figure(sol.grid, obs_info["leverage"], obs_info["seen"], obs_info["singular_values"]),
                 run.figure("inversion_observability"))

@@ -55,7 +55,7 @@ def check_search(search: dict[str, Any], span_s: float | None = None) -> None:
                                                    "a period is determined only within the span")
 
 
-def span_seconds(cfg: Any, observed: Any, n_nights: int) -> float:
+def span_seconds(observed: Any, n_nights: int) -> float:
     """The time a light curve spans: a measured file's first to last stamp, or ``nights.n`` days."""
     if observed is not None:
         t = observed.times_utc
@@ -63,28 +63,28 @@ def span_seconds(cfg: Any, observed: Any, n_nights: int) -> float:
     return n_nights * 86400.0
 
 
-def check_size(cfg: Any, n_nights: int, n_faces: int, searched: bool = True, n_normals: int = 0) -> None:
-    """The simulated scenario's steps against the periods searched (the shortest at least two
-    cadences: Nyquist) and the memory of its light curve (facet brightness and visibility per
-    step) and of the EGI operator on ``n_normals`` normals (``G (T, K)`` and its weighted copy;
-    every step counted: an upper bound), before any is computed; ``searched``: the spin is
-    searched (not given)."""
-    if cfg.get("observations"):
-        return
-    step = float_param(cfg.scenario.step_s, "scenario.step_s", 0.0, open_lo=True)
-    inv = (cfg.get("inversion") or {}) if searched else {}
-    for key, node in (("inversion.min_period_s", inv), ("inversion.tumbling.min_period_s", inv.get("tumbling") or {})):
-        lo = node.get("min_period_s")
-        if lo is not None and float(lo) < 2 * step:
-            raise FieldError(key, f"{float(lo):g} s is under two cadences (scenario.step_s = {step:g} s): a shorter period "
-                                  f"is aliased; raise it to {2 * step:g} s or more, or shorten the cadence")
+def check_size(step_s: Any, n_nights: int, n_faces: int, searched: Any = None, n_normals: int = 0,
+               memory_limit_gb: float | None = None) -> None:
+    """A simulated scenario's steps (``scenario.step_s`` over ``n_nights``) against the periods
+    searched (the shortest at least two cadences: Nyquist) and the memory of its light curve
+    (facet brightness and visibility per step) and of the EGI operator on ``n_normals`` normals
+    (``G (T, K)`` and its weighted copy; every step counted: an upper bound), before any is
+    computed; ``searched``: the :class:`~cssat.models.egi.config.InversionConfig` whose periods
+    are searched (``None``: the spin given)."""
+    step = float_param(step_s, "scenario.step_s", 0.0, open_lo=True)
+    if searched is not None:
+        for key, lo in (("inversion.min_period_s", searched.min_period_s),
+                        ("inversion.tumbling.min_period_s", searched.tumbling.get("min_period_s"))):
+            if lo is not None and float(lo) < 2 * step:
+                raise FieldError(key, f"{float(lo):g} s is under two cadences (scenario.step_s = {step:g} s): a shorter "
+                                      f"period is aliased; raise it to {2 * step:g} s or more, or shorten the cadence")
     n_steps = int(n_nights * 86400.0 / step) + 1
     if n_steps > MAX_STEPS:
         raise FieldError("scenario.step_s", f"{step:g} s over {n_nights} nights is {n_steps:.3g} steps, more than "
                                             f"{MAX_STEPS:.0e}: lengthen the cadence")
     parts = {"scenario (T, ~20 values)": n_steps * 20 * 8, "facet brightness and visibility (T, F)": n_steps * max(n_faces, 1) * 8 * 4,
              "EGI operator and its weighted copy (T, K)": n_steps * n_normals * 8 * 2}
-    check_memory(parts, None if cfg.get("memory_limit_gb") is None else float(cfg.memory_limit_gb),
+    check_memory(parts, None if memory_limit_gb is None else float(memory_limit_gb),
                  "lengthen scenario.step_s or lower nights.n or inversion.n_normals")
 
 
@@ -104,16 +104,3 @@ def check_constrained(observed: Any, t: np.ndarray, night: np.ndarray) -> None:
                                          f"inversion: it needs {' and '.join(missing)}; experiment=characterise "
                                          "gives what it does hold")
 
-
-def nights_settings(cfg: Any) -> tuple[int, int | None, float, float]:
-    """``(nights.n, nights.fit, nights.sun_alt_max_deg, nights.min_elevation_deg)``, checked;
-    ``fit`` at most ``n`` for a simulation (null: all nights but the last)."""
-    node = cfg.get("nights") or {}
-    n = int_param(node.get("n", 3), "nights.n", 1, 366)
-    fit = node.get("fit")
-    fit = None if fit is None else int_param(fit, "nights.fit", 1, 366)
-    if fit is not None and fit > n and not cfg.get("observations"):
-        raise FieldError("nights.fit", f"{fit} nights fitted of the {n} observed (nights.n): at most {n}")
-    sun_alt = float_param(node.get("sun_alt_max_deg", -12.0), "nights.sun_alt_max_deg", -90.0, 90.0)
-    min_el = float_param(node.get("min_elevation_deg", 20.0), "nights.min_elevation_deg", -90.0, 90.0)
-    return n, fit, sun_alt, min_el

@@ -1,10 +1,186 @@
-"""The config of the ``forward: egi`` model."""
+"""The config of the ``forward: egi`` model and its settings.
+
+The model's ``forward`` node names it only (:class:`EGIConfig`); its own settings are the
+experiment's top-level keys of :data:`EGIConfig.SETTINGS` — the single source of their keys and
+defaults, stored in Hydra's ConfigStore as the config ``egi_settings`` (which
+``conf/experiment/inversion.yaml`` includes):
+
+==================  =========================================================================
+``nights.*``        :class:`NightsConfig`: the nights observed, fitted and held out
+``inversion.*``     :class:`InversionConfig`: the attitude search, the EGI, the assumed
+                    surface, the shape fitted after it (``inversion.parametric.*``:
+                    :class:`ParametricConfig`), the tumbling search's options
+``shadows``         the simulated truth's self-shadowing by ray casting (true)
+``observations``    a measured light curve to invert (a path; null: simulate)
+``observed.*``      how to read it (:class:`~cssat.models.observed.config.ReadConfig`)
+==================  =========================================================================
+
+The model's other groups — ``model``, ``attitude``, ``brdf``, ``noise``, ``solver`` (objects
+with a ``_target_``) and ``scenario`` — are built and checked when it is planned. Each dataclass
+checks its values in ``__post_init__`` (a :class:`~cssat._checks.FieldError` naming the full
+key). This module imports no numpy or torch: Hydra imports it whenever it composes a config.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass, field, fields
+from typing import Any, ClassVar, Dict, Mapping, Optional
 
-__all__ = ["EGIConfig"]
+from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
+from cssat.models.observed.config import ReadConfig, typed_group
+
+__all__ = ["EGIConfig", "EGISettings", "NightsConfig", "InversionConfig", "ParametricConfig", "SPIN_MODES",
+           "SEARCH_KEYS"]
+
+#: ``inversion.spin``: how the attitude is had
+SPIN_MODES = ("auto", "search", "tumbling", "known")
+#: the spin search's settings (:func:`cssat.inversion.estimate_spin`'s keywords) in ``inversion``
+SEARCH_KEYS = ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples", "min_period_s",
+               "max_period_s", "split_nights")
+_SOLVER_HINT = ("the EGI's solve is the solver group's: solver=nnls|nnomp|nnl1|nntv "
+                "(e.g. solver=nntv solver.lam=discrepancy)")
+
+
+@dataclass
+class NightsConfig:
+    """``nights.*``: the ground station's nights."""
+
+    #: nights observed (a simulation spans nights.n days from scenario.start_utc)
+    n: int = 3
+    #: the first nights fitted (null: all but the last); the others held out and predicted
+    fit: Optional[int] = None
+    #: a night: the Sun below this at the station (°; -12: nautical twilight)
+    sun_alt_max_deg: float = -12.0
+    #: the object above this (°)
+    min_elevation_deg: float = 20.0
+
+    def __post_init__(self) -> None:
+        self.n = int_param(self.n, "nights.n", 1, 366)
+        self.fit = None if self.fit is None else int_param(self.fit, "nights.fit", 1, 366)
+        self.sun_alt_max_deg = float_param(self.sun_alt_max_deg, "nights.sun_alt_max_deg", -90.0, 90.0)
+        self.min_elevation_deg = float_param(self.min_elevation_deg, "nights.min_elevation_deg", -90.0, 90.0)
+
+
+@dataclass
+class ParametricConfig:
+    """``inversion.parametric.*``: the box-wing fitted after the EGI for ``inversion.shape:
+    parametric`` (:func:`cssat.inversion.parametric_fit.fit_box_wing`)."""
+
+    WHAT: ClassVar[str] = "a setting of the box-wing fit"
+
+    #: 1 | 2: one panel at +y or a mirror pair at ±y
+    panels: int = 2
+    #: sub-facets a side per face, each with its own ray-cast visibility (1–16)
+    divisions: int = 4
+    #: visibility recasts (each followed by L-BFGS steps with it fixed)
+    outer: int = 6
+    #: L-BFGS iterations per recast
+    inner: int = 40
+    #: soft-L1 scale of the noise-normalised residuals (glints beyond it count linearly)
+    huber: float = 3.0
+    #: the albedo prior the start's sizes use (flux ∝ albedo × area: an assumption, 0.1–0.8)
+    cd0: float = 0.3
+
+    def __post_init__(self) -> None:
+        self.panels = int_param(self.panels, "inversion.parametric.panels", 1, 2)
+        self.divisions = int_param(self.divisions, "inversion.parametric.divisions", 1, 16)
+        self.outer = int_param(self.outer, "inversion.parametric.outer", 1, 50)
+        self.inner = int_param(self.inner, "inversion.parametric.inner", 1, 500)
+        self.huber = float_param(self.huber, "inversion.parametric.huber", 0.0, open_lo=True)
+        self.cd0 = float_param(self.cd0, "inversion.parametric.cd0", 0.0, 1.0, open_lo=True)
+
+
+@dataclass
+class InversionConfig:
+    """``inversion.*``: the attitude, the EGI and the shape. The search's keys
+    (:data:`SEARCH_KEYS`) are :func:`~cssat.inversion.estimate_spin`'s; ``tumbling`` holds
+    :func:`~cssat.inversion.estimate_tumbling`'s options (checked by it when planned)."""
+
+    WHAT: ClassVar[str] = "a setting of the inversion"
+    #: keys that moved to another group: key → where
+    MOVED: ClassVar[Dict[str, str]] = {k: _SOLVER_HINT for k in ("method", "lam", "n_nonzero", "tv_neighbours")}
+
+    #: auto (search a spin attitude or a file as a spin, a tumbling attitude's torque-free state) |
+    #: search | tumbling | known (the true attitude: an oracle)
+    spin: str = "auto"
+    #: the EGI's Fibonacci grid (the final fit)
+    n_normals: int = 2000
+    #: the spin search's fine stage
+    search_normals: int = 1000
+    #: the surface assumed: lambert | lobes (an EGI per scattering lobe) | simulated (the brdf group's: an oracle)
+    brdf: str = "lambert"
+    #: for brdf: lobes, the specular lobes' Blinn–Phong exponents (100: ~7° half width)
+    lobes: Any = field(default_factory=lambda: [100])
+    #: weight of Σ a n = 0 (given to the solver)
+    closure: float = 1.0
+    #: the spin search (cssat.inversion.estimate_spin)
+    n_poles: int = 60
+    n_starts: int = 6
+    n_refine: int = 2
+    coarse_normals: int = 200
+    coarse_samples: int = 400
+    max_samples: int = 1200
+    #: the period search's range (s; keep min above 4 × the cadence)
+    min_period_s: float = 120.0
+    max_period_s: float = 3000.0
+    #: a diagnostic: the spin also searched on each night alone, the spread of their poles reported
+    split_nights: bool = False
+    #: the shape fitted after the EGI: convex (the EGI's Minkowski polytope) | parametric (a shadowed box-wing)
+    shape: str = "convex"
+    parametric: ParametricConfig = field(default_factory=ParametricConfig)
+    #: options of cssat.inversion.estimate_tumbling (e.g. arc_s, n_poles, inertia_grid): its defaults for the rest
+    tumbling: Dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.spin = choice_param(self.spin, "inversion.spin", SPIN_MODES)
+        self.n_normals = int_param(self.n_normals, "inversion.n_normals", 16, 20000)
+        self.search_normals = int_param(self.search_normals, "inversion.search_normals", 16, 20000)
+        self.brdf = choice_param(self.brdf, "inversion.brdf", ["lambert", "lobes", "simulated"])
+        self.closure = float_param(self.closure, "inversion.closure", 0.0)
+        self.shape = choice_param(self.shape, "inversion.shape", ("convex", "parametric"))
+        if not isinstance(self.parametric, ParametricConfig):
+            self.parametric = typed_group(ParametricConfig, self.parametric, "inversion.parametric")
+        self.tumbling = dict(self.tumbling or {})
+
+    def search(self) -> dict[str, Any]:
+        """The spin search's keywords (:data:`SEARCH_KEYS`; a null one left to its default)."""
+        return {k: getattr(self, k) for k in SEARCH_KEYS if getattr(self, k) is not None}
+
+    def tumbling_options(self) -> dict[str, Any]:
+        """The tumbling search's keywords given (a null one left to its default)."""
+        return {k: v for k, v in self.tumbling.items() if v is not None}
+
+
+@dataclass
+class EGISettings:
+    """Every setting of the ``egi`` model's own keys, typed (:meth:`from_config`)."""
+
+    nights: NightsConfig = field(default_factory=NightsConfig)
+    inversion: InversionConfig = field(default_factory=InversionConfig)
+    #: the simulated truth's self- and observer-shadowing (ray cast)
+    shadows: bool = True
+    #: a measured light curve (a path): invert it (scenario.tle must be the object's)
+    observations: Any = None
+    #: how to read it (cssat.data.read_light_curve)
+    observed: ReadConfig = field(default_factory=ReadConfig)
+
+    def __post_init__(self) -> None:
+        bool_param(self.shadows, "shadows")
+        fit, n = self.nights.fit, self.nights.n
+        if fit is not None and fit > n and not self.observations:
+            raise FieldError("nights.fit", f"{fit} nights fitted of the {n} observed (nights.n): at most {n}")
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any]) -> "EGISettings":
+        """The settings of ``cfg`` (a composed config or a plain mapping), each group built and
+        checked (a :class:`FieldError` naming its full key); a key left out takes its default."""
+        out = {}
+        for f in fields(cls):
+            if f.default is MISSING:  # a group: its dataclass
+                out[f.name] = typed_group(f.default_factory, cfg.get(f.name), f.name)  # type: ignore[misc]
+            else:
+                out[f.name] = cfg.get(f.name, f.default)
+        return cls(**out)
 
 
 @dataclass
@@ -13,8 +189,12 @@ class EGIConfig:
     satellite's light curve, ``y_t = Σ_k G(t, k) a_k``
     (:class:`cssat.experiments.forward.egi.EGILightCurve`).
 
-    The model's settings are the experiment's ``nights``, ``inversion``, ``model``, ``attitude``,
-    ``brdf``, ``shadows``, ``noise``, ``scenario``, ``observations`` and ``observed`` (each checked,
-    with its full key, when the model is planned); its ``forward`` node names the model only."""
+    The ``forward`` node names the model only; its settings are the experiment's top-level keys
+    of :data:`SETTINGS` (:class:`EGISettings`) and its ``model``, ``attitude``, ``brdf``,
+    ``noise``, ``solver`` and ``scenario`` groups."""
 
     _target_: str = "cssat.experiments.forward.egi.EGILightCurve"
+    #: the top-level keys the model reads: key → its typed config (a dataclass) or its default
+    #: (:class:`EGISettings`' fields: one set of defaults)
+    SETTINGS: ClassVar[dict[str, Any]] = {f.name: f.default_factory if f.default is MISSING else f.default
+                                          for f in fields(EGISettings)}

@@ -228,7 +228,8 @@ class CatalogueConfig:
 
 def typed_group(cls: type, values: Any, key: str) -> Any:
     """``cls`` built from ``values`` (a mapping, an OmegaConf node or None: the defaults); a key
-    that is not a field is a :class:`FieldError` naming ``<key>.<name>`` and the fields."""
+    that is not a field is a :class:`FieldError` naming ``<key>.<name>`` and the fields (or, for
+    a key in the class's ``MOVED`` mapping, where it went)."""
     if values is None:
         return cls()
     if hasattr(values, "_get_node"):  # an OmegaConf node: its values, resolved
@@ -239,6 +240,9 @@ def typed_group(cls: type, values: Any, key: str) -> Any:
         return values
     names = [f.name for f in fields(cls)]
     for k in values:
+        moved = getattr(cls, "MOVED", {}).get(k)
+        if moved and k not in names:  # a key that moved to another group: say where
+            raise FieldError(f"{key}.{k}", moved)
         if k not in names:
             what = getattr(cls, "WHAT", f"a setting of {key}")
             raise FieldError(f"{key}.{k}", f"not {what}; its settings: {', '.join(names)}")
