@@ -49,7 +49,8 @@ def test_named_sweeps_name_valid_values_of_their_experiment(sweep):
 
                 build(node, key)
             else:
-                assert str(node) == value  # the key exists in the experiment's config
+                # the key exists in the experiment's config (a typed float field reads 6 as 6.0)
+                assert str(node) == value or (isinstance(node, float) and node == float(value)), (key, node, value)
             from cssat.experiments.forward import measurements
 
             N = cfg.target.size ** 2
