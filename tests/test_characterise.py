@@ -114,7 +114,7 @@ def test_undetermined_is_not_not_periodic(tmp_path, monkeypatch):
     assert m["verdict"] == "undetermined" and m["periodic"] is None
     assert m["why"] == "one cycle and a half: too few to tell" and "period_vs_published" not in m
     assert "periodic light curve (the period is undetermined)" in m["stage_spin"]
-    assert "undetermined" in model.headline(m) and "not periodic" not in model.headline(m)
+    assert "undetermined" in model.headline(m, None) and "not periodic" not in model.headline(m, None)
     with pytest.raises(FieldError) as err:
         _model(tmp_path / "on", f"observations={EXAMPLE_TRACK}", "characterise.tracks=[101]", "stages.period=on")
     assert err.value.field == "stages.period" and "undetermined" in err.value.detail

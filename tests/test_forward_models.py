@@ -59,7 +59,7 @@ def _recording(cls, calls):
         return method
 
     body = {name: stage(name) for name in ("plan", "measure", "estimate", "solve", "score", "write")}
-    body["headline"] = lambda self, metrics: None
+    body["headline"] = lambda self, metrics, run: None
     return type(f"Recording{cls.__name__}", (cls,), body)
 
 

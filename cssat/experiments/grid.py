@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -40,7 +41,7 @@ from cssat.plots import grid_curves_figure, grid_images_figure, grid_maps_figure
 
 log = logging.getLogger("cssat")
 
-__all__ = ["GridRun", "cells"]
+__all__ = ["GridRun", "GridMeasured", "cells"]
 
 #: a cell is below the flat image of the true flux when it scores more than this under it (dB): the
 #: flux-only solver's own flat image, of a *fitted* flux, loses ~1e-3 dB to it
@@ -99,6 +100,16 @@ def _name(fmt: str | None, labels: dict[str, Any]) -> str:
         raise FieldError("grid.name", f"{fmt!r} names an axis that is not in {list(labels)} ({err})") from None
 
 
+@dataclass
+class GridMeasured:
+    """What a grid's ``measure`` hands on: a row of metrics per cell, each cell's denoised image
+    ``(n, n)`` by its name, and the truth ``(n, n)``."""
+
+    rows: list[dict[str, Any]]
+    images: dict[str, Any]
+    truth: Any
+
+
 class GridRun:
     """A grid run of the image forward models: a list of cell configs, each planned, executed and
     scored as one image run, then the grid's metrics, table and figures (the module's docstring)."""
@@ -113,7 +124,7 @@ class GridRun:
         self.figures = [choice_param(f, "grid.figures", ("images", "maps", "curves", "information"))
                         for f in (g.get("figures") or [])]
 
-    def measure(self, run_: Any) -> None:
+    def measure(self, run_: Any) -> GridMeasured:
         """Every cell executed and scored, in order (a cell's Φ reused by the next with the same forward settings)."""
         cfg, g, axes = self.cfg, self.g, self.axes
         cache: dict = {}
@@ -140,16 +151,16 @@ class GridRun:
             row["unreachable"] = met.get("noise_reachable") is False or bool(met.get("noise_saturated") or 0)
             rows.append(row)
             log.info("%s: %s PSNR %.2f dB, SSIM %.3f, %.1f s", cfg.get("experiment_name"), name, row["psnr"], row["ssim"], seconds)
-        self.rows, self.images, self.truth = rows, images, truth
+        return GridMeasured(rows, images, truth)
 
-    def score(self, run_: Any) -> dict[str, Any]:
-        return _metrics(self.g, self.axes, self.rows, self.plans[0], self.truth)
+    def score(self, run_: Any, m: GridMeasured) -> dict[str, Any]:
+        return _metrics(self.g, self.axes, m.rows, self.plans[0], m.truth)
 
-    def write(self, run_: Any, metrics: dict[str, Any]) -> None:
+    def write(self, run_: Any, m: GridMeasured, metrics: dict[str, Any]) -> None:
         g = self.g
-        write_csv(run_.out_dir / str(g.get("csv_name") or "grid.csv"), self.rows)
-        write_npz(run_.out_dir / "arrays.npz", truth=self.truth, **self.images)
-        _figures(g, self.figures, self.axes, self.rows, self.images, self.truth, run_, metrics)
+        write_csv(run_.out_dir / str(g.get("csv_name") or "grid.csv"), m.rows)
+        write_npz(run_.out_dir / "arrays.npz", truth=m.truth, **m.images)
+        _figures(g, self.figures, self.axes, m.rows, m.images, m.truth, run_, metrics)
 
     def headline(self, metrics: dict[str, Any]) -> None:
         """None: each cell's line is logged as it is scored."""

@@ -229,14 +229,15 @@ class ImageRun:
         """Plan ``cfg`` with ``sensing``, the ``forward`` group's image model."""
         self.p = plan(cfg, run, sensing)
 
-    def measure(self, run: Run) -> None:
-        self.res = execute(self.p, run)
+    def measure(self, run: Run) -> dict[str, Any]:
+        """:func:`execute`'s result: the measurement, the operator and the reconstructions."""
+        return execute(self.p, run)
 
-    def score(self, run: Run) -> dict[str, Any]:
-        return metrics_of(self.p, run, self.res)
+    def score(self, run: Run, res: dict[str, Any]) -> dict[str, Any]:
+        return metrics_of(self.p, run, res)
 
-    def write(self, run: Run, metrics: dict[str, Any]) -> None:
-        report.write(self.p, run, self.res, metrics)
+    def write(self, run: Run, res: dict[str, Any], metrics: dict[str, Any]) -> None:
+        report.write(self.p, run, res, metrics)
 
     def headline(self, metrics: dict[str, Any]) -> None:
         report.log_headline(self.p, metrics)

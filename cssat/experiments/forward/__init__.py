@@ -84,16 +84,18 @@ class PixelSensing(ForwardModel):
             op = MatrixOperator(op.matrix().to(dtype))
         return op
 
-    def plan(self, cfg: Any, run: Run) -> None:
-        """Every stage of ``cfg`` built and checked before any work: one image, or every cell of its ``grid``."""
+    def plan(self, cfg: Any, run: Run) -> Any:
+        """Every stage of ``cfg`` built and checked before any work: one image
+        (:class:`~cssat.experiments.pipeline.ImageRun`) or every cell of its ``grid``
+        (:class:`~cssat.experiments.grid.GridRun`) — the job the later stages run."""
         from cssat.experiments.grid import GridRun  # heavy: cssat.experiments.grid imports torch and matplotlib
         from cssat.experiments.pipeline import ImageRun  # heavy: cssat.experiments.pipeline imports torch
 
-        self.job = GridRun(cfg, run) if cfg.get("grid") is not None else ImageRun(cfg, run, self)
+        return GridRun(cfg, run) if cfg.get("grid") is not None else ImageRun(cfg, run, self)
 
-    def measure(self, run: Run) -> None:  # type: ignore[override]
+    def measure(self, run: Run) -> Any:  # type: ignore[override]
         """The measurement, the operator estimate and the solves (of every cell of a grid)."""
-        self.job.measure(run)
+        return run.result("plan").measure(run)
 
     def estimate(self, run: Run) -> None:
         """Estimated with each repeat's solve in :meth:`measure`."""
@@ -102,13 +104,13 @@ class PixelSensing(ForwardModel):
         """Solved with the repeats of :meth:`measure`."""
 
     def score(self, run: Run) -> dict[str, Any]:
-        return self.job.score(run)
+        return run.result("plan").score(run, run.result("measure"))
 
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
-        self.job.write(run, metrics)
+        run.result("plan").write(run, run.result("measure"), metrics)
 
-    def headline(self, metrics: dict[str, Any]) -> None:
-        return self.job.headline(metrics)
+    def headline(self, metrics: dict[str, Any], run: Run) -> None:
+        return run.result("plan").headline(metrics)
 
     def sense(self, run: Run, truth: np.ndarray, operator: Any, noise: Any, dtype: torch.dtype) -> Measured:
         """Measure ``truth`` through ``operator`` (from :meth:`operator`) with ``noise``, seeded

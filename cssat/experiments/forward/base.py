@@ -28,8 +28,8 @@ stage hands on its result by returning it (a typed dataclass: the scene model's
 :class:`~cssat.experiments.forward.scene.SceneMeasured`, the observed model's settings,
 :class:`~cssat.experiments.forward.observed.ObservedMeasured` and
 :class:`~cssat.experiments.forward.observed.ObservedVerdicts`); a later stage reads it with
-``run.result(stage)``, which refuses a stage its needs do not declare (the models not yet so
-converted keep what their stages hand on as attributes of themselves, their needs declared).
+``run.result(stage)``, which refuses a stage its needs do not declare; no model keeps what a
+stage hands on as an attribute of itself.
 :func:`run_stages` runs the first stages alone (a catalogue's row). :func:`run_model`
 owns the loop, refuses an order that runs a stage before one it needs (:class:`StageOrderError`),
 the timings and the headline line in the log. A new forward model is one subclass and its typed
@@ -110,8 +110,9 @@ class ForwardModel:
         """The run's arrays, tables and figures under ``run.out_dir``."""
         raise NotImplementedError
 
-    def headline(self, metrics: dict[str, Any]) -> str | None:
-        """The one line the log gets at the end (``None``: none)."""
+    def headline(self, metrics: dict[str, Any], run: Run) -> str | None:
+        """The one line the log gets at the end (``None``: none), from the run's ``metrics`` (its
+        ``seconds_*`` included) and, where it needs them, its stages' results (``run.result``)."""
         return None
 
 
@@ -148,7 +149,7 @@ def run_model(model: ForwardModel, cfg: Any, run: Run, stages: tuple[str, ...] |
         done.append(stage)
     run.current = None
     metrics.update(run.timings())
-    line = model.headline(metrics)
+    line = model.headline(metrics, run)
     if line:
         log.info("%s", line)
     return metrics

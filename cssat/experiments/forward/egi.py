@@ -207,7 +207,7 @@ class EGILightCurve(ForwardModel):
         write_egi(p, m, a, sol, truth, metrics, run)
         write_parametric(sol, run.out_dir)
 
-    def headline(self, metrics: dict[str, Any]) -> str:
+    def headline(self, metrics: dict[str, Any], run: Run) -> str:
         typ = metrics.get("heldout_typical_over_noise")
         return ("inversion: {} samples over {} nights, {}{}, EGI {} normals, held-out rms {}× noise{}".format(
             metrics["n_samples"], metrics["n_nights_observed"], _attitude_line(metrics),

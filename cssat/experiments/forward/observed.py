@@ -232,7 +232,7 @@ class Observed(ForwardModel):
                                             arrays.get("model"), lc.kind, trend=arrays.get("trend"), labels=labels,
                                             verdict=metrics.get("verdict")), run.figure("characterise"))
 
-    def headline(self, metrics: dict[str, Any]) -> str:
+    def headline(self, metrics: dict[str, Any], run: Run) -> str:
         """One line: the verdict and the period, or why there is none, and the skipped stages."""
         m = metrics
         name = " ".join(str(x) for x in (m.get("object_id"), m.get("object_name")) if x) or "the light curve"

@@ -196,7 +196,7 @@ class SceneLightCurve(ForwardModel):
         if p.observed is not None:
             metrics.update(_compare(p.observed, mag, epoch, run))
 
-    def headline(self, metrics: dict[str, Any]) -> str:
+    def headline(self, metrics: dict[str, Any], run: Run) -> str:
         return "lightcurve: %d steps, %s (%d facets), magnitude %.2f..%.2f, eclipse %s-%s, %.1f s" % (
             metrics["n_steps"], metrics["model"], metrics["n_facets"], metrics["magnitude_min"] or math.nan,
             metrics["magnitude_max"] or math.nan, metrics["eclipse_start_utc"], metrics["eclipse_end_utc"],

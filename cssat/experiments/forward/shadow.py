@@ -118,7 +118,7 @@ class Shadow(ForwardModel):
     def write(self, run: Run, metrics: dict[str, Any]) -> None:
         write_event(run.result("plan"), run.result("measure"), run.result("solve"), run, metrics)
 
-    def headline(self, metrics: dict[str, Any]) -> str:
+    def headline(self, metrics: dict[str, Any], run: Run) -> str:
         return (f"occultation ({metrics['row']}): {metrics['model']} at {metrics['distance_km']:.0f} km, "
                 f"shadow {metrics['shadow_speed_km_s']:.2f} km/s; "
                 f"{metrics['n_telescopes']} of {metrics['n_slots']} telescopes; IoU {metrics['iou']:.3f} registered "
