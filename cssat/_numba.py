@@ -6,7 +6,7 @@ from __future__ import annotations
 import functools
 from typing import Callable
 
-_KERNELS: dict = {}
+KERNELS: dict = {}
 
 
 def available() -> bool:
@@ -34,11 +34,11 @@ def kernel(build: Callable[[bool], Callable], threads: int, parallel: bool | Non
 
     parallel = threads > 1 if parallel is None else bool(parallel) and threads > 1
     key = (build, parallel)
-    if key not in _KERNELS:
-        _KERNELS[key] = build(parallel)
+    if key not in KERNELS:
+        KERNELS[key] = build(parallel)
     if threads > 1 or pool or _pool._is_initialized:
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    return functools.partial(_run_keeping_threads, _KERNELS[key], threads)
+    return functools.partial(_run_keeping_threads, KERNELS[key], threads)
 
 
 def _run_keeping_threads(fn: Callable, threads: int, *args):

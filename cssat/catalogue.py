@@ -181,7 +181,7 @@ def _plain(node: Any) -> dict[str, Any]:
     return dict(node)
 
 
-def _options(observed: Any, characterise: Any, period: Any, tumbling: Any, stages: Any) -> str:
+def options_text(observed: Any, characterise: Any, period: Any, tumbling: Any, stages: Any) -> str:
     """The row's settings as canonical JSON (the cache key of their check): the experiment's
     defaults with the given groups over them."""
     from cssat._checks import FieldError  # startup: not at import (stdlib only)
@@ -202,7 +202,7 @@ def _options(observed: Any, characterise: Any, period: Any, tumbling: Any, stage
 
 
 @functools.lru_cache(maxsize=32)
-def _checked(options: str) -> dict[str, Any]:
+def checked_options(options: str) -> dict[str, Any]:
     """Every setting checked once (the experiment's own check, :func:`observed_settings`), before
     any file: a bad one raises a FieldError naming it."""
     from cssat.experiments.forward.observed import observed_settings  # heavy: imports torch
@@ -259,7 +259,7 @@ def characterise_file(path: str | os.PathLike, *, observed: Mapping[str, Any] | 
     before the file is read; anything wrong with the file is a ``failed`` row.
     """
     t0 = time.perf_counter()
-    options = _checked(_options(observed, characterise, period, tumbling, stages))
+    options = checked_options(options_text(observed, characterise, period, tumbling, stages))
     row: dict[str, Any] = dict.fromkeys(ROW_COLUMNS)
     row["file"] = os.fspath(path)
     try:

@@ -13,7 +13,7 @@ import logging
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from cssat.catalogue import (DEFAULT_SHARD_SIZE, ROW_COLUMNS, _checked, _options, catalogue_files, characterise_file,
+from cssat.catalogue import (DEFAULT_SHARD_SIZE, ROW_COLUMNS, checked_options, options_text, catalogue_files, characterise_file,
                              listing_sha, n_shards, shard_files, shard_table, write_rows)
 
 __all__ = ["run", "check_config", "join_shards", "options_of"]
@@ -53,7 +53,7 @@ def check_config(cfg: Any) -> None:
     a FieldError naming the first bad key. Run once by ``cssat -m`` before the sweep's jobs, and
     by each shard before its first file."""
     _catalogue_settings(cfg)
-    _checked(_options(**options_of(cfg)))
+    checked_options(options_text(**options_of(cfg)))
 
 
 def run(cfg: Any, out_dir: str | Path) -> dict[str, Any]:

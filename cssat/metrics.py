@@ -21,7 +21,7 @@ from cssat._checks import FieldError
 __all__ = ["psnr", "ssim"]
 
 
-def _np(a) -> np.ndarray:
+def float64_array(a) -> np.ndarray:
     if hasattr(a, "detach"):
         a = a.detach().cpu().numpy()
     return np.asarray(a, dtype=np.float64)
@@ -40,7 +40,7 @@ def _range(ref: np.ndarray, data_range: float | None) -> float:
 
 def _score(one, image_true, image_test, data_range: float | None, volume: bool):
     """Apply ``one(true, test, R, channel_axis)`` to an image, a volume, or each image of a batch."""
-    ref, x = _np(image_true), _np(image_test)
+    ref, x = float64_array(image_true), float64_array(image_test)
     if x.shape != ref.shape:
         raise FieldError("image_test", f"shape {x.shape} differs from image_true's {ref.shape}")
     if not np.isfinite(x).all():

@@ -30,7 +30,7 @@ def test_motion_and_rates_against_torque_free(alpha_deg):
     ``φ = atan2(R₂₀, −R₂₁)`` over whole periods of ω."""
     from scipy.spatial.transform import Rotation
 
-    from cssat.scene.attitude import _ry, torque_free
+    from cssat.scene.attitude import rot_y, torque_free
 
     st = _motion_case(0.5, 0.8, alpha_deg)
     assert st.short_axis == (alpha_deg < 45.0)
@@ -38,7 +38,7 @@ def test_motion_and_rates_against_torque_free(alpha_deg):
     Lb = np.array([math.sin(st.alpha), 0.0, math.cos(st.alpha)])
     T_w = 1.0 / st.f_omega_hz
     t = np.linspace(0.0, 40 * T_w, 40 * 400 + 1)
-    R, om = torque_free(np.diag(Ip), Rotation.from_matrix(_ry(-st.alpha).T).as_quat(), st.L_rate * Lb / Ip, t,
+    R, om = torque_free(np.diag(Ip), Rotation.from_matrix(rot_y(-st.alpha).T).as_quat(), st.L_rate * Lb / Ip, t,
                         return_omega=True)
     assert np.abs(st.motion(t) - R).max() < 1e-6
     wy = om[:, 1]

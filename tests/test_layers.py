@@ -257,3 +257,46 @@ def test_import_cssat_imports_no_array_library():
     code = "import cssat, sys; print([m for m in ('torch', 'numpy', 'scipy') if m in sys.modules])"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.strip() == "[]", (out.stdout, out.stderr)
+
+
+def private_imports(root: Path) -> set[tuple[str, str]]:
+    """``(importer, "<module>.<name>")`` for every private name (one leading underscore, not a
+    module) imported from another package of ``root`` (a top-level module is a package of its
+    own): a private name is its own package's business."""
+    out = set()
+    for f in root.rglob("*.py"):
+        module = _module_name(f, root)
+        mine = module.split(".")[:2]
+        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.ImportFrom) or not (node.module or "").startswith("cssat"):
+                continue
+            theirs = node.module.split(".")[:2]
+            if theirs == mine or len(theirs) < 2 and mine[:1] == theirs:
+                continue
+            base = root.joinpath(*node.module.split(".")[1:])
+            for alias in node.names:
+                n = alias.name
+                if n.startswith("_") and not n.startswith("__") and not ((base / n).is_dir() or (base / f"{n}.py").exists()):
+                    out.add((module, f"{node.module}.{n}"))
+    return out
+
+
+def test_no_private_name_crosses_a_package():
+    import cssat
+
+    found = private_imports(Path(cssat.__file__).parent)
+    assert not found, f"private names imported from another package: {sorted(found)}"
+
+
+def test_the_reader_sees_a_private_import(tmp_path):
+    """The check itself: a private function imported across packages is caught; within its own
+    package, a private module, and a public name are not."""
+    pkg = tmp_path / "cssat"
+    for d in ("scene", "inversion"):
+        (pkg / d).mkdir(parents=True)
+    (pkg / "scene" / "attitude.py").write_text("def _rz(a):\n    return a\n")
+    (pkg / "scene" / "frames.py").write_text("from cssat.scene.attitude import _rz\n")
+    (pkg / "scene" / "_kernels.py").write_text("")
+    (pkg / "inversion" / "bad.py").write_text("def f():\n    from cssat.scene.attitude import _rz, rz\n")
+    (pkg / "inversion" / "ok.py").write_text("from cssat.scene import _kernels\nfrom cssat._checks import FieldError\n")
+    assert private_imports(pkg) == {("cssat.inversion.bad", "cssat.scene.attitude._rz")}

@@ -22,7 +22,7 @@ from cssat._checks import FieldError
 from cssat.data.formats import _checked
 from cssat.data.registry import read_text, register_format
 from cssat.data.text import _is_number, text_rows
-from cssat.scene.orbit import _start_datetime
+from cssat.scene.orbit import start_datetime
 
 __all__ = ["read_score", "identify_score", "SCORE_COLUMNS", "SATCHECKER_COLUMNS", "SCORE_FIXED_OPTIONS"]
 
@@ -83,7 +83,7 @@ def read_score(header: list[str], rows: list[list[str]], name: str, obj: Any = N
     def where(c: str, i: int) -> str:
         return f"observations.{c}[row {file_row[i] + 1}]"
 
-    times = np.array([np.datetime64(_start_datetime(s, where(SCORE_COLUMNS["time"], i)), "us")
+    times = np.array([np.datetime64(start_datetime(s, where(SCORE_COLUMNS["time"], i)), "us")
                       for i, s in enumerate(get("time"))], dtype="datetime64[us]")
 
     def numbers(c: str, required: bool = False) -> np.ndarray | None:

@@ -18,7 +18,7 @@ from cssat._checks import FieldError
 from cssat._tmpfiles import atomic_csv
 from cssat.data.formats import check_kind, to_utc
 from cssat.data.registry import read_text, register_format
-from cssat.scene.orbit import _start_datetime
+from cssat.scene.orbit import start_datetime
 
 __all__ = ["check_size", "read_csv", "text_rows", "write_light_curve", "find_column", "DEFAULT_VALUE", "DEFAULT_ERROR"]
 
@@ -101,7 +101,7 @@ def _is_number(v: str) -> bool:
 
 def _times(raw: Sequence[Any], col: str, time_format: str, time_scale: str) -> np.ndarray:
     if time_format == "iso":
-        out = np.array([np.datetime64(_start_datetime((v.decode() if isinstance(v, bytes) else str(v)).strip(),
+        out = np.array([np.datetime64(start_datetime((v.decode() if isinstance(v, bytes) else str(v)).strip(),
                                                       f"observations.{col}[row {i + 1}]"), "us")
                         for i, v in enumerate(raw)], dtype="datetime64[us]")
         if time_scale == "utc":

@@ -18,7 +18,7 @@ import numpy as np
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.egi import egi_operator, geometry_matrix, lambert_scale
-from cssat.metrics import _np  # tensors or arrays as float64 arrays
+from cssat.metrics import float64_array  # tensors or arrays as float64 arrays
 from cssat.sparse.differences import grid_differences, knn_differences
 from cssat.sparse.nonneg import METHODS, lam_param, nonneg_solve, weighted_system
 
@@ -49,13 +49,13 @@ def recover_egi(G: Any, y: Any, *, sigma: Any = None, normals: Any = None, metho
     if hasattr(G, "matrix"):
         normals = getattr(G, "normals", None) if normals is None else normals
         G = G.matrix()
-    G, y = _np(G), _np(y).reshape(-1)
+    G, y = float64_array(G), float64_array(y).reshape(-1)
     if G.ndim != 2 or G.shape[0] != len(y):
         raise FieldError("y", f"{len(y)} samples for an operator of shape {G.shape}")
     if not np.isfinite(y).all():
         raise FieldError("y", f"the light curve must be finite: {int((~np.isfinite(y)).sum())} NaN/inf samples (drop them first)")
     if normals is not None:
-        normals = _np(normals)
+        normals = float64_array(normals)
     if closure > 0 and normals is None:
         raise FieldError("closure", "the closure constraint needs the normals")
     A, b = weighted_system(G, y, sigma, None if normals is None else normals.T, closure)

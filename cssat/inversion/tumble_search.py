@@ -14,7 +14,7 @@ import numpy as np
 
 from cssat._checks import FieldError, float_param, int_param
 from cssat.inversion.tumble_state import TumblingState, _alpha_roots, _TFit, tumbling_rates
-from cssat.scene.attitude import _rz
+from cssat.scene.attitude import rot_z
 
 log = logging.getLogger("cssat")
 
@@ -94,7 +94,7 @@ class _CoarseGrid:
     def __init__(self, fit: _TFit, n_t0: int, n_phi: int, t_ref: float, frame: str):
         self.fit, self.n_t0, self.n_phi, self.t_ref, self.frame = fit, n_t0, n_phi, t_ref, frame
         self.phis = np.arange(n_phi) * (360.0 / n_phi)
-        self.Rphi = _rz(np.radians(self.phis))  # (n_phi, 3, 3)
+        self.Rphi = rot_z(np.radians(self.phis))  # (n_phi, 3, 3)
 
     def scan(self, moments: Any, pairs: list[tuple[float, float]], n_dirs: int) -> list[tuple]:
         """Each moment of ``moments (M, 2)`` and each of ``n_dirs`` directions of ``L`` (a Fibonacci

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
-from cssat.scene.attitude import OBLIQUITY_DEG, _euler_solution, _nutation, _omega_of, _rx3, _ry, _rz, quaternion_frames, to_body
+from cssat.scene.attitude import OBLIQUITY_DEG, euler_solution, nutation, omega_of, rot_x3, rot_y, rot_z, quaternion_frames, to_body
 
 __all__ = ["TumblingState", "tumbling_rates", "torque_free_invariants"]
 
@@ -39,7 +39,7 @@ __all__ = ["TumblingState", "tumbling_rates", "torque_free_invariants"]
 def _solution(i1: float, i2: float, alpha: float):
     Ip = np.array([i1, i2, 1.0])
     wp = np.array([math.sin(alpha), 0.0, math.cos(alpha)]) / Ip
-    return Ip, wp, _euler_solution(Ip, wp)
+    return Ip, wp, euler_solution(Ip, wp)
 
 
 def tumbling_rates(i1: float, i2: float, alpha_rad: float, *, n: int = 256) -> tuple[float, float]:
@@ -56,7 +56,7 @@ def tumbling_rates(i1: float, i2: float, alpha_rad: float, *, n: int = 256) -> t
         return math.nan, math.nan
     K = float(ellipk(mo["m"]))
     half = 2 * K / mo["lam"]
-    w = _omega_of(mo, np.arange(n) * (half / n), mo["sign"])
+    w = omega_of(mo, np.arange(n) * (half / n), mo["sign"])
     num = Ip[0] * w[:, 0] ** 2 + Ip[1] * w[:, 1] ** 2
     den = Ip[0] ** 2 * w[:, 0] ** 2 + Ip[1] ** 2 * w[:, 1] ** 2
     return 1.0 / (2 * half), float(np.mean(num / np.maximum(den, 1e-300))) / (2 * math.pi)
@@ -91,7 +91,7 @@ def torque_free_invariants(inertia_kg_m2: Any, q0: Any, omega0_rad_s: Any, frame
     L_in = quaternion_frames(np.asarray(q0, dtype=np.float64)).T @ (V @ Lb)
     L_in /= np.linalg.norm(L_in)
     if frame == "ecliptic":
-        L_in = _rx3(np.radians(OBLIQUITY_DEG))[0] @ L_in
+        L_in = rot_x3(np.radians(OBLIQUITY_DEG))[0] @ L_in
     return {"i1": float(Ip[0]), "i2": float(Ip[1]), "f_omega_hz": L * fw, "f_phi_hz": L * fp, "alpha": alpha,
             "L_lon_deg": math.degrees(math.atan2(L_in[1], L_in[0])),
             "L_lat_deg": math.degrees(math.asin(np.clip(L_in[2], -1, 1))),
@@ -147,7 +147,7 @@ class TumblingState:
         from cssat.inversion.spin_search import _pole_rotation  # heavy: cssat.inversion.spin_search imports the EGI grid (torch)
 
         tau = np.asarray(times_s, dtype=np.float64).reshape(-1) - self.t_ref_s + self.t0_s
-        return self.motion(tau) @ (_rz(np.float64(math.radians(self.phi0_deg)))
+        return self.motion(tau) @ (rot_z(np.float64(math.radians(self.phi0_deg)))
                                    @ _pole_rotation(self.lon_deg, self.lat_deg, self.frame))
 
     def motion(self, tau: np.ndarray) -> np.ndarray:
@@ -160,13 +160,13 @@ class TumblingState:
         if mo is None:
             raise FieldError("alpha", "a steady spin is no tumbling motion")
         s = self.L_rate * np.asarray(tau, dtype=np.float64).reshape(-1)  # the motion at |L| = 1 in scaled time
-        w = _omega_of(mo, s, mo["sign"])
-        theta, psi = _nutation(Ip, w, 1.0)
+        w = omega_of(mo, s, mo["sign"])
+        theta, psi = nutation(Ip, w, 1.0)
         phi = _precession_table(mo, Ip)(s)
         # body +z of the L-frame to (sin α, 0, cos α)
-        X = _rx3(self.alpha)[0].T @ _rz(np.float64(math.pi / 2)).T @ _ry(-self.alpha)
+        X = rot_x3(self.alpha)[0].T @ rot_z(np.float64(math.pi / 2)).T @ rot_y(-self.alpha)
         phi = phi + math.atan2(X[0, 1], X[0, 0])
-        return _rz(psi) @ _rx3(theta) @ _rz(phi)
+        return rot_z(psi) @ rot_x3(theta) @ rot_z(phi)
 
     def describe(self) -> dict[str, float]:
         return {"tumble_i1": self.i1, "tumble_i2": self.i2, "tumble_alpha_deg": math.degrees(self.alpha),
@@ -212,7 +212,7 @@ def _precession_table(mo: dict, Ip: np.ndarray, n_table: int = 2048):
 
     half = 2 * float(ellipk(mo["m"])) / mo["lam"]
     grid = np.linspace(0.0, half, n_table + 1)
-    w = _omega_of(mo, grid, mo["sign"])
+    w = omega_of(mo, grid, mo["sign"])
     rate = ((Ip[0] * w[:, 0] ** 2 + Ip[1] * w[:, 1] ** 2)
             / np.maximum(Ip[0] ** 2 * w[:, 0] ** 2 + Ip[1] ** 2 * w[:, 1] ** 2, 1e-300))
     cum = cumulative_simpson(rate, x=grid, initial=0.0)

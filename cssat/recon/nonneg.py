@@ -13,7 +13,7 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError, float_param, int_param, opt
-from cssat.metrics import _np
+from cssat.metrics import float64_array
 from cssat.recon.problem import Problem
 from cssat.recon.solvers import Solver
 from cssat.sparse._io import numpy_io
@@ -57,10 +57,10 @@ class _NonNeg(Solver):
             else:
                 extra["differences"] = grid_differences(prob.x_shape)
         C = op.equalities() if hasattr(op, "equalities") else None
-        A = _np(op.matrix() if hasattr(op, "matrix") else op)
+        A = float64_array(op.matrix() if hasattr(op, "matrix") else op)
         out, info = [], {}
         for yb in rows:
-            yv = _np(yb).reshape(-1)
+            yv = float64_array(yb).reshape(-1)
             if not np.isfinite(yv).all():
                 raise FieldError("y", f"must be finite: {int((~np.isfinite(yv)).sum())} NaN/inf samples")
             Aw, b = weighted_system(A, yv, sigma, C, self.closure)

@@ -81,14 +81,14 @@ def inertial_frame(q: np.ndarray, n: int) -> np.ndarray:
     return np.repeat(quaternion_frames(q)[None], int(n), axis=0)
 
 
-def _rz(a: np.ndarray) -> np.ndarray:
+def rot_z(a: np.ndarray) -> np.ndarray:
     """Passive rotations about z by ``a (T,)`` rad: ``(T, 3, 3)``."""
     c, s_ = np.cos(a), np.sin(a)
     z, o = np.zeros_like(a), np.ones_like(a)
     return np.stack([np.stack([c, s_, z], -1), np.stack([-s_, c, z], -1), np.stack([z, z, o], -1)], -2)
 
 
-def _ry(a: float) -> np.ndarray:
+def rot_y(a: float) -> np.ndarray:
     c, s_ = np.cos(a), np.sin(a)
     return np.array([[c, 0.0, -s_], [0.0, 1.0, 0.0], [s_, 0.0, c]])
 
@@ -111,10 +111,10 @@ def spin_frame(times_s: np.ndarray, pole_lon_deg: float, pole_lat_deg: float, pe
         raise FieldError("attitude.period_s", f"expected a non-zero finite period (s), got {period_s!r}")
     t = np.asarray(times_s, dtype=np.float64)
     phi = np.radians(float(phase_deg)) + 2 * np.pi * t / period
-    fixed = _ry(np.pi / 2 - beta) @ _rz(np.array([lam]))[0]
+    fixed = rot_y(np.pi / 2 - beta) @ rot_z(np.array([lam]))[0]
     if frame == "ecliptic":
-        fixed = fixed @ _rx3(np.radians(OBLIQUITY_DEG))[0]
-    return _rz(phi) @ fixed
+        fixed = fixed @ rot_x3(np.radians(OBLIQUITY_DEG))[0]
+    return rot_z(phi) @ fixed
 
 
 def interpolated_frames(times_s: np.ndarray, knot_times_s: np.ndarray, quaternions: np.ndarray) -> np.ndarray:
@@ -177,14 +177,14 @@ def torque_free(inertia_kg_m2: np.ndarray, q0: np.ndarray, omega0_rad_s: np.ndar
     if L < 1e-300:  # at rest
         out = np.repeat(F0[None], len(t), axis=0)
         return (out, np.zeros((len(t), 3))) if return_omega else out
-    mo = _euler_solution(Ip, wp)
+    mo = euler_solution(Ip, wp)
     if mo is None:  # a steady spin about a principal axis: a rotation at a constant rate
         R = Rotation.from_matrix(F0.T) * Rotation.from_rotvec(np.outer(t, w0))
         out = np.swapaxes(R.as_matrix(), -1, -2)
         return (out, np.repeat(w0[None], len(t), axis=0)) if return_omega else out
-    omega = _omega_of(mo, t, mo["sign"])
-    theta, psi = _nutation(Ip, omega, L)
-    th0, ps0 = _nutation(Ip, wp[None], L)
+    omega = omega_of(mo, t, mo["sign"])
+    theta, psi = nutation(Ip, omega, L)
+    th0, ps0 = nutation(Ip, wp[None], L)
     # the inertial frame with z along L, and the precession angle's start from the initial attitude
     L_in = F0.T @ (V @ (moments * wp))
     ez = L_in / np.linalg.norm(L_in)
@@ -192,14 +192,14 @@ def torque_free(inertia_kg_m2: np.ndarray, q0: np.ndarray, omega0_rad_s: np.ndar
     ex /= np.linalg.norm(ex)
     M = np.stack([ex, np.cross(ez, ex), ez])
     P0 = V.T @ F0
-    X = _rx3(th0)[0].T @ _rz(ps0)[0].T @ P0 @ M.T  # = R_z(φ₀)
+    X = rot_x3(th0)[0].T @ rot_z(ps0)[0].T @ P0 @ M.T  # = R_z(φ₀)
     phi = np.arctan2(X[0, 1], X[0, 0]) + _precession(mo, Ip, L, t)
-    P = _rz(psi) @ _rx3(theta) @ _rz(phi) @ M
+    P = rot_z(psi) @ rot_x3(theta) @ rot_z(phi) @ M
     out = V @ P
     return (out, omega @ V.T) if return_omega else out
 
 
-def _rx3(a: np.ndarray) -> np.ndarray:
+def rot_x3(a: np.ndarray) -> np.ndarray:
     """Passive rotations about x by ``a (T,)``: ``(T, 3, 3)``."""
     a = np.atleast_1d(a)
     c, s_ = np.cos(a), np.sin(a)
@@ -207,7 +207,7 @@ def _rx3(a: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([o, z, z], -1), np.stack([z, c, s_], -1), np.stack([z, -s_, c], -1)], -2)
 
 
-def _nutation(Ip: np.ndarray, omega: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
+def nutation(Ip: np.ndarray, omega: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
     """Euler angles θ, ψ of the body about ``L`` from the principal ``ω (T, 3)``: the body's
     ``L = L (sin θ sin ψ, sin θ cos ψ, cos θ)``."""
     Lb = Ip * omega
@@ -239,8 +239,8 @@ def _motion(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
     return {"order": order, "amp": amp, "lam": lam, "m": m, "tau0": tau0, "s3": s3, "I": Ip[order]}
 
 
-def _omega_of(mo: dict, t: np.ndarray, sign: float) -> np.ndarray:
-    from scipy.special import ellipj  # heavy: scipy.special, only for _omega_of()
+def omega_of(mo: dict, t: np.ndarray, sign: float) -> np.ndarray:
+    from scipy.special import ellipj  # heavy: scipy.special, only for omega_of()
 
     sn, cn, dn, _ = ellipj(sign * mo["lam"] * t + mo["tau0"], mo["m"])
     w = np.stack([mo["amp"][0] * cn, mo["amp"][1] * sn, mo["s3"] * mo["amp"][2] * dn], -1)
@@ -249,7 +249,7 @@ def _omega_of(mo: dict, t: np.ndarray, sign: float) -> np.ndarray:
     return out
 
 
-def _euler_solution(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
+def euler_solution(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
     """The elliptic solution of Euler's equations from the principal ``ω₀`` (:func:`_motion`),
     with ``sign``: the direction of the elliptic phase whose derivative at 0 satisfies Euler's
     equations. ``None`` for a steady spin."""
@@ -262,7 +262,7 @@ def _euler_solution(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
     h = 1e-6 / max(mo["lam"], 1e-300)
     errs = []
     for sign in (1.0, -1.0):
-        d = (_omega_of(mo, np.array([h]), sign)[0] - _omega_of(mo, np.array([-h]), sign)[0]) / (2 * h)
+        d = (omega_of(mo, np.array([h]), sign)[0] - omega_of(mo, np.array([-h]), sign)[0]) / (2 * h)
         errs.append(np.abs(d - rhs).sum())
     mo["sign"] = 1.0 if errs[0] <= errs[1] else -1.0
     return mo
@@ -279,7 +279,7 @@ def _precession(mo: dict, Ip: np.ndarray, L: float, t: np.ndarray, nodes: int = 
     period = 2 * float(ellipk(mo["m"])) / mo["lam"] if mo["m"] < 1 else np.inf
 
     def rate(tt: np.ndarray) -> np.ndarray:
-        w = _omega_of(mo, tt, mo["sign"])
+        w = omega_of(mo, tt, mo["sign"])
         num = A * w[:, 0] ** 2 + B * w[:, 1] ** 2
         den = A ** 2 * w[:, 0] ** 2 + B ** 2 * w[:, 1] ** 2
         return L * num / np.maximum(den, 1e-300)

@@ -9,7 +9,7 @@ import math
 from typing import Any, Mapping
 
 from cssat._checks import FieldError, FieldTypeError
-from cssat.scene.times import _start_datetime
+from cssat.scene.times import start_datetime
 
 __all__ = ["ASTRA_1KR_SYNTHETIC_TLE", "OMM_DEFAULTS", "OMM_REQUIRED", "SATELLITE_FORMS", "check_elements", "check_tle",
            "earth_satellite"]
@@ -136,7 +136,7 @@ def _from_omm(rec, ts, field: str):
     if missing:
         raise FieldError(field, f"an OMM/GP record needs {', '.join(OMM_REQUIRED)}; missing {', '.join(missing)}")
     fields = {**OMM_DEFAULTS, **{k: v for k, v in rec.items() if v is not None}}
-    epoch = _start_datetime(str(fields["EPOCH"]), field=f"{field}.EPOCH")
+    epoch = start_datetime(str(fields["EPOCH"]), field=f"{field}.EPOCH")
     fields["EPOCH"] = epoch.strftime("%Y-%m-%dT%H:%M:%S.%f")  # the one form sgp4.omm parses
     fields["OBJECT_ID"] = str(fields["OBJECT_ID"])
     sat = Satrec()

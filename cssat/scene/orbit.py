@@ -23,7 +23,7 @@ import numpy as np
 
 from cssat._checks import FieldError
 from cssat.scene.elements import ASTRA_1KR_SYNTHETIC_TLE, R_EARTH_KM, STALE_DAYS, check_elements, check_tle, earth_satellite
-from cssat.scene.times import TIMES_FORMS, _start_datetime, utc_times
+from cssat.scene.times import TIMES_FORMS, start_datetime, utc_times
 
 __all__ = [
     "ASTRA_1KR_SYNTHETIC_TLE",
@@ -192,7 +192,7 @@ def make_scenario(
         raise FieldError("scenario.observer.lon_deg", f"must be in [-360, 360], got {lon_deg}")
     if not (isinstance(alt_m, (int, float)) and math.isfinite(alt_m) and -1000 <= alt_m <= 100_000):
         raise FieldError("scenario.observer.alt_m", f"a ground observer's altitude must be in [-1000, 100000] m, got {alt_m!r}")
-    start = _start_datetime(start_utc)
+    start = start_datetime(start_utc)
     check_elements(sat.model)
     epoch_days = sat.model.jdsatepoch + sat.model.jdsatepochF - 2440587.5  # days since 1970
     span = (start - datetime(1970, 1, 1)).total_seconds() / 86400 - epoch_days

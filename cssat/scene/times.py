@@ -17,7 +17,7 @@ __all__ = ["START_FORMS", "TIMES_FORMS", "utc_times"]
 START_FORMS = "an ISO string, a datetime (naive = UTC), a numpy.datetime64 or a skyfield Time"
 
 
-def _start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
+def start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
     """A naive UTC ``datetime`` of any of :data:`START_FORMS` (a scalar)."""
     if isinstance(start_utc, str):
         try:
@@ -66,7 +66,7 @@ def utc_times(times: Any, field: str = "scenario.times") -> np.ndarray:
         if nat.size:
             raise FieldError(f"{field}[{nat[0]}]", "NaT is not a time")
     else:
-        out = np.array([np.datetime64(_start_datetime(t, f"{field}[{i}]"), "us") for i, t in enumerate(arr.tolist())])
+        out = np.array([np.datetime64(start_datetime(t, f"{field}[{i}]"), "us") for i, t in enumerate(arr.tolist())])
     step = np.diff(out).astype(np.int64)
     bad = np.flatnonzero(step <= 0)
     if bad.size:
