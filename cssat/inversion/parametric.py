@@ -216,9 +216,11 @@ def _geometry(v: Tensor, f: np.ndarray) -> tuple[Tensor, Tensor]:
 def box_wing_visibility(p: Any, sun: Any, observer: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0,
                         dish_rings: int = 12, dish_segments: int = 40) -> Tensor:
     """``(T, F)`` bool: each sub-facet neither self- nor observer-shadowed (Embree rays from its
-    centroid, :func:`cssat.optics.photometry.shadow_mask`) at the box-wing ``p`` (with its dishes)."""
-    return shadow_mask(box_wing_mesh(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
-                                     dish_segments=dish_segments), sun, observer)
+    centroid, :func:`cssat.optics.photometry.shadow_mask`) at the box-wing ``p`` (with its dishes).
+    Geometry only: the albedos in ``p`` play no part (a fit's iterate may hold one above 1)."""
+    v, f, _, _ = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
+                          dish_segments=dish_segments)
+    return shadow_mask(Mesh(v.detach().cpu().double().numpy(), f, 0.5, 0.0, name="box_wing"), sun, observer)
 
 
 def box_wing_light_curve(p: Tensor, sun: Any, observer: Any, visible: Tensor | None = None, *, panels: int = 2,

@@ -106,6 +106,8 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     free = np.array([n not in fixed for n in names])
 
     free_idx = torch.as_tensor(np.flatnonzero(free))
+    # the albedos (fitted as logarithms) at most 1: a diffuse surface reflects no more than arrives
+    bounds = [(None, 0.0) if n.startswith("cd_") else (None, None) for n, f in zip(names, free) if f]
 
     def full(x):
         """All of ``z``: the free variables ``x`` (differentiable) among the fixed ones of ``p0``."""
@@ -123,7 +125,8 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     best = (math.inf, z)
     for _ in range(outer):
         vis = box_wing_visibility(_to_p(z), S, V, **geo)
-        sol = minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", options={"maxiter": inner})
+        sol = minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", bounds=bounds,
+                       options={"maxiter": inner})
         z = full(sol.x)
         with torch.no_grad():  # score with the visibility recast at the new parameters
             val = float(loss_of(z, box_wing_visibility(_to_p(z), S, V, **geo)))

@@ -1,0 +1,67 @@
+"""The shadow-aware parametric fit's benchmark (benchmarks/bench_shadow_fit.py) at a tiny size, on
+a truth that IS in the family: the noise it simulates has the χ² a Gaussian's must; the family
+at the true geometry recovers the truth's albedos and its own volume; the fit from the true
+geometry stays there at the noise; the fit from the EGI measures what the light curve holds (a
+wing's area × albedo) but not, today, the split of the two (a known failure, marked)."""
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+P = np.array([1.0, 0.8, 1.3, 5.0, 1.6, math.radians(35), 0.5, 0.35, 0.15])  # a box-wing, hinge 35°
+
+
+@pytest.fixture(scope="module")
+def rows():
+    import bench_shadow_fit as bench
+
+    from cssat.inversion.parametric import box_wing_mesh
+
+    geo = bench.geometry(step_s=600.0)
+    assert geo.night.max() == 2 and np.all(np.diff(geo.night) >= 0)  # three nights, in order
+    truth = bench.Truth(box_wing_mesh(P, divisions=2), 0, True, P, "in the family")
+    res = bench.fit_truth("box_wing", geo, seed=3, floor=0.02, mesh=truth, n_points=20_000,
+                          fit_settings=dict(divisions=2, outer=3, inner=30))
+    return {r["family"]: r for r in res["rows"]}
+
+
+def test_the_true_mesh_reaches_the_noise(rows):
+    r = rows["no dishes"]
+    n = r["n_heldout"]
+    assert n >= 30
+    # the clean truth against its own noisy data: χ²/n of n unit Gaussians, mean 1, sd sqrt(2/n)
+    assert abs(r["true_heldout_chi2"] - 1.0) < 4 * math.sqrt(2 / n)
+
+
+def test_albedos_at_the_true_geometry(rows):
+    r = rows["true geometry, albedos fitted"]
+    assert r["iou"] == 1.0  # the same closed box on both sides: every point in one is in the other
+    assert r["params"]["cd_bus"] == pytest.approx(P[7], rel=0.03)
+    assert r["params"]["cd_panel"] == pytest.approx(P[8], rel=0.03)
+    assert r["ratio"] < 1.3
+
+
+def test_fit_from_the_true_geometry_stays_at_the_noise(rows):
+    r = rows["all fitted from the true geometry"]
+    assert r["ratio"] < 1.3
+    assert abs(r["params"]["hinge"] - P[5]) < math.radians(1)
+    assert r["iou"] > 0.9
+
+
+def test_fit_from_the_egi_measures_area_times_albedo(rows):
+    q = rows["no dishes"]["params"]
+    # a Lambertian light curve measures a flat wing's area × albedo; sizes and albedos apart only through shadows
+    assert q["length"] * q["width"] * q["cd_panel"] == pytest.approx(P[3] * P[4] * P[8], rel=0.1)
+    assert set(rows) == {"no dishes", "no dishes, true albedos given", "true geometry, albedos fitted",
+                         "all fitted from the true geometry"}
+
+
+@pytest.mark.xfail(strict=True, reason="known: from the EGI start the fit keeps the start's wing aspect and gap (with the "
+                                       "visibility held fixed their gradient is zero) and the size-albedo split of cd0")
+def test_fit_from_the_egi_reaches_the_noise(rows):
+    assert rows["no dishes"]["ratio"] < 1.5  # in the family: the held-out residual should be the noise's
