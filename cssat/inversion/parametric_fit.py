@@ -6,8 +6,8 @@ The fit minimises a robust (soft-L1) loss of the noise-normalised residuals
 many σ above the diffuse model costs linearly, not quadratically). Outer iterations recast the
 Embree visibility at the current parameters; inner iterations are L-BFGS-B steps (scipy, the
 gradient by torch autograd) with it fixed.
-Sizes and albedos are fitted as logarithms (kept positive), the hinge as an angle, the gap as
-``softplus``.
+Sizes and albedos are fitted as logarithms (kept positive; L-BFGS-B bounds keep the albedos at
+most 1 and the sizes within 1 mm – 1 km), the hinge as an angle, the gap as ``softplus``.
 
 ASSUMPTIONS (beyond the model's): the body frame is the attitude's (known or estimated by
 :func:`cssat.inversion.estimate_spin`) and the bus is aligned with its axes, the panels along
@@ -27,6 +27,9 @@ from cssat._checks import FieldError, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 
 __all__ = ["box_wing_start", "fit_box_wing"]
+
+#: the parameters fitted as logarithms of a length (m)
+SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth")
 
 
 def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.3, aspect: float = 3.75) -> np.ndarray:
@@ -106,8 +109,11 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     free = np.array([n not in fixed for n in names])
 
     free_idx = torch.as_tensor(np.flatnonzero(free))
-    # the albedos (fitted as logarithms) at most 1: a diffuse surface reflects no more than arrives
-    bounds = [(None, 0.0) if n.startswith("cd_") else (None, None) for n, f in zip(names, free) if f]
+    # the albedos (fitted as logarithms) at most 1: a diffuse surface reflects no more than arrives; the sizes
+    # (logarithms) within 1 mm – 1 km: a long L-BFGS step would otherwise underflow a size to 0
+    size = (math.log(1e-3), math.log(1e3))
+    bounds = [(None, 0.0) if n.startswith("cd_") else size if n in SIZE_NAMES else (None, None)
+              for n, f in zip(names, free) if f]
 
     def full(x):
         """All of ``z``: the free variables ``x`` (differentiable) among the fixed ones of ``p0``."""
