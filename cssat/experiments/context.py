@@ -20,7 +20,7 @@ from cssat._checks import FieldError, choice_param, device_param, dtype_param, f
 if TYPE_CHECKING:
     import torch
 
-__all__ = ["Run", "as_field", "FIGURE_FORMATS", "StageOrderError"]
+__all__ = ["Run", "as_field", "one_thread", "FIGURE_FORMATS", "StageOrderError"]
 
 #: the figure file formats (``figure_format``)
 FIGURE_FORMATS = ("png", "pdf", "svg")
@@ -41,6 +41,21 @@ def as_field(prefix: str) -> Iterator[None]:
         raise err.within(prefix) from err
     except ValueError as err:
         raise FieldError(prefix, str(err)) from err
+
+
+@contextmanager
+def one_thread() -> Iterator[None]:
+    """Within the block, torch on one thread (the run's count put back after): for a fit whose
+    answer must not depend on ``threads`` — a long L-BFGS path amplifies the last bits in which a
+    parallel sum's order (set by the thread count) differs, and can end in another optimum."""
+    import torch  # heavy: torch (~1 s); the module imports without it
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
 
 
 @dataclass

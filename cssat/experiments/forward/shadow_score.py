@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, Optional
 
 import numpy as np
 
-from cssat.experiments.context import Run
+from cssat.experiments.context import Run, one_thread
 from cssat.experiments.files import write_npz
 from cssat.experiments.forward.shadow_measure import ShadowMeasured
 from cssat.occultation import (choose_prior, edge_width, event_geometry, feature_contrast, invert_event, iou, mask_centroid,
@@ -71,7 +71,8 @@ def solve_event(p: ShadowPlan, meas: ShadowMeasured, run: Run) -> ShadowSolved:
         known = {"offset_m": ev.s_true, "speed_error": ev.eps_true, "gains": r.gains_true,
                  "diameter_m": s.star.diameter_mas * mas_m}
     limb = s.star.limb_darkening if s.event.oracle else inv.limb_darkening
-    with run.stage("invert"):
+    # the silhouette's fits on one thread whatever ``threads``: the same answer at every thread count
+    with run.stage("invert"), one_thread():
         mask, info = invert_event(r.y.numpy(), r.sig.numpy(), (size_inv, size_inv), pixel, g.lams_inv, g.z, r.pos, g.v, r.times,
                                   weights=g.wts_inv, aperture_m=D, exposure_s=t_exp, limb_darkening=limb,
                                   diameters_m=np.linspace(0.0, inv.diameter_max_mas, inv.n_diameters) * mas_m, known=known,
@@ -85,7 +86,7 @@ def solve_event(p: ShadowPlan, meas: ShadowMeasured, run: Run) -> ShadowSolved:
                                  diameter_m=info["diameter_m"], aperture_m=D, exposure_s=t_exp, limb_darkening=limb)
     pixels_mask, used, shapes, candidates = mask, "pixels", None, None
     if inv.prior != "pixels":
-        with run.stage("prior"):
+        with run.stage("prior"), one_thread():
             ms, choice = choose_prior(*geo, init_mask=mask, prior=inv.prior, kernel=kernel, weights=g.wts_inv,
                                       ground=s.silhouette.ground, tv=inv.tv, iters=inv.iters, shape_iters=inv.shape_iters,
                                       seed=run.seed)
