@@ -16,8 +16,8 @@ axis-aligned box bus, two flat panels along ±y, 0–2 paraboloid dishes) does n
 
 Geometry, as the inversion experiment's (``experiment=inversion``): the synthetic re-epoched
 Astra 1KR element set, the observer at 51.17° N 10.45° E, 3 nights from 2020-04-01 12:00 UTC at
-``--step`` s (default 120 s: ~660 samples; the experiment's 30 s is 4× the samples), a night's
-samples where the Sun is below −12°, the object above 20° and wholly sunlit; the attitude the
+``--step`` s (default 120 s: 676 samples, 451 fitted; the experiment's 30 s is 4× the samples),
+a night's samples where the Sun is below −12°, the object above 20° and wholly sunlit; the attitude the
 experiment's ``spin_defunct`` (a spin about body +z, ecliptic pole (60°, 35°), 437 s), **known**
 (the fit is given the true body-frame Sun and observer). The truth's light curve is
 :func:`cssat.optics.simulate_light_curve` with Embree ray-cast self- and observer-shadowing
