@@ -98,8 +98,10 @@ def render(t, sun, obs, normals, areas, pole, period, glint=0.0):
     return out
 
 
-def case(seed: int, part: str = "class", glint: float = 1.0) -> dict:
-    """One seed: draw, search, verdict, the truth's profile Δχ²."""
+def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None = None) -> dict:
+    """One seed: draw, search (``search``: :data:`SEARCH` with these keys replaced), verdict, the
+    truth's profile Δχ²."""
+    SEARCH = {**globals()["SEARCH"], **(search or {})}
     from cssat.inversion import estimate_period, estimate_spin
     from cssat.inversion.spin import _Fit
     from cssat.inversion.spin_errors import profile_chi2, separation_deg
@@ -131,7 +133,7 @@ def case(seed: int, part: str = "class", glint: float = 1.0) -> dict:
            "period_rel": abs(sol.period_s / period - 1), "verdict": sol.verdict, "reduced_chi2": sol.reduced_chi2,
            "heldout_chi2_n": sol.heldout_chi2 / sol.heldout_n, "heldout_limit_n": sol.heldout_threshold / sol.heldout_n,
            "pole_err_deg": sol.pole_err_deg, "laplace_pole_err_deg": sol.laplace_pole_err_deg, "noise": s,
-           "ambiguous": sol.ambiguous}
+           "ambiguous": sol.ambiguous, "search": {k: SEARCH[k] for k in ("n_poles", "n_starts", "n_refine")}}
     prof = sol.pole_interval
     if prof:
         # the truth's profile Δχ² on the same samples and normals as the fit's (estimate_spin's subset)
@@ -191,9 +193,9 @@ def report(rows: list[dict]) -> None:
 
 
 def _run(args_tuple):
-    seed, part, glint = args_tuple
+    seed, part, glint, search = args_tuple
     try:
-        return case(seed, part, glint)
+        return case(seed, part, glint, search)
     except Exception as e:  # noqa: BLE001 - a failed seed is reported, not fatal
         return {"seed": seed, "part": part, "error": repr(e)}
 
@@ -207,7 +209,15 @@ def main() -> None:
     p.add_argument("--workers", type=int, default=1)
     p.add_argument("--out", default=None, help="JSON lines, appended; seeds already there are skipped")
     p.add_argument("--report", default=None, help="only tabulate this JSON-lines file")
+    p.add_argument("--search", nargs="*", default=[], metavar="KEY=INT",
+                   help="the search's settings changed, e.g. n_poles=200 n_starts=12 n_refine=4 (default: SEARCH)")
     args = p.parse_args()
+    search = {}
+    for kv in args.search:
+        key, _, value = kv.partition("=")
+        if key not in SEARCH or not value.isdigit():
+            p.error(f"--search {kv!r}: expected KEY=INT with KEY one of {', '.join(SEARCH)}")
+        search[key] = int(value)
     if args.report:
         with open(args.report) as fh:
             rows = [json.loads(x) for x in fh if x.strip()]
@@ -216,7 +226,7 @@ def main() -> None:
     if args.out and os.path.exists(args.out):
         with open(args.out) as fh:
             done = {(r["part"], r["seed"]) for r in map(json.loads, filter(str.strip, fh))}
-    todo = [(s, args.part, args.glint) for s in range(args.first, args.first + args.seeds) if (args.part, s) not in done]
+    todo = [(s, args.part, args.glint, search) for s in range(args.first, args.first + args.seeds) if (args.part, s) not in done]
     rows = []
     with mp.get_context("spawn").Pool(max(args.workers, 1)) as pool:
         for r in pool.imap_unordered(_run, todo):
