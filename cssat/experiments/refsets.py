@@ -30,15 +30,25 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("cssat")
 
-CACHE_VERSION = 2  # bump when the rendering of reference images (or the entry format) changes
+CACHE_VERSION = 3  # bump when the rendering of reference images (or the entry format) changes
 
 
 def _key(mesh, size: int, n: int, seed: int, noise: float, shadows: bool):
+    """The entry's key and spec: everything the rendered set depends on — the mesh's geometry and
+    BRDF constants, its solar-array drives (each joint's facets, axis, pivot, normal, angle,
+    tracking and limits), the glint model the renderer uses (:data:`cssat.optics.photometry.DEFAULT_GLINT`),
+    size, count, seed, noise, shadows and :data:`CACHE_VERSION`."""
+    from cssat.optics.photometry import check_glint  # heavy: cssat.optics imports torch
+
     h = hashlib.sha256()
     for a in (mesh.vertices, mesh.faces, mesh.cd, mesh.cs):
         h.update(np.ascontiguousarray(np.asarray(a)).tobytes())
+    for j in getattr(mesh, "joints", ()) or ():  # an articulated mesh: its drives change every image
+        for a in (j.facets, j.axis, j.pivot, j.normal, j.limits_deg, [j.angle0_deg]):
+            h.update(np.ascontiguousarray(np.asarray(a, dtype=np.float64)).tobytes())
+        h.update(str(j.tracking).encode())
     spec = {"v": CACHE_VERSION, "mesh": h.hexdigest(), "size": size, "n": n, "seed": seed,
-            "noise": noise, "shadows": bool(shadows), "normalize": True, "fov_m": None}
+            "noise": noise, "shadows": bool(shadows), "normalize": True, "fov_m": None, "glint": check_glint(None)}
     key = hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:20]
     return key, spec
 
@@ -159,8 +169,8 @@ def reference_set(cache_dir: str | None, size: int, n: int, seed: int, mesh: Mes
     ``cache_dir``; returns ``(images, read from the cache)``.
 
     A cache entry (``cache_dir/refs-<key>.npy`` and its ``.json``) is keyed by everything that
-    defines the set — the mesh's vertices, faces and BRDF constants, size, count, seed, noise,
-    shadows and a version — so a sweep renders each set once; the ``.json`` (written last) holds
+    defines the set (:func:`_key`: the mesh's vertices, faces, BRDF constants and array drives,
+    the glint model, size, count, seed, noise, shadows and a version) — so a sweep renders each set once; the ``.json`` (written last) holds
     the key and the array's content hash, checked on every read: a damaged entry is logged,
     removed and rendered again. Runs that need one entry at once take turns on a lock file.
     ``cache_dir: null`` disables the cache.
