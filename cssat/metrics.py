@@ -21,7 +21,8 @@ from cssat._checks import FieldError
 __all__ = ["psnr", "ssim"]
 
 
-def float64_array(a) -> np.ndarray:
+def float64_array(a: Any) -> np.ndarray:
+    """``a`` (a tensor on any device, an array or a sequence) as a float64 numpy array."""
     if hasattr(a, "detach"):
         a = a.detach().cpu().numpy()
     return np.asarray(a, dtype=np.float64)

@@ -1,5 +1,15 @@
-import pytest
-import torch
+import os
+
+# One BLAS/OpenMP thread a process before numpy and torch load: the suite runs one worker process
+# per core (pytest-xdist), and a worker whose BLAS starts a thread per core oversubscribes the
+# machine (spin-waiting threads; measured 10-20x slower on a busy 2-core machine). A value the
+# user set is kept; numba's own pool (NUMBA_NUM_THREADS) is left alone: tests compare its
+# parallel kernels with the serial ones.
+for _var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import pytest  # noqa: E402
+import torch  # noqa: E402
 
 
 def pytest_configure(config):

@@ -17,7 +17,7 @@ __all__ = ["START_FORMS", "TIMES_FORMS", "utc_times"]
 START_FORMS = "an ISO string, a datetime (naive = UTC), a numpy.datetime64 or a skyfield Time"
 
 
-def start_datetime(start_utc, field: str = "scenario.start_utc") -> datetime:
+def start_datetime(start_utc: Any, field: str = "scenario.start_utc") -> datetime:
     """A naive UTC ``datetime`` of any of :data:`START_FORMS` (a scalar)."""
     if isinstance(start_utc, str):
         try:
