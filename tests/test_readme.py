@@ -78,7 +78,7 @@ def test_every_decimal_number_is_in_benchmarks():
     prose = _prose(README)
     numbers = set(re.findall(r"(?<![\w.])\d+\.\d+(?![\w.])", prose))
     numbers -= {"3.10"}  # Python ≥ 3.10: a version, not a measurement
-    assert "28.21" in numbers and "0.922" in numbers  # the headline numbers are seen
+    assert "28.21" in numbers and "0.907" in numbers  # the headline numbers are seen
     missing = sorted(n for n in numbers if not re.search(rf"(?<![\d.]){re.escape(n)}(?![\d])", benchmarks))
     assert not missing, f"README numbers not in BENCHMARKS.md: {missing}"
     # and the fractions quoted as k/n too
