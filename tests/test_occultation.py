@@ -241,7 +241,7 @@ def test_the_occultation_experiment_runs_and_writes_its_results(tmp_path):
 
     with initialize_config_module(config_module="cssat.conf", version_base="1.3"):
         cfg = compose(config_name="config", overrides=["experiment=occultation", "silhouette.size=24", "silhouette.pixel_m=0.5",
-                                                       "invert.iters=5", "threads=1"])
+                                                       "invert.iters=5", "invert.shape_iters=5", "threads=1"])
     met = run_experiment(cfg, tmp_path / "run")
     assert met["status"] == "ok" and 2.5 < met["shadow_speed_km_s"] < 3.0 and 0 <= met["iou"] <= 1
     # the V band's photon-weighted wavelength for a K giant (B − V 1.1: 4515 K) sets the Fresnel scale

@@ -209,9 +209,16 @@ SIM3 = ["experiment=sim3", "target.size=16", "cs.m=200", "threads=1", "reference
 
 @pytest.mark.parametrize("damage", ["zero half in place", "truncate", "garbage", "empty", "swap with another entry"])
 def test_a_damaged_cache_entry_is_logged_removed_and_rendered_again(tmp_path, damage, caplog):
-    cache = tmp_path / "cache"
-    first = run_experiment(cfg_of(*SIM3, f"cache_dir={cache}"), tmp_path / "a")
-    (entry,) = cache.glob("refs-*.npy")
+    """Through the cache itself (the experiments read their reference sets through it): a damaged
+    entry is named in a warning, rendered again to the same images, and stored again intact."""
+    from cssat.experiments.refsets import reference_set
+    from cssat.scene.models import astra_like
+
+    cache, mesh = str(tmp_path / "cache"), astra_like()
+    args = dict(size=16, n=300, seed=0, noise=0.01, shadows=True, progress=False)
+    first, read = reference_set(cache, mesh=mesh, **args)
+    assert not read
+    (entry,) = (tmp_path / "cache").glob("refs-*.npy")
     if damage == "zero half in place":
         with open(entry, "r+b") as f:
             size = entry.stat().st_size
@@ -226,11 +233,11 @@ def test_a_damaged_cache_entry_is_logged_removed_and_rendered_again(tmp_path, da
     else:  # a valid array of the right shape, but not this entry's
         np.save(entry, np.zeros((300, 16, 16), np.float32))
     with caplog.at_level("WARNING", logger="cssat"):
-        again = run_experiment(cfg_of(*SIM3, f"cache_dir={cache}"), tmp_path / "b")
+        again, read = reference_set(cache, mesh=mesh, **args)
     assert str(entry) in caplog.text and "damaged" in caplog.text
-    assert not again["reference_cached"] and again["psnr"] == first["psnr"]  # rendered again: the same numbers
-    third = run_experiment(cfg_of(*SIM3, f"cache_dir={cache}"), tmp_path / "c")
-    assert third["reference_cached"] and third["psnr"] == first["psnr"]  # and stored again, intact
+    assert not read and np.array_equal(again.numpy(), first.numpy())  # rendered again: the same images
+    third, read = reference_set(cache, mesh=mesh, **args)
+    assert read and np.array_equal(third.numpy(), first.numpy())  # and stored again, intact
 
 
 def test_concurrent_runs_share_one_cache_entry(tmp_path):
