@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cssat._checks import FieldError
+from cssat._checks import FieldError, float_param
 from cssat.experiments.build import build, build_model, build_solver, validate_solver
 from cssat.experiments.context import Run, as_field
 from cssat.experiments.forward.base import ForwardModel
@@ -251,8 +251,6 @@ def _scene(p: EGIPlan) -> tuple[Any, np.ndarray, dict[str, Any]]:
         keep = np.isfinite(observed.fluxes()) & (scenario.sunlit > 0)
     else:
         from omegaconf import OmegaConf, open_dict  # heavy: omegaconf; library code, importable without Hydra
-
-        from cssat._checks import float_param  # local: only a simulation's cadence is checked here
 
         step = float_param(cfg.scenario.step_s, "scenario.step_s", 0.0, open_lo=True)
         cfg2 = OmegaConf.create({"scenario": OmegaConf.to_container(cfg.scenario, resolve=True)})

@@ -23,11 +23,11 @@ key). This module imports no numpy or torch: Hydra imports it whenever it compos
 
 from __future__ import annotations
 
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Dict, Mapping, Optional
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
-from cssat.models.observed.config import ReadConfig, typed_group
+from cssat.models.observed.config import ReadConfig, settings_nodes, typed_group, typed_settings
 
 __all__ = ["EGIConfig", "EGISettings", "NightsConfig", "InversionConfig", "ParametricConfig", "SPIN_MODES",
            "SEARCH_KEYS"]
@@ -138,8 +138,7 @@ class InversionConfig:
         self.brdf = choice_param(self.brdf, "inversion.brdf", ["lambert", "lobes", "simulated"])
         self.closure = float_param(self.closure, "inversion.closure", 0.0)
         self.shape = choice_param(self.shape, "inversion.shape", ("convex", "parametric"))
-        if not isinstance(self.parametric, ParametricConfig):
-            self.parametric = typed_group(ParametricConfig, self.parametric, "inversion.parametric")
+        self.parametric = typed_group(ParametricConfig, self.parametric, "inversion.parametric")
         self.tumbling = dict(self.tumbling or {})
 
     def search(self) -> dict[str, Any]:
@@ -174,13 +173,7 @@ class EGISettings:
     def from_config(cls, cfg: Mapping[str, Any]) -> "EGISettings":
         """The settings of ``cfg`` (a composed config or a plain mapping), each group built and
         checked (a :class:`FieldError` naming its full key); a key left out takes its default."""
-        out = {}
-        for f in fields(cls):
-            if f.default is MISSING:  # a group: its dataclass
-                out[f.name] = typed_group(f.default_factory, cfg.get(f.name), f.name)  # type: ignore[misc]
-            else:
-                out[f.name] = cfg.get(f.name, f.default)
-        return cls(**out)
+        return typed_settings(cls, cfg)
 
 
 @dataclass
@@ -196,5 +189,4 @@ class EGIConfig:
     _target_: str = "cssat.experiments.forward.egi.EGILightCurve"
     #: the top-level keys the model reads: key → its typed config (a dataclass) or its default
     #: (:class:`EGISettings`' fields: one set of defaults)
-    SETTINGS: ClassVar[dict[str, Any]] = {f.name: f.default_factory if f.default is MISSING else f.default
-                                          for f in fields(EGISettings)}
+    SETTINGS: ClassVar[dict[str, Any]] = settings_nodes(EGISettings)

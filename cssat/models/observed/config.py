@@ -24,13 +24,14 @@ numpy or torch: Hydra imports it whenever it composes a config.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, ClassVar, Mapping, Optional
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 
 __all__ = ["ObservedConfig", "ObservedSettings", "ReadConfig", "StagesConfig", "CharacteriseConfig", "PeriodConfig",
-           "TumblingConfig", "CatalogueConfig", "STAGE_MODES", "VERDICT_STAGES", "typed_group"]
+           "TumblingConfig", "CatalogueConfig", "STAGE_MODES", "VERDICT_STAGES", "typed_group",
+           "typed_settings", "settings_nodes"]
 
 #: the modes of each stage of ``stages``
 STAGE_MODES = ("auto", "on", "off")
@@ -247,6 +248,25 @@ def typed_group(cls: type, values: Any, key: str) -> Any:
             what = getattr(cls, "WHAT", f"a setting of {key}")
             raise FieldError(f"{key}.{k}", f"not {what}; its settings: {', '.join(names)}")
     return cls(**values)
+
+
+def typed_settings(cls: type, cfg: Mapping[str, Any]) -> Any:
+    """A model's settings dataclass ``cls`` built from ``cfg`` (a composed config or a plain
+    mapping): each group field (a dataclass with a ``default_factory``) by :func:`typed_group`, each
+    scalar field read with its default; a :class:`FieldError` names the full key of a bad one."""
+    out = {}
+    for f in fields(cls):
+        if f.default is MISSING:  # a group: its dataclass
+            out[f.name] = typed_group(f.default_factory, cfg.get(f.name), f.name)  # type: ignore[misc]
+        else:
+            out[f.name] = cfg.get(f.name, f.default)
+    return cls(**out)
+
+
+def settings_nodes(cls: type) -> dict[str, Any]:
+    """The top-level keys of the settings dataclass ``cls`` for Hydra's ConfigStore: key → its
+    group's dataclass, or its scalar default (a config's ``SETTINGS``)."""
+    return {f.name: f.default_factory if f.default is MISSING else f.default for f in fields(cls)}
 
 
 @dataclass

@@ -25,11 +25,11 @@ This module imports no numpy or torch: Hydra imports it whenever it composes a c
 
 from __future__ import annotations
 
-from dataclasses import MISSING, dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Mapping, Optional
 
 from cssat._checks import bool_param, choice_param, float_param, int_param
-from cssat.models.observed.config import ReadConfig, typed_group
+from cssat.models.observed.config import ReadConfig, settings_nodes, typed_settings
 
 __all__ = ["SceneConfig", "SceneSettings", "RenderConfig", "MagnitudesConfig"]
 
@@ -89,13 +89,7 @@ class SceneSettings:
     def from_config(cls, cfg: Mapping[str, Any]) -> "SceneSettings":
         """The settings of ``cfg`` (a composed config or a plain mapping), each group built and
         checked (a :class:`FieldError` naming its full key); a key left out takes its default."""
-        out = {}
-        for f in fields(cls):
-            if f.default is MISSING:  # a group: its dataclass
-                out[f.name] = typed_group(f.default_factory, cfg.get(f.name), f.name)  # type: ignore[misc]
-            else:
-                out[f.name] = cfg.get(f.name, f.default)
-        return cls(**out)
+        return typed_settings(cls, cfg)
 
 
 @dataclass
@@ -110,5 +104,4 @@ class SceneConfig:
     _target_: str = "cssat.experiments.forward.scene.SceneLightCurve"
     #: the top-level keys the model reads: key → its typed config (a dataclass) or its default
     #: (:class:`SceneSettings`' fields: one set of defaults)
-    SETTINGS: ClassVar[dict[str, Any]] = {f.name: f.default_factory if f.default is MISSING else f.default
-                                          for f in fields(SceneSettings)}
+    SETTINGS: ClassVar[dict[str, Any]] = settings_nodes(SceneSettings)

@@ -30,11 +30,11 @@ groups. This module imports no numpy or torch: Hydra imports it whenever it comp
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Mapping, Optional
 
 from cssat._checks import FieldError, choice_param, float_param, int_param, opt
-from cssat.models.observed.config import typed_group
+from cssat.models.observed.config import settings_nodes, typed_settings
 
 __all__ = ["ShadowConfig", "ShadowSettings", "StarConfig", "OpticsConfig", "EventConfig", "ArrayConfig", "SilhouetteConfig",
            "InvertConfig", "MAX_SILHOUETTE_M", "BANDS"]
@@ -292,8 +292,7 @@ class ShadowSettings:
         """The settings of ``cfg`` (a composed config or a plain mapping of the groups), each group
         built and checked (a :class:`FieldError` naming its full key; a key that is not a setting:
         ``<group>.<key>``); a group or key left out takes its default."""
-        return cls(**{f.name: typed_group(f.default_factory, cfg.get(f.name), f.name)  # type: ignore[misc]
-                      for f in fields(cls)})
+        return typed_settings(cls, cfg)
 
 
 @dataclass
@@ -309,4 +308,4 @@ class ShadowConfig:
 
     _target_: str = "cssat.experiments.forward.shadow.Shadow"
     #: the top-level groups the model reads: key → its typed config (:class:`ShadowSettings`' fields: one set of defaults)
-    SETTINGS: ClassVar[dict[str, Any]] = {f.name: f.default_factory for f in fields(ShadowSettings)}  # type: ignore[misc]
+    SETTINGS: ClassVar[dict[str, Any]] = settings_nodes(ShadowSettings)
