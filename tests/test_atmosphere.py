@@ -57,9 +57,10 @@ def test_long_exposure_is_kornilovs_limit(exposure_s, diameter_m):
 @pytest.mark.slow
 def test_sampled_weights_have_the_models_moments():
     atm = model(diameter_m=0.1, exposure_s=0.0)
-    w = atm.operator(4000, 16, seed=1, dtype=torch.float64).matrix()
+    n = 2000  # the variance's estimate to ~3 % (1σ): the 10 % tolerance is ~3σ
+    w = atm.operator(n, 16, seed=1, dtype=torch.float64).matrix()
     assert float(w.min()) > 0  # transmission is positive
-    assert float(w.mean()) == pytest.approx(1.0, abs=4 * math.sqrt(atm.scintillation_index / 4000))
+    assert float(w.mean()) == pytest.approx(1.0, abs=4 * math.sqrt(atm.scintillation_index / n))
     assert float(w[:, 0].var()) == pytest.approx(atm.scintillation_index, rel=0.1)
 
 

@@ -63,7 +63,7 @@ def spin_case():
     sun, obs = _geo_like(t)
     y = _spun_flux(t, sun, obs, normals, areas, pole, period)
     fit = t < 4 * 86400.0  # four nights: the span resolves the sidereal-synodic difference to ~1e-3 of itself
-    sol = estimate_spin(t[fit], y[fit], sun[fit], obs[fit], frame="equatorial", min_period_s=150, max_period_s=3000,
+    sol = estimate_spin(t[fit], y[fit], sun[fit], obs[fit], frame="equatorial", min_period_s=300, max_period_s=1200,  # P 600 s inside
                         n_poles=60, n_starts=4, n_refine=2, coarse_normals=150, coarse_samples=250, n_normals=400,
                         max_samples=400)
     return sol, (ra, dec, period), t, y, sun, obs, fit

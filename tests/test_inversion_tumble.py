@@ -111,7 +111,7 @@ def tumbler():
     fit = t < 2 * 86400
     sol = estimate_tumbling(t[fit], y[fit], sun[fit], obs[fit], sigma=sig, frame="equatorial",
                             inertia_grid=[(0.45, 0.65), (0.65, 0.75), (0.45, 0.95), (0.65, 0.95), (0.85, 0.95), (0.35, 0.75)],
-                            n_poles=40, coarse_samples=80, coarse_normals=32, n_pairs=2, n_screen=12, n_starts=6,
+                            n_poles=40, coarse_samples=80, coarse_normals=32, n_pairs=2, screen_moments=4, screen_poles=12, n_screen=12, n_starts=6,
                             n_refine=3, mid_samples=150, mid_normals=64, n_normals=200, max_samples=400, arc_s=7200.0)
     return truth, sol, t, y, sun, obs, sig, fit
 
@@ -162,7 +162,8 @@ def _cfg(*overrides):
         return compose(config_name="config", overrides=list(overrides))
 
 
-SMALL = ["nights.n=2", "nights.fit=1", "threads=1", "inversion.n_normals=300", "+inversion.tumbling.periods_s=[796.07,210.54]",
+# a 20 s cadence: Nyquist 1/40 Hz above the Lambertian light curve's harmonics of P_φ 211 s (no glints in class)
+SMALL = ["nights.n=2", "nights.fit=1", "threads=1", "scenario.step_s=20", "inversion.n_normals=300", "+inversion.tumbling.periods_s=[796.07,210.54]",
          "+inversion.tumbling.inertia_grid=[[0.55,0.75],[0.65,0.85]]", "+inversion.tumbling.coarse_samples=100",
          "+inversion.tumbling.coarse_normals=32", "+inversion.tumbling.n_screen=8", "+inversion.tumbling.n_starts=4",
          "+inversion.tumbling.n_refine=2", "+inversion.tumbling.mid_samples=150", "+inversion.tumbling.mid_normals=64",

@@ -240,12 +240,16 @@ def _motion(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
 
 
 def omega_of(mo: dict, t: np.ndarray, sign: float) -> np.ndarray:
+    """The body angular velocity ``(T, 3)`` in rad/s at times ``t (T,)`` s of the elliptic
+    solution ``mo`` (:func:`_motion`; ``sign``: the direction of its phase)."""
     from scipy.special import ellipj  # heavy: scipy.special, only for omega_of()
 
     sn, cn, dn, _ = ellipj(sign * mo["lam"] * t + mo["tau0"], mo["m"])
-    w = np.stack([mo["amp"][0] * cn, mo["amp"][1] * sn, mo["s3"] * mo["amp"][2] * dn], -1)
-    out = np.empty_like(w)
-    out[:, mo["order"]] = w
+    amp, order = mo["amp"], mo["order"]
+    out = np.empty((len(cn), 3), dtype=np.result_type(cn, amp))  # columns written in place: no stack
+    out[:, order[0]] = amp[0] * cn
+    out[:, order[1]] = amp[1] * sn
+    out[:, order[2]] = mo["s3"] * amp[2] * dn
     return out
 
 
@@ -262,7 +266,8 @@ def euler_solution(Ip: np.ndarray, wp: np.ndarray) -> dict | None:
     h = 1e-6 / max(mo["lam"], 1e-300)
     errs = []
     for sign in (1.0, -1.0):
-        d = (omega_of(mo, np.array([h]), sign)[0] - omega_of(mo, np.array([-h]), sign)[0]) / (2 * h)
+        w = omega_of(mo, np.array([h, -h]), sign)  # elementwise: the same numbers as one call each
+        d = (w[0] - w[1]) / (2 * h)
         errs.append(np.abs(d - rhs).sum())
     mo["sign"] = 1.0 if errs[0] <= errs[1] else -1.0
     return mo
