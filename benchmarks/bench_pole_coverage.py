@@ -163,7 +163,8 @@ def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None
                  fibonacci_sphere(SEARCH["n_normals"]).numpy(), None, "equatorial")
         c_true, _ = profile_chi2(q.chi2, ra, dec, 1.0 / period, float(t[fit][-1] - t[fit][0]))
         row.update(delta_chi2_true=(c_true - prof["chi2"]) / prof["scale"], radius_68_deg=prof["radius_68_deg"],
-                   radius_95_deg=prof["radius_95_deg"], profile_evals=prof["evaluations"], moved_deg=prof["moved_deg"])
+                   radius_95_deg=prof["radius_95_deg"], profile_evals=prof["evaluations"], moved_deg=prof["moved_deg"],
+                   quadratic_pole_err_deg=prof.get("quadratic_pole_err_deg"))
     row["cpu_s"] = time.process_time() - clock
     return row
 

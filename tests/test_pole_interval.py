@@ -166,3 +166,46 @@ def test_the_profile_region_matches_a_brute_force_scan():
         assert crossing is not None
         assert prof["radius_95_by_dir_deg"][i] == pytest.approx(crossing, rel=0.05), (i, crossing, prof["radius_95_by_dir_deg"])
     assert prof["radius_95_deg"] > prof["radius_68_deg"] > 0
+
+
+def _synthetic_profile(delta, lon0=40.0, lat0=30.0, f0=1 / 500.0, span=2e5):
+    """``χ²(λ, β, f) = 100 + delta(ρ, bearing) + (span (f − f0) / 0.01)²``: ``ρ`` the separation (°)
+    from ``(lon0, lat0)`` (written here, not cssat's), the period's term minimised at ``f0``."""
+    def sep_bearing(lon, lat):
+        l1, b1, l2, b2 = map(math.radians, (lon0, lat0, lon, lat))
+        c = math.sin(b1) * math.sin(b2) + math.cos(b1) * math.cos(b2) * math.cos(l2 - l1)
+        rho = math.degrees(math.acos(min(1.0, max(-1.0, c))))
+        br = math.atan2(math.sin(l2 - l1) * math.cos(b2), math.cos(b1) * math.sin(b2) - math.sin(b1) * math.cos(b2) * math.cos(l2 - l1))
+        return rho, br
+
+    def chi2(lon, lat, f):
+        rho, br = sep_bearing(lon, lat)
+        return 100.0 + delta(rho, br) + (span * (f - f0) / 0.01) ** 2
+
+    return chi2, lon0, lat0, f0, span
+
+
+def test_the_pole_1sigma_is_the_paraboloids_and_grows_with_a_shallow_region():
+    """On an elliptical paraboloid of Δχ² = 1 half-axes a, b the radial 1σ is √(2ab) (the mean of
+    ρ² over the bearings is ab) whichever radii it is read from; on a profile that rises to
+    Δχ² = 1.2 within 0.2° and then flattens (a shallow valley: the 95 % region ~5° wide), the
+    1σ is the region's, not the curvature's sub-degree value."""
+    from cssat.inversion.spin_errors import pole_profile_interval
+
+    a, b = 0.3, 0.12
+    ell, lon0, lat0, f0, span = _synthetic_profile(lambda r, br: r ** 2 * (math.cos(br) ** 2 / a ** 2 + math.sin(br) ** 2 / b ** 2))
+    prof = pole_profile_interval(ell, lon0, lat0, f0, span, 1.0, n_dirs=64)
+    assert prof["moved_deg"] == 0.0
+    assert prof["quadratic_pole_err_deg"] == pytest.approx(math.sqrt(2 * a * b), rel=0.02)
+    assert prof["pole_err_deg"] == pytest.approx(math.sqrt(2 * a * b), rel=0.02)
+    assert prof["radius_95_deg"] == pytest.approx(a * math.sqrt(6.1801), rel=0.02)
+
+    def shallow(r, br):
+        return (r / 0.18) ** 2 if r <= 0.2 else (0.2 / 0.18) ** 2 + ((r - 0.2) / 2.0) ** 2
+
+    flat, *_ = _synthetic_profile(shallow)
+    prof = pole_profile_interval(flat, lon0, lat0, f0, span, 1.0)
+    r95 = 0.2 + 2.0 * math.sqrt(6.1801 - (0.2 / 0.18) ** 2)  # the Δχ² = 6.18 radius, every bearing: 4.64°
+    assert prof["radius_95_deg"] == pytest.approx(r95, rel=0.05)
+    assert prof["quadratic_pole_err_deg"] < 0.3  # the curvature alone: a sub-degree 1σ
+    assert prof["pole_err_deg"] == pytest.approx(r95 / math.sqrt(6.1801 / 2), rel=0.05) and prof["pole_err_deg"] > 2.5

@@ -209,9 +209,13 @@ def pole_profile_interval(chi2_fn: Any, lon: float, lat: float, f: float, span: 
     moves the minimum there (``moved_deg``) and the search restarts once. Returns ``radius_1_deg
     (n_dirs,)`` and ``radius_95_by_dir_deg (n_dirs,)`` along the bearings (clockwise from north),
     ``radius_68_deg``, ``radius_95_deg`` (the largest over the bearings),
-    ``pole_err_deg`` (the radial 1σ, ``√(2 mean ρ₁²)``: for an elliptical profile of Δχ² = 1
-    half-axes ``a, b``, ``√(2ab)``; ``√(σ_λ² cos²β + σ_β²)`` of a circular Gaussian), the
-    minimum's ``chi2``, ``lon``, ``lat``, ``f`` and ``evaluations``."""
+    ``quadratic_pole_err_deg`` (the radial 1σ of the Δχ² = 1 radii, ``√(2 mean ρ₁²)``: for an
+    elliptical profile of half-axes ``a, b``, ``√(2ab)``; ``√(σ_λ² cos²β + σ_β²)`` of a circular
+    Gaussian), ``pole_err_deg`` (the radial 1σ no region contradicts: the largest of that and
+    the same from the 68 % and 95 % radii, ``√(2 mean ρ² / Δχ²)`` at Δχ² = 2.30 and 6.18 — equal
+    on a paraboloid; on a profile far from one, a shallow valley or a second minimum within the
+    95 % level, the 1σ grows with the region instead of keeping the curvature's sub-degree
+    value), the minimum's ``chi2``, ``lon``, ``lat``, ``f`` and ``evaluations``."""
     n_eval = [0]
 
     def fn(lo, la, ff):
@@ -243,7 +247,10 @@ def pole_profile_interval(chi2_fn: Any, lon: float, lat: float, f: float, span: 
         c0, lon, lat, f = better
     r1 = np.where(np.isnan(radii["1"]), max_deg, radii["1"])
     r95 = np.where(np.isnan(radii["95"]), max_deg, radii["95"])
-    return {"radius_1_deg": r1.tolist(), "radius_95_by_dir_deg": r95.tolist(), "radius_68_deg": float(np.nanmax(np.where(np.isnan(radii["68"]), max_deg, radii["68"]))),
-            "radius_95_deg": float(np.nanmax(np.where(np.isnan(radii["95"]), max_deg, radii["95"]))),
-            "pole_err_deg": float(np.sqrt(2 * np.mean(r1 ** 2))), "chi2": float(c0), "lon": float(lon), "lat": float(lat),
+    r68 = np.where(np.isnan(radii["68"]), max_deg, radii["68"])
+    quad = float(np.sqrt(2 * np.mean(r1 ** 2)))
+    from_regions = [float(np.sqrt(2 * np.mean(r ** 2) / POLE_DELTA_CHI2[k])) for k, r in (("68", r68), ("95", r95))]
+    return {"radius_1_deg": r1.tolist(), "radius_95_by_dir_deg": r95.tolist(), "radius_68_deg": float(r68.max()),
+            "radius_95_deg": float(r95.max()), "quadratic_pole_err_deg": quad, "pole_err_deg": max(quad, *from_regions),
+            "chi2": float(c0), "lon": float(lon), "lat": float(lat),
             "f": float(f), "moved_deg": float(moved), "evaluations": int(n_eval[0]), "scale": float(scale)}
