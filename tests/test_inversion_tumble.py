@@ -267,3 +267,24 @@ def test_the_typical_residual_ignores_a_glint():
     r[123] = 1e4 * sig[123]
     assert _rms(r, m) / _rms(sig, m) > 50 and abs(_typical(r, sig, m) / base - 1.0) < 0.01
     assert _typical(r, None, m) is None and _typical(r, sig, np.zeros(sig.size, bool)) is None
+
+
+@pytest.mark.parametrize("i1, i2, alpha_deg, sam", [(0.55, 0.85, 22.0, True), (0.4, 0.9, 70.0, False)])
+def test_the_twin_is_the_same_motion_with_the_body_turned_half_a_turn(i1, i2, alpha_deg, sam):
+    """``TumblingState.twin()``: at every time its frames are the state's turned 180° about one
+    principal axis (``R' Rᵀ`` constant, diagonal ±1, determinant 1) — the largest moment's axis
+    in a short-axis mode, the smallest's in a long-axis one —, half a period of ω on."""
+    from cssat.inversion.tumble import TumblingState, tumbling_rates
+
+    a = math.radians(alpha_deg)
+    fw, fp = tumbling_rates(i1, i2, a)
+    st = TumblingState(i1, i2, a, 0.02 * fw, 0.02 * fp, 140.0, 40.0, 30.0, 75.0, 0.0, "equatorial")
+    tw = st.twin()
+    t = np.linspace(0.0, 2 * 86400.0, 400)
+    M = np.einsum("tij,tkj->tik", tw.frames(t), st.frames(t))
+    assert st.short_axis == sam
+    axis = 2 if sam else 0
+    want = -np.eye(3)
+    want[axis, axis] = 1.0
+    np.testing.assert_allclose(M, np.broadcast_to(want, M.shape), atol=1e-9)
+    assert tw.t0_s == pytest.approx(st.t0_s + 0.5 / st.f_omega_hz, rel=1e-12)

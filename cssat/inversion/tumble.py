@@ -70,7 +70,10 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        ``mid_normals`` normals; the ``n_starts`` best refined fully (``max_fev``); the
        ``n_refine`` best carried to arcs ``growth`` times longer (a continuation in time: the phases
        stay coherent while the span grows) up to every sample, then fitted on ``max_samples``
-       samples and ``n_normals`` normals (``final_fev``).
+       samples and ``n_normals`` normals (``final_fev``). Every motion has a twin — the body
+       turned 180° about its circulation axis, half a period of ``ω`` on
+       (:meth:`TumblingState.twin`) — that is the same motion in space but puts the EGI on the
+       grid turned; the twin is refined too and kept when it fits better.
     4. 1σ by Gauss–Newton and the EGI grid's bias (:class:`TumblingSolution`).
     5. The verdict (``verdict``, ``verdict_why``, as :func:`~cssat.inversion.estimate_spin`'s
        step 6): ``heldout = (times_s, flux, sun, obs, sigma)`` predicted and its χ² tested against
@@ -139,6 +142,17 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     log.info("estimate_tumbling: final fit, %.1f s", time.perf_counter() - clock)
     chi2, x, alpha = cur[0]
     state = TumblingState.from_vector(x, alpha, t_ref, frame)
+    # the motion's twin (the body turned 180° about its circulation axis): the same motion in space,
+    # whose EGI may sit better on the fixed grid of normals — kept, refined, when it fits better
+    twin = state.twin()
+    if twin is not None:
+        _, c_twin = final.solve(twin)
+        if c_twin < chi2:
+            cur[0] = min(_refine(final, twin.vector(), twin.alpha, span, final_fev, t_ref, frame),
+                         (float(c_twin), twin.vector(), twin.alpha), key=lambda r: r[0])
+            log.info("estimate_tumbling: the twin motion fits better (chi2 %.6g -> %.6g)", chi2, cur[0][0])
+            chi2, x, alpha = cur[0]
+            state = TumblingState.from_vector(x, alpha, t_ref, frame)
     state.lon_deg = float((state.lon_deg + 180.0) % 360.0 - 180.0)
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)

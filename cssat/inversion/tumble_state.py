@@ -150,6 +150,29 @@ class TumblingState:
         return self.motion(tau) @ (rot_z(np.float64(math.radians(self.phi0_deg)))
                                    @ _pole_rotation(self.lon_deg, self.lat_deg, self.frame))
 
+    def twin(self) -> TumblingState | None:
+        """The same motion with the body turned 180° about its circulation axis (the largest
+        moment's in a short-axis mode, the smallest's in a long-axis one): that turn leaves the
+        inertia tensor unchanged and maps the polhode onto itself half a period of ``ω`` on, so
+        ``frames'(t) = R_π frames(t)`` with ``t₀' = t₀ + 1/(2 f_ω)`` and the precession phase
+        ``φ₀'`` solved for. Both describe one motion in space; an EGI on a fixed grid of body
+        normals fits one of them better (the other's EGI is the grid turned). ``None`` when no
+        single ``φ₀'`` matches (to 1e-6 at three times)."""
+        Ip, _, mo = _solution(self.i1, self.i2, self.alpha)
+        if mo is None:
+            return None
+        axis = int(mo["order"][2])
+        turn = np.diag([-1.0, -1.0, -1.0])
+        turn[axis, axis] = 1.0  # 180° about the circulation axis
+        half = 0.5 / self.f_omega_hz
+        taus = self.t0_s + np.array([0.0, 0.37, 0.81]) / self.f_omega_hz
+        A = np.einsum("tji,jk,tkl->til", self.motion(taus + half), turn, self.motion(taus)) @ rot_z(np.float64(math.radians(self.phi0_deg)))
+        if not np.allclose(A, A[0], atol=1e-6) or abs(A[0, 2, 2] - 1.0) > 1e-6:
+            return None
+        phi0 = math.degrees(math.atan2(A[0, 0, 1], A[0, 0, 0]))  # rot_z is passive: [[c, s, 0], [-s, c, 0], [0, 0, 1]]
+        return TumblingState(self.i1, self.i2, self.alpha, self.f_omega_hz, self.f_phi_hz, self.t0_s + half, self.lon_deg,
+                             self.lat_deg, phi0 % 360.0, self.t_ref_s, self.frame)
+
     def motion(self, tau: np.ndarray) -> np.ndarray:
         """``B(τ) (T, 3, 3)``: the L-frame (z along ``L``) to the body, from the x–z crossing at
         ``τ = 0`` — :func:`~cssat.scene.attitude.torque_free`'s Euler angles (``θ``, ``ψ``
