@@ -288,3 +288,30 @@ def test_the_twin_is_the_same_motion_with_the_body_turned_half_a_turn(i1, i2, al
     want[axis, axis] = 1.0
     np.testing.assert_allclose(M, np.broadcast_to(want, M.shape), atol=1e-9)
     assert tw.t0_s == pytest.approx(st.t0_s + 0.5 / st.f_omega_hz, rel=1e-12)
+
+
+def test_a_refinement_that_ends_where_no_motion_is_passed_over(monkeypatch):
+    """A refinement can stop where no rigid body has its eight numbers (here: i₁ > i₂, the best
+    χ²); the solution is the best refined minimum that is a motion, not a crash."""
+    import cssat.inversion.tumble as T
+    from cssat.inversion.tumble import TumblingState, tumbling_rates
+
+    i1, i2, alpha = 0.55, 0.85, math.radians(22.0)
+    fw, fp = (0.021 * f for f in tumbling_rates(i1, i2, alpha))
+    truth = TumblingState(i1, i2, alpha, fw, fp, 140.0, 40.0, 30.0, 75.0, 0.0, "equatorial")
+    t = np.arange(0, 7200, 20.0)
+    sun = np.tile(np.array([0.95, -0.1, 0.3]) / np.linalg.norm([0.95, -0.1, 0.3]), (len(t), 1))
+    obs = np.tile(np.array([0.3, 0.9, 0.1]) / np.linalg.norm([0.3, 0.9, 0.1]), (len(t), 1))
+    n, a = _box_wing_egi()
+    R = truth.frames(t)
+    sb, ob = np.einsum("tij,tj->ti", R, sun), np.einsum("tij,tj->ti", R, obs)
+    y = (a / np.pi * np.clip(sb @ n.T, 0, None) * np.clip(ob @ n.T, 0, None)).sum(1)
+    bad = truth.vector()
+    bad[0], bad[1] = 0.9, 0.6  # i₁ > i₂: no motion
+    monkeypatch.setattr(T, "_refine", lambda fit, x, al, *rest: (0.0 if x[0] > x[1] else 1.0, np.asarray(x, float), al))
+    monkeypatch.setattr(T, "_continuation", lambda samples, cur, *rest: [(0.0, bad, alpha)] + list(cur))
+    sol = T.estimate_tumbling(t, y, sun, obs, frame="equatorial", periods_s=(1 / fw, 1 / fp), inertia_grid=[(0.55, 0.85)],
+                              n_poles=4, n_t0=2, n_phi=2, n_starts=1, n_refine=1, n_screen=1, coarse_samples=40,
+                              coarse_normals=16, mid_samples=40, mid_normals=16, n_normals=32, max_samples=60, arc_s=3600.0,
+                              final_fev=2)
+    assert sol.state.i1 <= sol.state.i2

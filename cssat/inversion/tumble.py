@@ -140,8 +140,13 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     final = _TFit.spread(samples, np.ones(len(t), bool), max_samples, fine_N, brdf)
     cur = sorted((_refine(final, r[1], r[2], span, final_fev, t_ref, frame) for r in cur), key=lambda r: r[0])
     log.info("estimate_tumbling: final fit, %.1f s", time.perf_counter() - clock)
-    chi2, x, alpha = cur[0]
-    state = TumblingState.from_vector(x, alpha, t_ref, frame)
+    # the best refined minimum that is a motion (a refinement can stop where no torque-free motion has its numbers)
+    keep = [(r, st) for r in cur for st in [TumblingState.from_vector(r[1], r[2], t_ref, frame)] if st is not None]
+    if not keep:
+        raise RuntimeError("estimate_tumbling: no refined minimum is a torque-free motion (the refinements ended where "
+                           "no rigid body has those numbers): widen the search (n_starts, n_refine) or give periods_s")
+    cur = [r for r, _ in keep]
+    (chi2, x, alpha), state = keep[0]
     # the motion's twin (the body turned 180° about its circulation axis): the same motion in space,
     # whose EGI may sit better on the fixed grid of normals — kept, refined, when it fits better
     twin = state.twin()
