@@ -315,3 +315,16 @@ def test_a_refinement_that_ends_where_no_motion_is_passed_over(monkeypatch):
                               coarse_normals=16, mid_samples=40, mid_normals=16, n_normals=32, max_samples=60, arc_s=3600.0,
                               final_fev=2)
     assert sol.state.i1 <= sol.state.i2
+
+
+def test_a_longitude_run_past_a_turn_is_the_same_direction():
+    """A refinement's longitude of L is unbounded (the coverage study met 3,620°): the state
+    wraps it and its frames are those of the wrapped direction."""
+    from cssat.inversion.tumble import TumblingState, tumbling_rates
+
+    fw, fp = tumbling_rates(0.55, 0.85, 0.4)
+    far, near = (TumblingState(0.55, 0.85, 0.4, fw * 0.02, fp * 0.02, 10.0, lon, 30.0, 75.0, 0.0, "equatorial")
+                 for lon in (10 * 360.0 + 40.0, 40.0))
+    assert far.lon_deg == pytest.approx(40.0, abs=1e-9)
+    t = np.linspace(0, 3600, 7)
+    np.testing.assert_allclose(far.frames(t), near.frames(t), atol=1e-9)

@@ -130,7 +130,10 @@ class TumblingState:
                  lon_deg: float, lat_deg: float, phi0_deg: float, t_ref_s: float = 0.0, frame: str = "ecliptic"):
         self.i1, self.i2, self.alpha = float(i1), float(i2), float(alpha)
         self.f_omega_hz, self.f_phi_hz, self.t0_s = float(f_omega_hz), float(f_phi_hz), float(t0_s)
-        self.lon_deg, self.lat_deg, self.phi0_deg = float(lon_deg), float(lat_deg), float(phi0_deg)
+        lon = float(lon_deg)
+        if not -180.0 <= lon <= 180.0:  # a refinement's longitude runs on freely: the same direction, wrapped
+            lon = (lon + 180.0) % 360.0 - 180.0
+        self.lon_deg, self.lat_deg, self.phi0_deg = lon, float(lat_deg), float(phi0_deg)
         self.t_ref_s, self.frame = float(t_ref_s), frame
 
     @property
