@@ -213,18 +213,22 @@ def tumble_case(seed: int, search: dict | None = None) -> dict:
             "search": opts, "cpu_s": time.process_time() - clock}
 
 
-def report_tumble(rs: list[dict]) -> None:
-    n = len(rs)
-    found = [r for r in rs if r["sep_deg"] < 5 and r["period_rel"] < 1e-3]
+def _verdicts(part: str, rs: list[dict], found_if, found_label: str, usable) -> list[tuple[str, list[dict]]]:
+    """Print the part's line (found by ``found_if``, unreliable, of which wrong, wrong and reliable)
+    and return the reliable seeds that ``usable`` keeps, all and found, each with its label."""
+    found = [r for r in rs if found_if(r)]
     unrel = [r for r in rs if r["verdict"] == "unreliable"]
-    print(f"tumble: {n} seeds; found (L < 5°, periods < 1e-3) {len(found)}; unreliable {len(unrel)} "
-          f"({100 * len(unrel) / max(n, 1):.0f} %), of which wrong {sum(r not in found for r in unrel)}; wrong and reliable "
-          f"{sum(r not in found and r['verdict'] == 'reliable' for r in rs)}")
-    rel = [r for r in rs if r["verdict"] == "reliable" and r["L_err_deg"] == r["L_err_deg"]]
-    for label, sub in (("reliable", rel), ("reliable and found", [r for r in rel if r in found])):
+    print(f"{part}: {len(rs)} seeds; found ({found_label}) {len(found)}; unreliable {len(unrel)} "
+          f"({100 * len(unrel) / max(len(rs), 1):.0f} %), of which wrong {sum(r not in found for r in unrel)}; "
+          f"wrong and reliable {sum(r not in found and r['verdict'] == 'reliable' for r in rs)}")
+    rel = [r for r in rs if r["verdict"] == "reliable" and usable(r)]
+    return [(label, sub) for label, sub in (("reliable", rel), ("reliable and found", [r for r in rel if r in found])) if sub]
+
+
+def report_tumble(rs: list[dict]) -> None:
+    for label, sub in _verdicts("tumble", rs, lambda r: r["sep_deg"] < 5 and r["period_rel"] < 1e-3,
+                                "L < 5°, periods < 1e-3", lambda r: r["L_err_deg"] == r["L_err_deg"]):
         m = len(sub)
-        if not m:
-            continue
         z = np.array([r["sep_deg"] / r["L_err_deg"] for r in sub])
         zf = np.array([r["sep_deg"] / r["formal_L_err_deg"] for r in sub])
         k68, k95 = int((z <= R68).sum()), int((z <= R95).sum())
@@ -247,28 +251,22 @@ def _wilson(k: int, n: int, z: float = 1.0) -> tuple[float, float]:
 
 
 def report(rows: list[dict]) -> None:
+    from cssat.inversion.spin_errors import POLE_DELTA_CHI2  # the region's levels: 2.30, 6.18
+
     for part in sorted({r["part"] for r in rows}):
         rs = [r for r in rows if r["part"] == part]
         if part == "tumble":
             report_tumble(rs)
             continue
-        n = len(rs)
-        found = [r for r in rs if r["sep_deg"] < 10 and r["period_rel"] < 1e-3]
-        unrel = [r for r in rs if r["verdict"] == "unreliable"]
-        print(f"{part}: {n} seeds; found (pole < 10°, period < 1e-3) {len(found)}; unreliable {len(unrel)} "
-              f"({100 * len(unrel) / max(n, 1):.0f} %); wrong (pole ≥ 10° or period ≥ 1e-3) and reliable "
-              f"{sum(r not in found and r['verdict'] == 'reliable' for r in rs)}")
-        rel = [r for r in rs if r["verdict"] == "reliable" and "delta_chi2_true" in r]
-        for label, sub in (("reliable", rel), ("reliable and found", [r for r in rel if r in found])):
+        for label, sub in _verdicts(part, rs, lambda r: r["sep_deg"] < 10 and r["period_rel"] < 1e-3,
+                                    "pole < 10°, period < 1e-3", lambda r: "delta_chi2_true" in r):
             m = len(sub)
-            if not m:
-                continue
             # inside the reported region: the truth's profile Δχ² under the level AND within the region's
             # widest radius (a truth of lower χ² elsewhere — a search that stopped in another minimum — is a miss)
             d = np.array([r["delta_chi2_true"] for r in sub])
             sep = np.array([r["sep_deg"] for r in sub])
-            k68 = int(((d <= 2.2957) & (sep <= np.array([r["radius_68_deg"] for r in sub]))).sum())
-            k95 = int(((d <= 6.1801) & (sep <= np.array([r["radius_95_deg"] for r in sub]))).sum())
+            k68 = int(((d <= POLE_DELTA_CHI2["68"]) & (sep <= np.array([r["radius_68_deg"] for r in sub]))).sum())
+            k95 = int(((d <= POLE_DELTA_CHI2["95"]) & (sep <= np.array([r["radius_95_deg"] for r in sub]))).sum())
             z = np.array([r["sep_deg"] / r["pole_err_deg"] for r in sub])
             zl = np.array([r["sep_deg"] / r["laplace_pole_err_deg"] for r in sub])
             lo68, hi68 = _wilson(k68, m)

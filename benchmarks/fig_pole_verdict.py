@@ -41,12 +41,6 @@ def _truth() -> tuple[float, float]:
     return float(node["pole_lon_deg"]), float(node["pole_lat_deg"])
 
 
-def _sep(a: tuple[float, float], b: tuple[float, float]) -> float:
-    (l1, b1), (l2, b2) = (np.radians(a), np.radians(b))
-    c = math.sin(b1) * math.sin(b2) + math.cos(b1) * math.cos(b2) * math.cos(l1 - l2)
-    return math.degrees(math.acos(min(1.0, max(-1.0, c))))
-
-
 def _wrap(lon_deg: float) -> float:
     return math.radians((lon_deg + 180.0) % 360.0 - 180.0)
 
@@ -63,6 +57,8 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from cssat.inversion.spin_errors import separation_deg
+
     mis = json.loads((Path(args.mismatch) / "metrics.json").read_text())
     inc = json.loads((Path(args.inclass) / "metrics.json").read_text())
     truth = _truth()
@@ -76,7 +72,7 @@ def main() -> None:
         ax.plot(_wrap(est[0]), math.radians(est[1]), "o" if k == 0 else "x", ms=9, mew=2, color="tab:red",
                 label="estimate")
         if k == 0:
-            txt = (f"{_sep(est, truth):.1f}° from the truth\nprinted 1σ {args.before_sigma:.2f}°\n"
+            txt = (f"{separation_deg(est, truth):.1f}° from the truth\nprinted 1σ {args.before_sigma:.2f}°\n"
                    "(its circle is smaller than the dot)")
         else:
             n = mis["spin_heldout_n"]

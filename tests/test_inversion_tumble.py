@@ -88,24 +88,33 @@ def _box_wing_egi():
     return n, a
 
 
+def _box_wing_tumbler(t, sun, obs):
+    """The tests' tumbler (moments 0.55, 0.85, mode angle 22°, P_ω ≈ 1,050 s) and the box-wing's
+    Lambertian flux ``(T,)`` at ``t`` seen along ``sun``, ``obs (T, 3)`` — written here with the
+    EGI's sum, not cssat's operator."""
+    from cssat.inversion.tumble import TumblingState, tumbling_rates
+
+    alpha = math.radians(22.0)
+    fw, fp = (0.021 * f for f in tumbling_rates(0.55, 0.85, alpha))
+    truth = TumblingState(0.55, 0.85, alpha, fw, fp, 140.0, 40.0, 30.0, 75.0, 0.0, "equatorial")
+    n, a = _box_wing_egi()
+    R = truth.frames(t)
+    sb, ob = np.einsum("tij,tj->ti", R, sun), np.einsum("tij,tj->ti", R, obs)
+    return truth, (a / np.pi * np.clip(sb @ n.T, 0, None) * np.clip(ob @ n.T, 0, None)).sum(1)
+
+
 @pytest.fixture(scope="module")
 def tumbler():
     """Two 4-h arcs a day apart fitted, a third day's hour held out; GEO-like geometry (the
     observer turns once a sidereal day), 10 s cadence, 1 % noise."""
-    from cssat.inversion.tumble import TumblingState, estimate_tumbling, tumbling_rates
+    from cssat.inversion.tumble import estimate_tumbling
 
-    i1, i2, alpha = 0.55, 0.85, math.radians(22.0)
-    fw, fp = (0.021 * f for f in tumbling_rates(i1, i2, alpha))
-    truth = TumblingState(i1, i2, alpha, fw, fp, 140.0, 40.0, 30.0, 75.0, 0.0, "equatorial")
     t = np.concatenate([np.arange(0, 14400, 10.0), 86400 + np.arange(0, 14400, 10.0), 2 * 86400 + np.arange(0, 3600, 10.0)])
     w = 2 * np.pi / SIDEREAL_DAY
     obs = np.stack([np.cos(w * t + 0.3), np.sin(w * t + 0.3), np.full_like(t, 0.12)], 1)
     obs /= np.linalg.norm(obs, axis=1, keepdims=True)
     sun = np.tile(np.array([0.95, -0.1, 0.3]) / np.linalg.norm([0.95, -0.1, 0.3]), (len(t), 1))
-    n, a = _box_wing_egi()
-    R = truth.frames(t)
-    sb, ob = np.einsum("tij,tj->ti", R, sun), np.einsum("tij,tj->ti", R, obs)
-    clean = (a / np.pi * np.clip(sb @ n.T, 0, None) * np.clip(ob @ n.T, 0, None)).sum(1)
+    truth, clean = _box_wing_tumbler(t, sun, obs)
     sig = 0.01 * clean.mean()
     y = clean + sig * np.random.default_rng(3).standard_normal(len(t))
     fit = t < 2 * 86400
@@ -294,18 +303,12 @@ def test_a_refinement_that_ends_where_no_motion_is_passed_over(monkeypatch):
     """A refinement can stop where no rigid body has its eight numbers (here: i₁ > i₂, the best
     χ²); the solution is the best refined minimum that is a motion, not a crash."""
     import cssat.inversion.tumble as T
-    from cssat.inversion.tumble import TumblingState, tumbling_rates
 
-    i1, i2, alpha = 0.55, 0.85, math.radians(22.0)
-    fw, fp = (0.021 * f for f in tumbling_rates(i1, i2, alpha))
-    truth = TumblingState(i1, i2, alpha, fw, fp, 140.0, 40.0, 30.0, 75.0, 0.0, "equatorial")
     t = np.arange(0, 7200, 20.0)
     sun = np.tile(np.array([0.95, -0.1, 0.3]) / np.linalg.norm([0.95, -0.1, 0.3]), (len(t), 1))
     obs = np.tile(np.array([0.3, 0.9, 0.1]) / np.linalg.norm([0.3, 0.9, 0.1]), (len(t), 1))
-    n, a = _box_wing_egi()
-    R = truth.frames(t)
-    sb, ob = np.einsum("tij,tj->ti", R, sun), np.einsum("tij,tj->ti", R, obs)
-    y = (a / np.pi * np.clip(sb @ n.T, 0, None) * np.clip(ob @ n.T, 0, None)).sum(1)
+    truth, y = _box_wing_tumbler(t, sun, obs)
+    fw, fp, alpha = truth.f_omega_hz, truth.f_phi_hz, truth.alpha
     bad = truth.vector()
     bad[0], bad[1] = 0.9, 0.6  # i₁ > i₂: no motion
     monkeypatch.setattr(T, "_refine", lambda fit, x, al, *rest: (0.0 if x[0] > x[1] else 1.0, np.asarray(x, float), al))

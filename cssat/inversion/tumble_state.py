@@ -161,7 +161,7 @@ class TumblingState:
         ``φ₀'`` solved for. Both describe one motion in space; an EGI on a fixed grid of body
         normals fits one of them better (the other's EGI is the grid turned). ``None`` when no
         single ``φ₀'`` matches (to 1e-6 at three times)."""
-        Ip, _, mo = _solution(self.i1, self.i2, self.alpha)
+        _, _, mo = _solution(self.i1, self.i2, self.alpha)
         if mo is None:
             return None
         axis = int(mo["order"][2])
