@@ -159,8 +159,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        profile has a kink at the minimum (the NNLS active set) that a Laplace approximation
        misreads; a Δχ² region does not. ``pole_interval`` holds the radii and ``pole_err_deg``
        becomes its radial 1σ — never smaller than the 68 % and 95 % regions imply (a shallow
-       valley widens it; ``quadratic_pole_err_deg``: the Δχ² = 1 value). ``profile_grids > 1``: the objective the mean χ² over that many
-       grids of normals turned at random (the fine one first), which smooths the grid's bias;
+       valley widens it; ``quadratic_pole_err_deg``: the Δχ² = 1 value). ``profile_grids > 1``:
+       the objective the mean χ² over that many grids of normals turned at random (the fine one first), which smooths the grid's bias;
        the pole and period reported are then that objective's minimum. About 100–200 χ²
        evaluations.
 

@@ -169,7 +169,8 @@ class TumblingState:
         turn[axis, axis] = 1.0  # 180° about the circulation axis
         half = 0.5 / self.f_omega_hz
         taus = self.t0_s + np.array([0.0, 0.37, 0.81]) / self.f_omega_hz
-        A = np.einsum("tji,jk,tkl->til", self.motion(taus + half), turn, self.motion(taus)) @ rot_z(np.float64(math.radians(self.phi0_deg)))
+        A = (np.einsum("tji,jk,tkl->til", self.motion(taus + half), turn, self.motion(taus))
+             @ rot_z(np.float64(math.radians(self.phi0_deg))))  # rot_z(φ₀') at each time
         if not np.allclose(A, A[0], atol=1e-6) or abs(A[0, 2, 2] - 1.0) > 1e-6:
             return None
         phi0 = math.degrees(math.atan2(A[0, 0, 1], A[0, 0, 0]))  # rot_z is passive: [[c, s, 0], [-s, c, 0], [0, 0, 1]]
