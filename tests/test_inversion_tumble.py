@@ -150,7 +150,7 @@ def test_blind_recovery_of_a_tumbler(tumbler):
 
 
 def test_bad_input_names_the_field():
-    from cssat.inversion.tumble import estimate_tumbling
+    from cssat.inversion.tumble import check_tumbling_options, estimate_tumbling
 
     t = np.arange(0, 3600, 10.0)
     v = np.tile([1.0, 0.0, 0.0], (len(t), 1))
@@ -158,6 +158,8 @@ def test_bad_input_names_the_field():
         estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, -1.0))
     with pytest.raises(FieldError, match="inertia_grid"):
         estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), inertia_grid=[(0.9, 0.5)])
+    with pytest.raises(FieldError, match="error_grids"):
+        check_tumbling_options(error_grids=0)
     with pytest.raises(FieldError, match="arc_s"):
         estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), arc_s=5.0)
 

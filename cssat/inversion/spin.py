@@ -97,7 +97,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
                   max_period_s: float = 86400.0, n_poles: int = 60, n_starts: int = 6, n_refine: int = 2,
                   coarse_normals: int = 200, coarse_samples: int = 400, n_normals: int = 1000,
                   max_samples: int = 2000, split_nights: bool = False, heldout: Any = None, interval: str = "profile",
-                  profile_grids: int = 1) -> SpinSolution:
+                  profile_grids: int = 1, error_grids: int = 1) -> SpinSolution:
     """The spin state of an object rotating about a fixed axis — its pole and sidereal period —
     and its EGI, from its light curve ``flux (T,)`` at ``times_s (T,)`` with the Sun and
     observer directions ``sun``, ``obs (T, 3)`` from the object in the inertial frame (GCRS
@@ -126,9 +126,11 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     4. 1σ: the formal Gauss–Newton covariance of ``(λ, β, f)`` and the support's areas, scaled
        by the reduced χ² when it exceeds 1 (the model's misfit counts as noise), added in
        quadrature to the shift of the solution when the search is refined again on a grid of
-       normals turned at random (the EGI grid's bias, which dominates at high SNR):
-       ``formal_pole_err_deg``, ``grid_pole_shift_deg`` and their sum ``pole_err_deg``; the
-       same for the period.
+       normals turned at random (the EGI grid's bias, which dominates at high SNR) — the root
+       mean square of the shifts over ``error_grids`` grids (seeds 0, 1, …; one shift is a
+       single draw of the bias, often far below its spread): ``formal_pole_err_deg``,
+       ``grid_pole_shift_deg`` and their sum ``pole_err_deg``; the same for the period. Each
+       grid costs one Nelder–Mead refinement on the fine fit.
 
     5. ``split_nights`` (a diagnostic, not a 1σ): the search again on each contiguous stretch
        alone (a night, or its part between gaps of over 30 min) from the same synodic period:
@@ -157,9 +159,12 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        reduced χ² (where above 1) reaches 1, 2.30 and 6.18 (the 68.27 % and 95.45 % regions of
        the pole's two numbers; :func:`~cssat.inversion.spin_errors.pole_profile_interval`). The
        profile has a kink at the minimum (the NNLS active set) that a Laplace approximation
-       misreads; a Δχ² region does not. ``pole_interval`` holds the radii and ``pole_err_deg``
-       becomes its radial 1σ — never smaller than the 68 % and 95 % regions imply (a shallow
-       valley widens it; ``quadratic_pole_err_deg``: the Δχ² = 1 value). ``profile_grids > 1``:
+       misreads; a Δχ² region does not. ``pole_interval`` holds the radii; its radial 1σ
+       (``pole_interval["pole_err_deg"]``) is never smaller than the 68 % and 95 % regions imply
+       (a shallow valley widens it; ``quadratic_pole_err_deg``: the Δχ² = 1 value). The region
+       is the noise's on this grid of normals; ``pole_err_deg`` is that 1σ added in quadrature
+       to step 4's grid term ``grid_pole_shift_deg`` (the grid's bias moves the minimum by about a
+       region's radius: BENCHMARKS.md "Coverage of the pole and L"). ``profile_grids > 1``:
        the objective the mean χ² over that many grids of normals turned at random (the fine one first), which smooths the grid's bias;
        the pole and period reported are then that objective's minimum. About 100–200 χ²
        evaluations.
@@ -173,6 +178,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         _check_heldout(heldout)
     interval = choice_param(interval, "interval", ("profile", "laplace"))
     profile_grids = int_param(profile_grids, "profile_grids", 1, 64)
+    error_grids = int_param(error_grids, "error_grids", 1, 64)
     T = len(t)
     n_poles, n_starts, n_refine = (int_param(v, k, 1) for v, k in ((n_poles, "n_poles"), (n_starts, "n_starts"),
                                                                    (n_refine, "n_refine")))
@@ -209,13 +215,18 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     finals = sorted((_refine_spin(fine, r[1:], 2.0, 20.0, span) for r in distinct[:n_refine]), key=lambda r: r[0])
     chi2, lon, lat, f = finals[0]
     lon = float((lon + 180.0) % 360.0 - 180.0)
-    # the EGI grid's bias: the same refinement on a grid of normals turned at random
+    # the EGI grid's bias: the same refinement on grids of normals turned at random (the RMS shift)
     from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for estimate_spin()
 
-    turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=0).as_matrix().T, brdf, frame)
-    _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
-    grid_pole = _separation_deg((lon, lat), (lon_g, lat_g))
-    grid_period = abs(1 / f_g - 1 / f)
+    g_pole, g_period = [], []
+    for g in range(error_grids):
+        turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=g).as_matrix().T, brdf,
+                      frame)
+        _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
+        g_pole.append(_separation_deg((lon, lat), (lon_g, lat_g)))
+        g_period.append(1 / f_g - 1 / f)
+    grid_pole = float(np.sqrt(np.mean(np.square(g_pole))))
+    grid_period = float(np.sqrt(np.mean(np.square(g_period))))
     # the EGI at the solution and its 1σ (Gauss–Newton on the spin and the support's areas)
     a, sup, err, red, scale2 = _spin_errors(fine, lon, lat, f, chi2, span, sigma is not None)
     formal_pole = float(np.hypot(err[1], np.cos(np.radians(lat)) * err[0]))
@@ -250,7 +261,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
             a, _ = fine.solve(lon, lat, f)
             resid = y - full.matrix(lon, lat, f) @ a
             normals, areas, lobe_areas, _ = split_lobes(a, fine.N, brdf)
-        pole_err = prof["pole_err_deg"]
+        # the region holds the noise on this grid; the grid's bias adds: the RMS shift of step 4
+        pole_err = float(np.hypot(prof["pole_err_deg"], grid_pole))
     if check["verdict"] == "unreliable":
         err = np.array([np.nan, np.nan, err[2]])  # the pole's 1σ withheld; the period's kept
         formal_pole = pole_err = grid_pole = check["laplace_pole_err_deg"] = float("nan")

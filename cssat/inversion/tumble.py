@@ -38,7 +38,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
                       n_pairs: int = 3, screen_moments: int = 6, screen_poles: int = 20, n_screen: int = 24, n_starts: int = 8,
                       n_refine: int = 4, coarse_normals: int = 64, coarse_samples: int = 160, mid_normals: int = 150,
                       mid_samples: int = 400, n_normals: int = 600, max_samples: int = 1200, growth: float = 3.0,
-                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, heldout: Any = None) -> TumblingSolution:
+                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, error_grids: int = 1,
+                      heldout: Any = None) -> TumblingSolution:
     """The torque-free tumbling state (:class:`TumblingState`) and EGI of an object from its light
     curve ``flux (T,)`` at ``times_s (T,)``, the Sun and observer directions ``sun``, ``obs (T, 3)``
     (inertial unit vectors from the object), ``sigma`` its 1σ, ``brdf`` (default Lambert): the
@@ -74,7 +75,9 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        turned 180° about its circulation axis, half a period of ``ω`` on
        (:meth:`TumblingState.twin`) — that is the same motion in space but puts the EGI on the
        grid turned; the twin is refined too and kept when it fits better.
-    4. 1σ by Gauss–Newton and the EGI grid's bias (:class:`TumblingSolution`).
+    4. 1σ by Gauss–Newton and the EGI grid's bias (:class:`TumblingSolution`): the root mean
+       square of the solution's shifts when refined again (``final_fev``) on ``error_grids``
+       grids of normals turned at random, in quadrature with the formal 1σ.
     5. The verdict (``verdict``, ``verdict_why``, as :func:`~cssat.inversion.estimate_spin`'s
        step 6): ``heldout = (times_s, flux, sun, obs, sigma)`` predicted and its χ² tested against
        what a right model reaches at the noise (the ``1 − 10⁻³`` quantile of
@@ -162,7 +165,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)
     # 4. 1σ: Gauss–Newton on the eight numbers and the support's areas, and the EGI grid's bias
-    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev)
+    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev,
+                               int_param(error_grids, "error_grids", 1, 64))
     # 5. the verdict: the model tested on held-out data against the noise; no 1σ of L when unreliable
     check = _check_tumble(final, state, x, a, sup, chi2, span, sig, heldout)
     if check["verdict"] == "unreliable":
@@ -199,6 +203,7 @@ def check_tumbling_options(**options: Any) -> None:
     for k in ("n_poles", "n_t0", "n_phi", "n_prerank", "n_pairs", "screen_moments", "screen_poles", "n_screen", "n_starts",
               "n_refine", "max_fev", "screen_fev", "final_fev"):
         int_param(o[k], k, 1, 10**7)
+    int_param(o["error_grids"], "error_grids", 1, 64)
     int_param(o["coarse_normals"], "coarse_normals", 8, 10**6)
     for k in ("coarse_samples", "mid_normals", "mid_samples", "n_normals", "max_samples"):
         int_param(o[k], k, 16, 10**7)

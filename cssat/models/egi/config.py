@@ -36,7 +36,7 @@ __all__ = ["EGIConfig", "EGISettings", "NightsConfig", "InversionConfig", "Param
 SPIN_MODES = ("auto", "search", "tumbling", "known")
 #: the spin search's settings (:func:`cssat.inversion.estimate_spin`'s keywords) in ``inversion``
 SEARCH_KEYS = ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples", "min_period_s",
-               "max_period_s", "split_nights")
+               "max_period_s", "split_nights", "error_grids")
 _SOLVER_HINT = ("the EGI's solve is the solver group's: solver=nnls|nnomp|nnl1|nntv "
                 "(e.g. solver=nntv solver.lam=discrepancy)")
 
@@ -125,6 +125,9 @@ class InversionConfig:
     max_period_s: float = 3000.0
     #: a diagnostic: the spin also searched on each night alone, the spread of their poles reported
     split_nights: bool = False
+    #: grids of normals turned at random whose RMS shift of the solution is the EGI grid's bias in the
+    #: pole's 1σ (one refinement each; one shift alone is a single draw, often far below the spread)
+    error_grids: int = 1
     #: the shape fitted after the EGI: convex (the EGI's Minkowski polytope) | parametric (a shadowed box-wing)
     shape: str = "convex"
     parametric: ParametricConfig = field(default_factory=ParametricConfig)
@@ -137,6 +140,7 @@ class InversionConfig:
         self.search_normals = int_param(self.search_normals, "inversion.search_normals", 16, 20000)
         self.brdf = choice_param(self.brdf, "inversion.brdf", ["lambert", "lobes", "simulated"])
         self.closure = float_param(self.closure, "inversion.closure", 0.0)
+        self.error_grids = int_param(self.error_grids, "inversion.error_grids", 1, 64)
         self.shape = choice_param(self.shape, "inversion.shape", ("convex", "parametric"))
         self.parametric = typed_group(ParametricConfig, self.parametric, "inversion.parametric")
         self.tumbling = dict(self.tumbling or {})
