@@ -30,7 +30,7 @@ search is :func:`cssat.inversion.estimate_tumbling`'s, blind (the frequency latt
 curve, the default inertia grid), at :data:`TUMBLE` (``--search`` changes them). Counted: the
 verdict; the separation of ``L`` against its reported 1σ ``L_err_deg`` (the radial 1σ,
 ``√(σ_β² + cos²β σ_λ²)`` ⊕ the turned grid's shift): inside ``1.0714 × L_err_deg`` for the
-68.27 % region and ``1.7581 ×`` for the 95.45 % one of a circular Gaussian.
+68.27 % region and ``1.7579 ×`` for the 95.45 % one of a circular Gaussian.
 
 Each seed is independent; ``--workers N`` spreads them over N one-thread processes; one line a
 seed goes to ``--out`` (JSON lines, appended: an interrupted run resumes)::
