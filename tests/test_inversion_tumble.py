@@ -160,6 +160,8 @@ def test_bad_input_names_the_field():
         estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), inertia_grid=[(0.9, 0.5)])
     with pytest.raises(FieldError, match="error_grids"):
         check_tumbling_options(error_grids=0)
+    with pytest.raises(FieldError, match="error_grids"):  # before the search, not after it
+        estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), error_grids=0)
     with pytest.raises(FieldError, match="arc_s"):
         estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), arc_s=5.0)
 

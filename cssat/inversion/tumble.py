@@ -105,6 +105,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     span = float(t[-1] - t[0])
     arc_s = float_param(arc_s, "arc_s", 0.0, open_lo=True)
     grid_I = _check_inertia_grid(inertia_grid)
+    error_grids = int_param(error_grids, "error_grids", 1, 64)  # step 4's, refused before any work
     n_poles, n_t0, n_phi, n_starts, n_refine = (int_param(v, k, 1) for v, k in (
         (n_poles, "n_poles"), (n_t0, "n_t0"), (n_phi, "n_phi"), (n_starts, "n_starts"), (n_refine, "n_refine")))
     arc = t <= t_ref + arc_s
@@ -165,8 +166,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)
     # 4. 1σ: Gauss–Newton on the eight numbers and the support's areas, and the EGI grid's bias
-    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev,
-                               int_param(error_grids, "error_grids", 1, 64))
+    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev, error_grids)
     # 5. the verdict: the model tested on held-out data against the noise; no 1σ of L when unreliable
     check = _check_tumble(final, state, x, a, sup, chi2, span, sig, heldout)
     if check["verdict"] == "unreliable":
