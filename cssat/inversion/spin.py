@@ -215,18 +215,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     finals = sorted((_refine_spin(fine, r[1:], 2.0, 20.0, span) for r in distinct[:n_refine]), key=lambda r: r[0])
     chi2, lon, lat, f = finals[0]
     lon = float((lon + 180.0) % 360.0 - 180.0)
-    # the EGI grid's bias: the same refinement on grids of normals turned at random (the RMS shift)
-    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for estimate_spin()
-
-    g_pole, g_period = [], []
-    for g in range(error_grids):
-        turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=g).as_matrix().T, brdf,
-                      frame)
-        _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
-        g_pole.append(_separation_deg((lon, lat), (lon_g, lat_g)))
-        g_period.append(1 / f_g - 1 / f)
-    grid_pole = float(np.sqrt(np.mean(np.square(g_pole))))
-    grid_period = float(np.sqrt(np.mean(np.square(g_period))))
+    grid_pole, grid_period = _grid_bias(fine, lon, lat, f, span, error_grids)
     # the EGI at the solution and its 1σ (Gauss–Newton on the spin and the support's areas)
     a, sup, err, red, scale2 = _spin_errors(fine, lon, lat, f, chi2, span, sigma is not None)
     formal_pole = float(np.hypot(err[1], np.cos(np.radians(lat)) * err[0]))
@@ -247,6 +236,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     check["laplace_pole_err_deg"] = pole_err  # step 4's 1σ, kept beside the profile's
     if interval == "profile" and check["verdict"] == "reliable":
         # 7. the pole's profile-likelihood region (Δχ² on the profile over the period and the areas)
+        from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for profile_grids > 1
+
         from cssat.inversion.spin_errors import pole_profile_interval  # local: the profile, only while reliable
 
         fits = [fine] + [_Fit(fine.t, fine.y, fine.w, fine.S, fine.O,
@@ -283,6 +274,22 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
                         **(split or {"split_pole_err_deg": None, "split_period_err_s": None, "split_poles": []}),
                         coarse=[{"chi2": float(r[0]), "pole_lon_deg": float(r[1]), "pole_lat_deg": float(r[2]),
                                  "period_s": float(1 / r[3])} for r in table])
+
+
+def _grid_bias(fine: _Fit, lon: float, lat: float, f: float, span: float, grids: int) -> tuple[float, float]:
+    """``estimate_spin`` step 4's grid term: the RMS shift of the pole (degrees) and of the period
+    (s) when the solution ``(lon, lat, f)`` is refined again on ``grids`` grids of ``fine``'s
+    normals turned at random (seeds ``0 … grids − 1``)."""
+    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for the grid term
+
+    g_pole, g_period = [], []
+    for g in range(grids):
+        turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=g).as_matrix().T,
+                      fine.brdf, fine.frame)
+        _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
+        g_pole.append(_separation_deg((lon, lat), (lon_g, lat_g)))
+        g_period.append(1 / f_g - 1 / f)
+    return float(np.sqrt(np.mean(np.square(g_pole)))), float(np.sqrt(np.mean(np.square(g_period))))
 
 
 def _check_spin(fine: _Fit, a: np.ndarray, sup: np.ndarray, lon: float, lat: float, f: float, chi2: float, span: float,
