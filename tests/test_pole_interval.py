@@ -123,6 +123,25 @@ def test_the_heldout_tuple_is_checked():
     assert e.value.field == "heldout"
 
 
+def _in_class_spinner(seed, nights, per_night, hours, K, k, pole, noise):
+    """A body whose ``k`` areas sit on ``K`` Fibonacci normals (the fit's own grid: in class)
+    turning about ``pole = (λ, β)`` (equatorial) in 500 s, ``per_night`` samples in each of
+    ``nights`` nights of ``hours``, white noise ``noise`` × the mean flux: ``t, sun, obs, y, σ``."""
+    from cssat.inversion import fibonacci_sphere
+    from cssat.scene.attitude import spin_frame, to_body
+
+    rng = np.random.default_rng(seed)
+    t = np.sort(np.concatenate([d * 86400.0 + rng.uniform(0, hours * 3600.0, per_night) for d in range(nights)]))
+    sun, obs = _geometry(t)
+    N = fibonacci_sphere(K).numpy()
+    a = np.zeros(K)
+    a[rng.choice(K, k, replace=False)] = rng.uniform(0.3, 1.0, k)
+    R = spin_frame(t, *pole, 500.0, 0.0, "equatorial")
+    clean = (a / np.pi * np.clip(to_body(R, sun) @ N.T, 0, None) * np.clip(to_body(R, obs) @ N.T, 0, None)).sum(1)
+    s = noise * clean.mean()
+    return t, sun, obs, clean + s * rng.normal(size=t.size), s
+
+
 def test_the_profile_region_matches_a_brute_force_scan():
     """On a tiny spin problem (60 samples, 60 normals, areas on the grid: in class), the radii where
     the profile Δχ² reaches 1, 2.30 and 6.18 along 4 bearings against a brute-force scan: poles every
@@ -130,19 +149,10 @@ def test_the_profile_region_matches_a_brute_force_scan():
     from cssat.inversion import fibonacci_sphere
     from cssat.inversion.spin import _Fit, _refine_spin
     from cssat.inversion.spin_errors import POLE_DELTA_CHI2, _offset_pole, pole_profile_interval
-    from cssat.scene.attitude import spin_frame, to_body
 
-    rng = np.random.default_rng(5)
-    t = np.sort(np.concatenate([d * 86400.0 + rng.uniform(0, 5 * 3600.0, 20) for d in range(3)]))
-    sun, obs = _geometry(t)
-    N = fibonacci_sphere(60).numpy()
-    a = np.zeros(60)
-    a[rng.choice(60, 10, replace=False)] = rng.uniform(0.3, 1.0, 10)
     ra, dec, period = 40.0, 30.0, 500.0
-    R = spin_frame(t, ra, dec, period, 0.0, "equatorial")
-    clean = (a / np.pi * np.clip(to_body(R, sun) @ N.T, 0, None) * np.clip(to_body(R, obs) @ N.T, 0, None)).sum(1)
-    s = 0.02 * clean.mean()
-    y = clean + s * rng.normal(size=t.size)
+    t, sun, obs, y, s = _in_class_spinner(5, 3, 20, 5, 60, 10, (ra, dec), 0.02)
+    N = fibonacci_sphere(60).numpy()
     fit = _Fit(t, y, np.full(t.size, 1 / s), sun, obs, N, None, "equatorial")
     span = float(t[-1] - t[0])
     c, lon, lat, f = _refine_spin(fit, (ra, dec, 1 / period), 1.0, 5.0, span)
@@ -217,20 +227,10 @@ def test_the_pole_1sigma_adds_the_grids_bias_to_the_profile_region():
     the RMS grid shift in quadrature, neither alone, and its 95 % circle holds the truth; a bad
     count is refused by name."""
     from cssat._checks import FieldError
-    from cssat.inversion import estimate_spin, fibonacci_sphere
+    from cssat.inversion import estimate_spin
     from cssat.inversion.spin_errors import separation_deg
-    from cssat.scene.attitude import spin_frame, to_body
 
-    rng = np.random.default_rng(1)
-    t = np.sort(np.concatenate([d * 86400.0 + rng.uniform(0, 6 * 3600.0, 60) for d in range(4)]))
-    sun, obs = _geometry(t)
-    N = fibonacci_sphere(100).numpy()
-    a = np.zeros(100)
-    a[rng.choice(100, 12, replace=False)] = rng.uniform(0.3, 1.0, 12)
-    R = spin_frame(t, 100.0, 10.0, 500.0, 0.0, "equatorial")
-    clean = (a / np.pi * np.clip(to_body(R, sun) @ N.T, 0, None) * np.clip(to_body(R, obs) @ N.T, 0, None)).sum(1)
-    s = 0.01 * clean.mean()
-    y = clean + s * rng.normal(size=t.size)
+    t, sun, obs, y, s = _in_class_spinner(1, 4, 60, 6, 100, 12, (100.0, 10.0), 0.01)
     fit = t < 3 * 86400
     opts = dict(frame="equatorial", period_s=500.0, n_poles=40, n_starts=4, n_refine=2, coarse_normals=100,
                 coarse_samples=180, n_normals=100, max_samples=180)
