@@ -57,6 +57,14 @@ def _weighted_nnls(G: np.ndarray, w: np.ndarray, yw: np.ndarray) -> tuple[np.nda
     return a, float(rnorm) ** 2
 
 
+def _turned(normals: np.ndarray, seed: int) -> np.ndarray:
+    """``normals (K, 3)`` turned by scipy's random rotation of ``seed``: a grid of normals as
+    good as the first and placed otherwise (the EGI grid's bias is measured against it)."""
+    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for a turned grid
+
+    return normals @ Rotation.random(random_state=seed).as_matrix().T
+
+
 class _Fit:
     """The EGI fit's χ² as a function of the spin ``(λ, β, f)`` on a subset of samples and a
     grid of normals: NNLS in the EGI for each spin. The pole's fixed rotation is cached, so a
@@ -236,12 +244,9 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     check["laplace_pole_err_deg"] = pole_err  # step 4's 1σ, kept beside the profile's
     if interval == "profile" and check["verdict"] == "reliable":
         # 7. the pole's profile-likelihood region (Δχ² on the profile over the period and the areas)
-        from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for profile_grids > 1
-
         from cssat.inversion.spin_errors import pole_profile_interval  # local: the profile, only while reliable
 
-        fits = [fine] + [_Fit(fine.t, fine.y, fine.w, fine.S, fine.O,
-                              fine.N @ Rotation.random(random_state=100 + g).as_matrix().T, brdf, frame)
+        fits = [fine] + [_Fit(fine.t, fine.y, fine.w, fine.S, fine.O, _turned(fine.N, 100 + g), brdf, frame)
                          for g in range(1, profile_grids)]
         chi2_fn = (lambda lo, la, ff: float(np.mean([q.chi2(lo, la, ff) for q in fits])))  # noqa: E731
         prof = pole_profile_interval(chi2_fn, lon, lat, f, span, scale2 if sig is not None else red)
@@ -280,12 +285,9 @@ def _grid_bias(fine: _Fit, lon: float, lat: float, f: float, span: float, grids:
     """``estimate_spin`` step 4's grid term: the RMS shift of the pole (degrees) and of the period
     (s) when the solution ``(lon, lat, f)`` is refined again on ``grids`` grids of ``fine``'s
     normals turned at random (seeds ``0 … grids − 1``)."""
-    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for the grid term
-
     g_pole, g_period = [], []
     for g in range(grids):
-        turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, fine.N @ Rotation.random(random_state=g).as_matrix().T,
-                      fine.brdf, fine.frame)
+        turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, _turned(fine.N, g), fine.brdf, fine.frame)
         _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
         g_pole.append(_separation_deg((lon, lat), (lon_g, lat_g)))
         g_period.append(1 / f_g - 1 / f)

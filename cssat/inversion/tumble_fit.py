@@ -132,17 +132,14 @@ def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, ch
     grid of normals turned at random — the root mean square of the shifts over ``grids`` such
     grids (seeds 0, 1, …; one shift alone is a single draw of the bias, Rayleigh-distributed in
     ``L``, often far below its spread); with the reduced χ² and the EGI's support ``(K,)``."""
-    from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
+    from cssat.inversion.spin import _separation_deg, _turned  # heavy: cssat.inversion.spin imports torch
 
     e, red, sup = _formal_errors(final, state, x, a, chi2, span, weighted)
     formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
     # the EGI grid's bias (it dominates at high SNR): the fit again on grids of normals turned at random
-    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for _errors()
-
     shifts, seps = [], []
     for g in range(grids):
-        turned = _TFit(final.t, final.y, final.w, final.S, final.O,
-                       final.N @ Rotation.random(random_state=g).as_matrix().T, final.brdf)
+        turned = _TFit(final.t, final.y, final.w, final.S, final.O, _turned(final.N, g), final.brdf)
         _, xg, _ = _refine(turned, x, state.alpha, span, final_fev, state.t_ref_s, state.frame)
         shifts.append(xg - x)
         seps.append(_separation_deg((state.lon_deg, state.lat_deg), (float(xg[5]), float(xg[6]))))
