@@ -62,7 +62,8 @@ SEARCH = dict(n_poles=60, n_starts=4, n_refine=2, coarse_normals=150, coarse_sam
               error_grids=1)
 #: the tumbling search's settings for ``--part tumble`` (those of tests/test_inversion_tumble.py's blind tumbler)
 TUMBLE = dict(n_poles=40, coarse_samples=80, coarse_normals=32, n_pairs=2, screen_moments=4, screen_poles=12, n_screen=12,
-              n_starts=6, n_refine=3, mid_samples=150, mid_normals=64, n_normals=200, max_samples=400, error_grids=1)
+              n_starts=6, n_refine=3, mid_samples=150, mid_normals=64, n_normals=200, max_samples=400, error_grids=1,
+              bootstrap=0)
 #: a circular Gaussian's radius, in units of its radial 1σ √(2)σ, that holds 68.27 % / 95.45 %
 R68, R95 = math.sqrt(-math.log(1 - 0.6827)), math.sqrt(-math.log(1 - 0.9545))
 
@@ -75,16 +76,21 @@ def _geometry(t):
     return sun, obs
 
 
-def in_class_egi(rng, n_normals=400, k=24):
-    """``k`` of the ``n_normals`` grid normals with non-negative areas closed to ``|Σ a n| ≤ 1e-3
-    Σ a`` (NNLS of the closure, weight 100, beside areas near random targets)."""
+def in_class_egi(rng, n_normals=400, k=24, on_grid=True):
+    """``k`` normals with non-negative areas closed to ``|Σ a n| ≤ 1e-3 Σ a`` (NNLS of the
+    closure, weight 100, beside areas near random targets): ``k`` of the ``n_normals`` grid
+    normals (``on_grid``: the EGI represents it exactly on the fit's own grid) or ``k`` directions
+    uniform on the sphere (a convex body off any grid: the grid's bias is then real)."""
     from scipy.optimize import nnls
 
     from cssat.inversion import fibonacci_sphere
 
-    grid = fibonacci_sphere(n_normals).numpy()
-    idx = rng.choice(n_normals, k, replace=False)
-    N = grid[idx]
+    if on_grid:
+        grid = fibonacci_sphere(n_normals).numpy()
+        N = grid[rng.choice(n_normals, k, replace=False)]
+    else:
+        N = rng.normal(size=(k, 3))
+        N /= np.linalg.norm(N, axis=1, keepdims=True)
     b = rng.uniform(0.2, 1.0, k)
     a, _ = nnls(np.vstack([100.0 * N.T, np.eye(k)]), np.concatenate([np.zeros(3), b]))
     return N, a
@@ -116,7 +122,7 @@ def render(t, sun, obs, normals, areas, pole, period, glint=0.0):
     return out
 
 
-def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None = None) -> dict:
+def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None = None, egi: str = "grid") -> dict:
     """One seed: draw, search (``search``: :data:`SEARCH` with these keys replaced), verdict, the
     truth's profile Δχ²."""
     SEARCH = {**globals()["SEARCH"], **(search or {})}
@@ -134,7 +140,7 @@ def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None
     if part == "class":  # the fit's own body frame (cssat's spin frame: phase 0 at t = 0), the areas on its grid
         from cssat.scene.attitude import spin_frame, to_body
 
-        N, a = in_class_egi(rng, SEARCH["n_normals"])
+        N, a = in_class_egi(rng, SEARCH["n_normals"], on_grid=egi == "grid")
         R = spin_frame(t, ra, dec, period, 0.0, "equatorial")
         sb, ob = to_body(R, sun), to_body(R, obs)
         y = (a / np.pi * np.clip(sb @ N.T, 0, None) * np.clip(ob @ N.T, 0, None)).sum(1)
@@ -147,7 +153,7 @@ def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None
     P0 = estimate_period(t[fit], y[fit], min_period_s=150, max_period_s=3000)["best_period_s"]
     sol = estimate_spin(t[fit], y[fit], sun[fit], obs[fit], sigma=s, frame="equatorial", period_s=P0,
                         heldout=(t[~fit], y[~fit], sun[~fit], obs[~fit], s), **SEARCH)
-    row = {"seed": seed, "part": part, "sep_deg": separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (ra, dec)),
+    row = {"seed": seed, "part": part, "egi": egi, "sep_deg": separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (ra, dec)),
            "period_rel": abs(sol.period_s / period - 1), "verdict": sol.verdict, "reduced_chi2": sol.reduced_chi2,
            "heldout_chi2_n": sol.heldout_chi2 / sol.heldout_n, "heldout_limit_n": sol.heldout_threshold / sol.heldout_n,
            "pole_err_deg": sol.pole_err_deg, "laplace_pole_err_deg": sol.laplace_pole_err_deg, "noise": s,
@@ -171,7 +177,7 @@ def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None
     return row
 
 
-def tumble_case(seed: int, search: dict | None = None) -> dict:
+def tumble_case(seed: int, search: dict | None = None, egi: str = "grid") -> dict:
     """One tumbler (``--part tumble``): draw, search blind, verdict, ``L``'s error against its 1σ."""
     from cssat.inversion.spin_errors import separation_deg
     from cssat.inversion.tumble import TumblingState, estimate_tumbling, tumbling_rates
@@ -193,7 +199,7 @@ def tumble_case(seed: int, search: dict | None = None) -> dict:
                           rng.uniform(0, 360.0), 0.0, "equatorial")
     t = np.concatenate([np.arange(0, 14400, 10.0), 86400 + np.arange(0, 14400, 10.0), 2 * 86400 + np.arange(0, 3600, 10.0)])
     sun, obs = _geometry(t)
-    N, a = in_class_egi(rng, opts["n_normals"])  # on the final fit's grid, in the body (principal) frame
+    N, a = in_class_egi(rng, opts["n_normals"], on_grid=egi == "grid")  # in the body (principal) frame
     R = truth.frames(t)
     sb, ob = np.einsum("tij,tj->ti", R, sun), np.einsum("tij,tj->ti", R, obs)
     clean = (a / np.pi * np.clip(sb @ N.T, 0, None) * np.clip(ob @ N.T, 0, None)).sum(1)
@@ -204,13 +210,14 @@ def tumble_case(seed: int, search: dict | None = None) -> dict:
     sol = estimate_tumbling(t[fit], y[fit], sun[fit], obs[fit], sigma=s, frame="equatorial", arc_s=7200.0,
                             heldout=(t[~fit], y[~fit], sun[~fit], obs[~fit], s), **opts)
     st = sol.state
-    return {"seed": seed, "part": "tumble", "sep_deg": separation_deg((st.lon_deg, st.lat_deg), (lon, lat)),
+    return {"seed": seed, "part": "tumble", "egi": egi, "sep_deg": separation_deg((st.lon_deg, st.lat_deg), (lon, lat)),
             "period_rel": max(abs(st.f_omega_hz / truth.f_omega_hz - 1), abs(st.f_phi_hz / truth.f_phi_hz - 1)),
             "i_err": max(abs(st.i1 - i1), abs(st.i2 - i2)), "mode_right": bool(st.short_axis == truth.short_axis),
             "verdict": sol.verdict, "verdict_why": sol.verdict_why, "reduced_chi2": sol.reduced_chi2, "noise": s,
             "heldout_chi2_n": sol.heldout_chi2 / sol.heldout_n, "heldout_limit_n": sol.heldout_threshold / sol.heldout_n,
             "L_err_deg": sol.errors["L_err_deg"], "formal_L_err_deg": sol.errors["formal_L_err_deg"],
-            "grid_L_shift_deg": sol.errors["grid_L_shift_deg"], "truth": [i1, i2, math.degrees(alpha), 1 / truth.f_omega_hz,
+            "grid_L_shift_deg": sol.errors["grid_L_shift_deg"],
+            "bootstrap_L_err_deg": sol.errors.get("bootstrap_L_err_deg"), "truth": [i1, i2, math.degrees(alpha), 1 / truth.f_omega_hz,
                                                                           1 / truth.f_phi_hz, lon, lat],
             "search": opts, "cpu_s": time.process_time() - clock}
 
@@ -289,9 +296,9 @@ def report(rows: list[dict]) -> None:
 
 
 def _run(args_tuple):
-    seed, part, glint, search = args_tuple
+    seed, part, glint, search, egi = args_tuple
     try:
-        return tumble_case(seed, search) if part == "tumble" else case(seed, part, glint, search)
+        return tumble_case(seed, search, egi) if part == "tumble" else case(seed, part, glint, search, egi)
     except Exception as e:  # noqa: BLE001 - a failed seed is reported, not fatal
         return {"seed": seed, "part": part, "error": repr(e)}
 
@@ -303,6 +310,8 @@ def main() -> None:
     p.add_argument("--first", type=int, default=0)
     p.add_argument("--glint", type=float, default=1.0)
     p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--egi", choices=("grid", "off"), default="grid",
+                   help="in class: the truth's EGI on the fit's own grid of normals, or off any grid")
     p.add_argument("--out", default=None, help="JSON lines, appended; seeds already there are skipped")
     p.add_argument("--report", default=None, help="only tabulate this JSON-lines file")
     p.add_argument("--search", nargs="*", default=[], metavar="KEY=INT",
@@ -323,7 +332,7 @@ def main() -> None:
     if args.out and os.path.exists(args.out):
         with open(args.out) as fh:
             done = {(r["part"], r["seed"]) for r in map(json.loads, filter(str.strip, fh))}
-    todo = [(s, args.part, args.glint, search) for s in range(args.first, args.first + args.seeds) if (args.part, s) not in done]
+    todo = [(s, args.part, args.glint, search, args.egi) for s in range(args.first, args.first + args.seeds) if (args.part, s) not in done]
     rows = []
     with mp.get_context("spawn").Pool(max(args.workers, 1)) as pool:
         for r in pool.imap_unordered(_run, todo):

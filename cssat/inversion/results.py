@@ -332,9 +332,10 @@ class TumblingSolution(Result):
     the model's misfit — glints, shadows, materials it lacks — as white noise), ``residual
     (T,)`` (flux − fit on every sample), ``errors`` (1σ of ``i1, i2, P_omega_s, P_phi_s, t0_s,
     L_lon_deg, L_lat_deg, phi0_deg`` and ``L_err_deg``, the angular 1σ of ``L``: the formal
-    Gauss–Newton 1σ on the state and the support's areas, scaled by the reduced χ² when above 1,
-    added in quadrature to the RMS shift of the fit on ``error_grids`` grids of normals turned
-    at random — ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
+    Gauss–Newton 1σ on the state and the support's areas, scaled by the reduced χ² when above 1
+    — or with ``bootstrap = B`` the RMS shift over ``B`` warm-started parametric bootstrap refits,
+    ``bootstrap_L_err_deg`` — added in quadrature to the RMS shift of the fit on ``error_grids``
+    grids of normals turned at random — ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
     fundamental frequencies the search started from), ``frequency_pairs`` (the ``(P_ω, P_φ)``
     hypotheses searched), ``alternatives`` (other refined minima with ``delta_chi2`` in units of
     the reduced χ² and ``separation_deg`` of their ``L``) and ``ambiguous`` (one of them within

@@ -38,7 +38,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
                       n_pairs: int = 3, screen_moments: int = 6, screen_poles: int = 20, n_screen: int = 24, n_starts: int = 8,
                       n_refine: int = 4, coarse_normals: int = 64, coarse_samples: int = 160, mid_normals: int = 150,
                       mid_samples: int = 400, n_normals: int = 600, max_samples: int = 1200, growth: float = 3.0,
-                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, error_grids: int = 1,
+                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, error_grids: int = 1, bootstrap: int = 0,
                       heldout: Any = None) -> TumblingSolution:
     """The torque-free tumbling state (:class:`TumblingState`) and EGI of an object from its light
     curve ``flux (T,)`` at ``times_s (T,)``, the Sun and observer directions ``sun``, ``obs (T, 3)``
@@ -77,14 +77,18 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        grid turned; the twin is refined too and kept when it fits better.
     4. 1σ by Gauss–Newton and the EGI grid's bias (:class:`TumblingSolution`): the root mean
        square of the solution's shifts when refined again (``final_fev``) on ``error_grids``
-       grids of normals turned at random, in quadrature with the formal 1σ.
+       grids of normals turned at random, in quadrature with the formal 1σ — or, with
+       ``bootstrap = B > 0``, with the RMS shift of ``B`` refits of light curves drawn from the
+       fitted model at the stated noise (a warm-started parametric bootstrap, a fixed seed; the
+       formal 1σ holds the NNLS support fixed and misses the flat valley along ``L``: ~4–30×
+       too small in class, BENCHMARKS.md "Coverage of the pole and L"). ``B`` more refinements.
     5. The verdict (``verdict``, ``verdict_why``, as :func:`~cssat.inversion.estimate_spin`'s
        step 6): ``heldout = (times_s, flux, sun, obs, sigma)`` predicted and its χ² tested against
        what a right model reaches at the noise (the ``1 − 10⁻³`` quantile of
        :func:`~cssat.inversion.spin_errors.heldout_threshold`); without it the fitted samples'
        χ²; without ``sigma`` unreliable. When unreliable the 1σ of ``L`` (``L_err_deg``,
-       ``L_lon_deg``, ``L_lat_deg``, ``formal_L_err_deg``, ``grid_L_shift_deg`` in ``errors``)
-       are NaN.
+       ``L_lon_deg``, ``L_lat_deg``, ``formal_L_err_deg``, ``grid_L_shift_deg``,
+       ``bootstrap_L_err_deg`` in ``errors``) are NaN.
 
     Assumptions: torque-free rigid rotation (no damping, no torques) over the span, a convex body
     (no self-shadowing), one BRDF shape, samples dense enough to resolve the light curve's
@@ -106,6 +110,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     arc_s = float_param(arc_s, "arc_s", 0.0, open_lo=True)
     grid_I = _check_inertia_grid(inertia_grid)
     error_grids = int_param(error_grids, "error_grids", 1, 64)  # step 4's, refused before any work
+    bootstrap = int_param(bootstrap, "bootstrap", 0, 1000)
     n_poles, n_t0, n_phi, n_starts, n_refine = (int_param(v, k, 1) for v, k in (
         (n_poles, "n_poles"), (n_t0, "n_t0"), (n_phi, "n_phi"), (n_starts, "n_starts"), (n_refine, "n_refine")))
     arc = t <= t_ref + arc_s
@@ -166,12 +171,12 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)
     # 4. 1σ: Gauss–Newton on the eight numbers and the support's areas, and the EGI grid's bias
-    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev, error_grids)
+    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev, error_grids, bootstrap)
     # 5. the verdict: the model tested on held-out data against the noise; no 1σ of L when unreliable
     check = _check_tumble(final, state, x, a, sup, chi2, span, sig, heldout)
     if check["verdict"] == "unreliable":
         errors.update({k: float("nan") for k in ("L_lon_deg", "L_lat_deg", "L_err_deg", "formal_L_err_deg",
-                                                 "grid_L_shift_deg")})
+                                                 "grid_L_shift_deg", "bootstrap_L_err_deg") if k in errors})
     alts = _alternatives(cur[1:], x, chi2, red, state)
     full = _TFit(t, y, w, S, O, fine_N, brdf)
     resid = y - full.matrix(state) @ a
@@ -204,6 +209,7 @@ def check_tumbling_options(**options: Any) -> None:
               "n_refine", "max_fev", "screen_fev", "final_fev"):
         int_param(o[k], k, 1, 10**7)
     int_param(o["error_grids"], "error_grids", 1, 64)
+    int_param(o["bootstrap"], "bootstrap", 0, 1000)
     int_param(o["coarse_normals"], "coarse_normals", 8, 10**6)
     for k in ("coarse_samples", "mid_normals", "mid_samples", "n_normals", "max_samples"):
         int_param(o[k], k, 16, 10**7)

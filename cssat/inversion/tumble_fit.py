@@ -126,30 +126,50 @@ def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndar
 
 
 def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float, weighted: bool,
-            final_fev: int, grids: int = 1) -> tuple[dict[str, float], float, np.ndarray]:
+            final_fev: int, grids: int = 1, bootstrap: int = 0) -> tuple[dict[str, float], float, np.ndarray]:
     """The solution's 1σ (:class:`~cssat.inversion.tumble.TumblingSolution`'s ``errors``): the
-    formal ones (:func:`_formal_errors`) added in quadrature to the shift of the fit on ``final``'s
-    grid of normals turned at random — the root mean square of the shifts over ``grids`` such
-    grids (seeds 0, 1, …; one shift alone is a single draw of the bias, Rayleigh-distributed in
-    ``L``, often far below its spread); with the reduced χ² and the EGI's support ``(K,)``."""
+    noise's part in quadrature with the shift of the fit on ``final``'s grid of normals turned at
+    random — the root mean square of the shifts over ``grids`` such grids (seeds 0, 1, …; one
+    shift alone is a single draw of the bias, Rayleigh-distributed in ``L``, often far below its
+    spread); with the reduced χ² and the EGI's support ``(K,)``.
+
+    The noise's part: Gauss–Newton's formal 1σ (:func:`_formal_errors`), or with ``bootstrap =
+    B > 0`` a warm-started parametric bootstrap — ``B`` light curves drawn from the fitted model
+    with the stated noise (× the reduced χ² where above 1; a fixed seed), each refitted from the
+    solution (``final_fev``, the EGI re-solved by NNLS at every step) on the same grid, the root
+    mean square of their shifts. The bootstrap measures the χ² valley as the refit sees it: where
+    the NNLS support changes along it, the valley is far flatter than the curvature with the
+    support held (the formal 1σ of ``L`` in class is ~10× too small)."""
     from cssat.inversion.spin import _separation_deg, _turned  # heavy: cssat.inversion.spin imports torch
 
     e, red, sup = _formal_errors(final, state, x, a, chi2, span, weighted)
     formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
+
+    def refit(fit: _TFit) -> tuple[np.ndarray, float]:
+        _, xg, _ = _refine(fit, x, state.alpha, span, final_fev, state.t_ref_s, state.frame)
+        return xg - x, _separation_deg((state.lon_deg, state.lat_deg), (float(xg[5]), float(xg[6])))
+
     # the EGI grid's bias (it dominates at high SNR): the fit again on grids of normals turned at random
-    shifts, seps = [], []
-    for g in range(grids):
-        turned = _TFit(final.t, final.y, final.w, final.S, final.O, _turned(final.N, g), final.brdf)
-        _, xg, _ = _refine(turned, x, state.alpha, span, final_fev, state.t_ref_s, state.frame)
-        shifts.append(xg - x)
-        seps.append(_separation_deg((state.lon_deg, state.lat_deg), (float(xg[5]), float(xg[6]))))
-    shift = np.sqrt(np.mean(np.square(shifts), axis=0))
-    grid_L = float(np.sqrt(np.mean(np.square(seps))))
-    errors = {"i1": np.hypot(e[0], shift[0]), "i2": np.hypot(e[1], shift[1]),
-              "P_omega_s": np.hypot(e[2], shift[2]) / x[2] ** 2, "P_phi_s": np.hypot(e[3], shift[3]) / x[3] ** 2,
-              "t0_s": np.hypot(e[4], shift[4]), "L_lon_deg": np.hypot(e[5], shift[5]), "L_lat_deg": np.hypot(e[6], shift[6]),
-              "phi0_deg": np.hypot(e[7], shift[7]), "L_err_deg": float(np.hypot(formal_L, grid_L)),
-              "formal_L_err_deg": formal_L, "grid_L_shift_deg": grid_L}
+    grid = [refit(_TFit(final.t, final.y, final.w, final.S, final.O, _turned(final.N, g), final.brdf))
+            for g in range(grids)]
+    shift = np.sqrt(np.mean(np.square([d for d, _ in grid]), axis=0))
+    grid_L = float(np.sqrt(np.mean(np.square([s_ for _, s_ in grid]))))
+    noise, noise_L = e, formal_L
+    out: dict[str, float] = {}
+    if bootstrap:
+        rng = np.random.default_rng(0)
+        model = final.matrix(state) @ a
+        sd = np.sqrt(max(red, 1.0) if weighted else red) / final.w
+        boot = [refit(_TFit(final.t, model + sd * rng.standard_normal(len(model)), final.w, final.S, final.O, final.N,
+                            final.brdf)) for _ in range(bootstrap)]
+        noise = np.sqrt(np.mean(np.square([d for d, _ in boot]), axis=0))
+        noise_L = float(np.sqrt(np.mean(np.square([s_ for _, s_ in boot]))))
+        out["bootstrap_L_err_deg"] = noise_L
+    errors = {"i1": np.hypot(noise[0], shift[0]), "i2": np.hypot(noise[1], shift[1]),
+              "P_omega_s": np.hypot(noise[2], shift[2]) / x[2] ** 2, "P_phi_s": np.hypot(noise[3], shift[3]) / x[3] ** 2,
+              "t0_s": np.hypot(noise[4], shift[4]), "L_lon_deg": np.hypot(noise[5], shift[5]),
+              "L_lat_deg": np.hypot(noise[6], shift[6]), "phi0_deg": np.hypot(noise[7], shift[7]),
+              "L_err_deg": float(np.hypot(noise_L, grid_L)), "formal_L_err_deg": formal_L, "grid_L_shift_deg": grid_L, **out}
     return {k: float(v) for k, v in errors.items()}, red, sup
 
 
