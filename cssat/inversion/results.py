@@ -298,9 +298,8 @@ class SpinSolution(Result):
                 "reduced_chi2", "model_fits", "ambiguous", "frame")
         out = {f"spin_{k}": self._data[k] for k in keys}
         # the verdict (estimate_spin step 6), where the solution has one
-        out.update({f"spin_{k}": self._data[k] for k in ("verdict", "verdict_why", "heldout_chi2", "heldout_n",
-                                                           "heldout_threshold", "laplace_pole_err_deg", "bootstrap_pole_err_deg")
-                    if k in self._data})
+        out.update({f"spin_{k}": self._data[k] for k in ("verdict", "verdict_why", "heldout_chi2", "heldout_n", "heldout_threshold",
+                                                           "laplace_pole_err_deg", "bootstrap_pole_err_deg") if k in self._data})
         prof = self._data.get("pole_interval")
         if prof:  # the profile-likelihood region's radii (estimate_spin step 7)
             out.update(spin_pole_radius_68_deg=prof["radius_68_deg"], spin_pole_radius_95_deg=prof["radius_95_deg"])
