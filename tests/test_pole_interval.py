@@ -292,3 +292,24 @@ def test_the_bootstrap_1sigma_of_the_pole_matches_a_brute_force_monte_carlo():
     assert sol["bootstrap_pole_err_deg"] > 0
     assert sol.pole_err_deg == pytest.approx(math.hypot(sol["bootstrap_pole_err_deg"], sol.grid_pole_shift_deg), rel=1e-12)
     assert sol.describe()["spin_bootstrap_pole_err_deg"] == sol["bootstrap_pole_err_deg"]
+
+
+def test_an_ambiguous_pole_is_unreliable_and_says_which_rival():
+    """A fit that passes its held-out test is still unreliable when another refined minimum more
+    than 10° away sits within Δχ² < 9 of it (the data do not pick the pole); a rival farther in
+    Δχ² or closer in angle changes nothing, and neither does a verdict already unreliable."""
+    from cssat.inversion.spin_errors import ambiguity
+
+    ok = {"verdict": "reliable", "verdict_why": "the model predicts the 100 held-out samples at χ²/n 1.1"}
+
+    def rival(d, sep):
+        return {"pole_lon_deg": 12.0, "pole_lat_deg": -40.0, "period_s": 500.0, "chi2": 1.0, "delta_chi2": d,
+                "separation_deg": sep}
+
+    out = ambiguity(ok, [rival(30.0, 100.0), rival(4.5, 95.0), rival(7.0, 60.0)])
+    assert out["verdict"] == "unreliable"
+    assert out["verdict_why"].startswith(ok["verdict_why"]) and "(12.0°, -40.0°), 95° away" in out["verdict_why"]
+    assert "Δχ² 4.5" in out["verdict_why"] and "not reported" in out["verdict_why"]
+    assert ambiguity(ok, [rival(9.5, 100.0), rival(2.0, 8.0)]) == {}
+    assert ambiguity({"verdict": "unreliable", "verdict_why": "x"}, [rival(1.0, 90.0)]) == {}
+    assert ambiguity(ok, []) == {}

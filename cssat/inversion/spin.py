@@ -23,7 +23,7 @@ from cssat.inversion.frequencies import estimate_tumbling_periods
 from cssat.inversion.period import estimate_period
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import SpinSolution
-from cssat.inversion.spin_errors import _night_split, _separation_deg, _spin_errors
+from cssat.inversion.spin_errors import _night_split, _separation_deg, _spin_errors, ambiguity
 from cssat.inversion.spin_search import _coarse_scan, _distinct_poles, _pole_rotation
 
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution", "MODEL_FITS_CHI2"]
@@ -159,7 +159,9 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        against the ``χ²_{n−p}`` quantile (a test a flexible model passes by overfitting: said so
        in ``verdict_why``); without ``sigma`` ``"unreliable"`` (nothing to test against). When
        unreliable the pole's 1σ (``pole_err_deg``, ``lon_err_deg``, ``lat_err_deg``,
-       ``formal_pole_err_deg``) are NaN: no 1σ is reported on a model that does not fit.
+       ``formal_pole_err_deg``) are NaN: no 1σ is reported on a model that does not fit. A fit
+       that passes is still called unreliable when it is ``ambiguous``: another refined minimum
+       more than 10° away within Δχ² < 9 (the data do not decide between the poles).
        ``heldout_chi2``, ``heldout_n``, ``heldout_threshold`` (χ², not per sample).
     7. ``interval="profile"`` (the default; ``"laplace"``: step 4's 1σ alone), when reliable:
        the pole's profile-likelihood region — the χ² minimised over the period (bounded
@@ -248,6 +250,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     resid = y - full.matrix(lon, lat, f) @ a
     normals, areas, lobe_areas, _ = split_lobes(a, fine.N, brdf)
     check = _check_spin(fine, a, sup, lon, lat, f, chi2, span, sig, heldout, brdf, frame)
+    check.update(ambiguity(check, alts))
     check["pole_interval"] = None
     check["laplace_pole_err_deg"] = pole_err  # step 4's 1σ, kept beside the profile's
     if interval == "profile" and check["verdict"] == "reliable":

@@ -177,6 +177,22 @@ def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, 
     return {"verdict": verdict, "verdict_why": why, **out}
 
 
+def ambiguity(check: dict[str, Any], alts: list[dict[str, Any]]) -> dict[str, str]:
+    """``estimate_spin`` step 6's second test: a reliable fit with another refined minimum more
+    than 10° away within Δχ² < 9 (in units of the reduced χ² where above 1) of it is unreliable
+    — the data do not decide between the two poles (in class, 2 of the 3 wrong poles a held-out
+    night passed: BENCHMARKS.md "Coverage of the pole and L"). Returns the verdict's keys to
+    change (none when there is nothing to change)."""
+    rivals = [al for al in alts if al["delta_chi2"] < 9.0 and al["separation_deg"] > 10.0]
+    if check["verdict"] != "reliable" or not rivals:
+        return {}
+    r = min(rivals, key=lambda al: al["delta_chi2"])
+    return {"verdict": "unreliable",
+            "verdict_why": (f"{check['verdict_why']}, but another pole ({r['pole_lon_deg']:.1f}°, {r['pole_lat_deg']:.1f}°), "
+                            f"{r['separation_deg']:.0f}° away, fits within Δχ² {r['delta_chi2']:.2g} (under 9) of this one: "
+                            f"the data do not decide between them (both in alternatives), so the pole's 1σ is not reported")}
+
+
 def _offset_pole(lon: float, lat: float, bearing_deg: float, dist_deg: float) -> tuple[float, float]:
     """The pole ``dist_deg`` from ``(lon, lat)`` along the great circle at ``bearing_deg``."""
     p = _pole_vector(lon, lat)
