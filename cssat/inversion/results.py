@@ -335,7 +335,7 @@ class TumblingSolution(Result):
     Gauss–Newton 1σ on the state and the support's areas, scaled by the reduced χ² when above 1
     — or with ``bootstrap = B`` the RMS shift over ``B`` warm-started parametric bootstrap refits,
     ``bootstrap_L_err_deg`` — added in quadrature to the RMS shift of the fit on ``error_grids``
-    grids of normals turned at random — ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
+    refinements of its grid of normals — ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
     fundamental frequencies the search started from), ``frequency_pairs`` (the ``(P_ω, P_φ)``
     hypotheses searched), ``alternatives`` (other refined minima with ``delta_chi2`` in units of
     the reduced χ² and ``separation_deg`` of their ``L``) and ``ambiguous`` (one of them within

@@ -65,6 +65,14 @@ def _turned(normals: np.ndarray, seed: int) -> np.ndarray:
     return normals @ Rotation.random(random_state=seed).as_matrix().T
 
 
+def _refined(normals: np.ndarray, seed: int) -> np.ndarray:
+    """``(2K, 3)``: ``normals (K, 3)`` joined with :func:`_turned`'s copy — the grid refined (twice
+    the normals, the first among them). The fit's shift onto it measures the grid's bias as a
+    convergence check does: an EGI on the first grid (in the model class) moves only by the
+    noise the extra normals fit; one between its normals moves toward where a finer grid puts it."""
+    return np.concatenate([normals, _turned(normals, seed)])
+
+
 class _Fit:
     """The EGI fit's χ² as a function of the spin ``(λ, β, f)`` on a subset of samples and a
     grid of normals: NNLS in the EGI for each spin. The pole's fixed rotation is cached, so a
@@ -133,12 +141,13 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        ``n_normals`` normals. The best is the solution, the others its ``alternatives``.
     4. 1σ: the formal Gauss–Newton covariance of ``(λ, β, f)`` and the support's areas, scaled
        by the reduced χ² when it exceeds 1 (the model's misfit counts as noise), added in
-       quadrature to the shift of the solution when the search is refined again on a grid of
-       normals turned at random (the EGI grid's bias, which dominates at high SNR) — the root
-       mean square of the shifts over ``error_grids`` grids (seeds 0, 1, …; one shift is a
-       single draw of the bias, often far below its spread): ``formal_pole_err_deg``,
-       ``grid_pole_shift_deg`` and their sum ``pole_err_deg``; the same for the period. Each
-       grid costs one Nelder–Mead refinement on the fine fit.
+       quadrature to the shift of the solution when it is refined again on the grid of normals
+       refined — joined with a copy turned at random, twice the normals (the EGI grid's bias,
+       which dominates at high SNR; an EGI on the grid itself moves only by the noise the extra
+       normals fit) — the root mean square of the shifts over ``error_grids`` such grids (seeds
+       0, 1, …; one shift is a single draw of the bias, often far below its spread):
+       ``formal_pole_err_deg``, ``grid_pole_shift_deg`` and their sum ``pole_err_deg``; the same
+       for the period. Each grid costs one Nelder–Mead refinement on twice the fine fit's normals.
 
     5. ``split_nights`` (a diagnostic, not a 1σ): the search again on each contiguous stretch
        alone (a night, or its part between gaps of over 30 min) from the same synodic period:
@@ -299,11 +308,11 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
 
 def _grid_bias(fine: _Fit, lon: float, lat: float, f: float, span: float, grids: int) -> tuple[float, float]:
     """``estimate_spin`` step 4's grid term: the RMS shift of the pole (degrees) and of the period
-    (s) when the solution ``(lon, lat, f)`` is refined again on ``grids`` grids of ``fine``'s
-    normals turned at random (seeds ``0 … grids − 1``)."""
+    (s) when the solution ``(lon, lat, f)`` is refined again on ``grids`` refinements of
+    ``fine``'s grid of normals (:func:`_refined`, seeds ``0 … grids − 1``)."""
     g_pole, g_period = [], []
     for g in range(grids):
-        turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, _turned(fine.N, g), fine.brdf, fine.frame)
+        turned = _Fit(fine.t, fine.y, fine.w, fine.S, fine.O, _refined(fine.N, g), fine.brdf, fine.frame)
         _, lon_g, lat_g, f_g = _refine_spin(turned, (lon, lat, f), 1.0, 5.0, span)
         g_pole.append(_separation_deg((lon, lat), (lon_g, lat_g)))
         g_period.append(1 / f_g - 1 / f)

@@ -77,7 +77,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        grid turned; the twin is refined too and kept when it fits better.
     4. 1σ by Gauss–Newton and the EGI grid's bias (:class:`TumblingSolution`): the root mean
        square of the solution's shifts when refined again (``final_fev``) on ``error_grids``
-       grids of normals turned at random, in quadrature with the formal 1σ — or, with
+       refinements of the grid of normals (each joined with a copy turned at random: twice the
+       normals), in quadrature with the formal 1σ — or, with
        ``bootstrap = B > 0``, with the RMS shift of ``B`` refits of light curves drawn from the
        fitted model at the stated noise (a warm-started parametric bootstrap, a fixed seed; the
        formal 1σ holds the NNLS support fixed and misses the flat valley along ``L``: ~4–30×
