@@ -229,7 +229,7 @@ class SpinSolution(Result):
     other local minima refined at full resolution (``pole_lon_deg``, ``pole_lat_deg``,
     ``period_s``, ``chi2``, ``delta_chi2`` over the best in units of the reduced χ²,
     ``separation_deg`` from the best pole); ``ambiguous`` is true when one of them, more than
-    10° away, is within Δχ² < 9 (3σ). ``model_fits``: the reduced χ² is at most
+    10° away, is within Δχ² < 9 (3σ) — and the ``verdict`` unreliable. ``model_fits``: the reduced χ² is at most
     :data:`~cssat.inversion.period_verdict.MODEL_FITS_CHI2` (``None`` without ``sigma``). When
     false the model misses the data by more than the noise (self-shadowing, glints, materials
     the BRDF does not have) and the 1σ, scaled by the reduced χ², still counts that misfit as
@@ -335,7 +335,7 @@ class TumblingSolution(Result):
     Gauss–Newton 1σ on the state and the support's areas, scaled by the reduced χ² when above 1
     — or with ``bootstrap = B`` the RMS shift over ``B`` warm-started parametric bootstrap refits,
     ``bootstrap_L_err_deg`` — added in quadrature to the RMS shift of the fit on ``error_grids``
-    refinements of its grid of normals — ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
+    grids of normals (turned; refined with the bootstrap) — ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
     fundamental frequencies the search started from), ``frequency_pairs`` (the ``(P_ω, P_φ)``
     hypotheses searched), ``alternatives`` (other refined minima with ``delta_chi2`` in units of
     the reduced χ² and ``separation_deg`` of their ``L``) and ``ambiguous`` (one of them within

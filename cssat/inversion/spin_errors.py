@@ -1,5 +1,7 @@
-"""The spin's 1σ (:func:`cssat.inversion.spin.estimate_spin`, steps 4 and 5): the Gauss–Newton
-covariance of the pole, the period and the support's areas, and the spread of the nights' own spins."""
+"""The spin's 1σ and verdict (:func:`cssat.inversion.spin.estimate_spin`, steps 4–7): the
+Gauss–Newton covariance of the pole, the period and the support's areas, the grids of normals
+the grid's bias is measured on (turned, refined), the spread of the nights' own spins, the
+held-out test and the ambiguity rule, and the pole's profile-likelihood region."""
 
 from __future__ import annotations
 
@@ -22,6 +24,22 @@ def separation_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
 
 
 _separation_deg = separation_deg  # the old private name, kept for old imports
+
+
+def _turned(normals: np.ndarray, seed: int) -> np.ndarray:
+    """``normals (K, 3)`` turned by scipy's random rotation of ``seed``: a grid of normals as
+    good as the first and placed otherwise (the EGI grid's bias is measured against it)."""
+    from scipy.spatial.transform import Rotation  # heavy: scipy.spatial, only for a turned grid
+
+    return normals @ Rotation.random(random_state=seed).as_matrix().T
+
+
+def _refined(normals: np.ndarray, seed: int) -> np.ndarray:
+    """``(2K, 3)``: ``normals (K, 3)`` joined with :func:`_turned`'s copy — the grid refined (twice
+    the normals, the first among them). The fit's shift onto it measures the grid's bias as a
+    convergence check does: an EGI on the first grid (in the model class) moves only by the
+    noise the extra normals fit; one between its normals moves toward where a finer grid puts it."""
+    return np.concatenate([normals, _turned(normals, seed)])
 
 
 def _spin_errors(fine: Any, lon: float, lat: float, f: float, chi2: float, span: float,

@@ -38,7 +38,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
                       n_pairs: int = 3, screen_moments: int = 6, screen_poles: int = 20, n_screen: int = 24, n_starts: int = 8,
                       n_refine: int = 4, coarse_normals: int = 64, coarse_samples: int = 160, mid_normals: int = 150,
                       mid_samples: int = 400, n_normals: int = 600, max_samples: int = 1200, growth: float = 3.0,
-                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, error_grids: int = 1, bootstrap: int = 0,
+                      max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, error_grids: int = 1, bootstrap: int = 20,
                       heldout: Any = None) -> TumblingSolution:
     """The torque-free tumbling state (:class:`TumblingState`) and EGI of an object from its light
     curve ``flux (T,)`` at ``times_s (T,)``, the Sun and observer directions ``sun``, ``obs (T, 3)``
@@ -77,12 +77,13 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        grid turned; the twin is refined too and kept when it fits better.
     4. 1σ by Gauss–Newton and the EGI grid's bias (:class:`TumblingSolution`): the root mean
        square of the solution's shifts when refined again (``final_fev``) on ``error_grids``
-       refinements of the grid of normals (each joined with a copy turned at random: twice the
-       normals), in quadrature with the formal 1σ — or, with
-       ``bootstrap = B > 0``, with the RMS shift of ``B`` refits of light curves drawn from the
-       fitted model at the stated noise (a warm-started parametric bootstrap, a fixed seed; the
-       formal 1σ holds the NNLS support fixed and misses the flat valley along ``L``: ~4–30×
-       too small in class, BENCHMARKS.md "Coverage of the pole and L"). ``B`` more refinements.
+       grids of normals, in quadrature with — when the verdict (step 5) is reliable and
+       ``bootstrap = B > 0`` (default 20) — the RMS shift of ``B`` refits of light curves drawn
+       from the fitted model at the stated noise (a warm-started parametric bootstrap, a fixed
+       seed; ``B`` more refinements; the grids then the fine one refined, joined with a copy
+       turned at random), else the formal 1σ (it holds the NNLS support fixed and misses the
+       flat valley along ``L``: ~4–30× too small in class, BENCHMARKS.md "Coverage of the pole
+       and L"; the grids then turned at random, whose shift carries part of that valley).
     5. The verdict (``verdict``, ``verdict_why``, as :func:`~cssat.inversion.estimate_spin`'s
        step 6): ``heldout = (times_s, flux, sun, obs, sigma)`` predicted and its χ² tested against
        what a right model reaches at the noise (the ``1 − 10⁻³`` quantile of
@@ -171,10 +172,11 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     state.lon_deg = float((state.lon_deg + 180.0) % 360.0 - 180.0)
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)
-    # 4. 1σ: Gauss–Newton on the eight numbers and the support's areas, and the EGI grid's bias
-    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev, error_grids, bootstrap)
     # 5. the verdict: the model tested on held-out data against the noise; no 1σ of L when unreliable
-    check = _check_tumble(final, state, x, a, sup, chi2, span, sig, heldout)
+    check = _check_tumble(final, state, x, a, a > 1e-9 * max(float(a.max()), 1e-300), chi2, span, sig, heldout)
+    # 4. 1σ: the bootstrap (when reliable) or Gauss–Newton, and the EGI grid's bias
+    errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev, error_grids,
+                               bootstrap if check["verdict"] == "reliable" else 0)
     if check["verdict"] == "unreliable":
         errors.update({k: float("nan") for k in ("L_lon_deg", "L_lat_deg", "L_err_deg", "formal_L_err_deg",
                                                  "grid_L_shift_deg", "bootstrap_L_err_deg") if k in errors})

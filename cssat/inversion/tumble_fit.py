@@ -128,11 +128,12 @@ def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndar
 def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float, weighted: bool,
             final_fev: int, grids: int = 1, bootstrap: int = 0) -> tuple[dict[str, float], float, np.ndarray]:
     """The solution's 1σ (:class:`~cssat.inversion.tumble.TumblingSolution`'s ``errors``): the
-    noise's part in quadrature with the shift of the fit when ``final``'s grid of normals is
-    refined (:func:`~cssat.inversion.spin._refined`: joined with a copy turned at random) — the
-    root mean square of the shifts over ``grids`` such grids (seeds 0, 1, …; one shift alone is a
-    single draw of the bias, Rayleigh-distributed in ``L``, often far below its spread); with the
-    reduced χ² and the EGI's support ``(K,)``.
+    noise's part in quadrature with the shift of the fit on ``final``'s grid of normals turned at
+    random — with the bootstrap, on that grid refined (:func:`~cssat.inversion.spin._refined`:
+    joined with its turned copy; without it, the turned grid's shift also carries part of the
+    valley the formal 1σ misses) — the root mean square of the shifts over ``grids`` such grids
+    (seeds 0, 1, …; one shift alone is a single draw of the bias, Rayleigh-distributed in ``L``,
+    often far below its spread); with the reduced χ² and the EGI's support ``(K,)``.
 
     The noise's part: Gauss–Newton's formal 1σ (:func:`_formal_errors`), or with ``bootstrap =
     B > 0`` a warm-started parametric bootstrap — ``B`` light curves drawn from the fitted model
@@ -141,7 +142,7 @@ def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, ch
     mean square of their shifts. The bootstrap measures the χ² valley as the refit sees it: where
     the NNLS support changes along it, the valley is far flatter than the curvature with the
     support held (the formal 1σ of ``L`` in class is ~10× too small)."""
-    from cssat.inversion.spin import _refined, _separation_deg  # heavy: cssat.inversion.spin imports torch
+    from cssat.inversion.spin_errors import _refined, _separation_deg, _turned  # local: the 1σ's, only here
 
     e, red, sup = _formal_errors(final, state, x, a, chi2, span, weighted)
     formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
@@ -150,8 +151,8 @@ def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, ch
         _, xg, _ = _refine(fit, x, state.alpha, span, final_fev, state.t_ref_s, state.frame)
         return xg - x, _separation_deg((state.lon_deg, state.lat_deg), (float(xg[5]), float(xg[6])))
 
-    # the EGI grid's bias (it dominates at high SNR): the fit again on the grid refined (joined with a turned copy)
-    grid = [refit(_TFit(final.t, final.y, final.w, final.S, final.O, _refined(final.N, g), final.brdf))
+    # the EGI grid's bias (it dominates at high SNR): the fit again on a turned grid, or with the bootstrap the grid refined
+    grid = [refit(_TFit(final.t, final.y, final.w, final.S, final.O, (_refined if bootstrap else _turned)(final.N, g), final.brdf))
             for g in range(grids)]
     shift = np.sqrt(np.mean(np.square([d for d, _ in grid]), axis=0))
     grid_L = float(np.sqrt(np.mean(np.square([s_ for _, s_ in grid]))))

@@ -125,10 +125,10 @@ class InversionConfig:
     max_period_s: float = 3000.0
     #: a diagnostic: the spin also searched on each night alone, the spread of their poles reported
     split_nights: bool = False
-    #: refinements of the grid of normals (each joined with a turned copy) whose RMS shift of the solution is the EGI grid's bias in the
+    #: grids of normals turned at random (refined, with the bootstrap) whose RMS shift of the solution is the EGI grid's bias in the
     #: pole's 1σ (one refinement each; one shift alone is a single draw, often far below the spread)
     error_grids: int = 1
-    #: parametric-bootstrap refits for the noise's part of the pole's 1σ (0: the profile region's)
+    #: parametric-bootstrap refits for the noise's part of the pole's 1σ when reliable (0: the profile region's)
     bootstrap: int = 0
     #: the shape fitted after the EGI: convex (the EGI's Minkowski polytope) | parametric (a shadowed box-wing)
     shape: str = "convex"
