@@ -62,7 +62,7 @@ def _verdict(null: dict[str, Any], fap_white: float, fap_max: float, n_cycles: f
     """The verdict word and its reason (:func:`cssat.inversion.estimate_period`, point 7):
     ``null`` the surrogates' FAPs, ``fap_white`` the white-noise F-test's, ``variation_snr`` the
     fitted series' rms over the single-sample noise."""
-    fap, fap_all = null["fap"], null["fap_all"]
+    fap = null["fap"]
     sur = f"{null['n']} surrogates of the track's own noise"
     if fap < fap_max:
         if n_cycles < min_cycles:
