@@ -164,8 +164,10 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     if twin is not None:
         _, c_twin = final.solve(twin)
         if c_twin < chi2:
-            cur[0] = min(_refine(final, twin.vector(), twin.alpha, span, final_fev, t_ref, frame),
-                         (float(c_twin), twin.vector(), twin.alpha), key=lambda r: r[0])
+            refined = _refine(final, twin.vector(), twin.alpha, span, final_fev, t_ref, frame)
+            motions = [r for r in (refined, (float(c_twin), twin.vector(), twin.alpha))  # kept only as a motion
+                       if TumblingState.from_vector(r[1], r[2], t_ref, frame) is not None] or [cur[0]]
+            cur[0] = min(motions, key=lambda r: r[0])
             log.info("estimate_tumbling: the twin motion fits better (chi2 %.6g -> %.6g)", chi2, cur[0][0])
             chi2, x, alpha = cur[0]
             state = TumblingState.from_vector(x, alpha, t_ref, frame)
