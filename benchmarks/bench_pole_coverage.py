@@ -32,6 +32,11 @@ verdict; the separation of ``L`` against its reported 1σ ``L_err_deg`` (the rad
 ``√(σ_β² + cos²β σ_λ²)`` ⊕ the turned grid's shift): inside ``1.0714 × L_err_deg`` for the
 68.27 % region and ``1.7579 ×`` for the 95.45 % one of a circular Gaussian.
 
+``--egi off`` draws the in-class truths' normals off any grid (uniform on the sphere) instead of
+on the fit's own grid. ``--search bootstrap=B`` (and ``error_grids=G``) sets the estimators' 1σ
+options; the rows keep each part of the 1σ (bootstrap, grid, formal / profile) so that
+``--report`` prints each alone.
+
 Each seed is independent; ``--workers N`` spreads them over N one-thread processes; one line a
 seed goes to ``--out`` (JSON lines, appended: an interrupted run resumes)::
 
