@@ -29,7 +29,7 @@ hour of the third day held out, 10 s cadence, GEO-like geometry, 0.5–2 % noise
 search is :func:`cssat.inversion.estimate_tumbling`'s, blind (the frequency lattice from the light
 curve, the default inertia grid), at :data:`TUMBLE` (``--search`` changes them). Counted: the
 verdict; the separation of ``L`` against its reported 1σ ``L_err_deg`` (the radial 1σ,
-``√(σ_β² + cos²β σ_λ²)`` ⊕ the turned grid's shift): inside ``1.0714 × L_err_deg`` for the
+the bootstrap's, or ``√(σ_β² + cos²β σ_λ²)`` with ``bootstrap=0``, ⊕ the grid's shift): inside ``1.0714 × L_err_deg`` for the
 68.27 % region and ``1.7579 ×`` for the 95.45 % one of a circular Gaussian.
 
 ``--egi off`` draws the in-class truths' normals off any grid (uniform on the sphere) instead of
@@ -68,7 +68,7 @@ SEARCH = dict(n_poles=60, n_starts=4, n_refine=2, coarse_normals=150, coarse_sam
 #: the tumbling search's settings for ``--part tumble`` (those of tests/test_inversion_tumble.py's blind tumbler)
 TUMBLE = dict(n_poles=40, coarse_samples=80, coarse_normals=32, n_pairs=2, screen_moments=4, screen_poles=12, n_screen=12,
               n_starts=6, n_refine=3, mid_samples=150, mid_normals=64, n_normals=200, max_samples=400, error_grids=1,
-              bootstrap=0)
+              bootstrap=20)
 #: a circular Gaussian's radius, in units of its radial 1σ √(2)σ, that holds 68.27 % / 95.45 %
 R68, R95 = math.sqrt(-math.log(1 - 0.6827)), math.sqrt(-math.log(1 - 0.9545))
 

@@ -23,7 +23,7 @@ from cssat.inversion.frequencies import estimate_tumbling_periods
 from cssat.inversion.period import estimate_period
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import SpinSolution
-from cssat.inversion.spin_errors import _night_split, _refined, _separation_deg, _spin_errors, _turned, ambiguity
+from cssat.inversion.spin_errors import _night_split, _refined, _separation_deg, _spin_errors, _turned, ambiguity, rivals
 from cssat.inversion.spin_search import _coarse_scan, _distinct_poles, _pole_rotation
 
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution", "MODEL_FITS_CHI2"]
@@ -239,7 +239,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         lo2 = float((lo2 + 180.0) % 360.0 - 180.0)
         alts.append({"pole_lon_deg": lo2, "pole_lat_deg": float(la2), "period_s": float(1 / f2), "chi2": float(c2),
                      "delta_chi2": float((c2 - chi2) / scale2), "separation_deg": _separation_deg((lon, lat), (lo2, la2))})
-    ambiguous = any(al["delta_chi2"] < 9.0 and al["separation_deg"] > 10.0 for al in alts)
+    ambiguous = bool(rivals(alts))
     # the residual on every sample (not only the fit's subset)
     full = _Fit(t, y, w, S, O, fine.N, brdf, frame)
     resid = y - full.matrix(lon, lat, f) @ a
@@ -267,7 +267,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         pole_err = float(np.hypot(prof["pole_err_deg"], grid_pole))
     if bootstrap and check["verdict"] == "reliable":  # 8. the noise's part by a parametric bootstrap
         check["bootstrap_pole_err_deg"], check["bootstrap_period_err_s"] = _bootstrap_spin(
-            fine, fine.matrix(lon, lat, f) @ fine.solve(lon, lat, f)[0], lon, lat, f, span, scale2, bootstrap)
+            fine, fine.matrix(lon, lat, f) @ a, lon, lat, f, span, scale2, bootstrap)  # a: the EGI at (lon, lat, f)
         pole_err = float(np.hypot(check["bootstrap_pole_err_deg"], grid_pole))
         period_err = float(np.hypot(check["bootstrap_period_err_s"], grid_period))
     if check["verdict"] == "unreliable":

@@ -42,13 +42,18 @@ def _refined(normals: np.ndarray, seed: int) -> np.ndarray:
     return np.concatenate([normals, _turned(normals, seed)])
 
 
+def _support(a: np.ndarray) -> np.ndarray:
+    """The EGI ``a (K,)``'s support ``(K,)`` (bool): the areas above 1e-9 of the largest."""
+    return a > 1e-9 * max(float(a.max()), 1e-300)
+
+
 def _spin_errors(fine: Any, lon: float, lat: float, f: float, chi2: float, span: float,
                  weighted: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """The EGI ``a (K,)`` at the spin ``(lon, lat, f)`` on ``fine``, its support ``(K,)`` (bool),
     the formal Gauss–Newton 1σ ``(3,)`` of ``(λ, β, f)`` with the support's areas, the reduced χ²
     and the covariance's scale (the reduced χ², at least 1 when ``weighted``)."""
     a, _ = fine.solve(lon, lat, f)
-    sup = a > 1e-9 * max(float(a.max()), 1e-300)
+    sup = _support(a)
     J = _spin_jacobian(fine, lon, lat, f, a, sup, span)
     dof = max(len(fine.t) - J.shape[1], 1)
     red = chi2 / dof
@@ -195,16 +200,22 @@ def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, 
     return {"verdict": verdict, "verdict_why": why, **out}
 
 
+def rivals(alts: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The ``alternatives`` (each with ``delta_chi2`` and ``separation_deg``) that make a solution
+    ``ambiguous``: more than 10° away and within Δχ² < 9 (3σ) of it."""
+    return [al for al in alts if al["delta_chi2"] < 9.0 and al["separation_deg"] > 10.0]
+
+
 def ambiguity(check: dict[str, Any], alts: list[dict[str, Any]]) -> dict[str, str]:
     """``estimate_spin`` step 6's second test: a reliable fit with another refined minimum more
     than 10° away within Δχ² < 9 (in units of the reduced χ² where above 1) of it is unreliable
     — the data do not decide between the two poles (in class, 2 of the 3 wrong poles a held-out
     night passed: BENCHMARKS.md "Coverage of the pole and L"). Returns the verdict's keys to
     change (none when there is nothing to change)."""
-    rivals = [al for al in alts if al["delta_chi2"] < 9.0 and al["separation_deg"] > 10.0]
-    if check["verdict"] != "reliable" or not rivals:
+    close = rivals(alts)
+    if check["verdict"] != "reliable" or not close:
         return {}
-    r = min(rivals, key=lambda al: al["delta_chi2"])
+    r = min(close, key=lambda al: al["delta_chi2"])
     return {"verdict": "unreliable",
             "verdict_why": (f"{check['verdict_why']}, but another pole ({r['pole_lon_deg']:.1f}°, {r['pole_lat_deg']:.1f}°), "
                             f"{r['separation_deg']:.0f}° away, fits within Δχ² {r['delta_chi2']:.2g} (under 9) of this one: "

@@ -21,7 +21,7 @@ import numpy as np
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import TumblingSolution
-from cssat.inversion.tumble_fit import _alternatives, _check_tumble, _continuation, _errors, _refine
+from cssat.inversion.tumble_fit import _alternatives, _check_tumble, _continuation, _errors, _refine, _support
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
 
@@ -175,7 +175,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)
     # 5. the verdict: the model tested on held-out data against the noise; no 1σ of L when unreliable
-    check = _check_tumble(final, state, x, a, a > 1e-9 * max(float(a.max()), 1e-300), chi2, span, sig, heldout)
+    check = _check_tumble(final, state, x, a, _support(a), chi2, span, sig, heldout)
     # 4. 1σ: the bootstrap (when reliable) or Gauss–Newton, and the EGI grid's bias
     errors, red, sup = _errors(final, state, x, a, chi2, span, sig is not None, final_fev, error_grids,
                                bootstrap if check["verdict"] == "reliable" else 0)
@@ -186,13 +186,14 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     full = _TFit(t, y, w, S, O, fine_N, brdf)
     resid = y - full.matrix(state) @ a
     from cssat.inversion.egi import split_lobes  # heavy: cssat.inversion.egi imports torch
+    from cssat.inversion.spin_errors import rivals  # local: the spin's 1σ module, as tumble_fit's
 
     normals, areas, lobe_areas, _ = split_lobes(a, fine_N, brdf)
     return TumblingSolution(state=state, normals=normals, areas=areas, lobe_areas=lobe_areas, chi2=float(chi2),
                             reduced_chi2=float(red), model_fits=bool(red <= MODEL_FITS_CHI2) if sig is not None else None,
                             residual=resid, errors=errors, lattice_hz=np.asarray(lattice),
                             frequency_pairs=[(1 / fw, 1 / fp) for fw, fp in pairs], alternatives=alts,
-                            ambiguous=any(al["delta_chi2"] < 9 and al["separation_deg"] > 10 for al in alts), brdf=brdf,
+                            ambiguous=bool(rivals(alts)), brdf=brdf,
                             **check,
                             coarse=[{"chi2": float(r[0]), "P_omega_s": float(1 / r[1][2]), "P_phi_s": float(1 / r[1][3]),
                                      "i1": float(r[1][0]), "i2": float(r[1][1])} for r in table[:20]])

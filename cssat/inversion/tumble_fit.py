@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import float_param
+from cssat.inversion.spin_errors import _support
 from cssat.inversion.tumble_state import TumblingState, _TFit
 
 log = logging.getLogger("cssat")
@@ -117,7 +118,7 @@ def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndar
     """Gauss–Newton on the eight numbers ``x (8,)`` and the support's areas of the EGI ``a (K,)``:
     the 1σ ``(8,)`` (scaled by the reduced χ² — when above 1 if ``weighted``), the reduced χ² and
     the support ``(K,)`` (bool)."""
-    sup = a > 1e-9 * max(float(a.max()), 1e-300)
+    sup = _support(a)
     J = _tumble_jacobian(final, state, x, a, sup, span)
     dof = max(len(final.t) - J.shape[1], 1)
     red = chi2 / dof
