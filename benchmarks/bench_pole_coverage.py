@@ -164,7 +164,9 @@ def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None
            "pole_err_deg": sol.pole_err_deg, "laplace_pole_err_deg": sol.laplace_pole_err_deg, "noise": s,
            "ambiguous": sol.ambiguous, "grid_pole_shift_deg": sol.grid_pole_shift_deg,
            "search": {k: SEARCH[k] for k in ("n_poles", "n_starts", "n_refine", "error_grids", "bootstrap")},
-           "bootstrap_pole_err_deg": sol.get("bootstrap_pole_err_deg")}
+           "bootstrap_pole_err_deg": sol.get("bootstrap_pole_err_deg"), "period_s_true": period, "period_err_s": sol.period_err_s,
+           "bootstrap_period_err_s": sol.get("bootstrap_period_err_s"), "grid_period_shift_s": sol["grid_period_shift_s"],
+           "bootstrap_lr_factor": sol.get("bootstrap_lr_factor")}
     prof = sol.pole_interval
     if prof:
         # the truth's profile Δχ² on the same samples and normals as the fit's (estimate_spin's subset)

@@ -250,10 +250,11 @@ def test_the_pole_1sigma_adds_the_grids_bias_to_the_profile_region():
 @pytest.mark.slow
 def test_the_bootstrap_1sigma_of_the_pole_matches_a_brute_force_monte_carlo():
     """The spin's bootstrap (``estimate_spin`` step 8) from ONE noisy light curve against the
-    estimator's own spread, written here: 16 independent noise draws on the TRUE model (areas on
+    estimator's own spread, written here: 40 independent noise draws on the TRUE model (areas on
     the fit's 100 grid normals: in class), each refined from the truth on the same samples and
-    normals — the two RMS pole shifts within a factor 1.7 (each ~13 % from 16 draws of a 2-D
-    error). Then through ``estimate_spin``: the reported 1σ is the bootstrap's and the grid's in
+    normals — the two RMS pole shifts within a factor 1.7 (each ~8 % from 40 draws of a 2-D
+    error), and the two mean likelihood ratios at the pole drawn from (the bootstrap's
+    calibration of the profile's Δχ²) within 1.7. Then through ``estimate_spin``: the reported 1σ is the bootstrap's and the grid's in
     quadrature, and a bad count is refused by name."""
     from cssat._checks import FieldError
     from cssat.inversion import estimate_spin, fibonacci_sphere
@@ -271,14 +272,28 @@ def test_the_bootstrap_1sigma_of_the_pole_matches_a_brute_force_monte_carlo():
     def fitted(y):
         fit = _Fit(t, y, w, sun, obs, N, None, "equatorial")
         c, lon, lat, f = _refine_spin(fit, truth, 1.0, 5.0, span)
-        return fit, lon, lat, f
+        return fit, c, lon, lat, f
 
-    mc = [separation_deg(truth[:2], fitted(clean + s * rng.standard_normal(t.size))[1:3]) for _ in range(16)]
+    mc, lr = [], []
+    for _ in range(40):
+        fit, c, lon, lat, f = fitted(clean + s * rng.standard_normal(t.size))
+        mc.append(separation_deg(truth[:2], (lon, lat)))
+        # the likelihood ratio at the true pole: the χ² minimised over the period at the truth's pole (brute force: a
+        # grid of periods ± 0.05 cycles over the span, then the best's neighbourhood), less the fit's minimum
+        dfs = np.linspace(-0.05, 0.05, 41)
+        best = min(dfs, key=lambda d: fit.chi2(*truth[:2], truth[2] + d / span))
+        c_true = min(fit.chi2(*truth[:2], truth[2] + d / span) for d in best + np.linspace(-0.0025, 0.0025, 41))
+        lr.append(max(c_true - c, 0.0))
     mc_rms = float(np.sqrt(np.mean(np.square(mc))))
-    fit, lon, lat, f = fitted(clean + s * rng.standard_normal(t.size))
-    boot, boot_period = _bootstrap_spin(fit, fit.matrix(lon, lat, f) @ fit.solve(lon, lat, f)[0], lon, lat, f, span, 1.0, 16)
+    mc_lr = float(np.mean(lr) / 2)
+    fit, _, lon, lat, f = fitted(clean + s * rng.standard_normal(t.size))
+    boot, boot_period, boot_lr = _bootstrap_spin(fit, fit.matrix(lon, lat, f) @ fit.solve(lon, lat, f)[0], lon, lat, f,
+                                                 span, 1.0, 40)
     assert mc_rms > 0 and 1 / 1.7 < boot / mc_rms < 1.7, (boot, mc_rms)
     assert boot_period > 0
+    # the bootstrap's calibration of the profile's Δχ² against the same estimator's Monte Carlo at the truth
+    # (each a mean of 40 draws of about χ²₂/2: ~16 % from its mean by chance)
+    assert mc_lr > 0 and 1 / 1.7 < boot_lr / mc_lr < 1.7, (boot_lr, mc_lr)
 
     t, sun, obs, y, s = _in_class_spinner(1, 4, 60, 6, 100, 12, (100.0, 10.0), 0.01)
     keep = t < 3 * 86400
@@ -292,6 +307,24 @@ def test_the_bootstrap_1sigma_of_the_pole_matches_a_brute_force_monte_carlo():
     assert sol["bootstrap_pole_err_deg"] > 0
     assert sol.pole_err_deg == pytest.approx(math.hypot(sol["bootstrap_pole_err_deg"], sol.grid_pole_shift_deg), rel=1e-12)
     assert sol.describe()["spin_bootstrap_pole_err_deg"] == sol["bootstrap_pole_err_deg"]
+    assert sol["bootstrap_lr_factor"] > 0
+
+
+def test_the_bootstrap_and_its_refined_grid_run_only_on_a_reliable_spin():
+    """``bootstrap > 0`` changes nothing of an unreliable spin (here: no σ, nothing to test
+    against): no bootstrap's keys, and the period's 1σ — kept on an unreliable spin — is the
+    formal one with the turned grids' term, the same numbers as ``bootstrap=0``, not the refined
+    grid's smaller shift paired with the formal 1σ."""
+    from cssat.inversion import estimate_spin
+
+    t, sun, obs, y, s = _in_class_spinner(1, 3, 60, 6, 100, 12, (100.0, 10.0), 0.01)
+    opts = dict(frame="equatorial", period_s=500.0, n_poles=20, n_starts=2, n_refine=1, coarse_normals=60,
+                coarse_samples=120, n_normals=60, max_samples=120, error_grids=2)
+    off = estimate_spin(t, y, sun, obs, **opts)
+    on = estimate_spin(t, y, sun, obs, bootstrap=4, **opts)
+    assert off.verdict == on.verdict == "unreliable"
+    assert "bootstrap_pole_err_deg" not in on and "bootstrap_lr_factor" not in on
+    assert on.period_err_s == off.period_err_s and on["grid_period_shift_s"] == off["grid_period_shift_s"] > 0
 
 
 def test_an_ambiguous_pole_is_unreliable_and_says_which_rival():

@@ -23,7 +23,8 @@ from cssat.inversion.frequencies import estimate_tumbling_periods
 from cssat.inversion.period import estimate_period
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import SpinSolution
-from cssat.inversion.spin_errors import _night_split, _refined, _separation_deg, _spin_errors, _turned, ambiguity, rivals
+from cssat.inversion.spin_errors import (_night_split, _refined, _separation_deg, _spin_errors, _turned, alternatives, ambiguity,
+                                         rivals)
 from cssat.inversion.spin_search import _coarse_scan, _distinct_poles, _pole_rotation
 
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution", "MODEL_FITS_CHI2"]
@@ -178,8 +179,12 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        Gauss–Newton's) — ``B`` light curves drawn from the fitted model at the stated noise (×
        the reduced χ² where above 1; a fixed seed), each refined from the solution on the fine
        fit, the RMS of their shifts (``bootstrap_pole_err_deg``, ``bootstrap_period_err_s``) ⊕
-       step 4's grid term. The profile's 1σ misses the valley the NNLS support opens (in class
-       it holds 50 / 77 % in its 68 / 95 % circles: BENCHMARKS.md). ``B`` more refinements.
+       step 4's grid term (refined only when the bootstrap runs: an unreliable spin keeps the
+       turned grids and the formal 1σ of ``bootstrap=0``). The profile's 1σ misses the valley the
+       NNLS support opens (in class it holds 50 / 77 % in its 68 / 95 % circles: BENCHMARKS.md).
+       ``bootstrap_lr_factor``: the replicates' mean profile Δχ² at the pole they were drawn from,
+       over 2 (1 where Wilks' χ²₂ holds; above 1 step 7's region is too small by its square
+       root). ``B`` more refinements and profiles over the period.
 
     Assumptions: a principal-axis rotation (no tumbling: :func:`~cssat.scene.attitude.torque_free`
     motion has two periods), a convex body (or negligible self-shadowing), one BRDF shape.
@@ -228,17 +233,10 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     finals = sorted((_refine_spin(fine, r[1:], 2.0, 20.0, span) for r in distinct[:n_refine]), key=lambda r: r[0])
     chi2, lon, lat, f = finals[0]
     lon = float((lon + 180.0) % 360.0 - 180.0)
-    grid_pole, grid_period = _grid_bias(fine, lon, lat, f, span, error_grids, refined=bootstrap > 0)
     # the EGI at the solution and its 1σ (Gauss–Newton on the spin and the support's areas)
     a, sup, err, red, scale2 = _spin_errors(fine, lon, lat, f, chi2, span, sigma is not None)
     formal_pole = float(np.hypot(err[1], np.cos(np.radians(lat)) * err[0]))
-    pole_err = float(np.hypot(formal_pole, grid_pole))
-    period_err = float(np.hypot(err[2] / f ** 2, grid_period))
-    alts = []
-    for c2, lo2, la2, f2 in finals[1:]:
-        lo2 = float((lo2 + 180.0) % 360.0 - 180.0)
-        alts.append({"pole_lon_deg": lo2, "pole_lat_deg": float(la2), "period_s": float(1 / f2), "chi2": float(c2),
-                     "delta_chi2": float((c2 - chi2) / scale2), "separation_deg": _separation_deg((lon, lat), (lo2, la2))})
+    alts = alternatives(finals, lon, lat, chi2, scale2)
     ambiguous = bool(rivals(alts))
     # the residual on every sample (not only the fit's subset)
     full = _Fit(t, y, w, S, O, fine.N, brdf, frame)
@@ -246,6 +244,10 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     normals, areas, lobe_areas, _ = split_lobes(a, fine.N, brdf)
     check = _check_spin(fine, a, sup, lon, lat, f, chi2, span, sig, heldout, brdf, frame)
     check.update(ambiguity(check, alts))
+    boot = bootstrap if check["verdict"] == "reliable" else 0  # step 8 runs only on a reliable fit
+    grid_pole, grid_period = _grid_bias(fine, lon, lat, f, span, error_grids, refined=boot > 0)
+    pole_err = float(np.hypot(formal_pole, grid_pole))
+    period_err = float(np.hypot(err[2] / f ** 2, grid_period))
     check["pole_interval"] = None
     check["laplace_pole_err_deg"] = pole_err  # step 4's 1σ, kept beside the profile's
     if interval == "profile" and check["verdict"] == "reliable":
@@ -265,9 +267,9 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
             normals, areas, lobe_areas, _ = split_lobes(a, fine.N, brdf)
         # the region holds the noise on this grid; the grid's bias adds: the RMS shift of step 4
         pole_err = float(np.hypot(prof["pole_err_deg"], grid_pole))
-    if bootstrap and check["verdict"] == "reliable":  # 8. the noise's part by a parametric bootstrap
-        check["bootstrap_pole_err_deg"], check["bootstrap_period_err_s"] = _bootstrap_spin(
-            fine, fine.matrix(lon, lat, f) @ a, lon, lat, f, span, scale2, bootstrap)  # a: the EGI at (lon, lat, f)
+    if boot:  # 8. the noise's part by a parametric bootstrap
+        check["bootstrap_pole_err_deg"], check["bootstrap_period_err_s"], check["bootstrap_lr_factor"] = _bootstrap_spin(
+            fine, fine.matrix(lon, lat, f) @ a, lon, lat, f, span, scale2, boot)  # a: the EGI at (lon, lat, f)
         pole_err = float(np.hypot(check["bootstrap_pole_err_deg"], grid_pole))
         period_err = float(np.hypot(check["bootstrap_period_err_s"], grid_period))
     if check["verdict"] == "unreliable":
@@ -308,20 +310,27 @@ def _grid_bias(fine: _Fit, lon: float, lat: float, f: float, span: float, grids:
 
 
 def _bootstrap_spin(fine: _Fit, model: np.ndarray, lon: float, lat: float, f: float, span: float, scale2: float,
-                    B: int) -> tuple[float, float]:
+                    B: int) -> tuple[float, float, float]:
     """``estimate_spin`` step 8: the RMS shift of the pole (degrees) and of the period (s) over
     ``B`` refinements from the solution ``(lon, lat, f)`` of light curves ``model (T,) + ε``,
-    ``ε ~ N(0, scale2 / w²)`` on ``fine``'s samples and normals (a fixed seed)."""
+    ``ε ~ N(0, scale2 / w²)`` on ``fine``'s samples and normals (a fixed seed); and the
+    replicates' mean profile ``Δχ²`` at the pole they were drawn from over its two degrees of
+    freedom (``bootstrap_lr_factor``: 1 where Wilks' χ²₂ holds; above 1 the profile region of
+    step 7 is too small by its square root — a bootstrap calibration of the likelihood ratio)."""
+    from cssat.inversion.spin_errors import profile_chi2  # local: scipy, only with the bootstrap
+
     rng = np.random.default_rng(0)
     sd = np.sqrt(scale2) / fine.w
-    pole, period = [], []
+    pole, period, lr = [], [], []
     for _ in range(B):
         rep = _Fit(fine.t, model + sd * rng.standard_normal(len(model)), fine.w, fine.S, fine.O, fine.N, fine.brdf,
                    fine.frame)
-        _, lon_b, lat_b, f_b = _refine_spin(rep, (lon, lat, f), 1.0, 5.0, span)
+        c_b, lon_b, lat_b, f_b = _refine_spin(rep, (lon, lat, f), 1.0, 5.0, span)
         pole.append(_separation_deg((lon, lat), (lon_b, lat_b)))
         period.append(1 / f_b - 1 / f)
-    return float(np.sqrt(np.mean(np.square(pole)))), float(np.sqrt(np.mean(np.square(period))))
+        lr.append(max(profile_chi2(rep.chi2, lon, lat, f, span)[0] - c_b, 0.0) / scale2)
+    return (float(np.sqrt(np.mean(np.square(pole)))), float(np.sqrt(np.mean(np.square(period)))),
+            float(np.mean(lr) / 2))
 
 
 def _check_spin(fine: _Fit, a: np.ndarray, sup: np.ndarray, lon: float, lat: float, f: float, chi2: float, span: float,

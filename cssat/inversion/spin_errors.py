@@ -200,6 +200,18 @@ def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, 
     return {"verdict": verdict, "verdict_why": why, **out}
 
 
+def alternatives(finals: list[tuple[float, ...]], lon: float, lat: float, chi2: float, scale2: float) -> list[dict[str, Any]]:
+    """``estimate_spin``'s ``alternatives``: the refined minima ``finals[1:]`` (each ``(χ², λ, β,
+    f)``) beside the solution ``(lon, lat)`` of ``chi2`` — pole, period, χ², ``delta_chi2`` (over
+    ``scale2``, the reduced χ² where above 1) and ``separation_deg`` from the solution."""
+    out = []
+    for c2, lo2, la2, f2 in finals[1:]:
+        lo2 = float((lo2 + 180.0) % 360.0 - 180.0)
+        out.append({"pole_lon_deg": lo2, "pole_lat_deg": float(la2), "period_s": float(1 / f2), "chi2": float(c2),
+                    "delta_chi2": float((c2 - chi2) / scale2), "separation_deg": separation_deg((lon, lat), (lo2, la2))})
+    return out
+
+
 def rivals(alts: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The ``alternatives`` (each with ``delta_chi2`` and ``separation_deg``) that make a solution
     ``ambiguous``: more than 10° away and within Δχ² < 9 (3σ) of it."""
