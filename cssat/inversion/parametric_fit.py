@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cssat._checks import FieldError, float_param, int_param
+from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 
 __all__ = ["box_wing_start", "fit_box_wing"]
@@ -72,14 +72,24 @@ def _to_z(p: np.ndarray) -> torch.Tensor:
 
 def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None, panels: int = 2, divisions: int = 4,
                  outer: int = 5, inner: int = 40, huber: float = 3.0, dishes: int = 0, dish_rings: int = 12,
-                 dish_segments: int = 40, fixed: Any = ()) -> tuple[np.ndarray, dict[str, Any]]:
+                 dish_segments: int = 40, fixed: Any = (), visibility: str = "cast",
+                 softness: float = 0.1) -> tuple[np.ndarray, dict[str, Any]]:
     """The box-wing ``p (9,)`` fitting ``y (T,)`` (flux per unit irradiance at 1 m, i.e. m²) at
     body-frame ``sun, observer (T, 3)``, from ``p0 (9,)``; ``sigma (T,)`` the 1σ (None: ones).
     With ``dishes`` (1 or 2, :mod:`cssat.inversion.parametric`), ``p0`` and ``p`` are ``(17,)``:
     the reflector dishes' position, axis, size and albedo fitted too. ``fixed``: names of
     parameters (:func:`~cssat.inversion.parametric.param_names`) held at ``p0`` (e.g. a bus whose
     size is known). Returns ``(p, info)`` with ``info``: ``loss``, ``rms_over_noise`` (the fit's
-    χ-rms) and ``params`` (a name → value dict)."""
+    χ-rms) and ``params`` (a name → value dict).
+
+    ``visibility``: ``"cast"`` (default) holds each outer iteration's Embree visibility fixed
+    through its L-BFGS-B run (the gradient does not see a shadow move: ∂y/∂gap = 0); ``"soft"``
+    makes it a differentiable function of ``p`` inside the loss
+    (:func:`~cssat.inversion.soft_shadow.soft_visibility`), its edge softness ``softness`` × the
+    start's mean bus half-size at the first outer iteration, halved at each next one (a
+    continuation towards the hard shadows; the start is scored too, so it ends no worse than
+    it began). Either way each outer iteration is scored, and the best kept, with the cast
+    visibility (``loss``, ``rms_over_noise``: the hard-shadowed model's)."""
     names = param_names(dishes)
     fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
     unknown = [n for n in fixed if n not in names]
@@ -88,6 +98,8 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     outer = int_param(outer, "outer", 1, 100)
     inner = int_param(inner, "inner", 1, 1000)
     huber = float_param(huber, "huber", 0.0, open_lo=True)
+    visibility = choice_param(visibility, "visibility", ("cast", "soft"))
+    softness = float_param(softness, "softness", 0.0, open_lo=True)
     yt = torch.as_tensor(np.asarray(y, dtype=np.float64))
     sg = torch.ones_like(yt) if sigma is None else torch.as_tensor(np.asarray(sigma, dtype=np.float64))
     if sg.shape != yt.shape or bool((sg <= 0).any()):
@@ -99,6 +111,10 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     from scipy.optimize import minimize  # heavy: scipy.optimize (torch.optim would import torch._dynamo, ~4 s)
 
     def loss_of(z, vis):
+        if isinstance(vis, float):  # the soft visibility's τ (m): the shadows differentiable
+            from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
+
+            vis = soft_visibility(_to_p(z), S, V, tau=vis, **geo)
         r = (yt - box_wing_light_curve(_to_p(z), S, V, vis, **kw)) / sg
         return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
 
@@ -129,8 +145,12 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
 
     z = z0
     best = (math.inf, z)
-    for _ in range(outer):
-        vis = box_wing_visibility(_to_p(z), S, V, **geo)
+    if visibility == "soft":  # the start scored too (its cast visibility): a continuation ends no worse than it began
+        with torch.no_grad():
+            best = (float(loss_of(z0, box_wing_visibility(_to_p(z0), S, V, **geo))), z0)
+    tau0 = softness * float(np.mean(p0[:3]))
+    for k in range(outer):
+        vis = tau0 * 0.5**k if visibility == "soft" else box_wing_visibility(_to_p(z), S, V, **geo)
         sol = minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", bounds=bounds,
                        options={"maxiter": inner})
         z = full(sol.x)

@@ -165,12 +165,12 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
         _, c_twin = final.solve(twin)
         if c_twin < chi2:
             refined = _refine(final, twin.vector(), twin.alpha, span, final_fev, t_ref, frame)
-            motions = [r for r in (refined, (float(c_twin), twin.vector(), twin.alpha))  # kept only as a motion
-                       if TumblingState.from_vector(r[1], r[2], t_ref, frame) is not None] or [cur[0]]
-            cur[0] = min(motions, key=lambda r: r[0])
+            motions = [(r, st) for r in (refined, (float(c_twin), twin.vector(), twin.alpha))  # kept only as a motion
+                       for st in [TumblingState.from_vector(r[1], r[2], t_ref, frame)] if st is not None]
+            if motions:
+                cur[0], state = min(motions, key=lambda m: m[0][0])
             log.info("estimate_tumbling: the twin motion fits better (chi2 %.6g -> %.6g)", chi2, cur[0][0])
             chi2, x, alpha = cur[0]
-            state = TumblingState.from_vector(x, alpha, t_ref, frame)
     state.lon_deg = float((state.lon_deg + 180.0) % 360.0 - 180.0)
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)
