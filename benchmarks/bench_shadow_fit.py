@@ -28,7 +28,8 @@ Fit (the experiment's ``inversion.shape=parametric`` path, then the family with 
 EGI (:func:`cssat.inversion.invert_convex`, 500 normals, σ-weighted) on the first 2 nights;
 :func:`~cssat.inversion.parametric_fit.box_wing_start` from it (``cd0`` 0.3, the experiment's
 default); :func:`~cssat.inversion.parametric_fit.fit_box_wing` with the experiment's defaults
-(``divisions`` 4, ``outer`` 6, ``inner`` 40, ``huber`` 3) → the **no dishes** row. Then, from that
+(``divisions`` 4, ``outer`` 6, ``inner`` 40, ``huber`` 3; ``--visibility soft``: the shadows
+differentiable, :mod:`cssat.inversion.soft_shadow`) → the **no dishes** row. Then, from that
 fit's bus and panels, the family with the truth's number of dishes (the dish count is given: a
 topology oracle) from each of a few generic dish placements (on the bus's ±x, ±z faces, facing
 out, ``radius`` 0.6 × the bus's mean half-size, ``depth`` 0.3 × radius), each fitted briefly
@@ -392,6 +393,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-dishes", action="store_true", help="fit the family without dishes only")
     ap.add_argument("--no-oracle", action="store_true", help="leave out the rows started from the true geometry")
     ap.add_argument("--report", default=None, help="print the table of a JSON file written by --out, and stop")
+    ap.add_argument("--visibility", choices=("cast", "soft"), default="cast",
+                    help="fit_box_wing's shadows: cast and held fixed in each L-BFGS run, or soft (differentiable)")
     args = ap.parse_args(argv)
     if args.report:
         print(markdown(json.loads(Path(args.report).read_text())["rows"]))
@@ -410,7 +413,7 @@ def main(argv: list[str] | None = None) -> int:
             if name == "tess_obj" and surface == "materials" and "uniform" in args.surface:
                 continue  # the file has no materials: its "materials" are the uniform cd 0.3
             res = fit_truth(name, geo, seed=args.seed, floor=args.floor, surface=surface, dish_fit=not args.no_dishes,
-                            oracle=not args.no_oracle)
+                            oracle=not args.no_oracle, fit_settings=dict(visibility=args.visibility))
             rows += res["rows"]
             for r in res["rows"]:
                 print(json.dumps({k: v for k, v in r.items() if k not in ("params", "nominal", "note")}), flush=True)
@@ -419,6 +422,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         out = Path(args.out)
         out.write_text(json.dumps(dict(step_s=args.step, floor=args.floor, seed=args.seed, n_samples=len(geo.night),
+                                       visibility=args.visibility,
                                        argv=sys.argv[1:] if argv is None else argv,
                                        rows=rows), indent=1))
         out.with_suffix(".md").write_text(table + "\n")
