@@ -108,3 +108,14 @@ def test_the_soft_fit_from_the_egi_reaches_the_noise_in_the_family():
     q = row["params"]
     assert row["rms_ratio"] < 1.5
     assert abs(q["length"] / q["width"] - 3.75) > 0.2  # moved off the start's aspect (the cast fit: 3.72)
+
+
+def test_the_experiment_setting_is_checked_by_name():
+    from cssat._checks import FieldError
+    from cssat.models.egi.config import ParametricConfig
+
+    assert ParametricConfig(visibility="soft", softness=0.2).visibility == "soft"
+    with pytest.raises(FieldError, match=r"inversion\.parametric\.visibility.*cast.*soft"):
+        ParametricConfig(visibility="smooth")
+    with pytest.raises(FieldError, match=r"inversion\.parametric\.softness"):
+        ParametricConfig(softness=-0.1)

@@ -33,7 +33,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     geo = dict(panels=o.panels, divisions=o.divisions)
     p0 = box_wing_start(res.normals, res.areas, panels=o.panels, cd0=o.cd0)
     p, info = fit_box_wing(y[fit], a.sun_b[fit], a.obs_b[fit], p0, sigma=None if sigma is None else sigma[fit],
-                           outer=o.outer, inner=o.inner, huber=o.huber, **geo)
+                           outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness, **geo)
     vis = box_wing_visibility(p, a.sun_b, a.obs_b, **geo)
     sol.convex_model_unit = sol.model_unit
     sol.model_unit = box_wing_light_curve(torch.as_tensor(p), a.sun_b, a.obs_b, vis, range_km=1e-3, irradiance=1.0,

@@ -80,6 +80,10 @@ class ParametricConfig:
     huber: float = 3.0
     #: the albedo prior the start's sizes use (flux ∝ albedo × area: an assumption, 0.1–0.8)
     cd0: float = 0.3
+    #: cast (Embree visibility held fixed in each L-BFGS run) | soft (differentiable shadows, annealed)
+    visibility: str = "cast"
+    #: with visibility soft: the shadows' first edge softness, × the start's mean bus half-size
+    softness: float = 0.1
 
     def __post_init__(self) -> None:
         self.panels = int_param(self.panels, "inversion.parametric.panels", 1, 2)
@@ -88,6 +92,8 @@ class ParametricConfig:
         self.inner = int_param(self.inner, "inversion.parametric.inner", 1, 500)
         self.huber = float_param(self.huber, "inversion.parametric.huber", 0.0, open_lo=True)
         self.cd0 = float_param(self.cd0, "inversion.parametric.cd0", 0.0, 1.0, open_lo=True)
+        self.visibility = choice_param(self.visibility, "inversion.parametric.visibility", ("cast", "soft"))
+        self.softness = float_param(self.softness, "inversion.parametric.softness", 0.0, open_lo=True)
 
 
 @dataclass
