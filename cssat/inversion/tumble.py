@@ -21,6 +21,7 @@ import numpy as np
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import TumblingSolution
+from cssat.inversion.spin_errors import rivals
 from cssat.inversion.tumble_fit import _alternatives, _check_tumble, _continuation, _errors, _refine, _support
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
@@ -186,7 +187,6 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     full = _TFit(t, y, w, S, O, fine_N, brdf)
     resid = y - full.matrix(state) @ a
     from cssat.inversion.egi import split_lobes  # heavy: cssat.inversion.egi imports torch
-    from cssat.inversion.spin_errors import rivals  # local: the spin's 1σ module, as tumble_fit's
 
     normals, areas, lobe_areas, _ = split_lobes(a, fine_N, brdf)
     return TumblingSolution(state=state, normals=normals, areas=areas, lobe_areas=lobe_areas, chi2=float(chi2),

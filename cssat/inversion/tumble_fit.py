@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import float_param
-from cssat.inversion.spin_errors import _support
+from cssat.inversion.spin_errors import _refined, _separation_deg, _support, _turned, verdict_keys
 from cssat.inversion.tumble_state import TumblingState, _TFit
 
 log = logging.getLogger("cssat")
@@ -102,7 +102,6 @@ def _check_tumble(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarr
     else the fitted samples' χ²: the keys ``verdict``, ``verdict_why``, ``heldout_chi2``,
     ``heldout_n``, ``heldout_threshold``."""
     from cssat.inversion.spin import _check_heldout  # heavy: cssat.inversion.spin imports torch
-    from cssat.inversion.spin_errors import verdict_keys  # local: the verdict's, only when judged
 
     J_fit = _tumble_jacobian(final, state, x, a, sup, span)
     held = None
@@ -143,8 +142,6 @@ def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, ch
     mean square of their shifts. The bootstrap measures the χ² valley as the refit sees it: where
     the NNLS support changes along it, the valley is far flatter than the curvature with the
     support held (the formal 1σ of ``L`` in class is ~10× too small)."""
-    from cssat.inversion.spin_errors import _refined, _separation_deg, _turned  # local: the 1σ's, only here
-
     e, red, sup = _formal_errors(final, state, x, a, chi2, span, weighted)
     formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
 
@@ -181,8 +178,6 @@ def _alternatives(others: list[tuple], x: np.ndarray, chi2: float, red: float, s
     solution ``x (8,)`` or an earlier alternative reached from another start (``L`` within 1°,
     both frequencies within 1e-4): their ``L``, periods, moments, ``chi2``, ``delta_chi2`` in
     units of the reduced χ² ``red`` and ``separation_deg`` from the solution's ``L``."""
-    from cssat.inversion.spin import _separation_deg  # heavy: cssat.inversion.spin imports torch
-
     alts: list[dict[str, Any]] = []
     for c2, x2, _ in others:
         if any(_separation_deg((float(x2[5]), float(x2[6])), (float(v[5]), float(v[6]))) < 1.0
