@@ -33,7 +33,7 @@ the bootstrap's, or ``√(σ_β² + cos²β σ_λ²)`` with ``bootstrap=0``, ⊕
 68.27 % region and ``1.7579 ×`` for the 95.45 % one of a circular Gaussian.
 
 ``--egi off`` draws the in-class truths' normals off any grid (uniform on the sphere) instead of
-on the fit's own grid. ``--search bootstrap=B`` (and ``error_grids=G``) sets the estimators' 1σ
+on the fit's own grid. ``--search bootstrap=B`` (and ``error_grids=G``, ``local_starts=K``) sets the estimators' 1σ
 options; the rows keep each part of the 1σ (bootstrap, grid, formal / profile) so that
 ``--report`` prints each alone.
 
@@ -64,7 +64,7 @@ import numpy as np  # noqa: E402
 
 SIDEREAL_DAY = 86164.0905
 SEARCH = dict(n_poles=60, n_starts=4, n_refine=2, coarse_normals=150, coarse_samples=250, n_normals=400, max_samples=300,
-              error_grids=1, bootstrap=0)
+              error_grids=1, bootstrap=0, local_starts=0)
 #: the tumbling search's settings for ``--part tumble`` (those of tests/test_inversion_tumble.py's blind tumbler)
 TUMBLE = dict(n_poles=40, coarse_samples=80, coarse_normals=32, n_pairs=2, screen_moments=4, screen_poles=12, n_screen=12,
               n_starts=6, n_refine=3, mid_samples=150, mid_normals=64, n_normals=200, max_samples=400, error_grids=1,
@@ -163,7 +163,7 @@ def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None
            "heldout_chi2_n": sol.heldout_chi2 / sol.heldout_n, "heldout_limit_n": sol.heldout_threshold / sol.heldout_n,
            "pole_err_deg": sol.pole_err_deg, "laplace_pole_err_deg": sol.laplace_pole_err_deg, "noise": s,
            "ambiguous": sol.ambiguous, "grid_pole_shift_deg": sol.grid_pole_shift_deg,
-           "search": {k: SEARCH[k] for k in ("n_poles", "n_starts", "n_refine", "error_grids", "bootstrap")},
+           "search": {k: SEARCH[k] for k in ("n_poles", "n_starts", "n_refine", "error_grids", "bootstrap", "local_starts")},
            "bootstrap_pole_err_deg": sol.get("bootstrap_pole_err_deg"), "period_s_true": period, "period_err_s": sol.period_err_s,
            "bootstrap_period_err_s": sol.get("bootstrap_period_err_s"), "grid_period_shift_s": sol["grid_period_shift_s"],
            "bootstrap_lr_factor": sol.get("bootstrap_lr_factor")}

@@ -34,7 +34,8 @@ def main(seeds: list[int]) -> None:
 
     import cssat.inversion as inv
     from cssat.inversion import fibonacci_sphere
-    from cssat.inversion.spin import _Fit, _refine_spin
+    from cssat.inversion.spin import _Fit
+    from cssat.inversion.spin_search import _refine_spin
     from cssat.inversion.spin_errors import _offset_pole, separation_deg
 
     orig = inv.estimate_spin

@@ -147,7 +147,8 @@ def test_the_profile_region_matches_a_brute_force_scan():
     the profile Δχ² reaches 1, 2.30 and 6.18 along 4 bearings against a brute-force scan: poles every
     1/40 of the bracket along each bearing, the period minimised on a dense grid at each."""
     from cssat.inversion import fibonacci_sphere
-    from cssat.inversion.spin import _Fit, _refine_spin
+    from cssat.inversion.spin import _Fit
+    from cssat.inversion.spin_search import _refine_spin
     from cssat.inversion.spin_errors import POLE_DELTA_CHI2, _offset_pole, pole_profile_interval
 
     ra, dec, period = 40.0, 30.0, 500.0
@@ -258,7 +259,8 @@ def test_the_bootstrap_1sigma_of_the_pole_matches_a_brute_force_monte_carlo():
     quadrature, and a bad count is refused by name."""
     from cssat._checks import FieldError
     from cssat.inversion import estimate_spin, fibonacci_sphere
-    from cssat.inversion.spin import _bootstrap_spin, _Fit, _refine_spin
+    from cssat.inversion.spin import _Fit
+    from cssat.inversion.spin_search import _bootstrap_spin, _refine_spin
     from cssat.inversion.spin_errors import separation_deg
 
     truth = (100.0, 10.0, 1 / 500.0)
@@ -354,7 +356,8 @@ def test_the_grid_term_is_nil_on_the_grid_and_not_off_it():
     normals does not move (the extra normals have nothing to fit) — where the shift onto turned
     grids alone does; the same body turned off the grid moves, by far more."""
     from cssat.inversion import fibonacci_sphere
-    from cssat.inversion.spin import _Fit, _grid_bias, _refine_spin, _refined, _turned
+    from cssat.inversion.spin import _Fit, _grid_bias, _refined, _turned
+    from cssat.inversion.spin_search import _refine_spin
     from cssat.scene.attitude import spin_frame, to_body
 
     N = fibonacci_sphere(100).numpy()
@@ -377,3 +380,37 @@ def test_the_grid_term_is_nil_on_the_grid_and_not_off_it():
             shifts["turned alone"] = _grid_bias(fit, lon, lat, f, span, 2)[0]
     assert shifts["on"] < 0.02, shifts
     assert shifts["turned alone"] > 0.1 and shifts["off"] > 0.1, shifts  # measured: 0, 2.5°, 4.6°
+
+
+def test_the_local_multistart_finds_the_deeper_of_two_neighbouring_minima():
+    """Two quadratic wells in ``(λ, β, f)`` (0.5° wide, the second 3° away and 5 deeper: the
+    NNLS-profiled χ² has such neighbours where its active set changes): one Nelder–Mead from the
+    first well's centre stays in it; the local multi-start reaches the analytic minimum of the
+    deeper one. Through ``estimate_spin``: its χ² with ``local_starts`` never above the one
+    without, and a bad count refused by name."""
+    from cssat._checks import FieldError
+    from cssat.inversion import estimate_spin
+    from cssat.inversion.spin_errors import _offset_pole, separation_deg
+    from cssat.inversion.spin_search import _local_multistart, _refine_spin
+
+    span, f0 = 3 * 86400.0, 1 / 500.0
+    a = (40.0, 25.0)
+    b = _offset_pole(*a, 100.0, 3.0)
+
+    class Wells:
+        def chi2(self, lon, lat, f):
+            df = ((f - f0) * span * 360.0 / 5.0) ** 2
+            return min((separation_deg((lon, lat), a) / 0.5) ** 2, (separation_deg((lon, lat), b) / 0.5) ** 2 - 5.0) + df
+
+    one = _refine_spin(Wells(), (*a, f0), 1.0, 5.0, span)
+    assert separation_deg(one[1:3], a) < 0.05 and one[0] == pytest.approx(0.0, abs=1e-3)
+    many = _local_multistart(Wells(), (*a, f0), span, 4)
+    assert separation_deg(many[1:3], b) < 0.05 and many[0] == pytest.approx(-5.0, abs=1e-3)
+    assert abs(many[3] - f0) * span < 1e-3
+
+    t, sun, obs, y, s = _in_class_spinner(1, 3, 60, 6, 100, 12, (100.0, 10.0), 0.01)
+    opts = dict(sigma=s, frame="equatorial", period_s=500.0, n_poles=20, n_starts=2, n_refine=1, coarse_normals=60,
+                coarse_samples=120, n_normals=60, max_samples=120, interval="laplace")
+    with pytest.raises(FieldError, match="local_starts"):
+        estimate_spin(t, y, sun, obs, local_starts=9, **opts)
+    assert estimate_spin(t, y, sun, obs, local_starts=4, **opts).chi2 <= estimate_spin(t, y, sun, obs, **opts).chi2

@@ -25,7 +25,8 @@ from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import SpinSolution
 from cssat.inversion.spin_errors import (_night_split, _refined, _separation_deg, _spin_errors, _turned, alternatives, ambiguity,
                                          rivals)
-from cssat.inversion.spin_search import _coarse_scan, _distinct_poles, _pole_rotation
+from cssat.inversion.spin_search import (_bootstrap_spin, _coarse_scan, _distinct_poles, _local_multistart, _pole_rotation,
+                                         _refine_spin)
 
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution", "MODEL_FITS_CHI2"]
 
@@ -98,7 +99,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
                   max_period_s: float = 86400.0, n_poles: int = 60, n_starts: int = 6, n_refine: int = 2,
                   coarse_normals: int = 200, coarse_samples: int = 400, n_normals: int = 1000,
                   max_samples: int = 2000, split_nights: bool = False, heldout: Any = None, interval: str = "profile",
-                  profile_grids: int = 1, error_grids: int = 1, bootstrap: int = 0) -> SpinSolution:
+                  profile_grids: int = 1, error_grids: int = 1, bootstrap: int = 0, local_starts: int = 0) -> SpinSolution:
     """The spin state of an object rotating about a fixed axis — its pole and sidereal period —
     and its EGI, from its light curve ``flux (T,)`` at ``times_s (T,)`` with the Sun and
     observer directions ``sun``, ``obs (T, 3)`` from the object in the inertial frame (GCRS
@@ -124,6 +125,10 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     3. The ``n_starts`` best distinct poles refined by Nelder–Mead in ``(λ, β, f)`` at that
        resolution; the ``n_refine`` best refined again on up to ``max_samples`` samples and
        ``n_normals`` normals. The best is the solution, the others its ``alternatives``.
+       ``local_starts = K > 0`` (default 0): the solution refined again from ``K`` poles 2° and
+       4° from it (:func:`~cssat.inversion.spin_search._local_multistart`), the lowest kept — the
+       NNLS-profiled χ² has minima a few degrees apart where one refinement stops in the nearest;
+       step 8's refits do the same. ``K`` more refinements (``K`` more a bootstrap replicate).
     4. 1σ: the formal Gauss–Newton covariance of ``(λ, β, f)`` and the support's areas, scaled
        by the reduced χ² when it exceeds 1 (the model's misfit counts as noise), added in
        quadrature to the shift of the solution when it is refined again on a grid of normals
@@ -197,6 +202,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     profile_grids = int_param(profile_grids, "profile_grids", 1, 64)
     error_grids = int_param(error_grids, "error_grids", 1, 64)
     bootstrap = int_param(bootstrap, "bootstrap", 0, 1000)
+    local_starts = int_param(local_starts, "local_starts", 0, 8)
     T = len(t)
     n_poles, n_starts, n_refine = (int_param(v, k, 1) for v, k in ((n_poles, "n_poles"), (n_starts, "n_starts"),
                                                                    (n_refine, "n_refine")))
@@ -231,6 +237,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         if all(_separation_deg((r[1], r[2]), (d[1], d[2])) > 10.0 or abs(r[3] - d[3]) * span > 0.5 for d in distinct):
             distinct.append(r)
     finals = sorted((_refine_spin(fine, r[1:], 2.0, 20.0, span) for r in distinct[:n_refine]), key=lambda r: r[0])
+    if local_starts:  # the best's neighbouring minima (step 3)
+        finals[0] = _local_multistart(fine, finals[0][1:], span, local_starts)  # never above finals[0]'s χ²
     chi2, lon, lat, f = finals[0]
     lon = float((lon + 180.0) % 360.0 - 180.0)
     # the EGI at the solution and its 1σ (Gauss–Newton on the spin and the support's areas)
@@ -269,7 +277,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         pole_err = float(np.hypot(prof["pole_err_deg"], grid_pole))
     if boot:  # 8. the noise's part by a parametric bootstrap
         check["bootstrap_pole_err_deg"], check["bootstrap_period_err_s"], check["bootstrap_lr_factor"] = _bootstrap_spin(
-            fine, fine.matrix(lon, lat, f) @ a, lon, lat, f, span, scale2, boot)  # a: the EGI at (lon, lat, f)
+            fine, fine.matrix(lon, lat, f) @ a, lon, lat, f, span, scale2, boot, local_starts)  # a: the EGI at (lon, lat, f)
         pole_err = float(np.hypot(check["bootstrap_pole_err_deg"], grid_pole))
         period_err = float(np.hypot(check["bootstrap_period_err_s"], grid_period))
     if check["verdict"] == "unreliable":
@@ -307,30 +315,6 @@ def _grid_bias(fine: _Fit, lon: float, lat: float, f: float, span: float, grids:
         g_pole.append(_separation_deg((lon, lat), (lon_g, lat_g)))
         g_period.append(1 / f_g - 1 / f)
     return float(np.sqrt(np.mean(np.square(g_pole)))), float(np.sqrt(np.mean(np.square(g_period))))
-
-
-def _bootstrap_spin(fine: _Fit, model: np.ndarray, lon: float, lat: float, f: float, span: float, scale2: float,
-                    B: int) -> tuple[float, float, float]:
-    """``estimate_spin`` step 8: the RMS shift of the pole (degrees) and of the period (s) over
-    ``B`` refinements from the solution ``(lon, lat, f)`` of light curves ``model (T,) + ε``,
-    ``ε ~ N(0, scale2 / w²)`` on ``fine``'s samples and normals (a fixed seed); and the
-    replicates' mean profile ``Δχ²`` at the pole they were drawn from over its two degrees of
-    freedom (``bootstrap_lr_factor``: 1 where Wilks' χ²₂ holds; above 1 the profile region of
-    step 7 is too small by its square root — a bootstrap calibration of the likelihood ratio)."""
-    from cssat.inversion.spin_errors import profile_chi2  # local: scipy, only with the bootstrap
-
-    rng = np.random.default_rng(0)
-    sd = np.sqrt(scale2) / fine.w
-    pole, period, lr = [], [], []
-    for _ in range(B):
-        rep = _Fit(fine.t, model + sd * rng.standard_normal(len(model)), fine.w, fine.S, fine.O, fine.N, fine.brdf,
-                   fine.frame)
-        c_b, lon_b, lat_b, f_b = _refine_spin(rep, (lon, lat, f), 1.0, 5.0, span)
-        pole.append(_separation_deg((lon, lat), (lon_b, lat_b)))
-        period.append(1 / f_b - 1 / f)
-        lr.append(max(profile_chi2(rep.chi2, lon, lat, f, span)[0] - c_b, 0.0) / scale2)
-    return (float(np.sqrt(np.mean(np.square(pole)))), float(np.sqrt(np.mean(np.square(period)))),
-            float(np.mean(lr) / 2))
 
 
 def _check_spin(fine: _Fit, a: np.ndarray, sup: np.ndarray, lon: float, lat: float, f: float, chi2: float, span: float,
@@ -379,19 +363,3 @@ def _synodic_period(t: np.ndarray, y: np.ndarray, w: np.ndarray, sigma: Any, per
         P0 = float_param(period_s, "period_s", 0.0, open_lo=True)
         synodic = {"period_s": P0, "given": True}
     return P0, synodic
-
-
-def _refine_spin(fit: _Fit, x0: Any, dpole: float, dphase: float, span: float) -> tuple[float, float, float, float]:
-    """Nelder–Mead in ``(λ, β, f)`` from ``x0`` on ``fit``'s χ², the initial simplex ``dpole``
-    degrees in the pole and ``dphase`` degrees of phase over ``span`` seconds in the frequency:
-    ``(chi2, lon, lat, f)``."""
-    from scipy.optimize import minimize  # heavy: scipy.optimize, only for _refine_spin()
-
-    scale = np.array([1.0, 1.0, 1.0 / (360.0 * span)])  # the frequency in degrees of phase over the span
-    fun = lambda z: fit.chi2(*(np.asarray(x0) + z * scale))  # noqa: E731
-    simplex = np.array([[0, 0, 0], [dpole, 0, 0], [0, dpole, 0], [0, 0, dphase]], dtype=np.float64)
-    res = minimize(fun, np.zeros(3), method="Nelder-Mead",
-                   options={"initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-9 * max(fun(np.zeros(3)), 1e-300),
-                            "maxfev": 400})
-    x = np.asarray(x0) + res.x * scale
-    return (float(res.fun), *x)

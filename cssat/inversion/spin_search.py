@@ -1,6 +1,7 @@
-"""The pole search of :func:`cssat.inversion.spin.estimate_spin` (steps 2 and 3): the frame of a
-pole, the Sun's and the observer's longitude rates about it, the coarse scan of poles and
-synodic offsets, and the distinct starts it leaves."""
+"""The pole search of :func:`cssat.inversion.spin.estimate_spin` (steps 2, 3 and 8's refits): the
+frame of a pole, the Sun's and the observer's longitude rates about it, the coarse scan of poles
+and synodic offsets, the distinct starts it leaves, the Nelder–Mead refinement, its local
+multi-start about a solution, and the parametric bootstrap's refits."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from cssat.inversion.egi import fibonacci_sphere
-from cssat.inversion.spin_errors import _separation_deg
+from cssat.inversion.spin_errors import _offset_pole, _separation_deg, profile_chi2
 from cssat.scene.attitude import spin_frame
 
 __all__: list[str] = []
@@ -78,3 +79,61 @@ def _distinct_poles(table: list[tuple], spacing: float, n_starts: int) -> list[t
         if len(starts) == n_starts:
             break
     return starts
+
+
+def _refine_spin(fit: Any, x0: Any, dpole: float, dphase: float, span: float) -> tuple[float, float, float, float]:
+    """Nelder–Mead in ``(λ, β, f)`` from ``x0`` on ``fit``'s χ², the initial simplex ``dpole``
+    degrees in the pole and ``dphase`` degrees of phase over ``span`` seconds in the frequency:
+    ``(chi2, lon, lat, f)``."""
+    from scipy.optimize import minimize  # heavy: scipy.optimize, only for _refine_spin()
+
+    scale = np.array([1.0, 1.0, 1.0 / (360.0 * span)])  # the frequency in degrees of phase over the span
+    fun = lambda z: fit.chi2(*(np.asarray(x0) + z * scale))  # noqa: E731
+    simplex = np.array([[0, 0, 0], [dpole, 0, 0], [0, dpole, 0], [0, 0, dphase]], dtype=np.float64)
+    res = minimize(fun, np.zeros(3), method="Nelder-Mead",
+                   options={"initial_simplex": simplex, "xatol": 1e-3, "fatol": 1e-9 * max(fun(np.zeros(3)), 1e-300),
+                            "maxfev": 400})
+    x = np.asarray(x0) + res.x * scale
+    return (float(res.fun), *x)
+
+
+#: the local multi-start's offsets from the solution: (distance, bearing) in degrees, the k-th start the k-th pair
+LOCAL_OFFSETS = [(2.0, 0.0), (4.0, 135.0), (2.0, 180.0), (4.0, 315.0), (2.0, 90.0), (4.0, 225.0), (2.0, 270.0),
+                 (4.0, 45.0)]
+
+
+def _local_multistart(fit: Any, x0: Any, span: float, starts: int, dpole: float = 1.0,
+                      dphase: float = 5.0) -> tuple[float, float, float, float]:
+    """The lowest ``(chi2, lon, lat, f)`` of :func:`_refine_spin` on ``fit`` from ``x0 = (lon,
+    lat, f)`` (simplex ``dpole``, ``dphase``) and from ``starts`` poles 2° and 4° from it on
+    bearings 90–180° apart (:data:`LOCAL_OFFSETS`; simplex 2° and 20° of phase, the same ``f``):
+    the NNLS-profiled χ² has minima a few degrees apart (its active set changes with the pole),
+    where a refinement from one start stops in the nearest."""
+    best = _refine_spin(fit, x0, dpole, dphase, span)
+    for dist, bearing in LOCAL_OFFSETS[:starts]:
+        lo, la = _offset_pole(float(x0[0]), float(x0[1]), bearing, dist)
+        best = min(best, _refine_spin(fit, (lo, la, x0[2]), 2.0, 20.0, span), key=lambda r: r[0])
+    return best
+
+
+def _bootstrap_spin(fine: Any, model: np.ndarray, lon: float, lat: float, f: float, span: float, scale2: float,
+                    B: int, starts: int = 0) -> tuple[float, float, float]:
+    """``estimate_spin`` step 8: the RMS shift of the pole (degrees) and of the period (s) over
+    ``B`` refinements from the solution ``(lon, lat, f)`` of light curves ``model (T,) + ε``,
+    ``ε ~ N(0, scale2 / w²)`` on ``fine``'s samples and normals (a fixed seed; each refit the
+    estimator's: :func:`_local_multistart` with ``starts``, as ``estimate_spin(local_starts=…)``); and the
+    replicates' mean profile ``Δχ²`` at the pole they were drawn from over its two degrees of
+    freedom (``bootstrap_lr_factor``: 1 where Wilks' χ²₂ holds; above 1 the profile region of
+    step 7 is too small by its square root — a bootstrap calibration of the likelihood ratio)."""
+    rng = np.random.default_rng(0)
+    sd = np.sqrt(scale2) / fine.w
+    pole, period, lr = [], [], []
+    for _ in range(B):
+        rep = type(fine)(fine.t, model + sd * rng.standard_normal(len(model)), fine.w, fine.S, fine.O, fine.N, fine.brdf,
+                   fine.frame)
+        c_b, lon_b, lat_b, f_b = _local_multistart(rep, (lon, lat, f), span, starts)
+        pole.append(_separation_deg((lon, lat), (lon_b, lat_b)))
+        period.append(1 / f_b - 1 / f)
+        lr.append(max(profile_chi2(rep.chi2, lon, lat, f, span)[0] - c_b, 0.0) / scale2)
+    return (float(np.sqrt(np.mean(np.square(pole)))), float(np.sqrt(np.mean(np.square(period)))),
+            float(np.mean(lr) / 2))
