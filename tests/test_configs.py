@@ -228,7 +228,7 @@ def test_the_egi_models_settings_are_typed_with_one_set_of_defaults():
             s.inversion.search_normals, s.shadows, s.observations) == (2, None, "tumbling", 1000, 1, 1000, True, None)
     assert s.inversion.search() == {"n_poles": 60, "n_starts": 6, "n_refine": 2, "coarse_normals": 200, "coarse_samples": 400,
                                     "max_samples": 1200, "min_period_s": 120.0, "max_period_s": 3000.0, "split_nights": False,
-                                    "error_grids": 1, "bootstrap": 0}
+                                    "error_grids": 1, "bootstrap": 0, "local_starts": 0}
     with pytest.raises(ConfigCompositionException, match=r"nights\.n"):
         compose_cfg("experiment=inversion", "nights.n=many")
     with pytest.raises(ConfigCompositionException, match=r"inversion\.split_nights"):
@@ -236,6 +236,7 @@ def test_the_egi_models_settings_are_typed_with_one_set_of_defaults():
     for override, key in (("nights.n=0", "nights.n"), ("nights.fit=4", "nights.fit"), ("inversion.spin=guess", "inversion.spin"),
                           ("inversion.n_normals=8", "inversion.n_normals"), ("inversion.closure=-1", "inversion.closure"),
                           ("inversion.error_grids=0", "inversion.error_grids"), ("inversion.bootstrap=-1", "inversion.bootstrap"),
+                          ("inversion.local_starts=9", "inversion.local_starts"),
                           ("+inversion.lam=0.1", "inversion.lam"), ("+inversion.parametric.wings=2", "inversion.parametric.wings"),
                           ("shadows=maybe", "shadows"), ("+observed.bogus=1", "observed.bogus")):
         with pytest.raises(FieldError) as err:

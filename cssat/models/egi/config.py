@@ -36,7 +36,7 @@ __all__ = ["EGIConfig", "EGISettings", "NightsConfig", "InversionConfig", "Param
 SPIN_MODES = ("auto", "search", "tumbling", "known")
 #: the spin search's settings (:func:`cssat.inversion.estimate_spin`'s keywords) in ``inversion``
 SEARCH_KEYS = ("n_poles", "n_starts", "n_refine", "coarse_normals", "coarse_samples", "max_samples", "min_period_s",
-               "max_period_s", "split_nights", "error_grids", "bootstrap")
+               "max_period_s", "split_nights", "error_grids", "bootstrap", "local_starts")
 _SOLVER_HINT = ("the EGI's solve is the solver group's: solver=nnls|nnomp|nnl1|nntv "
                 "(e.g. solver=nntv solver.lam=discrepancy)")
 
@@ -136,6 +136,8 @@ class InversionConfig:
     error_grids: int = 1
     #: parametric-bootstrap refits for the noise's part of the pole's 1σ when reliable (0: the profile region's)
     bootstrap: int = 0
+    #: refinements of the solution (and of each bootstrap refit) from poles 2 and 4° about it, the lowest kept (0: one)
+    local_starts: int = 0
     #: the shape fitted after the EGI: convex (the EGI's Minkowski polytope) | parametric (a shadowed box-wing)
     shape: str = "convex"
     parametric: ParametricConfig = field(default_factory=ParametricConfig)
@@ -150,6 +152,7 @@ class InversionConfig:
         self.closure = float_param(self.closure, "inversion.closure", 0.0)
         self.error_grids = int_param(self.error_grids, "inversion.error_grids", 1, 64)
         self.bootstrap = int_param(self.bootstrap, "inversion.bootstrap", 0, 1000)
+        self.local_starts = int_param(self.local_starts, "inversion.local_starts", 0, 8)
         self.shape = choice_param(self.shape, "inversion.shape", ("convex", "parametric"))
         self.parametric = typed_group(ParametricConfig, self.parametric, "inversion.parametric")
         self.tumbling = dict(self.tumbling or {})
