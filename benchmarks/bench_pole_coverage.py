@@ -254,7 +254,8 @@ def report_tumble(rs: list[dict]) -> None:
         lo68, hi68 = _wilson(k68, m)
         lo95, hi95 = _wilson(k95, m)
         print(f"  {label}: n {m}; L within the 68 % region: {100 * k68 / m:.1f} % (1σ binomial {100 * lo68:.1f}–"
-              f"{100 * hi68:.1f}); 95 %: {100 * k95 / m:.1f} % ({100 * lo95:.1f}–{100 * hi95:.1f}); the formal part alone "
+              f"{100 * hi68:.1f}, {_p(k68, m, 0.6827)}); 95 %: {100 * k95 / m:.1f} % ({100 * lo95:.1f}–{100 * hi95:.1f}, "
+              f"{_p(k95, m, 0.9545)}); the formal part alone "
               f"{100 * np.mean(zf <= R68):.1f} / {100 * np.mean(zf <= R95):.1f} %; median sep {np.median([r['sep_deg'] for r in sub]):.3f}°, "
               f"median L_err_deg {np.median([r['L_err_deg'] for r in sub]):.3f}°, cpu {np.median([r['cpu_s'] for r in sub]):.0f} s")
         if all(r.get("bootstrap_L_err_deg") is not None for r in sub):  # the parts of the 1σ, each alone
@@ -276,6 +277,14 @@ def _wilson(k: int, n: int, z: float = 1.0) -> tuple[float, float]:
     c = (p + z * z / (2 * n)) / (1 + z * z / n)
     h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return c - h, c + h
+
+
+def _p(k: int, n: int, level: float) -> str:
+    """The two-sided binomial p-value of ``k`` of ``n`` inside a region of probability ``level``
+    (scipy's exact test): how often a calibrated 1σ gives a count this far from ``n × level``."""
+    from scipy.stats import binomtest
+
+    return f"p {binomtest(k, n, level).pvalue:.2g}" if n else "p nan"
 
 
 def report(rows: list[dict]) -> None:
@@ -309,8 +318,8 @@ def report(rows: list[dict]) -> None:
                 (a68, b68), (a95, b95) = _wilson(c68, m), _wilson(c95, m)
                 zp = np.array([r["sep_deg"] / r["profile_pole_err_deg"] for r in sub])
                 print(f"  {label}: n {m}; the pole inside the 68.27 % circle of pole_err_deg (profile or bootstrap ⊕ grid, "
-                      f"{R68:.4f}×): {100 * c68 / m:.1f} % ({100 * a68:.1f}–{100 * b68:.1f}); 95.45 % ({R95:.4f}×): "
-                      f"{100 * c95 / m:.1f} % ({100 * a95:.1f}–{100 * b95:.1f}); the profile's 1σ alone "
+                      f"{R68:.4f}×): {100 * c68 / m:.1f} % ({100 * a68:.1f}–{100 * b68:.1f}, {_p(c68, m, 0.6827)}); 95.45 % "
+                      f"({R95:.4f}×): {100 * c95 / m:.1f} % ({100 * a95:.1f}–{100 * b95:.1f}, {_p(c95, m, 0.9545)}); the profile's 1σ alone "
                       f"{100 * np.mean(zp <= R68):.1f} / {100 * np.mean(zp <= R95):.1f} %")
             if all(r.get("bootstrap_pole_err_deg") is not None for r in sub):  # step 8: the 1σ is bootstrap ⊕ grid
                 zb = np.array([r["sep_deg"] / r["bootstrap_pole_err_deg"] for r in sub])
