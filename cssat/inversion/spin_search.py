@@ -130,7 +130,7 @@ def _bootstrap_spin(fine: Any, model: np.ndarray, lon: float, lat: float, f: flo
     pole, period, lr = [], [], []
     for _ in range(B):
         rep = type(fine)(fine.t, model + sd * rng.standard_normal(len(model)), fine.w, fine.S, fine.O, fine.N, fine.brdf,
-                   fine.frame)
+                         fine.frame)
         c_b, lon_b, lat_b, f_b = _local_multistart(rep, (lon, lat, f), span, starts)
         pole.append(_separation_deg((lon, lat), (lon_b, lat_b)))
         period.append(1 / f_b - 1 / f)
