@@ -35,8 +35,8 @@ def main(seeds: list[int]) -> None:
     import cssat.inversion as inv
     from cssat.inversion import fibonacci_sphere
     from cssat.inversion.spin import _Fit
-    from cssat.inversion.spin_search import _refine_spin
     from cssat.inversion.spin_errors import _offset_pole, separation_deg
+    from cssat.inversion.spin_search import _refine_spin
 
     orig = inv.estimate_spin
     store: dict = {}

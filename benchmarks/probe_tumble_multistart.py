@@ -3,7 +3,8 @@
 For each seed of ``bench_pole_coverage.py --part tumble`` (the same truth, data and search, with
 ``error_grids 4, bootstrap 20`` as the L study), the solution's 1σ is computed twice: as shipped
 (each bootstrap replicate refitted from the solution) and with every refit also started from 4 L
-directions 2° and 4° about the solution (bearings 0, 135, 180, 315°), the lowest χ² kept. Printed
+directions 2° and 4° about the solution (the pole's first 4 ``LOCAL_OFFSETS``: bearings 0, 135, 180,
+315°), the lowest χ² kept. Printed
 per seed: L's error, the reported ``L_err_deg``, the bootstrap's 1σ both ways and the refined grid's
 shift both ways::
 
@@ -25,15 +26,13 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-OFFSETS = [(2.0, 0.0), (4.0, 135.0), (2.0, 180.0), (4.0, 315.0)]
-
-
 def main(seeds: list[int]) -> None:
     import bench_pole_coverage as b
 
     import cssat.inversion.tumble as tm
     import cssat.inversion.tumble_fit as tf
     from cssat.inversion.spin_errors import _offset_pole
+    from cssat.inversion.spin_search import LOCAL_OFFSETS
 
     refine, errors = tf._refine, tf._errors
     multi = {"on": False}
@@ -41,7 +40,7 @@ def main(seeds: list[int]) -> None:
 
     def refine_multi(fit, x0, alpha0, span_s, maxfev, t_ref, frame):
         best = refine(fit, x0, alpha0, span_s, maxfev, t_ref, frame)
-        for dist, bearing in OFFSETS if multi["on"] else ():
+        for dist, bearing in LOCAL_OFFSETS[:4] if multi["on"] else ():
             x1 = np.array(x0, dtype=float)
             x1[5], x1[6] = _offset_pole(float(x0[5]), float(x0[6]), bearing, dist)
             best = min(best, refine(fit, x1, alpha0, span_s, maxfev, t_ref, frame), key=lambda r: r[0])

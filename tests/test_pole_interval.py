@@ -148,8 +148,8 @@ def test_the_profile_region_matches_a_brute_force_scan():
     1/40 of the bracket along each bearing, the period minimised on a dense grid at each."""
     from cssat.inversion import fibonacci_sphere
     from cssat.inversion.spin import _Fit
-    from cssat.inversion.spin_search import _refine_spin
     from cssat.inversion.spin_errors import POLE_DELTA_CHI2, _offset_pole, pole_profile_interval
+    from cssat.inversion.spin_search import _refine_spin
 
     ra, dec, period = 40.0, 30.0, 500.0
     t, sun, obs, y, s = _in_class_spinner(5, 3, 20, 5, 60, 10, (ra, dec), 0.02)
@@ -260,8 +260,8 @@ def test_the_bootstrap_1sigma_of_the_pole_matches_a_brute_force_monte_carlo():
     from cssat._checks import FieldError
     from cssat.inversion import estimate_spin, fibonacci_sphere
     from cssat.inversion.spin import _Fit
-    from cssat.inversion.spin_search import _bootstrap_spin, _refine_spin
     from cssat.inversion.spin_errors import separation_deg
+    from cssat.inversion.spin_search import _bootstrap_spin, _refine_spin
 
     truth = (100.0, 10.0, 1 / 500.0)
     t, sun, obs, clean, _ = _in_class_spinner(1, 3, 60, 6, 100, 12, truth[:2], 0.0)
