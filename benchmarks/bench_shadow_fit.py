@@ -10,6 +10,10 @@ axis-aligned box bus, two flat panels along ±y, 0–2 paraboloid dishes) does n
 * ``drum_dish``: a box-wing-with-dish built here with trimesh whose bus is a 24-sided drum
   (a cylinder of radius 1.1 m, 3 m tall along z), two 7 × 2 m wings hinged at 45° on 0.8 m
   yokes, one 1 m dish under the bus facing −z; ``cd`` 0.35 bus, 0.1 wings, 0.6 dish;
+* ``b702_like``, ``spacebus_like``: two box-wing-with-dishes GEO platforms built in
+  ``benchmarks/_platforms.py`` (wings of three and four separate panels with gaps, on booms; an
+  Earth-deck tower or module with a small antenna; a mirror pair of dishes, or two unequal ones
+  not mirror images; the family fitted with 2 dishes); ``cd`` 0.35 bus, 0.1 wings, 0.6 dishes;
 * ``tess_obj``: NASA's TESS mesh (``../shared/models/tess.obj``, 16,161 facets, read in place,
   when present), uniform ``cd`` 0.3 (with either ``--surface``: the file has no materials). Its
   bus is not watertight: it has no volume to compare, so its volume IoU is not scored (``null``).
@@ -81,7 +85,7 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 TESS_OBJ = Path(__file__).resolve().parents[2] / "shared" / "models" / "tess.obj"
-MESHES = ("astra_defunct", "tess_like", "drum_dish", "tess_obj")
+MESHES = ("astra_defunct", "tess_like", "drum_dish", "tess_obj", "b702_like", "spacebus_like")
 #: the experiment's ``spin_defunct`` attitude
 SPIN = dict(pole_lon_deg=60.0, pole_lat_deg=35.0, period_s=437.0, phase_deg=17.0)
 #: the experiment's parametric defaults (``inversion.parametric.*``)
@@ -198,6 +202,12 @@ def truth(name: str, surface: str = "materials") -> Truth:
         t = Truth(drum_dish(), 1, True, np.r_[h, h, 1.5, 7.0, 2.0, math.radians(45), 1.9 - h, 0.35, 0.1,
                                              0.0, 0.0, -1.6, math.pi, 0.0, 1.0, 0.3, 0.6],
                   "a 24-sided drum bus (r 1.1 m, 3 m tall)")
+    elif name in ("b702_like", "spacebus_like"):
+        import _platforms
+
+        m, nominal = getattr(_platforms, name)()
+        t = Truth(m, 2, True, nominal, "built in benchmarks/_platforms.py: panels with gaps, booms, a deck module"
+                                       + (", unequal dishes" if name == "spacebus_like" else ", a tower dish, an engine"))
     elif name == "tess_obj":
         if not TESS_OBJ.is_file():
             raise FileNotFoundError(f"{TESS_OBJ} is not here")

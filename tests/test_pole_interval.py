@@ -414,3 +414,27 @@ def test_the_local_multistart_finds_the_deeper_of_two_neighbouring_minima():
     with pytest.raises(FieldError, match="local_starts"):
         estimate_spin(t, y, sun, obs, local_starts=9, **opts)
     assert estimate_spin(t, y, sun, obs, local_starts=4, **opts).chi2 <= estimate_spin(t, y, sun, obs, **opts).chi2
+
+
+def test_the_split_nights_searches_refine_as_the_whole_search_does(monkeypatch):
+    """``split_nights``: each stretch's search gets the whole search's settings, ``local_starts``
+    included (a stretch refined once where the whole is multi-started would not be the same
+    estimator); the stand-in records the keywords it is called with."""
+    import cssat.inversion.spin as spin
+    from cssat.inversion import estimate_spin
+
+    seen = {}
+
+    def record(search, t, y, S, O, opts, lon, lat):
+        assert search is estimate_spin
+        seen.update(opts)
+        return None
+
+    monkeypatch.setattr(spin, "_night_split", record)
+    t, sun, obs, y, s = _in_class_spinner(1, 3, 60, 6, 100, 12, (100.0, 10.0), 0.01)
+    opts = dict(sigma=s, frame="equatorial", period_s=500.0, n_poles=20, n_starts=2, n_refine=1, coarse_normals=60,
+                coarse_samples=120, n_normals=60, max_samples=120, interval="laplace")
+    estimate_spin(t, y, sun, obs, local_starts=2, split_nights=True, **opts)
+    assert seen["local_starts"] == 2
+    assert {k: seen[k] for k in ("n_poles", "n_starts", "n_refine", "n_normals", "max_samples")} == \
+        {k: opts[k] for k in ("n_poles", "n_starts", "n_refine", "n_normals", "max_samples")}

@@ -65,3 +65,27 @@ def test_fit_from_the_egi_measures_area_times_albedo(rows):
                                        "visibility held fixed their gradient is zero) and the size-albedo split of cd0")
 def test_fit_from_the_egi_reaches_the_noise(rows):
     assert rows["no dishes"]["ratio"] < 1.5  # in the family: the held-out residual should be the noise's
+
+
+@pytest.mark.parametrize("name", ["b702_like", "spacebus_like"])
+def test_the_platform_truths_closed_volume_is_their_closed_parts(name):
+    """The two platforms' closed volume (the IoU's denominator) is the analytic sum of their
+    closed parts — the bus, two booms, the deck module or tower and the cylinder (an n-gon prism:
+    ``n r² sin(2π/n) / 2 × length``) — and nothing of the zero-thickness wings and dishes; their
+    ``nominal`` is a family member of 17 parameters with two dishes."""
+    import _platforms
+    import bench_shadow_fit as bench
+
+    from cssat.inversion.parametric import param_names
+
+    def prism(r, length, n):
+        return n * r**2 * math.sin(2 * math.pi / n) / 2 * length
+
+    expected = {"b702_like": 3.2 * 3.0 * 4.2 + 2 * 0.1 * 1.8 * 0.1 + 1.0 * 1.0 * 0.8 + prism(0.35, 0.6, 16),
+                "spacebus_like": 2.2 * 2.0 * 4.6 + 2 * 0.1 * 1.2 * 0.1 + 0.8 * 0.6 * 0.4 + prism(0.05, 1.0, 8)}[name]
+    t = bench.truth(name, "materials")
+    assert bench.closed_volume(t.mesh) == pytest.approx(expected, rel=1e-9)
+    assert t.dishes == 2 and len(t.nominal) == len(param_names(2))
+    mesh, _ = getattr(_platforms, name)()
+    assert set(np.unique(mesh.cd)) == {_platforms.BUS, _platforms.WING, _platforms.DISH}
+    assert np.all(bench.truth(name, "uniform").mesh.cd == 0.3)

@@ -142,7 +142,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        normals fit). Each grid costs one Nelder–Mead refinement.
 
     5. ``split_nights`` (a diagnostic, not a 1σ): the search again on each contiguous stretch
-       alone (a night, or its part between gaps of over 30 min) from the same synodic period:
+       alone (a night, or its part between gaps of over 30 min) from the same synodic period and
+       settings (``local_starts`` included):
        ``split_poles`` and the standard error of their mean, ``σ² = Σᵢ θᵢ²/(g(g−1))`` (``θᵢ``
        the angle of the ``i``-th pole from their mean direction; the same for the period) as
        ``split_pole_err_deg``, ``split_period_err_s``. Measured, it is no calibrated 1σ either way:
@@ -287,7 +288,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     if split_nights:
         opts = dict(sigma=sig, brdf=brdf, frame=frame, period_s=P0, min_period_s=min_period_s, max_period_s=max_period_s,
                     n_poles=n_poles, n_starts=n_starts, n_refine=n_refine, coarse_normals=coarse_normals,
-                    coarse_samples=coarse_samples, n_normals=n_normals, max_samples=max_samples)
+                    coarse_samples=coarse_samples, n_normals=n_normals, max_samples=max_samples, local_starts=local_starts)
         split = _night_split(estimate_spin, t, y, S, O, opts, lon, lat)
     return SpinSolution(pole_lon_deg=lon, pole_lat_deg=float(lat), period_s=float(1 / f), lon_err_deg=float(err[0]),
                         lat_err_deg=float(err[1]), pole_err_deg=pole_err, period_err_s=period_err,
