@@ -370,6 +370,33 @@ def fit_truth(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, 
     return dict(rows=out, floor=floor, seed=seed)
 
 
+def spin_search_row(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials") -> dict:
+    """The attitude NOT given: :func:`cssat.inversion.estimate_spin` (the convex EGI's spin search at
+    the inversion experiment's default sizes, σ given) on the first two nights, the third held out
+    for its verdict — the pole's separation from the truth's, the period, each 1σ (NaN where
+    withheld) and the verdict. No shape is fitted here."""
+    from cssat.inversion import estimate_spin
+    from cssat.inversion.spin_errors import separation_deg
+    from cssat.models.egi.config import InversionConfig
+
+    inv = InversionConfig()  # the experiment's defaults (inversion.*)
+    tr = truth(name, surface)
+    y, sigma, _ = simulate(tr.mesh, geo, floor, seed)
+    sc = geo.scenario
+    t = ((sc.times - sc.times[0]) / np.timedelta64(1, "s"))[geo.keep]
+    S, O = sc.sun_dir[geo.keep], sc.obs_dir[geo.keep]
+    fit, held = geo.night < 2, geo.night >= 2
+    c0 = time.process_time()
+    sol = estimate_spin(t[fit], y[fit], S[fit], O[fit], sigma=sigma[fit], frame=geo.attitude.frame,
+                        n_normals=inv.search_normals, heldout=(t[held], y[held], S[held], O[held], sigma[held]), **inv.search())
+    return dict(mesh=name, surface=surface, seed=seed, floor=floor,
+                sep_deg=separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (SPIN["pole_lon_deg"], SPIN["pole_lat_deg"])),
+                period_s=sol.period_s, period_true_s=SPIN["period_s"], pole_err_deg=sol.pole_err_deg,
+                period_err_s=sol.period_err_s, verdict=sol["verdict"], why=sol["verdict_why"],
+                synodic_verdict=sol.synodic.get("verdict"), reduced_chi2=sol.reduced_chi2, ambiguous=sol.ambiguous,
+                cpu_s=time.process_time() - c0)
+
+
 def markdown(rows: list[dict]) -> str:
     """The table of the rows (targets: held-out rms ratio ≤ 1.5, IoU ≥ 0.7, CPU ≤ 600 s)."""
     head = ("| truth | albedos | family | fit rms/σ | held-out rms/σ: fit | true mesh | ratio (≤ 1.5) | IoU (≥ 0.7) | "
@@ -405,6 +432,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report", default=None, help="print the table of a JSON file written by --out, and stop")
     ap.add_argument("--visibility", choices=("cast", "soft"), default="cast",
                     help="fit_box_wing's shadows: cast and held fixed in each L-BFGS run, or soft (differentiable)")
+    ap.add_argument("--spin-search", action="store_true",
+                    help="no shape fit: the convex EGI's spin search on each truth (attitude not given), its verdict")
     args = ap.parse_args(argv)
     if args.report:
         print(markdown(json.loads(Path(args.report).read_text())["rows"]))
@@ -415,6 +444,16 @@ def main(argv: list[str] | None = None) -> int:
     geo = geometry(args.step)
     print(f"geometry: {len(geo.night)} samples, nights {np.bincount(geo.night).tolist()}, step {args.step:g} s", flush=True)
     rows = []
+    if args.spin_search:
+        for name in args.meshes:
+            for surface in args.surface:
+                r = spin_search_row(name, geo, seed=args.seed, floor=args.floor, surface=surface)
+                rows.append(r)
+                print(json.dumps(r), flush=True)
+        if args.out:
+            Path(args.out).write_text(json.dumps(dict(step_s=args.step, argv=sys.argv[1:] if argv is None else argv,
+                                                      rows=rows), indent=1))
+        return 0
     for name in args.meshes:
         if name == "tess_obj" and not TESS_OBJ.is_file():
             print(f"skip tess_obj: {TESS_OBJ} is not here", flush=True)

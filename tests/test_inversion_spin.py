@@ -74,17 +74,19 @@ def test_the_spin_search_finds_the_pole_and_the_sidereal_period(spin_case):
     """A convex asymmetric body over four nights of a GEO-like geometry (the synodic period
     differs from the sidereal by up to P²/sidereal day — the observer turns with the Earth — which
     over four nights is many half cycles: a search bounded by the Sun–observer bisector's
-    slower rate returned the synodic period): the pole to 3°, the sidereal period to 1e-5, within 3σ."""
+    slower rate returned the synodic period): the pole to 3°, the sidereal period to 1e-5; no σ
+    given, the verdict unreliable, so no 1σ of either (the period's calibrated 1σ is checked where
+    a spin is reliable: tests/test_pole_interval.py)."""
     from cssat.inversion.spin import _separation_deg
 
     sol, (ra, dec, period), *_ = spin_case
     assert _separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (ra, dec)) < 3.0, sol
     assert abs(sol.period_s / period - 1) < 1e-5, sol
-    assert abs(sol.period_s - period) < 3 * sol.period_err_s  # its 1σ covers the error
     assert abs(sol.synodic["period_s"] / period - 1) > 1e-4  # the light curve's own period is the synodic one
-    assert sol.period_err_s > 0 and not sol.ambiguous
-    # noise-free, no sigma: nothing to test the model against, so no pole 1σ is reported
-    assert sol.verdict == "unreliable" and "sigma" in sol.verdict_why and math.isnan(sol.pole_err_deg)
+    assert not sol.ambiguous
+    # noise-free, no sigma: nothing to test the model against, so no 1σ is reported
+    assert sol.verdict == "unreliable" and "sigma" in sol.verdict_why
+    assert math.isnan(sol.pole_err_deg) and math.isnan(sol.period_err_s)
 
 
 def test_the_fitted_spin_predicts_a_night_held_out(spin_case):

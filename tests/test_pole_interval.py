@@ -105,10 +105,10 @@ def test_a_model_that_does_not_fit_is_unreliable_and_reports_no_pole_error(glint
     sol = glinting
     assert sol.verdict == "unreliable" and "held-out" in sol.verdict_why
     assert sol.heldout_chi2 > sol.heldout_threshold
-    for k in ("pole_err_deg", "lon_err_deg", "lat_err_deg", "formal_pole_err_deg"):
+    for k in ("pole_err_deg", "lon_err_deg", "lat_err_deg", "formal_pole_err_deg", "period_err_s", "formal_period_err_s"):
         assert math.isnan(sol[k]), k
     d = sol.describe()
-    assert d["spin_verdict"] == "unreliable" and math.isnan(d["spin_pole_err_deg"])
+    assert d["spin_verdict"] == "unreliable" and math.isnan(d["spin_pole_err_deg"]) and math.isnan(d["spin_period_err_s"])
     assert "nan" in repr(sol)  # no sub-degree 1σ printed
 
 
@@ -314,9 +314,8 @@ def test_the_bootstrap_1sigma_of_the_pole_matches_a_brute_force_monte_carlo():
 
 def test_the_bootstrap_and_its_refined_grid_run_only_on_a_reliable_spin():
     """``bootstrap > 0`` changes nothing of an unreliable spin (here: no σ, nothing to test
-    against): no bootstrap's keys, and the period's 1σ — kept on an unreliable spin — is the
-    formal one with the turned grids' term, the same numbers as ``bootstrap=0``, not the refined
-    grid's smaller shift paired with the formal 1σ."""
+    against): no bootstrap's keys, and no 1σ at all — the pole's, the period's (formal and
+    reported) and the grid's terms NaN either way, the pole and period themselves the same."""
     from cssat.inversion import estimate_spin
 
     t, sun, obs, y, s = _in_class_spinner(1, 3, 60, 6, 100, 12, (100.0, 10.0), 0.01)
@@ -326,7 +325,10 @@ def test_the_bootstrap_and_its_refined_grid_run_only_on_a_reliable_spin():
     on = estimate_spin(t, y, sun, obs, bootstrap=4, **opts)
     assert off.verdict == on.verdict == "unreliable"
     assert "bootstrap_pole_err_deg" not in on and "bootstrap_lr_factor" not in on
-    assert on.period_err_s == off.period_err_s and on["grid_period_shift_s"] == off["grid_period_shift_s"] > 0
+    for sol in (off, on):
+        assert all(math.isnan(sol[k]) for k in ("pole_err_deg", "formal_pole_err_deg", "period_err_s",
+                                                 "formal_period_err_s", "grid_pole_shift_deg", "grid_period_shift_s"))
+    assert (on.pole_lon_deg, on.pole_lat_deg, on.period_s) == (off.pole_lon_deg, off.pole_lat_deg, off.period_s)
 
 
 def test_an_ambiguous_pole_is_unreliable_and_says_which_rival():

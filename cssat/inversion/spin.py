@@ -160,8 +160,11 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        by more than any 1σ), else ``"reliable"``. Without ``heldout`` the fitted samples' χ²
        against the ``χ²_{n−p}`` quantile (a test a flexible model passes by overfitting: said so
        in ``verdict_why``); without ``sigma`` ``"unreliable"`` (nothing to test against). When
-       unreliable the pole's 1σ (``pole_err_deg``, ``lon_err_deg``, ``lat_err_deg``,
-       ``formal_pole_err_deg``) are NaN: no 1σ is reported on a model that does not fit. A fit
+       unreliable every 1σ (``pole_err_deg``, ``lon_err_deg``, ``lat_err_deg``,
+       ``formal_pole_err_deg``, ``period_err_s``, ``formal_period_err_s`` and step 4's grid
+       terms) is NaN: no 1σ is reported on a model that does not fit — its period may be an
+       alias of the cadence or a wrong pole's, with a curvature 1σ of 1e-4 s (the synodic
+       period's own, calibrated 1σ is in ``synodic``: :func:`~cssat.inversion.estimate_period`). A fit
        that passes is still called unreliable when it is ``ambiguous``: another refined minimum
        more than 10° away within Δχ² < 9 (the data do not decide between the poles).
        ``heldout_chi2``, ``heldout_n``, ``heldout_threshold`` (χ², not per sample).
@@ -185,8 +188,8 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
        Gauss–Newton's) — ``B`` light curves drawn from the fitted model at the stated noise (×
        the reduced χ² where above 1; a fixed seed), each refined from the solution on the fine
        fit, the RMS of their shifts (``bootstrap_pole_err_deg``, ``bootstrap_period_err_s``) ⊕
-       step 4's grid term (refined only when the bootstrap runs: an unreliable spin keeps the
-       turned grids and the formal 1σ of ``bootstrap=0``). The profile's 1σ misses the valley the
+       step 4's grid term (refined when the bootstrap runs; an unreliable spin reports no 1σ and
+       runs no bootstrap). The profile's 1σ misses the valley the
        NNLS support opens (in class it holds 50 / 77 % in its 68 / 95 % circles: BENCHMARKS.md).
        ``bootstrap_lr_factor``: the replicates' mean profile Δχ² at the pole they were drawn from,
        over 2 (1 where Wilks' χ²₂ holds; above 1 step 7's region is too small by its square
@@ -254,7 +257,9 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     check = _check_spin(fine, a, sup, lon, lat, f, chi2, span, sig, heldout, brdf, frame)
     check.update(ambiguity(check, alts))
     boot = bootstrap if check["verdict"] == "reliable" else 0  # step 8 runs only on a reliable fit
-    grid_pole, grid_period = _grid_bias(fine, lon, lat, f, span, error_grids, refined=boot > 0)
+    # the grid's bias (step 4) only where a 1σ is reported: an unreliable spin reports none
+    grid_pole, grid_period = (_grid_bias(fine, lon, lat, f, span, error_grids, refined=boot > 0)
+                              if check["verdict"] == "reliable" else (float("nan"), float("nan")))
     pole_err = float(np.hypot(formal_pole, grid_pole))
     period_err = float(np.hypot(err[2] / f ** 2, grid_period))
     check["pole_interval"] = None
@@ -282,8 +287,11 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
         pole_err = float(np.hypot(check["bootstrap_pole_err_deg"], grid_pole))
         period_err = float(np.hypot(check["bootstrap_period_err_s"], grid_period))
     if check["verdict"] == "unreliable":
-        err = np.array([np.nan, np.nan, err[2]])  # the pole's 1σ withheld; the period's kept
-        formal_pole = pole_err = grid_pole = check["laplace_pole_err_deg"] = float("nan")
+        # no 1σ on a model that does not fit: the pole's and the period's withheld (a misfitting or aliased
+        # spin's curvature says nothing of its error: in class, 457σ off on one wrong pole; an alias at 1e-4 s).
+        # The period's calibrated 1σ is the synodic search's (``synodic``, estimate_period's)
+        err = np.full(3, np.nan)
+        formal_pole = pole_err = period_err = check["laplace_pole_err_deg"] = float("nan")
     split = None
     if split_nights:
         opts = dict(sigma=sig, brdf=brdf, frame=frame, period_s=P0, min_period_s=min_period_s, max_period_s=max_period_s,
