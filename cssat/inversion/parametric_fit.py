@@ -26,10 +26,50 @@ import torch
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 
-__all__ = ["box_wing_start", "fit_box_wing"]
+__all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing"]
 
 #: the parameters fitted as logarithms of a length (m)
 SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth")
+
+
+def box_wing_yaw(normals: Any, areas: Any, *, panels: int = 2) -> tuple[float, ...]:
+    """The turns ψ (rad) about the body z axis that may bring a box-wing's panels along ±y, from an
+    EGI (``normals (K, 3)``, ``areas (K,)``), the likeliest first: the family holds its bus and
+    panels on the body axes, but a searched spin's body frame
+    (:meth:`~cssat.inversion.results.SpinSolution.frames`) has z on the pole and an arbitrary phase
+    about it. Turning the frame by ``R_z(−ψ)`` (vectors ``v @ R.T``) puts the panels' normal in the
+    x–z plane.
+
+    ψ is the azimuth of the heaviest direction (antipodal normals pooled within 15°; their
+    area-weighted mean direction, so not quantised to the grid of normals). Where that direction is
+    within 15° of the pole (panels facing ±z: a Lambertian EGI does not see their in-plane axis),
+    the heaviest direction within 30° of the x–y plane is used instead — a bus face, whose azimuth
+    fixes the axes only modulo 90°: ψ and ψ + 90° are returned. With ``panels=1`` (one panel, at
+    +y) each ψ + 180° too (a mirror pair is symmetric under that turn, one panel is not). The caller
+    picks among them (e.g. by the start's loss).
+
+    ASSUMPTION: the spin axis is perpendicular to the panels' axis (a box-wing rotating about its
+    largest moment of inertia, or any axis in the panels' normal plane)."""
+    N, a = np.asarray(normals, dtype=np.float64), np.asarray(areas, dtype=np.float64)
+    if N.ndim != 2 or N.shape[1] != 3 or a.shape != (len(N),) or a.sum() <= 0:
+        raise FieldError("areas", f"expected K normals (K, 3) and K areas with a positive sum, got {N.shape}, {a.shape}")
+    panels = int_param(panels, "panels", 1, 2)
+    near = np.abs(N @ N.T) >= math.cos(math.radians(15))
+    pooled = near @ a
+
+    def mean_direction(k):  # the area-weighted mean of the normals pooled at k, folded onto N[k]'s side
+        v = ((near[k] * a * np.sign(N @ N[k]))[:, None] * N).sum(0)
+        return v / np.linalg.norm(v)
+
+    n = mean_direction(int(np.argmax(pooled)))
+    out = [math.atan2(n[1], n[0])]
+    if math.hypot(n[0], n[1]) < math.sin(math.radians(15)):
+        side = np.abs(N[:, 2]) <= math.sin(math.radians(30))
+        n = mean_direction(int(np.argmax(np.where(side, pooled, -1))))
+        out = [math.atan2(n[1], n[0]), math.atan2(n[1], n[0]) + math.pi / 2]
+    if panels == 1:
+        out += [psi + math.pi for psi in out]
+    return tuple(float((psi + math.pi) % (2 * math.pi) - math.pi) for psi in out)
 
 
 def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.3, aspect: float = 3.75) -> np.ndarray:

@@ -286,12 +286,10 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
             fine, fine.matrix(lon, lat, f) @ a, lon, lat, f, span, scale2, boot, local_starts)  # a: the EGI at (lon, lat, f)
         pole_err = float(np.hypot(check["bootstrap_pole_err_deg"], grid_pole))
         period_err = float(np.hypot(check["bootstrap_period_err_s"], grid_period))
-    if check["verdict"] == "unreliable":
-        # no 1σ on a model that does not fit: the pole's and the period's withheld (a misfitting or aliased
-        # spin's curvature says nothing of its error: in class, 457σ off on one wrong pole; an alias at 1e-4 s).
-        # The period's calibrated 1σ is the synodic search's (``synodic``, estimate_period's)
-        err = np.full(3, np.nan)
-        formal_pole = pole_err = period_err = check["laplace_pole_err_deg"] = float("nan")
+    if check["verdict"] == "unreliable":  # no 1σ on a model that does not fit (the grid terms NaN: so every sum)
+        # — a misfitting or aliased spin's curvature says nothing of its error: in class 457σ off on one wrong
+        # pole, an alias of the cadence at 1e-4 s. The period's calibrated 1σ is the synodic search's (``synodic``)
+        err, formal_pole = np.full(3, np.nan), float("nan")
     split = None
     if split_nights:
         opts = dict(sigma=sig, brdf=brdf, frame=frame, period_s=P0, min_period_s=min_period_s, max_period_s=max_period_s,

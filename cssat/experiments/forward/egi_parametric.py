@@ -1,6 +1,8 @@
 """The EGI forward model's optional non-convex stage (``inversion.shape=parametric``):
 a box-wing (:mod:`cssat.inversion.parametric`) fitted through its Embree-shadowed light
-curve, started from the convex EGI; its prediction of the held-out nights replaces the convex
+curve, started from the convex EGI (in a searched spin's frame, turned about the pole first so
+that the EGI's panels lie along ±y: :func:`~cssat.inversion.parametric_fit.box_wing_yaw`,
+``inversion.parametric.yaw``); its prediction of the held-out nights replaces the convex
 one in the headline metrics (the convex one kept as ``convex_*``), its mesh written as
 ``shape_parametric.obj`` and scored by volume IoU against the true mesh (``shape_iou_true``)."""
 
@@ -27,18 +29,34 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     import torch  # heavy: torch, only to fit the box-wing
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
-    from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing  # heavy: torch
+    from cssat.inversion.parametric_fit import box_wing_start, box_wing_yaw, fit_box_wing  # heavy: torch
 
     res, fit, held, sigma, y = sol.res, m.fit, m.held, m.sigma, m.y
     geo = dict(panels=o.panels, divisions=o.divisions)
-    p0 = box_wing_start(res.normals, res.areas, panels=o.panels, cd0=o.cd0)
-    p, info = fit_box_wing(y[fit], a.sun_b[fit], a.obs_b[fit], p0, sigma=None if sigma is None else sigma[fit],
+    kw = dict(range_km=1e-3, irradiance=1.0, **geo)
+    searched = a.metrics.get("spin") == "search"  # z on the pole, the phase about it arbitrary: the panels' axis unknown
+    yaws = box_wing_yaw(res.normals, res.areas, panels=o.panels) if o.yaw == "egi" or (o.yaw == "auto" and searched) \
+        else (0.0,)
+    starts = []
+    for psi in yaws:  # the box-wing's frame: the fitted body frame turned by R_z(−ψ)
+        R = _rz(-psi)
+        S, V = a.sun_b @ R.T, a.obs_b @ R.T
+        p0 = box_wing_start(res.normals @ R.T, res.areas, panels=o.panels, cd0=o.cd0)
+        loss = 0.0
+        if len(yaws) > 1:  # the candidates told apart by their start's misfit on the fitted nights
+            m0 = box_wing_light_curve(torch.as_tensor(p0), S[fit], V[fit], box_wing_visibility(p0, S[fit], V[fit], **geo),
+                                      **kw).numpy()
+            loss = float(np.sum(((y[fit] - m0) / (1.0 if sigma is None else sigma[fit])) ** 2))
+        starts.append((loss, psi, R, S, V, p0))
+    _, psi, R, S, V, p0 = min(starts, key=lambda s_: s_[0])
+    p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, sigma=None if sigma is None else sigma[fit],
                            outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness, **geo)
-    vis = box_wing_visibility(p, a.sun_b, a.obs_b, **geo)
+    vis = box_wing_visibility(p, S, V, **geo)
     sol.convex_model_unit = sol.model_unit
-    sol.model_unit = box_wing_light_curve(torch.as_tensor(p), a.sun_b, a.obs_b, vis, range_km=1e-3, irradiance=1.0,
-                                          **geo).numpy()
-    sol.param_mesh = box_wing_mesh(p, **geo)
+    sol.model_unit = box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw).numpy()
+    bw = box_wing_mesh(p, **geo)
+    sol.param_mesh = Mesh(np.asarray(bw.vertices) @ R, np.asarray(bw.faces), bw.cd, bw.cs, name=bw.name, part=bw.part,
+                          part_names=bw.part_names)  # the fitted frame
     mt = sol.metrics
     for k in ("fit_rms", "fit_rms_over_noise", "heldout_rms", "heldout_rms_over_noise", "heldout_rms_relative",
               "fit_typical_over_noise", "heldout_typical_over_noise"):
@@ -51,7 +69,13 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_over_noise=rh / nh if nh and held.any() else None,
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
-              **{f"parametric_{k}": v for k, v in info["params"].items()})
+              parametric_yaw_deg=float(np.degrees(psi)), **{f"parametric_{k}": v for k, v in info["params"].items()})
+
+
+def _rz(psi: float) -> np.ndarray:
+    """``R_z(ψ) (3, 3)``: a turn by ψ (rad) about the body z axis."""
+    c, s_ = np.cos(psi), np.sin(psi)
+    return np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def score_parametric(mesh: Any, sol: Any, to_fit: np.ndarray) -> dict[str, Any]:

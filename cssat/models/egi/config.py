@@ -84,6 +84,8 @@ class ParametricConfig:
     visibility: str = "cast"
     #: with visibility soft: the shadows' first edge softness, × the start's mean bus half-size
     softness: float = 0.1
+    #: the box-wing's turn about the body z axis: auto (from the EGI when the spin was searched, else none) | egi | none
+    yaw: str = "auto"
 
     def __post_init__(self) -> None:
         self.panels = int_param(self.panels, "inversion.parametric.panels", 1, 2)
@@ -94,6 +96,7 @@ class ParametricConfig:
         self.cd0 = float_param(self.cd0, "inversion.parametric.cd0", 0.0, 1.0, open_lo=True)
         self.visibility = choice_param(self.visibility, "inversion.parametric.visibility", ("cast", "soft"))
         self.softness = float_param(self.softness, "inversion.parametric.softness", 0.0, open_lo=True)
+        self.yaw = choice_param(self.yaw, "inversion.parametric.yaw", ("auto", "egi", "none"))
 
 
 @dataclass
