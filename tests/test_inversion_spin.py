@@ -338,3 +338,19 @@ def test_the_nights_split_is_the_standard_error_of_their_mean():
     assert len(_night_split(search, t, np.ones(len(t)), S, S, {"sigma": None, "refuse": True}, 10.0, 20.0)["split_poles"]) == 2
     one = t < 86400.0
     assert _night_split(search, t[one], np.ones(100), S[one], S[one], {"sigma": None}, 10.0, 20.0) is None
+
+
+def test_the_attitude_line_prints_no_withheld_one_sigma():
+    """The experiment's log line: a reliable spin's pole and period with their 1σ; an unreliable
+    spin's or tumbler's without any (no "± nan"), said so."""
+    from cssat.experiments.forward.egi import _attitude_line
+
+    spin = dict(spin="search", spin_pole_lon_deg=10.0, spin_pole_lat_deg=20.0, spin_period_s=437.0, spin_reduced_chi2=1.1,
+                spin_ambiguous=False, spin_verdict="reliable", spin_pole_err_deg=0.5, spin_period_err_s=0.01)
+    assert "± 0.5°" in _attitude_line(spin) and "± 0.01 s" in _attitude_line(spin) and "no 1σ" not in _attitude_line(spin)
+    bad = dict(spin, spin_verdict="unreliable", spin_pole_err_deg=float("nan"), spin_period_err_s=float("nan"))
+    tumble = dict(spin="tumbling", tumble_L_lon_deg=1.0, tumble_L_lat_deg=2.0, tumble_err_L_err_deg=float("nan"),
+                  tumble_P_omega_s=900.0, tumble_P_phi_s=300.0, tumble_mode="SAM", tumble_reduced_chi2=4.0,
+                  tumble_verdict="unreliable")
+    for line in (_attitude_line(bad), _attitude_line(tumble)):
+        assert "nan" not in line and "±" not in line and line.endswith("unreliable (no 1σ)"), line

@@ -222,16 +222,18 @@ def _attitude_line(m: dict[str, Any]) -> str:
     periods (each with its 1σ, reduced χ² and verdict), or "attitude known (oracle)"."""
     verdict = m.get("spin_verdict", m.get("tumble_verdict"))
     tail = f", {verdict}" if verdict else ""
-    if m.get("spin") == "search":
-        def pm(key: str, unit: str) -> str:  # "± 1σ", or nothing where it is withheld (an unreliable spin)
-            v = m.get(key)
-            return f" ± {v:.2g}{unit}" if v is not None and math.isfinite(v) else ""
+    tail += " (no 1σ)" if verdict == "unreliable" else ""
 
+    def pm(key: str, unit: str) -> str:  # "± 1σ", or nothing where it is withheld (an unreliable fit)
+        v = m.get(key)
+        return f" ± {v:.2g}{unit}" if v is not None and math.isfinite(v) else ""
+
+    if m.get("spin") == "search":
         return (f"spin pole ({m['spin_pole_lon_deg']:.2f}°, {m['spin_pole_lat_deg']:.2f}°){pm('spin_pole_err_deg', '°')}, "
                 f"period {m['spin_period_s']:.6f}{pm('spin_period_err_s', '')} s, reduced χ² {m['spin_reduced_chi2']:.3g}"
-                f"{', ambiguous' if m['spin_ambiguous'] else ''}{tail}{' (no 1σ)' if verdict == 'unreliable' else ''}")
+                f"{', ambiguous' if m['spin_ambiguous'] else ''}{tail}")
     if m.get("spin") == "tumbling":
-        return (f"tumbling L ({m['tumble_L_lon_deg']:.2f}°, {m['tumble_L_lat_deg']:.2f}°) ± {m['tumble_err_L_err_deg']:.2g}°, "
+        return (f"tumbling L ({m['tumble_L_lon_deg']:.2f}°, {m['tumble_L_lat_deg']:.2f}°){pm('tumble_err_L_err_deg', '°')}, "
                 f"P_ω {m['tumble_P_omega_s']:.4f} s, P_φ {m['tumble_P_phi_s']:.4f} s, {m['tumble_mode']}, "
                 f"reduced χ² {m['tumble_reduced_chi2']:.3g}{tail}")
     return "attitude known (oracle)"
