@@ -70,8 +70,10 @@ from __future__ import annotations
 
 import os
 
-for _v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS"):
-    os.environ.setdefault(_v, "1")
+if __name__ == "__main__":  # run as a script: one thread a library before numpy loads. Not when a test imports
+    # it: numba's pool may already run there at another size, and a changed NUMBA_NUM_THREADS then fails its next compile
+    for _v in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "VECLIB_MAXIMUM_THREADS"):
+        os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
 import json  # noqa: E402
