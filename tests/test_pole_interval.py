@@ -246,6 +246,8 @@ def test_the_pole_1sigma_adds_the_grids_bias_to_the_profile_region():
     assert sol.pole_err_deg > max(region, sol.grid_pole_shift_deg)
     # the 95.45 % circle of a circular Gaussian: 1.7579 radial 1σ
     assert separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (100.0, 10.0)) < 1.7579 * sol.pole_err_deg
+    # a reliable spin reports its period's 1σ (an unreliable one withholds it), and it covers the error
+    assert 0 < sol.period_err_s and abs(sol.period_s - 500.0) < 3 * sol.period_err_s, (sol.period_s, sol.period_err_s)
 
 
 @pytest.mark.slow
