@@ -58,7 +58,8 @@ zero-thickness panels and dishes have no volume on either side, so it scores the
 closed appendage), and, as a diagnostic only, the IoU with the fitted mesh scaled to the true
 closed volume (flux is albedo × area: an absolute size needs an albedo prior); CPU seconds of
 the whole fit (EGI start, no-dish fit, dish starts and the dishes fit; one thread; target ≤ 600 s).
-The attitude is given, so no pole is estimated here: the spin-searched stage is not benchmarked.
+The attitude is given, so no pole is estimated by the fit; ``--spin-search`` runs instead the convex
+EGI's spin search on each truth (the attitude not given) and reports its pole, period and verdict.
 
 Run from the repository root (one thread)::
 
