@@ -32,6 +32,16 @@ __all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing"]
 SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth")
 
 
+def _pooled_egi(normals: Any, areas: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """An EGI checked, ``(N (K, 3), a (K,), near (K, K), pooled (K,))``: ``near`` the pairs of normals
+    within 15° of each other or of each other's antipode, ``pooled`` each normal's area with theirs."""
+    N, a = np.asarray(normals, dtype=np.float64), np.asarray(areas, dtype=np.float64)
+    if N.ndim != 2 or N.shape[1] != 3 or a.shape != (len(N),) or a.sum() <= 0:
+        raise FieldError("areas", f"expected K normals (K, 3) and K areas with a positive sum, got {N.shape}, {a.shape}")
+    near = np.abs(N @ N.T) >= math.cos(math.radians(15))
+    return N, a, near, near @ a
+
+
 def box_wing_yaw(normals: Any, areas: Any, *, panels: int = 2) -> tuple[float, ...]:
     """The turns ψ (rad) about the body z axis that may bring a box-wing's panels along ±y, from an
     EGI (``normals (K, 3)``, ``areas (K,)``), the likeliest first: the family holds its bus and
@@ -50,12 +60,8 @@ def box_wing_yaw(normals: Any, areas: Any, *, panels: int = 2) -> tuple[float, .
 
     ASSUMPTION: the spin axis is perpendicular to the panels' axis (a box-wing rotating about its
     largest moment of inertia, or any axis in the panels' normal plane)."""
-    N, a = np.asarray(normals, dtype=np.float64), np.asarray(areas, dtype=np.float64)
-    if N.ndim != 2 or N.shape[1] != 3 or a.shape != (len(N),) or a.sum() <= 0:
-        raise FieldError("areas", f"expected K normals (K, 3) and K areas with a positive sum, got {N.shape}, {a.shape}")
+    N, a, near, pooled = _pooled_egi(normals, areas)
     panels = int_param(panels, "panels", 1, 2)
-    near = np.abs(N @ N.T) >= math.cos(math.radians(15))
-    pooled = near @ a
 
     def mean_direction(k):  # the area-weighted mean of the normals pooled at k, folded onto N[k]'s side
         v = ((near[k] * a * np.sign(N @ N[k]))[:, None] * N).sum(0)
@@ -77,12 +83,8 @@ def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.
     the panel normal is the heaviest axis (antipodal areas pooled) perpendicular to y within 30°,
     which gives the hinge; the panels take that direction's area (one side), the rest is a cubic
     bus; sizes are ``area / cd0``; a panel's length is ``aspect`` × its width."""
-    N, a = np.asarray(normals, dtype=np.float64), np.asarray(areas, dtype=np.float64)
-    if N.ndim != 2 or N.shape[1] != 3 or a.shape != (len(N),) or a.sum() <= 0:
-        raise FieldError("areas", f"expected K normals (K, 3) and K areas with a positive sum, got {N.shape}, {a.shape}")
+    N, a, _, pooled = _pooled_egi(normals, areas)
     cd0 = float_param(cd0, "cd0", 0.0, 1.0, open_lo=True)
-    cos = np.abs(N @ N.T)
-    pooled = (cos >= math.cos(math.radians(15))) @ a
     side = np.abs(N[:, 1]) <= math.sin(math.radians(30))
     k = int(np.argmax(np.where(side, pooled, -1)))
     n = N[k] * np.sign(N[k, 0] if abs(N[k, 0]) > 1e-9 else 1.0)

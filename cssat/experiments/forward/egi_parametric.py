@@ -30,6 +30,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
     from cssat.inversion.parametric_fit import box_wing_start, box_wing_yaw, fit_box_wing  # heavy: torch
+    from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
 
     res, fit, held, sigma, y = sol.res, m.fit, m.held, m.sigma, m.y
     geo = dict(panels=o.panels, divisions=o.divisions)
@@ -38,8 +39,8 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     yaws = box_wing_yaw(res.normals, res.areas, panels=o.panels) if o.yaw == "egi" or (o.yaw == "auto" and searched) \
         else (0.0,)
     starts = []
-    for psi in yaws:  # the box-wing's frame: the fitted body frame turned by R_z(−ψ)
-        R = _rz(-psi)
+    for psi in yaws:  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
+        R = rot_z(np.array([psi]))[0]
         S, V = a.sun_b @ R.T, a.obs_b @ R.T
         p0 = box_wing_start(res.normals @ R.T, res.areas, panels=o.panels, cd0=o.cd0)
         loss = 0.0
@@ -70,12 +71,6 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
               parametric_yaw_deg=float(np.degrees(psi)), **{f"parametric_{k}": v for k, v in info["params"].items()})
-
-
-def _rz(psi: float) -> np.ndarray:
-    """``R_z(ψ) (3, 3)``: a turn by ψ (rad) about the body z axis."""
-    c, s_ = np.cos(psi), np.sin(psi)
-    return np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def score_parametric(mesh: Any, sol: Any, to_fit: np.ndarray) -> dict[str, Any]:
