@@ -28,9 +28,20 @@ parameters (:data:`DISH_PARAM_NAMES`) after the nine, ``p (17,)``:
 * ``cd_dish``: its diffuse albedo (both sides).
 
 ``dishes=2`` mirrors the dish through the y–z plane (vertex ``(−x, y, z)``, axis ``(−a_x, a_y,
-a_z)``), the pair on the ±x faces of :func:`cssat.scene.models.astra_like`. The dishes cast and
-take shadows like every other facet. Their specular part is not in the family (Lambertian, as the
-rest).
+a_z)``), the pair on the ±x faces of :func:`cssat.scene.models.astra_like`; with
+``dish_pair="free"`` the second dish has its own place, axis and size instead
+(:data:`DISH2_PARAM_NAMES`, seven more; its albedo is ``cd_dish``): two unequal reflectors. The
+dishes cast and take shadows like every other facet. Their specular part is not in the family
+(Lambertian, as the rest).
+
+**Other parts** (each off by default; :func:`param_names` gives the order, after the dishes'):
+
+* ``wing_panels=n`` (> 1): each wing is ``n`` panels of ``length × width`` in a row along y with
+  ``panel_gap`` (m) between them (a real array's hinged panels), the first at ``|y| = b + gap``;
+* ``booms=True``: a square boom (yoke) of side ``boom_width`` (m) along y from the bus's ±y face
+  to each wing's root (length ``gap``), albedo ``cd_bus``;
+* ``deck=True``: a box centred on the +z (Earth) deck, half-sizes ``deck_a, deck_b`` along x, y
+  and height ``deck_h`` (m), albedo ``cd_bus`` (an antenna tower or a payload module).
 
 ASSUMPTIONS: Lambertian parts (no specular lobe: glints in the data are outliers the fit must
 down-weight); the panels are two-sided zero-thickness plates centred on the bus's mid-plane
@@ -58,23 +69,43 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cssat._checks import FieldError
+from cssat._checks import FieldError, bool_param, choice_param, int_param
 from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, check_unit, shadow_mask
 from cssat.scene.mesh import Mesh
 
-__all__ = ["PARAM_NAMES", "DISH_PARAM_NAMES", "param_names", "box_wing", "box_wing_mesh", "box_wing_light_curve",
+__all__ = ["PARAM_NAMES", "DISH_PARAM_NAMES", "DISH2_PARAM_NAMES", "PART_PARAM_NAMES", "param_names", "box_wing", "box_wing_mesh", "box_wing_light_curve",
            "box_wing_visibility"]
 
 PARAM_NAMES = ("a", "b", "c", "length", "width", "hinge", "gap", "cd_bus", "cd_panel")
 #: the parameters of the dishes (``dishes=1`` or ``2``), after :data:`PARAM_NAMES`
 DISH_PARAM_NAMES = ("dish_x", "dish_y", "dish_z", "dish_tilt", "dish_azimuth", "dish_radius", "dish_depth", "cd_dish")
+#: the second dish's own geometry (``dishes=2, dish_pair="free"``; its albedo is ``cd_dish``)
+DISH2_PARAM_NAMES = ("dish2_x", "dish2_y", "dish2_z", "dish2_tilt", "dish2_azimuth", "dish2_radius", "dish2_depth")
+#: the gap between a wing's panels (``wing_panels > 1``), the booms' side (``booms``), the deck box (``deck``)
+PART_PARAM_NAMES = {"wing_panels": ("panel_gap",), "booms": ("boom_width",), "deck": ("deck_a", "deck_b", "deck_h")}
+#: the parameters free in sign (angles, positions); ``gap`` is >= 0, every other > 0
+SIGNED_NAMES = ("hinge",) + tuple(f"{d}_{k}" for d in ("dish", "dish2") for k in ("x", "y", "z", "tilt", "azimuth"))
 
 
-def param_names(dishes: int = 0) -> tuple[str, ...]:
-    """The names of ``p``'s entries: :data:`PARAM_NAMES`, and :data:`DISH_PARAM_NAMES` with dishes."""
+def _layout(dishes: int, dish_pair: str, wing_panels: int, booms: bool, deck: bool) -> tuple[int, str, int, bool, bool]:
+    """The parts' options checked (errors name the field)."""
     if isinstance(dishes, bool) or dishes not in (0, 1, 2):
         raise FieldError("dishes", f"expected 0, 1 or 2, got {dishes!r}")
-    return PARAM_NAMES + (DISH_PARAM_NAMES if dishes else ())
+    dish_pair = choice_param(dish_pair, "dish_pair", ("mirror", "free"))
+    if dish_pair == "free" and dishes != 2:
+        raise FieldError("dish_pair", f"'free' (a second dish with its own place and size) needs dishes=2, got {dishes}")
+    return dishes, dish_pair, int_param(wing_panels, "wing_panels", 1, 32), bool_param(booms, "booms"), bool_param(deck, "deck")
+
+
+def param_names(dishes: int = 0, *, dish_pair: str = "mirror", wing_panels: int = 1, booms: bool = False,
+                deck: bool = False) -> tuple[str, ...]:
+    """The names of ``p``'s entries for the parts asked for (module docstring): :data:`PARAM_NAMES`,
+    then :data:`DISH_PARAM_NAMES` with dishes, :data:`DISH2_PARAM_NAMES` with a free pair, then
+    ``panel_gap`` (``wing_panels > 1``), ``boom_width`` (``booms``), ``deck_a, deck_b, deck_h`` (``deck``)."""
+    dishes, dish_pair, wing_panels, booms, deck = _layout(dishes, dish_pair, wing_panels, booms, deck)
+    return (PARAM_NAMES + (DISH_PARAM_NAMES if dishes else ()) + (DISH2_PARAM_NAMES if dish_pair == "free" else ())
+            + (PART_PARAM_NAMES["wing_panels"] if wing_panels > 1 else ()) + (PART_PARAM_NAMES["booms"] if booms else ())
+            + (PART_PARAM_NAMES["deck"] if deck else ()))
 
 
 def _quad_faces(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -87,10 +118,11 @@ def _quad_faces(nu: int, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return s.ravel(), t.ravel(), faces
 
 
-def check_params(p: Any, panels: int, divisions: int, dishes: int = 0) -> Tensor:
-    """``p`` as a float tensor ``(9,)`` (``(17,)`` with dishes; float64 unless a tensor) with
-    positive sizes and albedos; errors name the field."""
-    names = param_names(dishes)
+def check_params(p: Any, panels: int, divisions: int, dishes: int = 0, **parts: Any) -> Tensor:
+    """``p`` as a float tensor ``(len(param_names(dishes, **parts)),)`` (float64 unless a tensor)
+    with positive sizes and albedos; errors name the field. ``parts``: ``dish_pair``,
+    ``wing_panels``, ``booms``, ``deck`` (:func:`param_names`)."""
+    names = param_names(dishes, **parts)
     if panels not in (1, 2):
         raise FieldError("panels", f"expected 1 or 2, got {panels!r}")
     if isinstance(divisions, bool) or not isinstance(divisions, int) or divisions < 1:
@@ -100,20 +132,20 @@ def check_params(p: Any, panels: int, divisions: int, dishes: int = 0) -> Tensor
         t = t.double()
     if t.shape != (len(names),):
         raise FieldError("params", f"expected {len(names)} values {names}, got shape {tuple(t.shape)}")
-    free_sign = ("hinge", "dish_x", "dish_y", "dish_z", "dish_tilt", "dish_azimuth")
     for k, name in enumerate(names):
         v = float(t[k].detach())
-        rule = {"gap": "finite and >= 0"}.get(name, "finite" if name in free_sign else "finite and > 0")
-        bad = not math.isfinite(v) or (name == "gap" and v < 0) or (name not in free_sign + ("gap",) and v <= 0)
+        rule = {"gap": "finite and >= 0"}.get(name, "finite" if name in SIGNED_NAMES else "finite and > 0")
+        bad = not math.isfinite(v) or (name == "gap" and v < 0) or (name not in SIGNED_NAMES + ("gap",) and v <= 0)
         if bad:
             raise FieldError(f"params.{name}", f"must be {rule}, got {v}")
     return t
 
 
-def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, np.ndarray]:
-    """One dish of the dish parameters ``q (8,)``: vertices ``(V, 3)`` and faces (two-sided), the
-    triangles of :func:`cssat.scene.models.dish` in its order, differentiable in ``q``."""
-    x, y, z, tilt, azim, radius, depth, _ = q.unbind()
+def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, np.ndarray, tuple[Tensor, Tensor, Tensor]]:
+    """One dish of the dish geometry ``q (7,)`` (vertex x, y, z, tilt, azimuth, radius, depth):
+    vertices ``(V, 3)``, faces (two-sided), the triangles of :func:`cssat.scene.models.dish` in its
+    order, differentiable in ``q``; and its aperture disk ``(centre (3,), unit axis (3,), radius)``."""
+    x, y, z, tilt, azim, radius, depth = q[:7].unbind()
     sign = -1.0 if mirror else 1.0
     zero = torch.zeros((), dtype=q.dtype, device=q.device)
     c = torch.stack([sign * x, y + zero, z + zero])
@@ -138,20 +170,24 @@ def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, n
         N, _ = _geometry(verts.detach(), faces)
         if float((N @ a.detach()).mean()) < 0:
             faces = faces[:, ::-1].copy()
-    return torch.cat([verts, verts]), np.concatenate([faces, faces[:, ::-1] + len(verts)])
+    return torch.cat([verts, verts]), np.concatenate([faces, faces[:, ::-1] + len(verts)]), (c + depth * a, a, radius)
 
 
-def box_wing(p: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0, dish_rings: int = 12,
-             dish_segments: int = 40) -> tuple[Tensor, np.ndarray, np.ndarray, Tensor]:
-    """The box-wing's triangles as torch functions of ``p``: ``(vertices (V, 3) m, faces (F, 3),
-    part (F,) 0 bus / 1 panels / 2 dishes, cd (F,))``; vertices and cd follow ``p``'s dtype and
-    device and carry its gradient. Every face of the bus and each panel side is ``divisions²``
-    cells; each dish ``dish_rings × dish_segments`` (``dishes`` 0, 1 or 2: module docstring)."""
-    p = check_params(p, panels, divisions, dishes)
+def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int, dish_segments: int,
+              **parts: Any) -> tuple[Tensor, np.ndarray, np.ndarray, Tensor, np.ndarray, list]:
+    """:func:`box_wing`'s ``(vertices, faces, part, cd)`` and, for the soft shadows
+    (:mod:`cssat.inversion.soft_shadow`), each face's occluder ``(F,)`` (the part instance it
+    belongs to: the bus 0, each wing, each boom, the deck, each dish) and the occluders:
+    ``("box", centre, half-sizes)``, ``("panels", [(origin, u, w, length, width), ...])`` (a wing),
+    ``("disk", centre, axis, radius)`` (a dish's aperture)."""
+    p = check_params(p, panels, divisions, dishes, **parts)
+    names = param_names(dishes, **parts)
+    wing_panels, booms, deck = parts.get("wing_panels", 1), parts.get("booms", False), parts.get("deck", False)
     for name, val, lo in (("dish_rings", dish_rings, 1), ("dish_segments", dish_segments, 3)):
         if isinstance(val, bool) or not isinstance(val, int) or val < lo:
             raise FieldError(name, f"expected an integer >= {lo}, got {val!r}")
-    a, b, c, L, W, hinge, gap, cd_bus, cd_panel = p[:len(PARAM_NAMES)].unbind()
+    q = dict(zip(names, p.unbind()))
+    a, b, c, L, W, hinge, gap = (q[k] for k in PARAM_NAMES[:7])
     dev, dt = p.device, p.dtype
     s_np, t_np, quad = _quad_faces(divisions, divisions)
     s = torch.as_tensor(s_np, dtype=dt, device=dev)[:, None]
@@ -161,45 +197,77 @@ def box_wing(p: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0, di
     def vec(x, y, z):
         return torch.stack([x + zero, y + zero, z + zero])
 
-    X, Y, Z = vec(2 * a, 0, 0), vec(0, 2 * b, 0), vec(0, 0, 2 * c)
-    quads = [  # (origin, u, v): outward normal u × v, as cssat.scene.models.box
-        (vec(a, -b, -c), Y, Z), (vec(-a, -b, -c), Z, Y), (vec(-a, b, -c), Z, X),
-        (vec(-a, -b, -c), X, Z), (vec(-a, -b, c), X, Y), (vec(-a, -b, -c), Y, X),
-    ]
-    n_bus = len(quads)
+    def box(centre, half):  # (origin, u, v) of a box's six faces: outward normal u × v, as cssat.scene.models.box
+        X, Y, Z = vec(2 * half[0], 0, 0), vec(0, 2 * half[1], 0), vec(0, 0, 2 * half[2])
+        lo = centre - half
+        return [(lo + X, Y, Z), (lo, Z, Y), (lo + Y, Z, X), (lo, X, Z), (lo + Z, X, Y), (lo, Y, X)]
+
+    pieces: list = []  # (quads, part, occluder)
+    occluders: list = [("box", vec(0, 0, 0), vec(a, b, c))]
+    pieces.append((box(*occluders[0][1:]), 0, 0))
     w = W * torch.stack([torch.sin(hinge), zero, torch.cos(hinge)])
+    g = q["panel_gap"] if wing_panels > 1 else zero
     for side in ((1.0, -1.0) if panels == 2 else (1.0,)):
         u = vec(0, side * L, 0)
-        origin = vec(0, side * (b + gap), 0) - w / 2
-        front = (origin, u, w) if side > 0 else (origin, w, u)  # the two wings' fronts face alike
-        quads += [front, (front[0], front[2], front[1])]  # two-sided: the back, coincident
-    verts, faces, part = [], [], []
-    for k, (o, u, v) in enumerate(quads):
-        verts.append(o + s * u + t * v)
-        faces.append(quad + k * len(s_np))
-        part.append(np.full(len(quad), int(k >= n_bus)))
-    off = sum(len(v) for v in verts)
+        wing = []
+        for k in range(wing_panels):
+            origin = vec(0, side * (b + gap if k == 0 else b + gap + k * (L + g)), 0) - w / 2
+            front = (origin, u, w) if side > 0 else (origin, w, u)  # the two wings' fronts face alike
+            pieces.append(([front, (front[0], front[2], front[1])], 1, len(occluders)))  # two-sided: the back, coincident
+            wing.append((origin, u, w, L, W))
+        occluders.append(("panels", wing))
+    if booms:  # a square boom from the bus's ±y face to the wing's root, on the y axis
+        for side in ((1.0, -1.0) if panels == 2 else (1.0,)):
+            occluders.append(("box", vec(0, side * (b + gap / 2), 0), vec(q["boom_width"] / 2, gap / 2, q["boom_width"] / 2)))
+            pieces.append((box(*occluders[-1][1:]), 0, len(occluders) - 1))
+    if deck:  # a box on the +z deck, centred on it
+        occluders.append(("box", vec(0, 0, c + q["deck_h"] / 2), vec(q["deck_a"], q["deck_b"], q["deck_h"] / 2)))
+        pieces.append((box(*occluders[-1][1:]), 0, len(occluders) - 1))
+    verts, faces, part, inst = [], [], [], []
+    for quads, kind, o_idx in pieces:
+        for o, uu, vv in quads:
+            faces.append(quad + sum(len(x) for x in verts))
+            verts.append(o + s * uu + t * vv)
+            part.append(np.full(len(quad), kind))
+            inst.append(np.full(len(quad), o_idx))
+    free = parts.get("dish_pair", "mirror") == "free"
     for k in range(dishes):
-        dv, df = _dish(p[len(PARAM_NAMES):], k == 1, dish_rings, dish_segments)
+        geo7 = torch.stack([q[f"dish2_{n}" if free and k == 1 else f"dish_{n}"]
+                            for n in ("x", "y", "z", "tilt", "azimuth", "radius", "depth")])
+        dv, df, disk = _dish(geo7, k == 1 and not free, dish_rings, dish_segments)
+        faces.append(df + sum(len(x) for x in verts))
         verts.append(dv)
-        faces.append(df + off)
         part.append(np.full(len(df), 2))
-        off += len(dv)
+        inst.append(np.full(len(df), len(occluders)))
+        occluders.append(("disk",) + disk)
     part_np = np.concatenate(part)
     part_t = torch.as_tensor(part_np, device=dev)
-    cd = torch.where(part_t == 1, cd_panel, cd_bus)
+    cd = torch.where(part_t == 1, q["cd_panel"], q["cd_bus"])
     if dishes:
-        cd = torch.where(part_t == 2, p[-1], cd)
-    return torch.cat(verts), np.concatenate(faces), part_np, cd
+        cd = torch.where(part_t == 2, q["cd_dish"], cd)
+    return torch.cat(verts), np.concatenate(faces), part_np, cd, np.concatenate(inst), occluders
+
+
+def box_wing(p: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0, dish_rings: int = 12,
+             dish_segments: int = 40, dish_pair: str = "mirror", wing_panels: int = 1, booms: bool = False,
+             deck: bool = False) -> tuple[Tensor, np.ndarray, np.ndarray, Tensor]:
+    """The box-wing's triangles as torch functions of ``p``: ``(vertices (V, 3) m, faces (F, 3),
+    part (F,) 0 bus (and its booms and deck) / 1 panels / 2 dishes, cd (F,))``; vertices and cd
+    follow ``p``'s dtype and device and carry its gradient. Every face of the bus, a boom or the
+    deck and each panel side is ``divisions²`` cells; each dish ``dish_rings × dish_segments``
+    (``dishes`` 0, 1 or 2, ``dish_pair``, ``wing_panels``, ``booms``, ``deck``: module docstring)."""
+    v, f, part, cd, _, _ = _assemble(p, panels, divisions, dishes, dish_rings, dish_segments, dish_pair=dish_pair,
+                                     wing_panels=wing_panels, booms=booms, deck=deck)
+    return v, f, part, cd
 
 
 def box_wing_mesh(p: Any, *, panels: int = 2, divisions: int = 4, cs: float = 0.0, dishes: int = 0, dish_rings: int = 12,
-                  dish_segments: int = 40) -> Mesh:
-    """The box-wing as a :class:`cssat.scene.mesh.Mesh` (numpy; parts ``bus``, ``panel`` and,
-    with ``dishes``, ``dish``; ``C_d`` per part from ``p``, ``C_s = cs``), e.g. to write as an
-    OBJ or cast shadows on."""
+                  dish_segments: int = 40, **parts: Any) -> Mesh:
+    """The box-wing as a :class:`cssat.scene.mesh.Mesh` (numpy; parts ``bus`` (with its booms and
+    deck), ``panel`` and, with ``dishes``, ``dish``; ``C_d`` per part from ``p``, ``C_s = cs``),
+    e.g. to write as an OBJ or cast shadows on. ``parts``: :func:`box_wing`'s."""
     v, f, part, cd = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
-                              dish_segments=dish_segments)
+                              dish_segments=dish_segments, **parts)
     return Mesh(v.detach().cpu().double().numpy(), f, cd.detach().cpu().double().numpy(), cs,
                 name="box_wing", part=part, part_names=("bus", "panel", "dish") if dishes else ("bus", "panel"))
 
@@ -214,24 +282,26 @@ def _geometry(v: Tensor, f: np.ndarray) -> tuple[Tensor, Tensor]:
 
 
 def box_wing_visibility(p: Any, sun: Any, observer: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0,
-                        dish_rings: int = 12, dish_segments: int = 40) -> Tensor:
+                        dish_rings: int = 12, dish_segments: int = 40, **parts: Any) -> Tensor:
     """``(T, F)`` bool: each sub-facet neither self- nor observer-shadowed (Embree rays from its
     centroid, :func:`cssat.optics.photometry.shadow_mask`) at the box-wing ``p`` (with its dishes).
-    Geometry only: the albedos in ``p`` play no part (a fit's iterate may hold one above 1)."""
+    Geometry only: the albedos in ``p`` play no part (a fit's iterate may hold one above 1).
+    ``parts``: :func:`box_wing`'s."""
     v, f, _, _ = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
-                          dish_segments=dish_segments)
+                          dish_segments=dish_segments, **parts)
     return shadow_mask(Mesh(v.detach().cpu().double().numpy(), f, 0.5, 0.0, name="box_wing"), sun, observer)
 
 
 def box_wing_light_curve(p: Tensor, sun: Any, observer: Any, visible: Tensor | None = None, *, panels: int = 2,
                          divisions: int = 4, range_km: Any = 1.0, irradiance: float = SOLAR_IRRADIANCE_W_M2,
-                         dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40) -> Tensor:
+                         dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40, **parts: Any) -> Tensor:
     """The box-wing's diffuse light curve ``(T,)`` in W/m² at ``range_km`` (module docstring's
-    equation), differentiable in ``p (9,)`` (``(17,)`` with ``dishes``); ``sun, observer (T, 3)``
-    body-frame unit vectors from the object; ``visible (T, F)`` the fixed visibility (None:
-    unshadowed, i.e. convex-like)."""
+    equation), differentiable in ``p`` (``(9,)``, ``(17,)`` with ``dishes``, more with the
+    ``parts`` of :func:`box_wing`: :func:`param_names`); ``sun, observer (T, 3)`` body-frame unit
+    vectors from the object; ``visible (T, F)`` the fixed visibility (None: unshadowed, i.e.
+    convex-like)."""
     v, f, _, cd = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
-                           dish_segments=dish_segments)
+                           dish_segments=dish_segments, **parts)
     N, A = _geometry(v, f)
     S = check_unit(sun, "sun").to(device=v.device, dtype=v.dtype)
     V = check_unit(observer, "observer").to(device=v.device, dtype=v.dtype)

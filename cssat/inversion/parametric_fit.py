@@ -29,7 +29,8 @@ from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility
 __all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing"]
 
 #: the parameters fitted as logarithms of a length (m)
-SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth")
+SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth", "dish2_radius", "dish2_depth", "panel_gap",
+              "boom_width", "deck_a", "deck_b", "deck_h")
 
 
 def _pooled_egi(normals: Any, areas: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -96,30 +97,39 @@ def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.
     return np.array([h, h, h, aspect * width, width, hinge, 0.5 * h, cd0, cd0])
 
 
-def _to_p(z: torch.Tensor) -> torch.Tensor:
-    """The free variables ``z`` (log sizes, hinge, softplus⁻¹ gap, log albedos; with dishes also
-    the dish's position and axis angles as they are, log radius, depth and albedo) as ``p``."""
-    if len(z) > 9:
-        return torch.cat([z[:5].exp(), z[5:6], torch.nn.functional.softplus(z[6:7]), z[7:9].exp(), z[9:14], z[14:].exp()])
-    return torch.cat([z[:5].exp(), z[5:6], torch.nn.functional.softplus(z[6:7]), z[7:].exp()])
+def _transform(names: tuple[str, ...]) -> tuple[torch.Tensor, torch.Tensor]:
+    """The indices of ``names`` fitted as logarithms (sizes, albedos) and of the gap (``softplus``);
+    every other (angles, positions) is fitted as it is."""
+    log = [k for k, n in enumerate(names) if n in SIZE_NAMES or n.startswith("cd_")]
+    return torch.as_tensor(log, dtype=torch.long), torch.as_tensor([names.index("gap")], dtype=torch.long)
 
 
-def _to_z(p: np.ndarray) -> torch.Tensor:
-    g = max(float(p[6]), 1e-6)
-    gap = g + math.log(-math.expm1(-g))  # softplus⁻¹
-    if len(p) > 9:
-        return torch.as_tensor(np.r_[np.log(p[:5]), p[5], gap, np.log(p[7:9]), p[9:14], np.log(p[14:])], dtype=torch.float64)
-    return torch.as_tensor(np.r_[np.log(p[:5]), p[5], gap, np.log(p[7:])], dtype=torch.float64)
+def _to_p(z: torch.Tensor, names: tuple[str, ...]) -> torch.Tensor:
+    """The free variables ``z`` (log sizes and albedos, softplus⁻¹ gap, angles and positions as
+    they are) as ``p``."""
+    log, gap = _transform(names)
+    return z.index_put((log,), z[log].exp()).index_put((gap,), torch.nn.functional.softplus(z[gap]))
+
+
+def _to_z(p: np.ndarray, names: tuple[str, ...]) -> torch.Tensor:
+    log, gap = _transform(names)
+    z = np.array(p, dtype=np.float64)
+    g = max(float(p[int(gap[0])]), 1e-6)
+    z[log.numpy()] = np.log(z[log.numpy()])
+    z[int(gap[0])] = g + math.log(-math.expm1(-g))  # softplus⁻¹
+    return torch.as_tensor(z, dtype=torch.float64)
 
 
 def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None, panels: int = 2, divisions: int = 4,
                  outer: int = 5, inner: int = 40, huber: float = 3.0, dishes: int = 0, dish_rings: int = 12,
                  dish_segments: int = 40, fixed: Any = (), visibility: str = "cast",
-                 softness: float = 0.1) -> tuple[np.ndarray, dict[str, Any]]:
+                 softness: float = 0.1, **parts: Any) -> tuple[np.ndarray, dict[str, Any]]:
     """The box-wing ``p (9,)`` fitting ``y (T,)`` (flux per unit irradiance at 1 m, i.e. m²) at
     body-frame ``sun, observer (T, 3)``, from ``p0 (9,)``; ``sigma (T,)`` the 1σ (None: ones).
     With ``dishes`` (1 or 2, :mod:`cssat.inversion.parametric`), ``p0`` and ``p`` are ``(17,)``:
-    the reflector dishes' position, axis, size and albedo fitted too. ``fixed``: names of
+    the reflector dishes' position, axis, size and albedo fitted too; ``parts`` (``dish_pair``,
+    ``wing_panels``, ``booms``, ``deck``: :func:`~cssat.inversion.parametric.box_wing`) add their
+    parameters (:func:`~cssat.inversion.parametric.param_names`). ``fixed``: names of
     parameters (:func:`~cssat.inversion.parametric.param_names`) held at ``p0`` (e.g. a bus whose
     size is known). Returns ``(p, info)`` with ``info``: ``loss``, ``rms_over_noise`` (the fit's
     χ-rms) and ``params`` (a name → value dict).
@@ -132,7 +142,7 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     continuation towards the hard shadows; the start is scored too, so it ends no worse than
     it began). Either way each outer iteration is scored, and the best kept, with the cast
     visibility (``loss``, ``rms_over_noise``: the hard-shadowed model's)."""
-    names = param_names(dishes)
+    names = param_names(dishes, **parts)
     fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
     unknown = [n for n in fixed if n not in names]
     if unknown:
@@ -147,8 +157,8 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     if sg.shape != yt.shape or bool((sg <= 0).any()):
         raise FieldError("sigma", f"expected {tuple(yt.shape)} positive values, got {tuple(sg.shape)}")
     S, V = np.asarray(sun, dtype=np.float64), np.asarray(observer, dtype=np.float64)
-    geo = dict(panels=panels, divisions=divisions, **(dict(dishes=dishes, dish_rings=dish_rings, dish_segments=dish_segments)
-                                                      if dishes else {}))
+    geo = dict(panels=panels, divisions=divisions, **parts, **(dict(dishes=dishes, dish_rings=dish_rings,
+                                                                    dish_segments=dish_segments) if dishes else {}))
     kw = dict(geo, range_km=1e-3, irradiance=1.0)
     from scipy.optimize import minimize  # heavy: scipy.optimize (torch.optim would import torch._dynamo, ~4 s)
 
@@ -156,14 +166,14 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
         if isinstance(vis, float):  # the soft visibility's τ (m): the shadows differentiable
             from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
 
-            vis = soft_visibility(_to_p(z), S, V, tau=vis, **geo)
-        r = (yt - box_wing_light_curve(_to_p(z), S, V, vis, **kw)) / sg
+            vis = soft_visibility(_to_p(z, names), S, V, tau=vis, **geo)
+        r = (yt - box_wing_light_curve(_to_p(z, names), S, V, vis, **kw)) / sg
         return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
 
     p0 = np.asarray(p0, dtype=np.float64)
     if p0.shape != (len(names),):
         raise FieldError("p0", f"expected {len(names)} values {names}, got shape {p0.shape}")
-    z0 = _to_z(p0)
+    z0 = _to_z(p0, names)
     free = np.array([n not in fixed for n in names])
 
     free_idx = torch.as_tensor(np.flatnonzero(free))
@@ -189,18 +199,18 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     best = (math.inf, z)
     if visibility == "soft":  # the start scored too (its cast visibility): a continuation ends no worse than it began
         with torch.no_grad():
-            best = (float(loss_of(z0, box_wing_visibility(_to_p(z0), S, V, **geo))), z0)
+            best = (float(loss_of(z0, box_wing_visibility(_to_p(z0, names), S, V, **geo))), z0)
     tau0 = softness * float(np.mean(p0[:3]))
     for k in range(outer):
-        vis = tau0 * 0.5**k if visibility == "soft" else box_wing_visibility(_to_p(z), S, V, **geo)
+        vis = tau0 * 0.5**k if visibility == "soft" else box_wing_visibility(_to_p(z, names), S, V, **geo)
         sol = minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", bounds=bounds,
                        options={"maxiter": inner})
         z = full(sol.x)
         with torch.no_grad():  # score with the visibility recast at the new parameters
-            val = float(loss_of(z, box_wing_visibility(_to_p(z), S, V, **geo)))
+            val = float(loss_of(z, box_wing_visibility(_to_p(z, names), S, V, **geo)))
         if val < best[0]:
             best = (val, z)
-    p = _to_p(best[1]).numpy()
+    p = _to_p(best[1], names).numpy()
     vis = box_wing_visibility(p, S, V, **geo)
     r = (yt - box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw)) / sg
     return p, {"loss": best[0], "rms_over_noise": float(torch.sqrt((r**2).mean())),
