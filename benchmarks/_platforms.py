@@ -11,7 +11,10 @@ sides), dishes 0.6 (white paint), booms, tower and engine 0.35.
 
 Each builder returns ``(mesh, nominal)``: ``nominal (17,)`` the family's parameters nearest to
 the platform by construction (its bus's half-sizes, one wing's panels and gaps as one panel,
-the yoke as the gap, the larger dish), the start of the benchmark's oracle rows.
+the yoke as the gap, the larger dish), the start of the benchmark's oracle rows. :data:`FINE`
+holds, for the family with its finer parts (``wing_panels``, ``booms``, ``deck``, ``dish_pair``:
+:mod:`cssat.inversion.parametric`), each platform's parts and parameters by construction: what
+that family leaves out is the tower's small dish and the engine (b702), the omni mast (spacebus).
 """
 
 from __future__ import annotations
@@ -72,6 +75,13 @@ def b702_like() -> tuple[Any, np.ndarray]:
     return merge(parts, name="b702_like"), nominal
 
 
+def _fine(nominal: np.ndarray, parts: dict, **extra: float) -> tuple[dict, dict]:
+    from cssat.inversion.parametric import param_names
+
+    base = dict(zip(param_names(2), map(float, nominal)))
+    return parts, {k: base[k] if k in base else extra[k] for k in param_names(**parts)}
+
+
 def spacebus_like() -> tuple[Any, np.ndarray]:
     """A tall box-wing with unequal dishes: a 2.2 × 2.0 × 4.6 m bus; each wing four 1.9 × 2.2 m
     panels with 0.08 m gaps on a 1.2 m boom, turned −40°; a 1.2 m reflector on the +x face tilted
@@ -95,3 +105,18 @@ def spacebus_like() -> tuple[Any, np.ndarray]:
     nominal = np.r_[a, b, c, 4 * 1.9 + 3 * 0.08, 2.2, math.radians(-40.0), boom, BUS, WING,
                     a + 0.1, 0.3, 0.8, tilt, az, 1.2, 0.36, DISH]
     return merge(parts, name="spacebus_like"), nominal
+
+
+#: the finer family's parts and parameters of each platform (module docstring): ``name → (parts, params)``
+FINE = {
+    "b702_like": _fine(np.r_[1.6, 1.5, 2.1, 2.6, 3.0, math.radians(20.0), 1.8, BUS, WING, 1.75, 0.0, 1.0,
+                             *_dish_angles((0.5, 0.0, 1.0)), 1.35, 0.4, DISH],
+                       dict(dishes=2, wing_panels=3, booms=True, deck=True),
+                       panel_gap=0.12, boom_width=0.1, deck_a=0.5, deck_b=0.5, deck_h=0.8),
+    "spacebus_like": _fine(np.r_[1.1, 1.0, 2.3, 1.9, 2.2, math.radians(-40.0), 1.2, BUS, WING, 1.2, 0.3, 0.8,
+                                 *_dish_angles((0.6, 0.0, 1.0)), 1.2, 0.36, DISH],
+                           dict(dishes=2, dish_pair="free", wing_panels=4, booms=True, deck=True),
+                           dish2_x=-1.2, dish2_y=-0.2, dish2_z=-0.4, dish2_tilt=_dish_angles((-1.0, 0.0, 0.3))[0],
+                           dish2_azimuth=_dish_angles((-1.0, 0.0, 0.3))[1], dish2_radius=0.9, dish2_depth=0.25,
+                           panel_gap=0.08, boom_width=0.1, deck_a=0.4, deck_b=0.3, deck_h=0.4),
+}

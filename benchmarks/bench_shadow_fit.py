@@ -45,6 +45,16 @@ removed); the family at the nominal sizes with only its albedos fitted (**true g
 fitted**: what the family itself can reach on this truth); every parameter fitted from the
 nominal ones (**all fitted from the true geometry**: the fit without the start's problem).
 
+``--family fine``: the finer family (:mod:`cssat.inversion.parametric`'s ``wing_panels``,
+``booms``, ``deck``, ``dish_pair``) with each truth's parts given (``Truth.fine``, a topology oracle
+as the dish count is; known for ``astra_defunct`` — four panels a wing on yokes, a mirror pair of
+dishes — and the two platforms), by :func:`fit_fine`: the EGI start and the box-wing without
+dishes as above, then :func:`fine_starts` (generic fractions of the fitted bus and wing, the dishes
+at the generic placements) each fitted briefly, the best in full → the **fine, from the EGI** row;
+the oracle rows **fine: true geometry, albedos fitted** and **fine: all fitted from the true
+geometry**. What the finer family leaves out: the Astra-like's telemetry plate, the b702's tower
+dish and engine, the spacebus's omni mast.
+
 ``--surface``: ``materials`` (the truths' parts' own ``cd``) and/or ``uniform`` (``cd`` 0.3 on
 every facet: the family's one albedo per part then holds, so a misfit is shape).
 
@@ -172,6 +182,8 @@ class Truth:
     iou: bool
     nominal: np.ndarray | None
     note: str
+    #: the finer family's parts and parameters by construction (``--family fine``), where known
+    fine: tuple[dict, dict] | None = None
 
 
 def _part_cd(mesh: Any, names: tuple) -> float:
@@ -183,6 +195,7 @@ def _part_cd(mesh: Any, names: tuple) -> float:
 def truth(name: str, surface: str = "materials") -> Truth:
     """The truth ``name`` of :data:`MESHES` (module docstring), Lambertian (``cs`` 0);
     ``surface="uniform"``: every facet ``cd`` 0.3 instead of its part's."""
+    from cssat.inversion.parametric import param_names
     from cssat.scene import get_model, load_mesh
 
     if surface not in ("materials", "uniform"):
@@ -194,6 +207,9 @@ def truth(name: str, surface: str = "materials") -> Truth:
         t = Truth(m, 2, True, np.r_[1.3, 1.2, 1.8, 9.1, 2.4, math.radians(30), 1.5, cd[:2],
                                      1.65, 0.0, 0.6, math.atan2(0.35, 1.0), 0.0, 1.15, 0.35, cd[2]],
                   "real materials' cd (MLI bus, dark OSR on ±y, dark cells); yokes and plate not in the family")
+        fine = dict(zip(param_names(2), t.nominal), length=2.2, panel_gap=0.1, boom_width=0.08)
+        t.fine = (dict(dishes=2, wing_panels=4, booms=True),
+                  {k: float(fine[k]) for k in param_names(dishes=2, wing_panels=4, booms=True)})
     elif name == "tess_like":
         m = _lambertian(get_model("tess_like"), name=name)
         cd = (_part_cd(m, ("mli",)), _part_cd(m, ("solar_cell", "panel_back")),
@@ -210,7 +226,8 @@ def truth(name: str, surface: str = "materials") -> Truth:
 
         m, nominal = getattr(_platforms, name)()
         t = Truth(m, 2, True, nominal, "built in benchmarks/_platforms.py: panels with gaps, booms, a deck module"
-                                       + (", unequal dishes" if name == "spacebus_like" else ", a tower dish, an engine"))
+                                       + (", unequal dishes" if name == "spacebus_like" else ", a tower dish, an engine"),
+                  _platforms.FINE[name])
     elif name == "tess_obj":
         if not TESS_OBJ.is_file():
             raise FileNotFoundError(f"{TESS_OBJ} is not here")
@@ -223,6 +240,8 @@ def truth(name: str, surface: str = "materials") -> Truth:
         if t.nominal is not None:
             t.nominal = t.nominal.copy()
             t.nominal[[7, 8, 16]] = 0.3
+        if t.fine is not None:
+            t.fine = (t.fine[0], {k: 0.3 if k.startswith("cd_") else v for k, v in t.fine[1].items()})
         t.note += "; uniform cd 0.3"
     return t
 
@@ -253,14 +272,22 @@ def _dish_starts(p9: np.ndarray, dishes: int) -> list[tuple[str, np.ndarray]]:
     return [(k, np.r_[p9, v, r, depth, cd]) for k, v in spots.items()]
 
 
+def _family_kw(dishes: int, divisions: int, parts: dict | None = None) -> dict:
+    """The family's keywords: ``dishes`` with the benchmark's dish cells, or the finer ``parts``."""
+    if parts is not None:
+        return dict(panels=2, divisions=divisions, **parts, **(DISH_CELLS if parts.get("dishes") else {}))
+    return dict(panels=2, divisions=divisions, **(dict(dishes=dishes, **DISH_CELLS) if dishes else {}))
+
+
 def heldout_chi2(p: np.ndarray, geo: Geometry, y: np.ndarray, sigma: np.ndarray, mask: np.ndarray, dishes: int,
-                 divisions: int) -> float:
-    """χ²/n of the family at ``p`` on the samples ``mask`` (its visibility cast at ``p``)."""
+                 divisions: int, parts: dict | None = None) -> float:
+    """χ²/n of the family at ``p`` on the samples ``mask`` (its visibility cast at ``p``);
+    ``parts``: the finer family's (:func:`fit_fine`), instead of ``dishes``."""
     import torch
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility
 
-    kw = dict(panels=2, divisions=divisions, **(dict(dishes=dishes, **DISH_CELLS) if dishes else {}))
+    kw = _family_kw(dishes, divisions, parts)
     S, V = geo.sun[mask], geo.observer[mask]
     vis = box_wing_visibility(p, S, V, **kw)
     m = box_wing_light_curve(torch.as_tensor(p), S, V, vis, range_km=1e-3, irradiance=1.0, **kw).numpy()
@@ -275,13 +302,16 @@ def closed_volume(mesh: Any) -> float:
     return float(sum(abs(b.volume) for b in tm.split(only_watertight=True)))
 
 
-def _iou(true_mesh: Any, p: np.ndarray, dishes: int, divisions: int, n_points: int) -> tuple[float, float]:
+def _iou(true_mesh: Any, p: np.ndarray, dishes: int, divisions: int, n_points: int,
+         parts: dict | None = None) -> tuple[float, float]:
     """``(IoU, IoU at the true closed volume)`` of the fitted box-wing against ``true_mesh``."""
     from cssat.inversion.parametric import box_wing_mesh
     from cssat.inversion.volume import volume_iou
     from cssat.scene.mesh import Mesh
 
-    fit = box_wing_mesh(p, divisions=divisions, dishes=dishes, **(DISH_CELLS if dishes else {}))
+    kw = _family_kw(dishes, divisions, parts)
+    kw.pop("panels")
+    fit = box_wing_mesh(p, **kw)
     raw = volume_iou(true_mesh, fit, n_points=n_points, seed=0)
     v_true, v_fit = closed_volume(true_mesh), closed_volume(fit)
     s = (v_true / v_fit) ** (1 / 3)
@@ -373,6 +403,89 @@ def fit_truth(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, 
     return dict(rows=out, floor=floor, seed=seed)
 
 
+def fine_starts(p9: np.ndarray, parts: dict) -> list[tuple[str, np.ndarray]]:
+    """Starts of the finer family (``parts``) from a fitted box-wing ``p9 (9,)``: each wing's
+    length split into ``wing_panels`` panels with gaps of 2 % of it; booms of side 5 % of the bus's
+    mean half-size; a deck box of a third of the bus's half-sizes and a fifth of its height; the
+    dishes at :func:`_dish_starts`' generic placements (a free pair starting as mirror images).
+    Generic fractions, the same for every truth: ``(label, p)``."""
+    from cssat.inversion.parametric import param_names
+
+    a, b, c, L, W = p9[:5]
+    n, dishes = parts.get("wing_panels", 1), parts.get("dishes", 0)
+    g0 = 0.02 * L
+    base = dict(zip(param_names(), map(float, p9)), length=(L - (n - 1) * g0) / n if n > 1 else L, panel_gap=g0,
+                boom_width=0.05 * float(np.mean(p9[:3])), deck_a=a / 3, deck_b=b / 3, deck_h=2 * c / 5)
+    names = param_names(**parts)
+    out = []
+    for label, p17 in (_dish_starts(p9, dishes) if dishes else [("no dishes", np.asarray(p9))]):
+        q = dict(base, **dict(zip(param_names(dishes), map(float, p17))))
+        q["length"] = base["length"]
+        if dishes:  # the first dish's mirror image: vertex (-x, y, z), axis (-a_x, a_y, a_z), i.e. azimuth pi - phi
+            q.update({f"dish2_{k}": q[f"dish_{k}"] for k in ("y", "z", "tilt", "radius", "depth")},
+                     dish2_x=-q["dish_x"], dish2_azimuth=math.pi - q["dish_azimuth"])
+        out.append((label, np.array([q[k] for k in names])))
+    return out
+
+
+def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials",
+             n_normals: int = 500, fit_settings: dict | None = None, oracle: bool = True, n_points: int = 100_000) -> dict:
+    """The finer family (the truth's ``Truth.fine`` parts given: a topology oracle, as the dish
+    count is in :func:`fit_truth`) on one truth: **fine, from the EGI** — the EGI start, the
+    box-wing without dishes fitted (:func:`fit_truth`'s first stage), then each of
+    :func:`fine_starts` fitted briefly (``outer`` 2, ``inner`` 20), the best by its fit-night loss
+    fitted in full; with ``oracle``: **fine: true geometry, albedos fitted** (what this family can
+    reach on the truth) and **fine: all fitted from the true geometry**. Rows as :func:`fit_truth`'s."""
+    from cssat.inversion import invert_convex
+    from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
+
+    tr = truth(name, surface)
+    if tr.fine is None:
+        raise ValueError(f"{name}: no finer-family parts known (Truth.fine)")
+    parts, true_params = tr.fine
+    st = dict(FIT, **(fit_settings or {}))
+    y, sigma, clean = simulate(tr.mesh, geo, floor, seed)
+    fit, held = geo.night < 2, geo.night >= 2
+    chi2_true = float(np.mean(((y[held] - clean[held]) / sigma[held]) ** 2))
+    S, V = geo.sun[fit], geo.observer[fit]
+    fkw = _family_kw(0, st["divisions"], parts)
+    fkw.pop("panels")
+
+    def run(p0, fine=True, **over):
+        kw = dict(st, **over, **(fkw if fine else {}))
+        return fit_box_wing(y[fit], S, V, p0, sigma=sigma[fit], panels=2, **kw)
+
+    rows = []
+    c0 = time.process_time()
+    egi = invert_convex(y[fit], S, V, n_normals=n_normals, sigma=sigma[fit])
+    p_nd, _ = run(box_wing_start(egi.normals, egi.areas, panels=2, cd0=CD0), fine=False)
+    best = None
+    for label, ps in fine_starts(p_nd, parts):
+        p_s, info_s = run(ps, outer=2, inner=20)
+        if best is None or info_s["loss"] < best[2]:
+            best = (label, p_s, info_s["loss"])
+    p_f, info_f = run(best[1])
+    rows.append(("fine, from the EGI", p_f, info_f, time.process_time() - c0, f"EGI, then the parts at {best[0]}"))
+    if oracle:
+        nom = np.array(list(true_params.values()))
+        geometry_names = [k for k in true_params if not k.startswith("cd_")]
+        c0 = time.process_time()
+        p_a, info_a = run(nom, outer=3, fixed=geometry_names)
+        rows.append(("fine: true geometry, albedos fitted", p_a, info_a, time.process_time() - c0, "nominal"))
+        c0 = time.process_time()
+        p_o, info_o = run(nom)
+        rows.append(("fine: all fitted from the true geometry", p_o, info_o, time.process_time() - c0, "nominal"))
+    out = []
+    for label, p, info, cpu, start in rows:
+        chi2 = heldout_chi2(p, geo, y, sigma, held, 0, st["divisions"], parts)
+        iou, iou_scaled = _iou(tr.mesh, p, 0, st["divisions"], n_points, parts) if tr.iou else (None, None)
+        out.append(dict(mesh=name, surface=surface, family=label, start=start, parts=parts, n_fit=int(fit.sum()),
+                        n_heldout=int(held.sum()), fit_rms_over_noise=info["rms_over_noise"], heldout_chi2=chi2,
+                        true_heldout_chi2=chi2_true, ratio=chi2 / chi2_true, rms_ratio=math.sqrt(chi2 / chi2_true), iou=iou,
+                        iou_at_true_volume=iou_scaled, cpu_s=cpu, params=info["params"], nominal=true_params, note=tr.note))
+    return dict(rows=out, floor=floor, seed=seed)
+
+
 def spin_search_row(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials") -> dict:
     """The attitude NOT given: :func:`cssat.inversion.estimate_spin` (the convex EGI's spin search at
     the inversion experiment's default sizes, σ given) on the first two nights, the third held out
@@ -435,6 +548,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report", default=None, help="print the table of a JSON file written by --out, and stop")
     ap.add_argument("--visibility", choices=("cast", "soft"), default="cast",
                     help="fit_box_wing's shadows: cast and held fixed in each L-BFGS run, or soft (differentiable)")
+    ap.add_argument("--family", choices=("box_wing", "fine"), default="box_wing",
+                    help="fit the box-wing (with the truth's dishes), or the finer family with the truth's parts "
+                         "(wing panels, booms, deck, a free dish pair: Truth.fine)")
     ap.add_argument("--spin-search", action="store_true",
                     help="no shape fit: the convex EGI's spin search on each truth (attitude not given), its verdict")
     args = ap.parse_args(argv)
@@ -464,8 +580,12 @@ def main(argv: list[str] | None = None) -> int:
         for surface in args.surface:
             if name == "tess_obj" and surface == "materials" and "uniform" in args.surface:
                 continue  # the file has no materials: its "materials" are the uniform cd 0.3
-            res = fit_truth(name, geo, seed=args.seed, floor=args.floor, surface=surface, dish_fit=not args.no_dishes,
-                            oracle=not args.no_oracle, fit_settings=dict(visibility=args.visibility))
+            if args.family == "fine":
+                res = fit_fine(name, geo, seed=args.seed, floor=args.floor, surface=surface, oracle=not args.no_oracle,
+                               fit_settings=dict(visibility=args.visibility))
+            else:
+                res = fit_truth(name, geo, seed=args.seed, floor=args.floor, surface=surface, dish_fit=not args.no_dishes,
+                                oracle=not args.no_oracle, fit_settings=dict(visibility=args.visibility))
             rows += res["rows"]
             for r in res["rows"]:
                 print(json.dumps({k: v for k, v in r.items() if k not in ("params", "nominal", "note")}), flush=True)

@@ -89,3 +89,33 @@ def test_the_platform_truths_closed_volume_is_their_closed_parts(name):
     mesh, _ = getattr(_platforms, name)()
     assert set(np.unique(mesh.cd)) == {_platforms.BUS, _platforms.WING, _platforms.DISH}
     assert np.all(bench.truth(name, "uniform").mesh.cd == 0.3)
+
+
+@pytest.mark.parametrize("name", ["b702_like", "spacebus_like", "astra_defunct"])
+def test_the_finer_familys_truth_parameters_are_the_meshes_parts(name):
+    """``Truth.fine``: the finer family at the truth's parameters has the truth's wing area (from
+    the meshes' docstrings; on the platforms also their cells' facets) and its closed volume less the parts the family
+    leaves out (b702: the engine; spacebus: the omni mast; astra: nothing closed), to round-off;
+    and the fine starts keep the fitted wing's span (n panels and n − 1 gaps)."""
+    import bench_shadow_fit as bench
+
+    from cssat.inversion.parametric import box_wing_mesh, param_names
+
+    def prism(r, length, n):
+        return n * r**2 * math.sin(2 * math.pi / n) / 2 * length
+
+    t = bench.truth(name, "materials")
+    parts, par = t.fine
+    fam = box_wing_mesh(np.array(list(par.values())), divisions=2, dish_rings=4, dish_segments=16, **parts)
+    left_out = {"b702_like": prism(0.35, 0.6, 16), "spacebus_like": prism(0.05, 1.0, 8), "astra_defunct": 0.0}[name]
+    assert bench.closed_volume(fam) == pytest.approx(bench.closed_volume(t.mesh) - left_out, rel=1e-9)
+    # two wings of n panels, two-sided: astra 4 of 2.2 x 2.4 m, b702 3 of 2.6 x 3.0, spacebus 4 of 1.9 x 2.2 (docstrings)
+    true_wing = {"b702_like": 3 * 2.6 * 3.0, "spacebus_like": 4 * 1.9 * 2.2, "astra_defunct": 4 * 2.2 * 2.4}[name] * 4
+    assert fam.areas[fam.part == 1].sum() == pytest.approx(true_wing, rel=1e-9)
+    if name != "astra_defunct":  # the platforms' wings are the facets of the cells' albedo
+        assert t.mesh.areas[t.mesh.cd == 0.1].sum() == pytest.approx(true_wing, rel=1e-9)
+    p9 = np.array([1.0, 1.0, 1.5, 8.0, 2.0, 0.3, 1.0, 0.3, 0.3])
+    for _, p in bench.fine_starts(p9, parts):
+        q = dict(zip(param_names(**parts), p))
+        n = parts["wing_panels"]
+        assert n * q["length"] + (n - 1) * q["panel_gap"] == pytest.approx(8.0, rel=1e-12)
