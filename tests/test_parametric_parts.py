@@ -44,11 +44,11 @@ def _procedural(g):
             y0 = b + g["gap"] + k * (g["length"] + g["panel_gap"])
             u = np.array([0.0, side * g["length"], 0.0])
             origin = np.array([0.0, side * y0, 0.0]) - w / 2
-            first, second = (u, w) if side > 0 else (w, u)
-            parts.append(panel(first, second, origin, divisions=(2, 2), cd=g["cd_panel"], cs=0.0))
+            first, second, cells = (u, w, (1, 2)) if side > 0 else (w, u, (2, 1))  # ceil(2 / 3) = 1 cell along y
+            parts.append(panel(first, second, origin, divisions=cells, cd=g["cd_panel"], cs=0.0))
     for side in (1, -1):
         parts.append(box((g["boom_width"], g["gap"], g["boom_width"]), center=(0.0, side * (b + g["gap"] / 2), 0.0),
-                         divisions=2, cd=g["cd_bus"], cs=0.0))
+                         divisions=1, cd=g["cd_bus"], cs=0.0))  # a thin boom: one cell a face
     parts.append(box((2 * g["deck_a"], 2 * g["deck_b"], g["deck_h"]), center=(0.0, 0.0, c + g["deck_h"] / 2), divisions=2,
                      cd=g["cd_bus"], cs=0.0))
     for pre in ("dish", "dish2"):
@@ -156,3 +156,30 @@ def test_bad_part_options_are_named():
     with pytest.raises(FieldError, match="params"):
         box_wing_mesh(_p()[:-1], **CELLS, **PARTS)
     assert param_names(**PARTS) == tuple(GEOM)  # the documented order: box-wing, dishes, second dish, gap, boom, deck
+
+
+def test_front_only_soft_visibility_gives_the_same_light_curve_and_gradient():
+    """``front_only`` computes the soft shadows only where a sub-facet faces both the Sun and the
+    observer: there it equals the dense computation, elsewhere 0; the light curve (whose
+    ``(S·N)₊ (V·N)₊`` is 0 there) and its gradient are the dense one's to round-off."""
+    from cssat.inversion.parametric import _geometry, box_wing
+    from cssat.inversion.soft_shadow import soft_visibility
+
+    S, V = _directions(40, 3)
+    kw = dict(CELLS, **PARTS)
+    p = torch.as_tensor(_p())
+    dense = soft_visibility(p, S, V, tau=0.05, **kw)
+    sparse = soft_visibility(p, S, V, tau=0.05, front_only=True, **kw)
+    v, f, _, _ = box_wing(p, **kw)
+    N, _ = _geometry(v, f)
+    front = ((torch.as_tensor(S) @ N.T) > 0) & ((torch.as_tensor(V) @ N.T) > 0)
+    assert 0.1 < float(front.double().mean()) < 0.6
+    torch.testing.assert_close(sparse[front], dense[front], rtol=1e-12, atol=1e-14)
+    assert float(sparse[~front].abs().max()) == 0.0
+    grads = []
+    for fo in (False, True):
+        q = p.clone().requires_grad_(True)
+        y = box_wing_light_curve(q, S, V, soft_visibility(q, S, V, tau=0.05, front_only=fo, **kw), **kw)
+        grads.append((y.detach(), torch.autograd.grad(y.sum(), q)[0]))
+    torch.testing.assert_close(grads[1][0], grads[0][0], rtol=1e-12, atol=0)
+    torch.testing.assert_close(grads[1][1], grads[0][1], rtol=1e-9, atol=1e-20)

@@ -38,8 +38,9 @@ dishes cast and take shadows like every other facet. Their specular part is not 
 
 * ``wing_panels=n`` (> 1): each wing is ``n`` panels of ``length × width`` in a row along y with
   ``panel_gap`` (m) between them (a real array's hinged panels), the first at ``|y| = b + gap``;
+  each panel ``ceil(divisions / n) × divisions`` cells (the wing about as finely cut as one panel);
 * ``booms=True``: a square boom (yoke) of side ``boom_width`` (m) along y from the bus's ±y face
-  to each wing's root (length ``gap``), albedo ``cd_bus``;
+  to each wing's root (length ``gap``), albedo ``cd_bus``, one cell a face (it is thin);
 * ``deck=True``: a box centred on the +z (Earth) deck, half-sizes ``deck_a, deck_b`` along x, y
   and height ``deck_h`` (m), albedo ``cd_bus`` (an antenna tower or a payload module).
 
@@ -189,22 +190,20 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
     q = dict(zip(names, p.unbind()))
     a, b, c, L, W, hinge, gap = (q[k] for k in PARAM_NAMES[:7])
     dev, dt = p.device, p.dtype
-    s_np, t_np, quad = _quad_faces(divisions, divisions)
-    s = torch.as_tensor(s_np, dtype=dt, device=dev)[:, None]
-    t = torch.as_tensor(t_np, dtype=dt, device=dev)[:, None]
     zero = torch.zeros((), dtype=dt, device=dev)
 
     def vec(x, y, z):
         return torch.stack([x + zero, y + zero, z + zero])
 
-    def box(centre, half):  # (origin, u, v) of a box's six faces: outward normal u × v, as cssat.scene.models.box
+    def box(centre, half, n=divisions):  # (origin, u, v, cells): outward normal u × v, as cssat.scene.models.box
         X, Y, Z = vec(2 * half[0], 0, 0), vec(0, 2 * half[1], 0), vec(0, 0, 2 * half[2])
         lo = centre - half
-        return [(lo + X, Y, Z), (lo, Z, Y), (lo + Y, Z, X), (lo, X, Z), (lo + Z, X, Y), (lo, Y, X)]
+        return [(o, u, v, n, n) for o, u, v in ((lo + X, Y, Z), (lo, Z, Y), (lo + Y, Z, X), (lo, X, Z), (lo + Z, X, Y), (lo, Y, X))]
 
     pieces: list = []  # (quads, part, occluder)
     occluders: list = [("box", vec(0, 0, 0), vec(a, b, c))]
     pieces.append((box(*occluders[0][1:]), 0, 0))
+    ny = divisions if wing_panels == 1 else -(-divisions // wing_panels)  # a wing's cells along y shared by its panels
     w = W * torch.stack([torch.sin(hinge), zero, torch.cos(hinge)])
     g = q["panel_gap"] if wing_panels > 1 else zero
     for side in ((1.0, -1.0) if panels == 2 else (1.0,)):
@@ -212,20 +211,27 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
         wing = []
         for k in range(wing_panels):
             origin = vec(0, side * (b + gap if k == 0 else b + gap + k * (L + g)), 0) - w / 2
-            front = (origin, u, w) if side > 0 else (origin, w, u)  # the two wings' fronts face alike
-            pieces.append(([front, (front[0], front[2], front[1])], 1, len(occluders)))  # two-sided: the back, coincident
+            front = (origin, u, w, ny, divisions) if side > 0 else (origin, w, u, divisions, ny)  # the fronts face alike
+            back = (origin, front[2], front[1], front[4], front[3])  # two-sided: the back, coincident
+            pieces.append(([front, back], 1, len(occluders)))
             wing.append((origin, u, w, L, W))
         occluders.append(("panels", wing))
     if booms:  # a square boom from the bus's ±y face to the wing's root, on the y axis
         for side in ((1.0, -1.0) if panels == 2 else (1.0,)):
             occluders.append(("box", vec(0, side * (b + gap / 2), 0), vec(q["boom_width"] / 2, gap / 2, q["boom_width"] / 2)))
-            pieces.append((box(*occluders[-1][1:]), 0, len(occluders) - 1))
+            pieces.append((box(*occluders[-1][1:], n=1), 0, len(occluders) - 1))  # thin: one cell a face
     if deck:  # a box on the +z deck, centred on it
         occluders.append(("box", vec(0, 0, c + q["deck_h"] / 2), vec(q["deck_a"], q["deck_b"], q["deck_h"] / 2)))
         pieces.append((box(*occluders[-1][1:]), 0, len(occluders) - 1))
     verts, faces, part, inst = [], [], [], []
+    grids: dict = {}
     for quads, kind, o_idx in pieces:
-        for o, uu, vv in quads:
+        for o, uu, vv, nu, nv in quads:
+            if (nu, nv) not in grids:
+                s_np, t_np, quad = _quad_faces(nu, nv)
+                grids[nu, nv] = (torch.as_tensor(s_np, dtype=dt, device=dev)[:, None],
+                                 torch.as_tensor(t_np, dtype=dt, device=dev)[:, None], quad)
+            s, t, quad = grids[nu, nv]
             faces.append(quad + sum(len(x) for x in verts))
             verts.append(o + s * uu + t * vv)
             part.append(np.full(len(quad), kind))

@@ -166,7 +166,7 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
         if isinstance(vis, float):  # the soft visibility's τ (m): the shadows differentiable
             from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
 
-            vis = soft_visibility(_to_p(z, names), S, V, tau=vis, **geo)
+            vis = soft_visibility(_to_p(z, names), S, V, tau=vis, front_only=True, **geo)
         r = (yt - box_wing_light_curve(_to_p(z, names), S, V, vis, **kw)) / sg
         return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
 

@@ -32,7 +32,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from cssat._checks import FieldError, float_param
+from cssat._checks import FieldError, bool_param, float_param
 from cssat.inversion.parametric import _assemble
 from cssat.optics.photometry import check_unit
 
@@ -40,38 +40,40 @@ __all__ = ["soft_visibility"]
 
 
 def _ray_plane(P: Tensor, D: Tensor, o: Tensor, n: Tensor) -> tuple[Tensor, Tensor]:
-    """Rays ``P (F, 3) + t D (T, 3)`` against the plane through ``o`` of normal ``n``: the
-    distance ``t (T, F)`` (m; huge where the ray runs along the plane) and the crossing ``(T, F, 3)``."""
-    den = D @ n
+    """Rays ``P + t D`` (``P, D (..., 3)``, broadcast together) against the plane through ``o`` of
+    normal ``n``: the distance ``t (...)`` (m; huge where the ray runs along the plane) and the
+    crossing ``(..., 3)``."""
+    den = (D * n).sum(-1)
     den = torch.where(den.abs() < 1e-9, torch.full_like(den, 1e-9), den)
-    t = ((o - P) @ n)[None, :] / den[:, None]
-    return t, P[None] + t[..., None] * D[:, None]
+    t = ((o - P) * n).sum(-1) / den
+    return t, P + t[..., None] * D
 
 
 def _soft_hit(P: Tensor, D: Tensor, occluder: tuple, tau: Tensor) -> Tensor:
-    """One occluder's soft hit ``(T, F)`` along rays from ``P (F, 3)`` in directions ``D (T, 3)``
-    (module docstring); ``occluder`` as :func:`cssat.inversion.parametric._assemble` gives it."""
+    """One occluder's soft hit ``(...)`` along rays from ``P (..., 3)`` in directions ``D (..., 3)``
+    (broadcast together; module docstring); ``occluder`` as
+    :func:`cssat.inversion.parametric._assemble` gives it."""
     sig = torch.sigmoid
     kind = occluder[0]
     if kind == "box":  # the slab test: the chord through the box, and the box ahead of the point
         _, centre, half = occluder
-        Q = P - centre
         Dj = torch.where(D.abs() < 1e-12, torch.full_like(D, 1e-12), D)
-        t1 = (-half[None, None] - Q[None]) / Dj[:, None]  # (T, F, 3)
-        t2 = (half[None, None] - Q[None]) / Dj[:, None]
+        t1 = (-half - (P - centre)) / Dj
+        t2 = (half - (P - centre)) / Dj
         near = torch.minimum(t1, t2).amax(-1)
         far = torch.maximum(t1, t2).amin(-1)
         return sig((far - near) / tau) * sig(far / tau)
     if kind == "panels":  # a wing: each panel's crossing inside its nearest edge; the wing hit if any panel is
+        o0, u0, w0 = occluder[1][0][:3]
+        n = torch.linalg.cross(u0, w0)
+        t, h = _ray_plane(P, D, o0, n / torch.linalg.vector_norm(n))  # one plane: a wing's panels share it
+        ahead = sig(t / tau)
         miss = None
         for o, u, w, L, W in occluder[1]:
-            n = torch.linalg.cross(u, w)
-            t, h = _ray_plane(P, D, o, n / torch.linalg.vector_norm(n))
-            s = ((h - o) @ u) / (L * L)
-            r = ((h - o) @ w) / (W * W)
+            s = ((h - o) * u).sum(-1) / (L * L)
+            r = ((h - o) * w).sum(-1) / (W * W)
             m = torch.minimum(torch.minimum(s, 1 - s) * L, torch.minimum(r, 1 - r) * W)
-            hit = sig(m / tau) * sig(t / tau)
-            miss = 1 - hit if miss is None else miss * (1 - hit)
+            miss = 1 - sig(m / tau) * ahead if miss is None else miss * (1 - sig(m / tau) * ahead)
         return 1 - miss
     _, centre, axis, radius = occluder  # a dish: its aperture disk
     t, h = _ray_plane(P, D, centre, axis)
@@ -80,25 +82,41 @@ def _soft_hit(P: Tensor, D: Tensor, occluder: tuple, tau: Tensor) -> Tensor:
 
 
 def soft_visibility(p: Any, sun: Any, observer: Any, *, tau: float, panels: int = 2, divisions: int = 4,
-                    dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40, **parts: Any) -> Tensor:
+                    dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40, front_only: bool = False,
+                    **parts: Any) -> Tensor:
     """``(T, F)`` in [0, 1]: each of :func:`~cssat.inversion.parametric.box_wing`'s sub-facets
     lit and seen (module docstring), differentiable in ``p`` (``(9,)``, ``(17,)`` with ``dishes``,
     more with ``parts``: :func:`~cssat.inversion.parametric.param_names`); ``sun, observer (T, 3)``
     body-frame unit vectors from the object; ``tau`` the shadows' edge softness (m, > 0; a few per
     cent of the bus's size). ``parts``: ``dish_pair``, ``wing_panels``, ``booms``, ``deck``
-    (:func:`~cssat.inversion.parametric.box_wing`). Follows ``p``'s dtype and device."""
+    (:func:`~cssat.inversion.parametric.box_wing`). ``front_only``: computed only where the
+    sub-facet faces both the Sun and the observer, 0 elsewhere (where the light curve's
+    ``(S·N)₊ (V·N)₊`` is 0 anyway: the same light curve and gradient, at a third to a half of the
+    cost). Follows ``p``'s dtype and device."""
     tau = float_param(tau, "tau", 0.0, open_lo=True)
+    bool_param(front_only, "front_only")
     v, f, _, _, inst, occluders = _assemble(p, panels, divisions, dishes, dish_rings, dish_segments, **parts)
     S = check_unit(sun, "sun").to(device=v.device, dtype=v.dtype)
     V = check_unit(observer, "observer").to(device=v.device, dtype=v.dtype)
     if S.shape != V.shape:
         raise FieldError("observer", f"{V.shape[0]} directions for {S.shape[0]} Sun directions")
-    P = v[torch.as_tensor(f, device=v.device)].mean(1)  # (F, 3) centroids
+    fi = torch.as_tensor(f, device=v.device)
+    P = v[fi].mean(1)  # (F, 3) centroids
     lab = torch.as_tensor(inst, device=v.device)
     tau_t = torch.as_tensor(tau, dtype=v.dtype, device=v.device)
-    vis = torch.ones((S.shape[0], len(f)), dtype=v.dtype, device=v.device)
-    for D in (S, V):
+    if front_only:
+        with torch.no_grad():
+            tri = v.detach()[fi]
+            N = torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=1)
+            ti, ci = (((S @ N.T) > 0) & ((V @ N.T) > 0)).nonzero(as_tuple=True)
+        Pk, Sk, Vk, lk = P[ci], S[ti], V[ti], lab[ci]
+    else:
+        Pk, Sk, Vk, lk = P[None], S[:, None], V[:, None], lab[None, :]
+    vis = torch.ones(torch.broadcast_shapes(Pk.shape, Sk.shape)[:-1], dtype=v.dtype, device=v.device)
+    for D in (Sk, Vk):
         for k, occ in enumerate(occluders):
-            hit = _soft_hit(P, D, occ, tau_t)
-            vis = vis * torch.where(lab[None, :] == k, torch.ones_like(hit), 1 - hit)  # a part does not shadow itself
+            hit = _soft_hit(Pk, D, occ, tau_t)
+            vis = vis * torch.where(lk == k, torch.ones_like(hit), 1 - hit)  # a part does not shadow itself
+    if front_only:
+        return torch.zeros((S.shape[0], len(f)), dtype=v.dtype, device=v.device).index_put((ti, ci), vis)
     return vis
