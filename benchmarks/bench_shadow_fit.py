@@ -403,11 +403,12 @@ def fit_truth(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, 
     return dict(rows=out, floor=floor, seed=seed)
 
 
-def fine_starts(p9: np.ndarray, parts: dict) -> list[tuple[str, np.ndarray]]:
+def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False) -> list[tuple[str, np.ndarray]]:
     """Starts of the finer family (``parts``) from a fitted box-wing ``p9 (9,)``: each wing's
     length split into ``wing_panels`` panels with gaps of 2 % of it; booms of side 5 % of the bus's
     mean half-size; a deck box of a third of the bus's half-sizes and a fifth of its height; the
-    dishes at :func:`_dish_starts`' generic placements (a free pair starting as mirror images).
+    dishes at :func:`_dish_starts`' generic placements (a free pair starting as mirror images; with
+    ``flip`` each placement also with its dishes' axes reversed, the concave side the other way).
     Generic fractions, the same for every truth: ``(label, p)``."""
     from cssat.inversion.parametric import param_names
 
@@ -425,16 +426,24 @@ def fine_starts(p9: np.ndarray, parts: dict) -> list[tuple[str, np.ndarray]]:
             q.update({f"dish2_{k}": q[f"dish_{k}"] for k in ("y", "z", "tilt", "radius", "depth")},
                      dish2_x=-q["dish_x"], dish2_azimuth=math.pi - q["dish_azimuth"])
         out.append((label, np.array([q[k] for k in names])))
+        if flip and dishes:
+            for pre in ("dish", "dish2"):
+                if f"{pre}_tilt" in q:
+                    q[f"{pre}_tilt"] = math.pi - q[f"{pre}_tilt"]
+                    q[f"{pre}_azimuth"] = q[f"{pre}_azimuth"] + math.pi
+            out.append((label + ", flipped", np.array([q[k] for k in names])))
     return out
 
 
 def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials",
-             n_normals: int = 500, fit_settings: dict | None = None, oracle: bool = True, n_points: int = 100_000) -> dict:
+             n_normals: int = 500, fit_settings: dict | None = None, oracle: bool = True, n_points: int = 100_000,
+             flip: bool = False, brief_divisions: int | None = None, keep: int = 1) -> dict:
     """The finer family (the truth's ``Truth.fine`` parts given: a topology oracle, as the dish
     count is in :func:`fit_truth`) on one truth: **fine, from the EGI** — the EGI start, the
     box-wing without dishes fitted (:func:`fit_truth`'s first stage), then each of
-    :func:`fine_starts` fitted briefly (``outer`` 2, ``inner`` 20), the best by its fit-night loss
-    fitted in full; with ``oracle``: **fine: true geometry, albedos fitted** (what this family can
+    :func:`fine_starts` fitted briefly (``outer`` 2, ``inner`` 20; at ``brief_divisions`` cells when
+    given; with ``flip`` each dish start also with its axis reversed), the ``keep`` best by their
+    fit-night loss fitted in full, the best of those kept; with ``oracle``: **fine: true geometry, albedos fitted** (what this family can
     reach on the truth) and **fine: all fitted from the true geometry**. Rows as :func:`fit_truth`'s."""
     from cssat.inversion import invert_convex
     from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
@@ -459,13 +468,16 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     c0 = time.process_time()
     egi = invert_convex(y[fit], S, V, n_normals=n_normals, sigma=sigma[fit])
     p_nd, _ = run(box_wing_start(egi.normals, egi.areas, panels=2, cd0=CD0), fine=False)
-    best = None
-    for label, ps in fine_starts(p_nd, parts):
-        p_s, info_s = run(ps, outer=2, inner=20)
-        if best is None or info_s["loss"] < best[2]:
-            best = (label, p_s, info_s["loss"])
-    p_f, info_f = run(best[1])
-    rows.append(("fine, from the EGI", p_f, info_f, time.process_time() - c0, f"EGI, then the parts at {best[0]}"))
+    briefs = []
+    for label, ps in fine_starts(p_nd, parts, flip=flip):
+        p_s, info_s = run(ps, outer=2, inner=20, **({"divisions": brief_divisions} if brief_divisions else {}))
+        briefs.append((info_s["loss"], label, p_s))
+    fulls = []
+    for _, label, p_s in sorted(briefs, key=lambda b: b[0])[:keep]:
+        p_f, info_f = run(p_s)
+        fulls.append((info_f["loss"], label, p_f, info_f))
+    _, label, p_f, info_f = min(fulls, key=lambda f: f[0])
+    rows.append(("fine, from the EGI", p_f, info_f, time.process_time() - c0, f"EGI, then the parts at {label}"))
     if oracle:
         nom = np.array(list(true_params.values()))
         geometry_names = [k for k in true_params if not k.startswith("cd_")]
@@ -551,6 +563,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--family", choices=("box_wing", "fine"), default="box_wing",
                     help="fit the box-wing (with the truth's dishes), or the finer family with the truth's parts "
                          "(wing panels, booms, deck, a free dish pair: Truth.fine)")
+    ap.add_argument("--fine-flip", action="store_true", help="--family fine: each dish start also flipped")
+    ap.add_argument("--fine-brief-divisions", type=int, default=None, help="--family fine: the brief fits' cells")
+    ap.add_argument("--fine-keep", type=int, default=1, help="--family fine: the brief fits fitted in full")
     ap.add_argument("--spin-search", action="store_true",
                     help="no shape fit: the convex EGI's spin search on each truth (attitude not given), its verdict")
     args = ap.parse_args(argv)
@@ -582,7 +597,8 @@ def main(argv: list[str] | None = None) -> int:
                 continue  # the file has no materials: its "materials" are the uniform cd 0.3
             if args.family == "fine":
                 res = fit_fine(name, geo, seed=args.seed, floor=args.floor, surface=surface, oracle=not args.no_oracle,
-                               fit_settings=dict(visibility=args.visibility))
+                               fit_settings=dict(visibility=args.visibility), flip=args.fine_flip,
+                               brief_divisions=args.fine_brief_divisions, keep=args.fine_keep)
             else:
                 res = fit_truth(name, geo, seed=args.seed, floor=args.floor, surface=surface, dish_fit=not args.no_dishes,
                                 oracle=not args.no_oracle, fit_settings=dict(visibility=args.visibility))
