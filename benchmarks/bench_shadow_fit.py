@@ -461,7 +461,8 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     fkw.pop("panels")
 
     def run(p0, fine=True, **over):
-        kw = dict(st, **over, **(fkw if fine else {}))
+        kw = dict(st, **(fkw if fine else {}))
+        kw.update(over)
         return fit_box_wing(y[fit], S, V, p0, sigma=sigma[fit], panels=2, **kw)
 
     rows = []
