@@ -74,8 +74,8 @@ from cssat._checks import FieldError, bool_param, choice_param, int_param
 from cssat.optics.photometry import SOLAR_IRRADIANCE_W_M2, check_unit, shadow_mask
 from cssat.scene.mesh import Mesh
 
-__all__ = ["PARAM_NAMES", "DISH_PARAM_NAMES", "DISH2_PARAM_NAMES", "PART_PARAM_NAMES", "param_names", "box_wing", "box_wing_mesh", "box_wing_light_curve",
-           "box_wing_visibility"]
+__all__ = ["PARAM_NAMES", "DISH_PARAM_NAMES", "DISH2_PARAM_NAMES", "PART_PARAM_NAMES", "param_names", "box_wing",
+           "box_wing_mesh", "box_wing_light_curve", "box_wing_visibility"]
 
 PARAM_NAMES = ("a", "b", "c", "length", "width", "hinge", "gap", "cd_bus", "cd_panel")
 #: the parameters of the dishes (``dishes=1`` or ``2``), after :data:`PARAM_NAMES`
@@ -198,7 +198,8 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
     def box(centre, half, n=divisions):  # (origin, u, v, cells): outward normal u × v, as cssat.scene.models.box
         X, Y, Z = vec(2 * half[0], 0, 0), vec(0, 2 * half[1], 0), vec(0, 0, 2 * half[2])
         lo = centre - half
-        return [(o, u, v, n, n) for o, u, v in ((lo + X, Y, Z), (lo, Z, Y), (lo + Y, Z, X), (lo, X, Z), (lo + Z, X, Y), (lo, Y, X))]
+        faces = ((lo + X, Y, Z), (lo, Z, Y), (lo + Y, Z, X), (lo, X, Z), (lo + Z, X, Y), (lo, Y, X))
+        return [(o, u, v, n, n) for o, u, v in faces]
 
     pieces: list = []  # (quads, part, occluder)
     occluders: list = [("box", vec(0, 0, 0), vec(a, b, c))]

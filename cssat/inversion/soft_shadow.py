@@ -20,9 +20,10 @@ A sub-facet is lit and seen with ``v = Π_parts (1 − hit_sun) Π_parts (1 − 
 0`` ``v`` tends to the ray cast's 0/1 at the centroid (a dish as its disk).
 
 ASSUMPTIONS: a part does not shadow itself (the bus is convex and the panels flat; a dish's own
-rim on its bowl is not modelled; a wing's panels, in one plane, do not shadow each other), a dish casts the shadow of its aperture disk (its depth is not
-in its outline: near edge-on, a deep dish's shadow is thinner here than cast), the two-sided
-panels' receivers sit on the plate's plane (their own plate is excluded, not cast).
+rim on its bowl is not modelled; a wing's panels, in one plane, do not shadow each other), a dish
+casts the shadow of its aperture disk (its depth is not in its outline: near edge-on, a deep
+dish's shadow is thinner here than cast), the two-sided panels' receivers sit on the plate's plane
+(their own plate is excluded, not cast).
 """
 
 from __future__ import annotations
