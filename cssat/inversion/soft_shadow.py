@@ -4,8 +4,9 @@
 step in the parameters, so a gradient held at a fixed visibility does not see a shadow move
 (∂y/∂gap = 0). Here each sub-facet's visibility is a smooth function of the parameters: a ray from
 its centroid towards the Sun (and one towards the observer) meets each *other* part of the
-family — the bus box, each wing, each boom, the deck, each dish — with a soft probability, a logistic function of
-how far inside that part's outline the ray passes (metres, over the softness ``tau``):
+family — the bus box, each wing, each boom, the deck, each dish — with a soft probability, a
+logistic function of how far inside that part's outline the ray passes (metres, over the
+softness ``tau``):
 
 * the bus (an axis-aligned box of half-sizes ``a, b, c``), and each boom and the deck box: the
   slab test, ``σ((t_far − t_near)/τ) σ(t_far/τ)`` — the chord the ray cuts through the box, and
