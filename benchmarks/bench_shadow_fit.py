@@ -110,7 +110,8 @@ CD0 = 0.3
 @dataclass
 class Geometry:
     """The observed samples: body-frame ``sun``, ``observer (T, 3)``, ``night (T,)`` (0, 1, 2, ...),
-    ``unit (T,)`` (W/m² at the observer → per unit irradiance at 1 m), the scenario and its mask."""
+    ``unit (T,)`` (W/m² at the observer → per unit irradiance at 1 m), the scenario and its mask,
+    the attitude and ``t (T,)`` the samples' times (s from the scenario's start)."""
 
     sun: np.ndarray
     observer: np.ndarray
@@ -119,6 +120,7 @@ class Geometry:
     scenario: Any
     keep: np.ndarray
     attitude: Any
+    t: np.ndarray
 
 
 def geometry(step_s: float = 120.0, nights: int = 3, start_utc: str = "2020-04-01T12:00:00") -> Geometry:
@@ -139,7 +141,7 @@ def geometry(step_s: float = 120.0, nights: int = 3, start_utc: str = "2020-04-0
     att = Spin(**SPIN)
     frames = att.frames(sc)[keep]
     unit = ((sc.range_km * 1e3) ** 2 / SOLAR_IRRADIANCE_W_M2)[keep]
-    return Geometry(to_body(frames, sc.sun_dir[keep]), to_body(frames, sc.obs_dir[keep]), night, unit, sc, keep, att)
+    return Geometry(to_body(frames, sc.sun_dir[keep]), to_body(frames, sc.obs_dir[keep]), night, unit, sc, keep, att, t)
 
 
 def _lambertian(mesh: Any, cd: Any = None, name: str | None = None) -> Any:
@@ -511,8 +513,7 @@ def spin_search_row(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0
     inv = InversionConfig()  # the experiment's defaults (inversion.*)
     tr = truth(name, surface)
     y, sigma, _ = simulate(tr.mesh, geo, floor, seed)
-    sc = geo.scenario
-    t = ((sc.times - sc.times[0]) / np.timedelta64(1, "s"))[geo.keep]
+    sc, t = geo.scenario, geo.t
     S, O = sc.sun_dir[geo.keep], sc.obs_dir[geo.keep]
     fit, held = geo.night < 2, geo.night >= 2
     c0 = time.process_time()
