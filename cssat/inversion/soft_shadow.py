@@ -93,8 +93,8 @@ def soft_visibility(p: Any, sun: Any, observer: Any, *, tau: float, panels: int 
     cent of the bus's size). ``parts``: ``dish_pair``, ``wing_panels``, ``booms``, ``deck``
     (:func:`~cssat.inversion.parametric.box_wing`). ``front_only``: computed only where the
     sub-facet faces both the Sun and the observer, 0 elsewhere (where the light curve's
-    ``(S·N)₊ (V·N)₊`` is 0 anyway: the same light curve and gradient, at a third to a half of the
-    cost). Follows ``p``'s dtype and device."""
+    ``(S·N)₊ (V·N)₊`` is 0 anyway: the same light curve and gradient, 1.6–2.1× faster:
+    ``benchmarks/bench_soft_front.py``). Follows ``p``'s dtype and device."""
     tau = float_param(tau, "tau", 0.0, open_lo=True)
     bool_param(front_only, "front_only")
     v, f, _, _, inst, occluders = _assemble(p, panels, divisions, dishes, dish_rings, dish_segments, **parts)
