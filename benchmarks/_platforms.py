@@ -75,11 +75,14 @@ def b702_like() -> tuple[Any, np.ndarray]:
     return merge(parts, name="b702_like"), nominal
 
 
-def _fine(nominal: np.ndarray, parts: dict, **extra: float) -> tuple[dict, dict]:
+def fine_params(nominal: np.ndarray, parts: dict, **extra: float) -> tuple[dict, dict]:
+    """``(parts, params)`` of the finer family: the plain family's ``nominal (17,)`` with ``extra``
+    (the parts' own parameters, and any of the plain ones to replace), in
+    :func:`~cssat.inversion.parametric.param_names`' order."""
     from cssat.inversion.parametric import param_names
 
-    base = dict(zip(param_names(2), map(float, nominal)))
-    return parts, {k: base[k] if k in base else extra[k] for k in param_names(**parts)}
+    base = dict(zip(param_names(2), map(float, nominal)), **extra)
+    return parts, {k: float(base[k]) for k in param_names(**parts)}
 
 
 def spacebus_like() -> tuple[Any, np.ndarray]:
@@ -109,14 +112,17 @@ def spacebus_like() -> tuple[Any, np.ndarray]:
 
 #: the finer family's parts and parameters of each platform (module docstring): ``name → (parts, params)``
 FINE = {
-    "b702_like": _fine(np.r_[1.6, 1.5, 2.1, 2.6, 3.0, math.radians(20.0), 1.8, BUS, WING, 1.75, 0.0, 1.0,
-                             *_dish_angles((0.5, 0.0, 1.0)), 1.35, 0.4, DISH],
-                       dict(dishes=2, wing_panels=3, booms=True, deck=True),
-                       panel_gap=0.12, boom_width=0.1, deck_a=0.5, deck_b=0.5, deck_h=0.8),
-    "spacebus_like": _fine(np.r_[1.1, 1.0, 2.3, 1.9, 2.2, math.radians(-40.0), 1.2, BUS, WING, 1.2, 0.3, 0.8,
-                                 *_dish_angles((0.6, 0.0, 1.0)), 1.2, 0.36, DISH],
-                           dict(dishes=2, dish_pair="free", wing_panels=4, booms=True, deck=True),
-                           dish2_x=-1.2, dish2_y=-0.2, dish2_z=-0.4, dish2_tilt=_dish_angles((-1.0, 0.0, 0.3))[0],
-                           dish2_azimuth=_dish_angles((-1.0, 0.0, 0.3))[1], dish2_radius=0.9, dish2_depth=0.25,
-                           panel_gap=0.08, boom_width=0.1, deck_a=0.4, deck_b=0.3, deck_h=0.4),
+    "b702_like": fine_params(
+        np.r_[1.6, 1.5, 2.1, 2.6, 3.0, math.radians(20.0), 1.8, BUS, WING, 1.75, 0.0, 1.0, *_dish_angles((0.5, 0.0, 1.0)),
+              1.35, 0.4, DISH],
+        dict(dishes=2, wing_panels=3, booms=True, deck=True),
+        panel_gap=0.12, boom_width=0.1, deck_a=0.5, deck_b=0.5, deck_h=0.8),
+    "spacebus_like": fine_params(
+        np.r_[1.1, 1.0, 2.3, 1.9, 2.2, math.radians(-40.0), 1.2, BUS, WING, 1.2, 0.3, 0.8, *_dish_angles((0.6, 0.0, 1.0)),
+              1.2, 0.36, DISH],
+        dict(dishes=2, dish_pair="free", wing_panels=4, booms=True, deck=True),
+        dish2_x=-1.2, dish2_y=-0.2, dish2_z=-0.4, dish2_tilt=_dish_angles((-1.0, 0.0, 0.3))[0],
+        dish2_azimuth=_dish_angles((-1.0, 0.0, 0.3))[1], dish2_radius=0.9, dish2_depth=0.25,
+        panel_gap=0.08, boom_width=0.1, deck_a=0.4, deck_b=0.3, deck_h=0.4),
 }
+

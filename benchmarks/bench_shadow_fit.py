@@ -197,7 +197,7 @@ def _part_cd(mesh: Any, names: tuple) -> float:
 def truth(name: str, surface: str = "materials") -> Truth:
     """The truth ``name`` of :data:`MESHES` (module docstring), Lambertian (``cs`` 0);
     ``surface="uniform"``: every facet ``cd`` 0.3 instead of its part's."""
-    from cssat.inversion.parametric import param_names
+    import _platforms
     from cssat.scene import get_model, load_mesh
 
     if surface not in ("materials", "uniform"):
@@ -209,9 +209,8 @@ def truth(name: str, surface: str = "materials") -> Truth:
         t = Truth(m, 2, True, np.r_[1.3, 1.2, 1.8, 9.1, 2.4, math.radians(30), 1.5, cd[:2],
                                      1.65, 0.0, 0.6, math.atan2(0.35, 1.0), 0.0, 1.15, 0.35, cd[2]],
                   "real materials' cd (MLI bus, dark OSR on ±y, dark cells); yokes and plate not in the family")
-        fine = dict(zip(param_names(2), t.nominal), length=2.2, panel_gap=0.1, boom_width=0.08)
-        t.fine = (dict(dishes=2, wing_panels=4, booms=True),
-                  {k: float(fine[k]) for k in param_names(dishes=2, wing_panels=4, booms=True)})
+        t.fine = _platforms.fine_params(t.nominal, dict(dishes=2, wing_panels=4, booms=True), length=2.2, panel_gap=0.1,
+                                        boom_width=0.08)  # four 2.2 m panels a wing, 0.1 m apart, on 8 cm yokes
     elif name == "tess_like":
         m = _lambertian(get_model("tess_like"), name=name)
         cd = (_part_cd(m, ("mli",)), _part_cd(m, ("solar_cell", "panel_back")),
@@ -224,8 +223,6 @@ def truth(name: str, surface: str = "materials") -> Truth:
                                              0.0, 0.0, -1.6, math.pi, 0.0, 1.0, 0.3, 0.6],
                   "a 24-sided drum bus (r 1.1 m, 3 m tall)")
     elif name in ("b702_like", "spacebus_like"):
-        import _platforms
-
         m, nominal = getattr(_platforms, name)()
         t = Truth(m, 2, True, nominal, "built in benchmarks/_platforms.py: panels with gaps, booms, a deck module"
                                        + (", unequal dishes" if name == "spacebus_like" else ", a tower dish, an engine"),
@@ -275,10 +272,11 @@ def _dish_starts(p9: np.ndarray, dishes: int) -> list[tuple[str, np.ndarray]]:
 
 
 def _family_kw(dishes: int, divisions: int, parts: dict | None = None) -> dict:
-    """The family's keywords: ``dishes`` with the benchmark's dish cells, or the finer ``parts``."""
+    """The family's keywords (two panels, the functions' default): ``dishes`` with the benchmark's
+    dish cells, or the finer ``parts``."""
     if parts is not None:
-        return dict(panels=2, divisions=divisions, **parts, **(DISH_CELLS if parts.get("dishes") else {}))
-    return dict(panels=2, divisions=divisions, **(dict(dishes=dishes, **DISH_CELLS) if dishes else {}))
+        return dict(divisions=divisions, **parts, **(DISH_CELLS if parts.get("dishes") else {}))
+    return dict(divisions=divisions, **(dict(dishes=dishes, **DISH_CELLS) if dishes else {}))
 
 
 def heldout_chi2(p: np.ndarray, geo: Geometry, y: np.ndarray, sigma: np.ndarray, mask: np.ndarray, dishes: int,
@@ -311,9 +309,7 @@ def _iou(true_mesh: Any, p: np.ndarray, dishes: int, divisions: int, n_points: i
     from cssat.inversion.volume import volume_iou
     from cssat.scene.mesh import Mesh
 
-    kw = _family_kw(dishes, divisions, parts)
-    kw.pop("panels")
-    fit = box_wing_mesh(p, **kw)
+    fit = box_wing_mesh(p, **_family_kw(dishes, divisions, parts))
     raw = volume_iou(true_mesh, fit, n_points=n_points, seed=0)
     v_true, v_fit = closed_volume(true_mesh), closed_volume(fit)
     s = (v_true / v_fit) ** (1 / 3)
@@ -346,7 +342,6 @@ def fit_truth(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, 
     fit, held = geo.night < 2, geo.night >= 2
     if not held.any():
         raise ValueError("no held-out night: the geometry needs 3 nights")
-    chi2_true = float(np.mean(((y[held] - clean[held]) / sigma[held]) ** 2))
     S, V = geo.sun[fit], geo.observer[fit]
 
     def family_fit(p0, dishes, **over):
@@ -393,16 +388,26 @@ def fit_truth(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, 
         p_o, info_o = family_fit(nom, tr.dishes)
         rows.append(("all fitted from the true geometry", tr.dishes, p_o, info_o, time.process_time() - c0, "nominal"))
 
-    out = []
-    for label, dishes, p, info, cpu, start in rows:
-        chi2 = heldout_chi2(p, geo, y, sigma, held, dishes, st["divisions"])
-        iou, iou_scaled = _iou(tr.mesh, p, dishes, st["divisions"], n_points) if tr.iou else (None, None)
-        out.append(dict(mesh=name, surface=surface, family=label, start=start, n_fit=int(fit.sum()),
-                        n_heldout=int(held.sum()), fit_rms_over_noise=info["rms_over_noise"], heldout_chi2=chi2,
-                        true_heldout_chi2=chi2_true, ratio=chi2 / chi2_true, rms_ratio=math.sqrt(chi2 / chi2_true), iou=iou,
-                        iou_at_true_volume=iou_scaled, cpu_s=cpu, params=dict(zip(param_names(dishes), map(float, p))),
-                        nominal=None if tr.nominal is None else [float(v) for v in tr.nominal], note=tr.note))
+    nominal = None if tr.nominal is None else [float(v) for v in tr.nominal]
+    out = [_scored(name, surface, tr, geo, y, sigma, clean, st["divisions"], n_points, label, p, info, cpu, start, nominal,
+                   dishes=dishes) for label, dishes, p, info, cpu, start in rows]
     return dict(rows=out, floor=floor, seed=seed)
+
+
+def _scored(name: str, surface: str, tr: Truth, geo: Geometry, y: np.ndarray, sigma: np.ndarray, clean: np.ndarray,
+            divisions: int, n_points: int, label: str, p: np.ndarray, info: dict, cpu: float, start: str, nominal: Any,
+            dishes: int = 0, parts: dict | None = None) -> dict[str, Any]:
+    """A row of the table: the fit ``p`` (family ``dishes``, or the finer ``parts``) scored on the
+    held-out night (its χ²/n and the true mesh's, their ratio) and by its volume IoU."""
+    fit, held = geo.night < 2, geo.night >= 2
+    chi2_true = float(np.mean(((y[held] - clean[held]) / sigma[held]) ** 2))
+    chi2 = heldout_chi2(p, geo, y, sigma, held, dishes, divisions, parts)
+    iou, iou_scaled = _iou(tr.mesh, p, dishes, divisions, n_points, parts) if tr.iou else (None, None)
+    return dict(mesh=name, surface=surface, family=label, start=start, **({} if parts is None else {"parts": parts}),
+                n_fit=int(fit.sum()), n_heldout=int(held.sum()), fit_rms_over_noise=info["rms_over_noise"],
+                heldout_chi2=chi2, true_heldout_chi2=chi2_true, ratio=chi2 / chi2_true,
+                rms_ratio=math.sqrt(chi2 / chi2_true), iou=iou, iou_at_true_volume=iou_scaled, cpu_s=cpu,
+                params=info["params"], nominal=nominal, note=tr.note)
 
 
 def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False) -> list[tuple[str, np.ndarray]]:
@@ -456,11 +461,9 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     parts, true_params = tr.fine
     st = dict(FIT, **(fit_settings or {}))
     y, sigma, clean = simulate(tr.mesh, geo, floor, seed)
-    fit, held = geo.night < 2, geo.night >= 2
-    chi2_true = float(np.mean(((y[held] - clean[held]) / sigma[held]) ** 2))
+    fit = geo.night < 2
     S, V = geo.sun[fit], geo.observer[fit]
     fkw = _family_kw(0, st["divisions"], parts)
-    fkw.pop("panels")
 
     def run(p0, fine=True, **over):
         kw = dict(st, **(fkw if fine else {}))
@@ -490,14 +493,8 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
         c0 = time.process_time()
         p_o, info_o = run(nom)
         rows.append(("fine: all fitted from the true geometry", p_o, info_o, time.process_time() - c0, "nominal"))
-    out = []
-    for label, p, info, cpu, start in rows:
-        chi2 = heldout_chi2(p, geo, y, sigma, held, 0, st["divisions"], parts)
-        iou, iou_scaled = _iou(tr.mesh, p, 0, st["divisions"], n_points, parts) if tr.iou else (None, None)
-        out.append(dict(mesh=name, surface=surface, family=label, start=start, parts=parts, n_fit=int(fit.sum()),
-                        n_heldout=int(held.sum()), fit_rms_over_noise=info["rms_over_noise"], heldout_chi2=chi2,
-                        true_heldout_chi2=chi2_true, ratio=chi2 / chi2_true, rms_ratio=math.sqrt(chi2 / chi2_true), iou=iou,
-                        iou_at_true_volume=iou_scaled, cpu_s=cpu, params=info["params"], nominal=true_params, note=tr.note))
+    out = [_scored(name, surface, tr, geo, y, sigma, clean, st["divisions"], n_points, label, p, info, cpu, start,
+                   true_params, parts=parts) for label, p, info, cpu, start in rows]
     return dict(rows=out, floor=floor, seed=seed)
 
 

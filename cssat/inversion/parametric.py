@@ -207,7 +207,8 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
     ny = divisions if wing_panels == 1 else -(-divisions // wing_panels)  # a wing's cells along y shared by its panels
     w = W * torch.stack([torch.sin(hinge), zero, torch.cos(hinge)])
     g = q["panel_gap"] if wing_panels > 1 else zero
-    for side in ((1.0, -1.0) if panels == 2 else (1.0,)):
+    sides = (1.0, -1.0) if panels == 2 else (1.0,)
+    for side in sides:
         u = vec(0, side * L, 0)
         wing = []
         for k in range(wing_panels):
@@ -218,7 +219,7 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
             wing.append((origin, u, w, L, W))
         occluders.append(("panels", wing))
     if booms:  # a square boom from the bus's ±y face to the wing's root, on the y axis
-        for side in ((1.0, -1.0) if panels == 2 else (1.0,)):
+        for side in sides:
             occluders.append(("box", vec(0, side * (b + gap / 2), 0), vec(q["boom_width"] / 2, gap / 2, q["boom_width"] / 2)))
             pieces.append((box(*occluders[-1][1:], n=1), 0, len(occluders) - 1))  # thin: one cell a face
     if deck:  # a box on the +z deck, centred on it
@@ -226,6 +227,7 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
         pieces.append((box(*occluders[-1][1:]), 0, len(occluders) - 1))
     verts, faces, part, inst = [], [], [], []
     grids: dict = {}
+    off = 0  # the vertices so far
     for quads, kind, o_idx in pieces:
         for o, uu, vv, nu, nv in quads:
             if (nu, nv) not in grids:
@@ -233,8 +235,9 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
                 grids[nu, nv] = (torch.as_tensor(s_np, dtype=dt, device=dev)[:, None],
                                  torch.as_tensor(t_np, dtype=dt, device=dev)[:, None], quad)
             s, t, quad = grids[nu, nv]
-            faces.append(quad + sum(len(x) for x in verts))
+            faces.append(quad + off)
             verts.append(o + s * uu + t * vv)
+            off += len(s)
             part.append(np.full(len(quad), kind))
             inst.append(np.full(len(quad), o_idx))
     free = parts.get("dish_pair", "mirror") == "free"
@@ -242,8 +245,9 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
         geo7 = torch.stack([q[f"dish2_{n}" if free and k == 1 else f"dish_{n}"]
                             for n in ("x", "y", "z", "tilt", "azimuth", "radius", "depth")])
         dv, df, disk = _dish(geo7, k == 1 and not free, dish_rings, dish_segments)
-        faces.append(df + sum(len(x) for x in verts))
+        faces.append(df + off)
         verts.append(dv)
+        off += len(dv)
         part.append(np.full(len(df), 2))
         inst.append(np.full(len(df), len(occluders)))
         occluders.append(("disk",) + disk)

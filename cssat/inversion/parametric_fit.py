@@ -104,15 +104,15 @@ def _transform(names: tuple[str, ...]) -> tuple[torch.Tensor, torch.Tensor]:
     return torch.as_tensor(log, dtype=torch.long), torch.as_tensor([names.index("gap")], dtype=torch.long)
 
 
-def _to_p(z: torch.Tensor, names: tuple[str, ...]) -> torch.Tensor:
+def _to_p(z: torch.Tensor, transform: tuple[torch.Tensor, torch.Tensor]) -> torch.Tensor:
     """The free variables ``z`` (log sizes and albedos, softplus⁻¹ gap, angles and positions as
-    they are) as ``p``."""
-    log, gap = _transform(names)
+    they are) as ``p``; ``transform``: :func:`_transform`'s indices."""
+    log, gap = transform
     return z.index_put((log,), z[log].exp()).index_put((gap,), torch.nn.functional.softplus(z[gap]))
 
 
-def _to_z(p: np.ndarray, names: tuple[str, ...]) -> torch.Tensor:
-    log, gap = _transform(names)
+def _to_z(p: np.ndarray, transform: tuple[torch.Tensor, torch.Tensor]) -> torch.Tensor:
+    log, gap = transform
     z = np.array(p, dtype=np.float64)
     g = max(float(p[int(gap[0])]), 1e-6)
     z[log.numpy()] = np.log(z[log.numpy()])
@@ -143,6 +143,7 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     it began). Either way each outer iteration is scored, and the best kept, with the cast
     visibility (``loss``, ``rms_over_noise``: the hard-shadowed model's)."""
     names = param_names(dishes, **parts)
+    transform = _transform(names)
     fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
     unknown = [n for n in fixed if n not in names]
     if unknown:
@@ -166,14 +167,14 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
         if isinstance(vis, float):  # the soft visibility's τ (m): the shadows differentiable
             from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
 
-            vis = soft_visibility(_to_p(z, names), S, V, tau=vis, front_only=True, **geo)
-        r = (yt - box_wing_light_curve(_to_p(z, names), S, V, vis, **kw)) / sg
+            vis = soft_visibility(_to_p(z, transform), S, V, tau=vis, front_only=True, **geo)
+        r = (yt - box_wing_light_curve(_to_p(z, transform), S, V, vis, **kw)) / sg
         return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
 
     p0 = np.asarray(p0, dtype=np.float64)
     if p0.shape != (len(names),):
         raise FieldError("p0", f"expected {len(names)} values {names}, got shape {p0.shape}")
-    z0 = _to_z(p0, names)
+    z0 = _to_z(p0, transform)
     free = np.array([n not in fixed for n in names])
 
     free_idx = torch.as_tensor(np.flatnonzero(free))
@@ -199,18 +200,18 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     best = (math.inf, z)
     if visibility == "soft":  # the start scored too (its cast visibility): a continuation ends no worse than it began
         with torch.no_grad():
-            best = (float(loss_of(z0, box_wing_visibility(_to_p(z0, names), S, V, **geo))), z0)
+            best = (float(loss_of(z0, box_wing_visibility(_to_p(z0, transform), S, V, **geo))), z0)
     tau0 = softness * float(np.mean(p0[:3]))
     for k in range(outer):
-        vis = tau0 * 0.5**k if visibility == "soft" else box_wing_visibility(_to_p(z, names), S, V, **geo)
+        vis = tau0 * 0.5**k if visibility == "soft" else box_wing_visibility(_to_p(z, transform), S, V, **geo)
         sol = minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", bounds=bounds,
                        options={"maxiter": inner})
         z = full(sol.x)
         with torch.no_grad():  # score with the visibility recast at the new parameters
-            val = float(loss_of(z, box_wing_visibility(_to_p(z, names), S, V, **geo)))
+            val = float(loss_of(z, box_wing_visibility(_to_p(z, transform), S, V, **geo)))
         if val < best[0]:
             best = (val, z)
-    p = _to_p(best[1], names).numpy()
+    p = _to_p(best[1], transform).numpy()
     vis = box_wing_visibility(p, S, V, **geo)
     r = (yt - box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw)) / sg
     return p, {"loss": best[0], "rms_over_noise": float(torch.sqrt((r**2).mean())),

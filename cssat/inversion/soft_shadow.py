@@ -35,7 +35,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError, bool_param, float_param
-from cssat.inversion.parametric import _assemble
+from cssat.inversion.parametric import _assemble, _geometry
 from cssat.optics.photometry import check_unit
 
 __all__ = ["soft_visibility"]
@@ -108,8 +108,7 @@ def soft_visibility(p: Any, sun: Any, observer: Any, *, tau: float, panels: int 
     tau_t = torch.as_tensor(tau, dtype=v.dtype, device=v.device)
     if front_only:
         with torch.no_grad():
-            tri = v.detach()[fi]
-            N = torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=1)
+            N, _ = _geometry(v.detach(), f)
             ti, ci = (((S @ N.T) > 0) & ((V @ N.T) > 0)).nonzero(as_tuple=True)
         Pk, Sk, Vk, lk = P[ci], S[ti], V[ti], lab[ci]
     else:
