@@ -442,17 +442,89 @@ def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False) -> list[tuple[s
     return out
 
 
+def search_starts(p9: np.ndarray, parts: dict, n: int, seed: int = 0) -> list[tuple[str, np.ndarray]]:
+    """``n`` random starts of the finer family (``parts``) about a fitted box-wing ``p9 (9,)``, for a
+    global search (:func:`fit_fine`'s ``search``): the bus's half-sizes and the wing's length and
+    width each times ``exp(N(0, 0.15²))``, the hinge ``+ N(0, 0.1²)`` rad, the panel albedo times
+    ``exp(N(0, 0.3²))``; each dish's vertex uniform on a random ±x or ±z face of the bus (within
+    80 % of its half-sizes), its axis uniform over that face's outward hemisphere, its radius
+    ``U(0.4, 0.9)`` × the bus's mean half-size, depth 0.3 × radius, ``cd_dish`` ``CD0 × exp(N(0,
+    0.3²))`` (a free pair: the second dish drawn the same way, independently); the deck's half-sizes
+    ``U(0.2, 0.5)`` of the bus's and height ``U(0.1, 0.5)`` × ``2c``; gaps and booms as
+    :func:`fine_starts`. ``cd_bus`` is kept (the albedo prior, if it is held). Reproducible by
+    ``seed``: ``(label, p)``."""
+    from cssat.inversion.parametric import param_names
+
+    rng = np.random.default_rng(seed)
+    names = param_names(**parts)
+    base = dict(zip(names, map(float, fine_starts(p9, parts)[0][1])))
+    out = []
+    for i in range(n):
+        q = dict(base)
+        ln = lambda s: float(np.exp(rng.normal(0.0, s)))  # noqa: E731
+        for k in ("a", "b", "c", "length", "width"):
+            q[k] = base[k] * ln(0.15)
+        q["hinge"] = base["hinge"] + rng.normal(0.0, 0.1)
+        q["cd_panel"] = min(base["cd_panel"] * ln(0.3), 1.0)
+        half = np.array([q["a"], q["b"], q["c"]])
+        for pre in ("dish", "dish2"):
+            if f"{pre}_x" not in q:
+                continue
+            axis_k, sign = [(0, 1), (0, -1), (2, 1), (2, -1)][rng.integers(4)]
+            vertex = rng.uniform(-0.8, 0.8, 3) * half
+            vertex[axis_k] = sign * half[axis_k]
+            out_n = np.zeros(3)
+            out_n[axis_k] = sign
+            v = rng.normal(size=3)
+            v /= np.linalg.norm(v)
+            v = v if v @ out_n > 0 else -v
+            q.update({f"{pre}_x": vertex[0], f"{pre}_y": vertex[1], f"{pre}_z": vertex[2],
+                      f"{pre}_tilt": math.acos(float(np.clip(v[2], -1, 1))), f"{pre}_azimuth": math.atan2(v[1], v[0])})
+            r = rng.uniform(0.4, 0.9) * float(half.mean())
+            q[f"{pre}_radius"], q[f"{pre}_depth"] = r, 0.3 * r
+        if "cd_dish" in q:
+            q["cd_dish"] = min(CD0 * ln(0.3), 1.0)
+        if "deck_a" in q:
+            q.update(deck_a=rng.uniform(0.2, 0.5) * q["a"], deck_b=rng.uniform(0.2, 0.5) * q["b"],
+                     deck_h=rng.uniform(0.1, 0.5) * 2 * q["c"])
+        out.append((f"random start {i}", np.array([q[k] for k in names])))
+    return out
+
+
+def with_albedo_prior(p: np.ndarray, names: tuple, cd_bus: float = CD0) -> np.ndarray:
+    """``p`` rescaled so that its bus albedo is ``cd_bus`` with the same light curve: every length
+    times ``s = sqrt(cd/cd_bus)``, every albedo over ``s²`` (flux is albedo × area; the shadows are
+    scale-free), the other albedos clipped at 1. The family's one exactly flat direction fixed by
+    an albedo prior."""
+    from cssat.inversion.parametric_fit import SIZE_NAMES
+
+    q = dict(zip(names, map(float, p)))
+    s2 = q["cd_bus"] / cd_bus
+    for k in q:
+        if k in SIZE_NAMES or k == "gap" or k.endswith(("_x", "_y", "_z")):
+            q[k] *= math.sqrt(s2)
+        elif k.startswith("cd_"):
+            q[k] = min(q[k] / s2, 1.0)
+    return np.array([q[k] for k in names])
+
+
 def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials",
              n_normals: int = 500, fit_settings: dict | None = None, oracle: bool = True, n_points: int = 100_000,
-             flip: bool = False, brief_divisions: int | None = None, keep: int = 1) -> dict:
+             flip: bool = False, brief_divisions: int | None = None, keep: int = 1, search: int = 0,
+             prior: bool = False, brief_iters: tuple[int, int] = (2, 30)) -> dict:
     """The finer family (the truth's ``Truth.fine`` parts given: a topology oracle, as the dish
     count is in :func:`fit_truth`) on one truth: **fine, from the EGI** — the EGI start, the
     box-wing without dishes fitted (:func:`fit_truth`'s first stage), then each of
     :func:`fine_starts` fitted briefly (``outer`` 2, ``inner`` 20; at ``brief_divisions`` cells when
     given; with ``flip`` each dish start also with its axis reversed), the ``keep`` best by their
-    fit-night loss fitted in full, the best of those kept; with ``oracle``: **fine: true geometry, albedos fitted** (what this family can
+    fit-night loss fitted in full, the best of those kept. ``search`` > 0: a global search instead —
+    :func:`search_starts`' ``search`` random starts and the generic ones, each fitted briefly with the
+    cast visibility (cheap: no soft shadows; ``outer, inner = brief_iters``, at ``brief_divisions`` or 2
+    cells), the ``keep`` best in full. ``prior``: the bus albedo held at ``CD0`` (the start rescaled
+    by :func:`with_albedo_prior`), fixing the family's flat size–albedo direction. With ``oracle``: **fine: true geometry, albedos fitted** (what this family can
     reach on the truth) and **fine: all fitted from the true geometry**. Rows as :func:`fit_truth`'s."""
     from cssat.inversion import invert_convex
+    from cssat.inversion.parametric import param_names
     from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
 
     tr = truth(name, surface)
@@ -474,13 +546,24 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     c0 = time.process_time()
     egi = invert_convex(y[fit], S, V, n_normals=n_normals, sigma=sigma[fit])
     p_nd, _ = run(box_wing_start(egi.normals, egi.areas, panels=2, cd0=CD0), fine=False)
+    held = ["cd_bus"] if prior else []
+    if prior:
+        p_nd = with_albedo_prior(p_nd, param_names())
+    starts = fine_starts(p_nd, parts, flip=flip)
+    brief = dict(outer=2, inner=20, **({"divisions": brief_divisions} if brief_divisions else {}))
+    if search:
+        starts += search_starts(p_nd, parts, search, seed=seed)
+        brief = dict(outer=brief_iters[0], inner=brief_iters[1], divisions=brief_divisions or 2, visibility="cast")
     briefs = []
-    for label, ps in fine_starts(p_nd, parts, flip=flip):
-        p_s, info_s = run(ps, outer=2, inner=20, **({"divisions": brief_divisions} if brief_divisions else {}))
+    for label, ps in starts:
+        p_s, info_s = run(ps, fixed=held, **brief)
         briefs.append((info_s["loss"], label, p_s))
+    briefs.sort(key=lambda b: b[0])
+    print(f"{name} {surface}: {len(briefs)} brief fits, {time.process_time() - c0:.0f} CPU-s so far; the best: "
+          + ", ".join(f"{lab} {loss:.3f}" for loss, lab, _ in briefs[:4]), file=sys.stderr, flush=True)
     fulls = []
-    for _, label, p_s in sorted(briefs, key=lambda b: b[0])[:keep]:
-        p_f, info_f = run(p_s)
+    for _, label, p_s in briefs[:keep]:
+        p_f, info_f = run(p_s, fixed=held)
         fulls.append((info_f["loss"], label, p_f, info_f))
     _, label, p_f, info_f = min(fulls, key=lambda f: f[0])
     rows.append(("fine, from the EGI", p_f, info_f, time.process_time() - c0, f"EGI, then the parts at {label}"))
@@ -565,6 +648,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fine-flip", action="store_true", help="--family fine: each dish start also flipped")
     ap.add_argument("--fine-brief-divisions", type=int, default=None, help="--family fine: the brief fits' cells")
     ap.add_argument("--fine-keep", type=int, default=1, help="--family fine: the brief fits fitted in full")
+    ap.add_argument("--fine-search", type=int, default=0,
+                    help="--family fine: a global search, this many random starts fitted briefly (cast shadows)")
+    ap.add_argument("--fine-brief-iters", type=int, nargs=2, default=(2, 30), metavar=("OUTER", "INNER"),
+                    help="--fine-search: each brief fit's outer and inner iterations")
+    ap.add_argument("--albedos", choices=("fit", "profile"), default="fit",
+                    help="fit_box_wing's albedos: fitted by gradient, or solved by least squares at each evaluation")
+    ap.add_argument("--albedo-prior", action="store_true", help="--family fine: the bus albedo held at CD0 (0.3)")
     ap.add_argument("--spin-search", action="store_true",
                     help="no shape fit: the convex EGI's spin search on each truth (attitude not given), its verdict")
     args = ap.parse_args(argv)
@@ -596,11 +686,13 @@ def main(argv: list[str] | None = None) -> int:
                 continue  # the file has no materials: its "materials" are the uniform cd 0.3
             if args.family == "fine":
                 res = fit_fine(name, geo, seed=args.seed, floor=args.floor, surface=surface, oracle=not args.no_oracle,
-                               fit_settings=dict(visibility=args.visibility), flip=args.fine_flip,
-                               brief_divisions=args.fine_brief_divisions, keep=args.fine_keep)
+                               fit_settings=dict(visibility=args.visibility, albedos=args.albedos), flip=args.fine_flip,
+                               brief_divisions=args.fine_brief_divisions, keep=args.fine_keep,
+                               search=args.fine_search, prior=args.albedo_prior,
+                               brief_iters=tuple(args.fine_brief_iters))
             else:
                 res = fit_truth(name, geo, seed=args.seed, floor=args.floor, surface=surface, dish_fit=not args.no_dishes,
-                                oracle=not args.no_oracle, fit_settings=dict(visibility=args.visibility))
+                                oracle=not args.no_oracle, fit_settings=dict(visibility=args.visibility, albedos=args.albedos))
             rows += res["rows"]
             for r in res["rows"]:
                 print(json.dumps({k: v for k, v in r.items() if k not in ("params", "nominal", "note")}), flush=True)

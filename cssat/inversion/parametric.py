@@ -305,14 +305,20 @@ def box_wing_visibility(p: Any, sun: Any, observer: Any, *, panels: int = 2, div
 
 def box_wing_light_curve(p: Tensor, sun: Any, observer: Any, visible: Tensor | None = None, *, panels: int = 2,
                          divisions: int = 4, range_km: Any = 1.0, irradiance: float = SOLAR_IRRADIANCE_W_M2,
-                         dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40, **parts: Any) -> Tensor:
+                         dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40, by_part: bool = False,
+                         **parts: Any) -> Tensor:
     """The box-wing's diffuse light curve ``(T,)`` in W/m² at ``range_km`` (module docstring's
     equation), differentiable in ``p`` (``(9,)``, ``(17,)`` with ``dishes``, more with the
     ``parts`` of :func:`box_wing`: :func:`param_names`); ``sun, observer (T, 3)`` body-frame unit
     vectors from the object; ``visible (T, F)`` the fixed visibility (None: unshadowed, i.e.
-    convex-like)."""
-    v, f, _, cd = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
-                           dish_segments=dish_segments, **parts)
+    convex-like). ``by_part``: ``(T, P)`` instead, each part's curve at unit albedo (``P`` 2, or 3
+    with dishes: bus (with booms and deck), panels, dishes) — the light curve is linear in the
+    albedos, ``y = Y[:, 0] cd_bus + Y[:, 1] cd_panel (+ Y[:, 2] cd_dish)``, so a fit can solve them
+    by least squares (:func:`~cssat.inversion.parametric_fit.fit_box_wing`'s ``albedos="profile"``)."""
+    v, f, part, cd = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
+                              dish_segments=dish_segments, **parts)
+    if by_part:
+        cd = torch.ones_like(cd)
     N, A = _geometry(v, f)
     S = check_unit(sun, "sun").to(device=v.device, dtype=v.dtype)
     V = check_unit(observer, "observer").to(device=v.device, dtype=v.dtype)
@@ -325,4 +331,7 @@ def box_wing_light_curve(p: Tensor, sun: Any, observer: Any, visible: Tensor | N
         if tuple(vis.shape) != tuple(val.shape):
             raise FieldError("visible", f"expected shape {tuple(val.shape)}, got {tuple(vis.shape)}")
         val = val * vis.to(v.dtype)
+    if by_part:
+        onehot = torch.as_tensor(part[:, None] == np.arange(3 if dishes else 2)[None], dtype=v.dtype, device=v.device)
+        return val @ onehot
     return val.sum(1)

@@ -17,6 +17,7 @@ geometry and the bus/panel ratios — an absolute size needs an albedo prior (``
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any
 
@@ -26,7 +27,7 @@ import torch
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 
-__all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing"]
+__all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing", "profile_albedos"]
 
 #: the parameters fitted as logarithms of a length (m)
 SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth", "dish2_radius", "dish2_depth", "panel_gap",
@@ -120,10 +121,43 @@ def _to_z(p: np.ndarray, transform: tuple[torch.Tensor, torch.Tensor]) -> torch.
     return torch.as_tensor(z, dtype=torch.float64)
 
 
+def profile_albedos(Y: torch.Tensor, y: torch.Tensor, sigma: torch.Tensor, cd: torch.Tensor,
+                    free: torch.Tensor) -> torch.Tensor:
+    """The albedos ``(P,)`` that fit ``y (T,)`` best in the σ-weighted least-squares sense given each
+    part's curve at unit albedo ``Y (T, P)`` (:func:`~cssat.inversion.parametric.box_wing_light_curve`'s
+    ``by_part``): the ``free (P,)`` bool entries solved within [1e-4, 1], the others held at
+    ``cd (P,)``. Exact bounded least squares: every assignment of the free albedos to "solved",
+    "at 1e-4" or "at 1" (3^P ≤ 27 small solves, P ≤ 3) is tried and the feasible one of least cost
+    kept. Differentiable in ``Y`` (a variable projection: the fit's gradient sees the albedos
+    follow the geometry)."""
+    lo, hi = 1e-4, 1.0
+    Yw, yw = Y / sigma[:, None], y / sigma
+    k = torch.nonzero(free).flatten().tolist()
+    best: tuple[float, torch.Tensor] = (math.inf, cd)
+    for state in itertools.product((0, 1, 2), repeat=len(k)):
+        c = cd.clone()
+        c[[j for j, s in zip(k, state) if s == 1]] = lo
+        c[[j for j, s in zip(k, state) if s == 2]] = hi
+        solve = [j for j, s in zip(k, state) if s == 0]
+        if solve:
+            A = Yw[:, solve]
+            rest = [j for j in range(len(cd)) if j not in solve]
+            G = A.T @ A
+            G = G + 1e-12 * G.diagonal().max().clamp(min=1e-300) * torch.eye(len(solve), dtype=G.dtype, device=G.device)
+            sol = torch.linalg.solve(G, A.T @ (yw - Yw[:, rest] @ c[rest]))
+            if bool(((sol < lo) | (sol > hi)).any()):
+                continue
+            c = c.index_put((torch.as_tensor(solve, device=c.device),), sol)
+        cost = float(((yw - Yw @ c) ** 2).sum().detach())
+        if cost < best[0]:
+            best = (cost, c)
+    return best[1]
+
+
 def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None, panels: int = 2, divisions: int = 4,
                  outer: int = 5, inner: int = 40, huber: float = 3.0, dishes: int = 0, dish_rings: int = 12,
                  dish_segments: int = 40, fixed: Any = (), visibility: str = "cast",
-                 softness: float = 0.1, **parts: Any) -> tuple[np.ndarray, dict[str, Any]]:
+                 softness: float = 0.1, albedos: str = "fit", **parts: Any) -> tuple[np.ndarray, dict[str, Any]]:
     """The box-wing ``p (9,)`` fitting ``y (T,)`` (flux per unit irradiance at 1 m, i.e. m²) at
     body-frame ``sun, observer (T, 3)``, from ``p0 (9,)``; ``sigma (T,)`` the 1σ (None: ones).
     With ``dishes`` (1 or 2, :mod:`cssat.inversion.parametric`), ``p0`` and ``p`` are ``(17,)``:
@@ -141,7 +175,12 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     start's mean bus half-size at the first outer iteration, halved at each next one (a
     continuation towards the hard shadows; the start is scored too, so it ends no worse than
     it began). Either way each outer iteration is scored, and the best kept, with the cast
-    visibility (``loss``, ``rms_over_noise``: the hard-shadowed model's)."""
+    visibility (``loss``, ``rms_over_noise``: the hard-shadowed model's).
+
+    ``albedos``: ``"fit"`` (default) fits the albedos by gradient with the rest; ``"profile"`` solves
+    them at every evaluation (:func:`profile_albedos`: σ-weighted least squares, the light curve being
+    linear in them; those in ``fixed`` held) — the gradient steps move the geometry alone, along
+    the size–albedo valley too."""
     names = param_names(dishes, **parts)
     transform = _transform(names)
     fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
@@ -152,6 +191,7 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     inner = int_param(inner, "inner", 1, 1000)
     huber = float_param(huber, "huber", 0.0, open_lo=True)
     visibility = choice_param(visibility, "visibility", ("cast", "soft"))
+    profile = choice_param(albedos, "albedos", ("fit", "profile")) == "profile"
     softness = float_param(softness, "softness", 0.0, open_lo=True)
     yt = torch.as_tensor(np.asarray(y, dtype=np.float64))
     sg = torch.ones_like(yt) if sigma is None else torch.as_tensor(np.asarray(sigma, dtype=np.float64))
@@ -168,14 +208,23 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
             from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
 
             vis = soft_visibility(_to_p(z, transform), S, V, tau=vis, front_only=True, **geo)
-        r = (yt - box_wing_light_curve(_to_p(z, transform), S, V, vis, **kw)) / sg
+        r = (yt - model(_to_p(z, transform), vis)) / sg
         return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
+
+    cd_idx = torch.as_tensor([names.index(n) for n in names if n.startswith("cd_")])
+    cd_free = torch.as_tensor([n not in fixed for n in names if n.startswith("cd_")])
+
+    def model(p, vis):
+        if not profile:
+            return box_wing_light_curve(p, S, V, vis, **kw)
+        Y = box_wing_light_curve(p, S, V, vis, by_part=True, **kw)
+        return Y @ profile_albedos(Y, yt, sg, p[cd_idx], cd_free)
 
     p0 = np.asarray(p0, dtype=np.float64)
     if p0.shape != (len(names),):
         raise FieldError("p0", f"expected {len(names)} values {names}, got shape {p0.shape}")
     z0 = _to_z(p0, transform)
-    free = np.array([n not in fixed for n in names])
+    free = np.array([n not in fixed and not (profile and n.startswith("cd_")) for n in names])
 
     free_idx = torch.as_tensor(np.flatnonzero(free))
     # the albedos (fitted as logarithms) at most 1: a diffuse surface reflects no more than arrives; the sizes
@@ -204,15 +253,19 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     tau0 = softness * float(np.mean(p0[:3]))
     for k in range(outer):
         vis = tau0 * 0.5**k if visibility == "soft" else box_wing_visibility(_to_p(z, transform), S, V, **geo)
-        sol = minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", bounds=bounds,
-                       options={"maxiter": inner})
-        z = full(sol.x)
+        if free.any():  # nothing free (every geometry held, the albedos profiled): only scored
+            z = full(minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", bounds=bounds,
+                              options={"maxiter": inner}).x)
         with torch.no_grad():  # score with the visibility recast at the new parameters
             val = float(loss_of(z, box_wing_visibility(_to_p(z, transform), S, V, **geo)))
         if val < best[0]:
             best = (val, z)
-    p = _to_p(best[1], transform).numpy()
+    p = _to_p(best[1], transform)
     vis = box_wing_visibility(p, S, V, **geo)
-    r = (yt - box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw)) / sg
+    if profile:  # the albedos the loss used
+        p = p.index_put((cd_idx,), profile_albedos(box_wing_light_curve(p, S, V, vis, by_part=True, **kw), yt, sg,
+                                                   p[cd_idx], cd_free))
+    r = (yt - box_wing_light_curve(p, S, V, vis, **kw)) / sg
+    p = p.numpy()
     return p, {"loss": best[0], "rms_over_noise": float(torch.sqrt((r**2).mean())),
                "params": dict(zip(names, map(float, p)))}
