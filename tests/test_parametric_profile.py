@@ -105,3 +105,32 @@ def test_a_bad_albedos_option_is_named():
     S, V = _directions(10, 4)
     with pytest.raises(FieldError, match="albedos"):
         fit_box_wing(np.ones(10), S, V, P[:9], albedos="solve", divisions=2)
+
+
+def test_the_experiments_settings_are_checked_and_reach_the_fit():
+    """``inversion.parametric.albedos`` / ``albedo_prior``: refused by name when bad; with the prior
+    the stage's bus albedo is ``cd0`` exactly, and profiled albedos lie within their bounds."""
+    from types import SimpleNamespace
+
+    from cssat.experiments.forward.egi_parametric import solve_parametric
+    from cssat.inversion.egi import egi
+    from cssat.inversion.parametric import box_wing_mesh
+    from cssat.models.egi.config import ParametricConfig
+
+    with pytest.raises(FieldError, match=r"inversion\.parametric\.albedos.*fit.*profile"):
+        ParametricConfig(albedos="solve")
+    with pytest.raises(FieldError, match=r"inversion\.parametric\.albedo_prior"):
+        ParametricConfig(albedo_prior="maybe")
+    S, V = _directions(160, 5)
+    p9 = P[:9]
+    y = box_wing_light_curve(torch.as_tensor(p9), S, V, box_wing_visibility(p9, S, V, divisions=2), divisions=2,
+                             **UNIT).numpy()
+    N, A = egi(box_wing_mesh(p9, divisions=2))
+    fit = np.arange(160) < 110
+    m = SimpleNamespace(fit=fit, held=~fit, sigma=0.02 * y.mean() * np.ones_like(y), y=y)
+    a = SimpleNamespace(sun_b=S, obs_b=V, metrics={"spin": "known"})
+    sol = SimpleNamespace(res=SimpleNamespace(normals=N, areas=A), model_unit=np.zeros(160), metrics={})
+    solve_parametric(ParametricConfig(divisions=2, outer=1, inner=10, cd0=0.25, albedos="profile", albedo_prior=True),
+                     m, a, sol)
+    assert sol.metrics["parametric_cd_bus"] == 0.25
+    assert 1e-4 <= sol.metrics["parametric_cd_panel"] <= 1.0

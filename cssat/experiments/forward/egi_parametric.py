@@ -51,7 +51,8 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
         starts.append((loss, psi, R, S, V, p0))
     _, psi, R, S, V, p0 = min(starts, key=lambda s_: s_[0])
     p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, sigma=None if sigma is None else sigma[fit],
-                           outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness, **geo)
+                           outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness,
+                           albedos=o.albedos, fixed=("cd_bus",) if o.albedo_prior else (), **geo)
     vis = box_wing_visibility(p, S, V, **geo)
     sol.convex_model_unit = sol.model_unit
     sol.model_unit = box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw).numpy()

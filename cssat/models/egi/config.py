@@ -86,6 +86,12 @@ class ParametricConfig:
     softness: float = 0.1
     #: the box-wing's turn about the body z axis: auto (from the EGI when the spin was searched, else none) | egi | none
     yaw: str = "auto"
+    #: fit (by gradient, with the geometry) | profile (solved by least squares at every evaluation: the light curve
+    #: is linear in them)
+    albedos: str = "fit"
+    #: hold the bus albedo at cd0: the absolute size then comes from that prior (scaling every length by s and every
+    #: albedo by 1/s² gives the same light curve, shadows included)
+    albedo_prior: bool = False
 
     def __post_init__(self) -> None:
         self.panels = int_param(self.panels, "inversion.parametric.panels", 1, 2)
@@ -97,6 +103,8 @@ class ParametricConfig:
         self.visibility = choice_param(self.visibility, "inversion.parametric.visibility", ("cast", "soft"))
         self.softness = float_param(self.softness, "inversion.parametric.softness", 0.0, open_lo=True)
         self.yaw = choice_param(self.yaw, "inversion.parametric.yaw", ("auto", "egi", "none"))
+        self.albedos = choice_param(self.albedos, "inversion.parametric.albedos", ("fit", "profile"))
+        self.albedo_prior = bool_param(self.albedo_prior, "inversion.parametric.albedo_prior")
 
 
 @dataclass
