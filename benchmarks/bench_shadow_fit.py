@@ -55,6 +55,15 @@ the oracle rows **fine: true geometry, albedos fitted** and **fine: all fitted f
 geometry**. What the finer family leaves out: the Astra-like's telemetry plate, the b702's tower
 dish and engine, the spacebus's omni mast.
 
+With ``--family fine`` also: ``--albedos profile`` (:func:`~cssat.inversion.parametric_fit.fit_box_wing`'s
+albedos solved by bounded least squares at every evaluation instead of fitted by gradient),
+``--albedo-prior`` (the bus albedo held at ``CD0`` = 0.3 after the no-dish fit, its start
+rescaled by :func:`with_albedo_prior`: the family's one exactly flat direction — every length × s,
+every albedo ÷ s² — fixed by a prior, so the absolute size and the raw IoU rest on it; for the
+``uniform`` truths that prior is their true albedo, for ``materials`` 0.3 against the bus's 0.35),
+``--fine-pairs`` (a free dish pair: the 3 × 3 combinations of the generic placements),
+``--fine-search N`` (N random starts, :func:`search_starts`, fitted briefly with cast shadows).
+
 ``--surface``: ``materials`` (the truths' parts' own ``cd``) and/or ``uniform`` (``cd`` 0.3 on
 every facet: the family's one albedo per part then holds, so a misfit is shape).
 
@@ -410,12 +419,14 @@ def _scored(name: str, surface: str, tr: Truth, geo: Geometry, y: np.ndarray, si
                 params=info["params"], nominal=nominal, note=tr.note)
 
 
-def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False) -> list[tuple[str, np.ndarray]]:
+def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False, pairs: bool = False) -> list[tuple[str, np.ndarray]]:
     """Starts of the finer family (``parts``) from a fitted box-wing ``p9 (9,)``: each wing's
     length split into ``wing_panels`` panels with gaps of 2 % of it; booms of side 5 % of the bus's
     mean half-size; a deck box of a third of the bus's half-sizes and a fifth of its height; the
     dishes at :func:`_dish_starts`' generic placements (a free pair starting as mirror images; with
     ``flip`` each placement also with its dishes' axes reversed, the concave side the other way).
+    With ``pairs`` and a free pair (``dish_pair="free"``), every combination of placements instead:
+    the first dish at one, the second at another's mirror image (3 × 3 starts).
     Generic fractions, the same for every truth: ``(label, p)``."""
     from cssat.inversion.parametric import param_names
 
@@ -433,6 +444,13 @@ def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False) -> list[tuple[s
             q.update({f"dish2_{k}": q[f"dish_{k}"] for k in ("y", "z", "tilt", "radius", "depth")},
                      dish2_x=-q["dish_x"], dish2_azimuth=math.pi - q["dish_azimuth"])
         out.append((label, np.array([q[k] for k in names])))
+        if pairs and parts.get("dish_pair") == "free":
+            out.pop()
+            for label2, p2 in _dish_starts(p9, dishes):
+                d2 = dict(zip(param_names(dishes), map(float, p2)))
+                q.update({f"dish2_{k}": d2[f"dish_{k}"] for k in ("y", "z", "tilt", "radius", "depth")},
+                         dish2_x=-d2["dish_x"], dish2_azimuth=math.pi - d2["dish_azimuth"])
+                out.append((f"{label}; {label2}", np.array([q[k] for k in names])))
         if flip and dishes:
             for pre in ("dish", "dish2"):
                 if f"{pre}_tilt" in q:
@@ -511,7 +529,7 @@ def with_albedo_prior(p: np.ndarray, names: tuple, cd_bus: float = CD0) -> np.nd
 def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials",
              n_normals: int = 500, fit_settings: dict | None = None, oracle: bool = True, n_points: int = 100_000,
              flip: bool = False, brief_divisions: int | None = None, keep: int = 1, search: int = 0,
-             prior: bool = False, brief_iters: tuple[int, int] = (2, 30)) -> dict:
+             prior: bool = False, brief_iters: tuple[int, int] = (2, 30), pairs: bool = False) -> dict:
     """The finer family (the truth's ``Truth.fine`` parts given: a topology oracle, as the dish
     count is in :func:`fit_truth`) on one truth: **fine, from the EGI** — the EGI start, the
     box-wing without dishes fitted (:func:`fit_truth`'s first stage), then each of
@@ -521,7 +539,8 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     :func:`search_starts`' ``search`` random starts and the generic ones, each fitted briefly with the
     cast visibility (cheap: no soft shadows; ``outer, inner = brief_iters``, at ``brief_divisions`` or 2
     cells), the ``keep`` best in full. ``prior``: the bus albedo held at ``CD0`` (the start rescaled
-    by :func:`with_albedo_prior`), fixing the family's flat size–albedo direction. With ``oracle``: **fine: true geometry, albedos fitted** (what this family can
+    by :func:`with_albedo_prior`), fixing the family's flat size–albedo direction. ``pairs``:
+    :func:`fine_starts`'. With ``oracle``: **fine: true geometry, albedos fitted** (what this family can
     reach on the truth) and **fine: all fitted from the true geometry**. Rows as :func:`fit_truth`'s."""
     from cssat.inversion import invert_convex
     from cssat.inversion.parametric import param_names
@@ -549,7 +568,7 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     held = ["cd_bus"] if prior else []
     if prior:
         p_nd = with_albedo_prior(p_nd, param_names())
-    starts = fine_starts(p_nd, parts, flip=flip)
+    starts = fine_starts(p_nd, parts, flip=flip, pairs=pairs)
     brief = dict(outer=2, inner=20, **({"divisions": brief_divisions} if brief_divisions else {}))
     if search:
         starts += search_starts(p_nd, parts, search, seed=seed)
@@ -652,6 +671,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="--family fine: a global search, this many random starts fitted briefly (cast shadows)")
     ap.add_argument("--fine-brief-iters", type=int, nargs=2, default=(2, 30), metavar=("OUTER", "INNER"),
                     help="--fine-search: each brief fit's outer and inner iterations")
+    ap.add_argument("--fine-pairs", action="store_true",
+                    help="--family fine, a free dish pair: every combination of the two dishes' generic placements")
     ap.add_argument("--albedos", choices=("fit", "profile"), default="fit",
                     help="fit_box_wing's albedos: fitted by gradient, or solved by least squares at each evaluation")
     ap.add_argument("--albedo-prior", action="store_true", help="--family fine: the bus albedo held at CD0 (0.3)")
@@ -689,7 +710,7 @@ def main(argv: list[str] | None = None) -> int:
                                fit_settings=dict(visibility=args.visibility, albedos=args.albedos), flip=args.fine_flip,
                                brief_divisions=args.fine_brief_divisions, keep=args.fine_keep,
                                search=args.fine_search, prior=args.albedo_prior,
-                               brief_iters=tuple(args.fine_brief_iters))
+                               brief_iters=tuple(args.fine_brief_iters), pairs=args.fine_pairs)
             else:
                 res = fit_truth(name, geo, seed=args.seed, floor=args.floor, surface=surface, dish_fit=not args.no_dishes,
                                 oracle=not args.no_oracle, fit_settings=dict(visibility=args.visibility, albedos=args.albedos))
