@@ -105,6 +105,8 @@ def test_a_bad_albedos_option_is_named():
     S, V = _directions(10, 4)
     with pytest.raises(FieldError, match="albedos"):
         fit_box_wing(np.ones(10), S, V, P[:9], albedos="solve", divisions=2)
+    with pytest.raises(FieldError, match="free.*at most 6"):
+        profile_albedos(torch.ones(5, 7), torch.ones(5), torch.ones(5), torch.zeros(7), torch.ones(7, dtype=torch.bool))
 
 
 def test_the_experiments_settings_are_checked_and_reach_the_fit():

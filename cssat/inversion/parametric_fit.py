@@ -129,10 +129,12 @@ def profile_albedos(Y: torch.Tensor, y: torch.Tensor, sigma: torch.Tensor, cd: t
     ``cd (P,)``. Exact bounded least squares: every assignment of the free albedos to "solved",
     "at 1e-4" or "at 1" (3^P ≤ 27 small solves, P ≤ 3) is tried and the feasible one of least cost
     kept. Differentiable in ``Y`` (a variable projection: the fit's gradient sees the albedos
-    follow the geometry)."""
+    follow the geometry). Least squares, not a robust loss: a glint the model lacks pulls them."""
     lo, hi = 1e-4, 1.0
     Yw, yw = Y / sigma[:, None], y / sigma
     k = torch.nonzero(free).flatten().tolist()
+    if len(k) > 6:
+        raise FieldError("free", f"at most 6 albedos solved (3^P active sets are tried), got {len(k)}")
     best: tuple[float, torch.Tensor] = (math.inf, cd)
     for state in itertools.product((0, 1, 2), repeat=len(k)):
         c = cd.clone()
@@ -180,7 +182,8 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     ``albedos``: ``"fit"`` (default) fits the albedos by gradient with the rest; ``"profile"`` solves
     them at every evaluation (:func:`profile_albedos`: σ-weighted least squares, the light curve being
     linear in them; those in ``fixed`` held) — the gradient steps move the geometry alone, along
-    the size–albedo valley too."""
+    the size–albedo valley too; the geometry's loss stays the soft-L1 one, but the albedos are the
+    least-squares ones (a glint the family lacks pulls them)."""
     names = param_names(dishes, **parts)
     transform = _transform(names)
     fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
