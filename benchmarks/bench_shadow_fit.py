@@ -430,6 +430,8 @@ def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False, pairs: bool = F
     Generic fractions, the same for every truth: ``(label, p)``."""
     from cssat.inversion.parametric import param_names
 
+    if flip and pairs:
+        raise ValueError("fine_starts: flip and pairs together are not defined (choose one)")
     a, b, c, L, W = p9[:5]
     n, dishes = parts.get("wing_panels", 1), parts.get("dishes", 0)
     g0 = 0.02 * L
