@@ -479,9 +479,12 @@ def search_starts(p9: np.ndarray, parts: dict, n: int, seed: int = 0) -> list[tu
     names = param_names(**parts)
     base = dict(zip(names, map(float, fine_starts(p9, parts)[0][1])))
     out = []
+
+    def ln(s):  # a log-normal factor
+        return float(np.exp(rng.normal(0.0, s)))
+
     for i in range(n):
         q = dict(base)
-        ln = lambda s: float(np.exp(rng.normal(0.0, s)))  # noqa: E731
         for k in ("a", "b", "c", "length", "width"):
             q[k] = base[k] * ln(0.15)
         q["hinge"] = base["hinge"] + rng.normal(0.0, 0.1)

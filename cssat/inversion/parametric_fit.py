@@ -128,7 +128,7 @@ def profile_albedos(Y: torch.Tensor, y: torch.Tensor, sigma: torch.Tensor, cd: t
     ``by_part``): the ``free (P,)`` bool entries solved within [1e-4, 1], the others held at
     ``cd (P,)``. Exact bounded least squares: every assignment of the free albedos to "solved",
     "at 1e-4" or "at 1" (3^P ≤ 27 small solves, P ≤ 3) is tried and the feasible one of least cost
-    kept. Differentiable in ``Y`` (a variable projection: the fit's gradient sees the albedos
+    kept (the unconstrained solution at once when it is within them). Differentiable in ``Y`` (a variable projection: the fit's gradient sees the albedos
     follow the geometry). Least squares, not a robust loss: a glint the model lacks pulls them."""
     lo, hi = 1e-4, 1.0
     Yw, yw = Y / sigma[:, None], y / sigma
@@ -150,6 +150,8 @@ def profile_albedos(Y: torch.Tensor, y: torch.Tensor, sigma: torch.Tensor, cd: t
             if bool(((sol < lo) | (sol > hi)).any()):
                 continue
             c = c.index_put((torch.as_tensor(solve, device=c.device),), sol)
+        if not any(state):  # the unconstrained optimum is within the bounds: it is the bounded one (a convex problem)
+            return c
         cost = float(((yw - Yw @ c) ** 2).sum().detach())
         if cost < best[0]:
             best = (cost, c)
