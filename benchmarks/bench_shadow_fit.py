@@ -534,7 +534,8 @@ def with_albedo_prior(p: np.ndarray, names: tuple, cd_bus: float = CD0) -> np.nd
 def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials",
              n_normals: int = 500, fit_settings: dict | None = None, oracle: bool = True, n_points: int = 100_000,
              flip: bool = False, brief_divisions: int | None = None, keep: int = 1, search: int = 0,
-             prior: bool = False, brief_iters: tuple[int, int] = (2, 30), pairs: bool = False) -> dict:
+             prior: bool = False, brief_iters: tuple[int, int] = (2, 30), pairs: bool = False,
+             fit_geo: Geometry | None = None, to_fit: np.ndarray | None = None) -> dict:
     """The finer family (the truth's ``Truth.fine`` parts given: a topology oracle, as the dish
     count is in :func:`fit_truth`) on one truth: **fine, from the EGI** — the EGI start, the
     box-wing without dishes fitted (:func:`fit_truth`'s first stage), then each of
@@ -546,10 +547,14 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     cells), the ``keep`` best in full. ``prior``: the bus albedo held at ``CD0`` (the start rescaled
     by :func:`with_albedo_prior`), fixing the family's flat size–albedo direction. ``pairs``:
     :func:`fine_starts`'. With ``oracle``: **fine: true geometry, albedos fitted** (what this family can
-    reach on the truth) and **fine: all fitted from the true geometry**. Rows as :func:`fit_truth`'s."""
+    reach on the truth) and **fine: all fitted from the true geometry**. Rows as :func:`fit_truth`'s.
+    ``fit_geo``: the samples in another body frame than the truth's (an estimated spin's, e.g.
+    ``benchmarks/bench_shadow_spin.py``), fitted and scored there; ``to_fit (3, 3)`` turns the true
+    mesh into it for the IoU. The light curve is the truth's (``geo``) either way."""
     from cssat.inversion import invert_convex
     from cssat.inversion.parametric import param_names
     from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
+    from cssat.scene.mesh import Mesh
 
     tr = truth(name, surface)
     if tr.fine is None:
@@ -557,6 +562,12 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     parts, true_params = tr.fine
     st = dict(FIT, **(fit_settings or {}))
     y, sigma, clean = simulate(tr.mesh, geo, floor, seed)
+    if fit_geo is not None:  # fitted and scored in another frame: the truth turned into it for the IoU
+        geo = fit_geo
+        if to_fit is not None:
+            tr = Truth(Mesh(tr.mesh.vertices @ np.asarray(to_fit).T, tr.mesh.faces, tr.mesh.cd, tr.mesh.cs,
+                            name=tr.mesh.name, part=tr.mesh.part, part_names=tr.mesh.part_names),
+                       tr.dishes, tr.iou, tr.nominal, tr.note, tr.fine)
     fit = geo.night < 2
     S, V = geo.sun[fit], geo.observer[fit]
     fkw = _family_kw(0, st["divisions"], parts)

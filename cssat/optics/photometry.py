@@ -68,7 +68,7 @@ def check_unit(v: Vectors, name: str, tol: float = 1e-6) -> Tensor:
         raise FieldError(name, f"expected unit vectors of shape (T, 3), got {tuple(t.shape)}")
     if not bool(torch.isfinite(t).all()):
         raise FieldError(name, "contains NaN or Inf")
-    err = (torch.linalg.vector_norm(t, dim=1) - 1).abs()
+    err = (torch.linalg.vector_norm(t.detach(), dim=1) - 1).abs()
     if t.shape[0] and float(err.max()) > tol:
         i = int(err.argmax())
         raise FieldError(name, f"row {i} has norm {float(torch.linalg.vector_norm(t[i])):.6g}, expected unit vectors")

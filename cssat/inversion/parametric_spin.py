@@ -1,0 +1,212 @@
+"""The shadowed box-wing's own spin: the pole, phase and period refined by gradient through the
+parametric family's soft-shadowed light curve (:mod:`cssat.inversion.parametric`,
+:mod:`cssat.inversion.soft_shadow`), its shape held — the step the convex EGI's spin search
+(:func:`cssat.inversion.estimate_spin`) cannot take on a self-shadowing satellite.
+
+The body frame of a spin about body +z is :func:`cssat.scene.attitude.spin_frame`'s
+``v_body = R_z(φ₀ + ω t) R_y(90° − β) R_z(λ) E v`` (:func:`spin_frames`, the same in torch, so
+that the Sun's and the observer's body-frame directions — and with them the light curve and
+its shadows — are differentiable in ``(λ, β, φ₀, ω)``). :func:`refine_spin` minimises the
+fit's soft-L1 loss (:func:`~cssat.inversion.parametric_fit.fit_box_wing`'s, the albedos
+solved at every evaluation by :func:`~cssat.inversion.parametric_fit.profile_albedos`) over
+those four numbers with L-BFGS-B, at shadow edge softnesses ``τ`` decreasing towards the hard
+shadows, and gives a Gauss–Newton covariance of the spin with the family's geometry free
+beside it (the Jacobian by central differences).
+
+ASSUMPTIONS: the satellite spins uniformly about its body +z (a principal axis); the family's
+frame is that body frame turned so that the bus is on its axes and the panels along ±y (the
+phase ``φ₀`` holds that turn); the start is within the basin of the right pole (a local
+refinement, not a search: a few degrees on the box-wings of ``benchmarks/bench_shadow_fit.py``);
+the 1σ is the curvature's at the minimum — its coverage is measured only on the benchmark's
+truths, not over ≥ 100 seeds.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import torch
+
+from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat.inversion.parametric import box_wing_light_curve, param_names
+from cssat.inversion.parametric_fit import SIZE_NAMES, _to_p, _to_z, _transform, profile_albedos
+from cssat.inversion.soft_shadow import soft_visibility
+from cssat.scene.attitude import OBLIQUITY_DEG
+
+__all__ = ["spin_frames", "refine_spin"]
+
+
+def _rz(a: torch.Tensor) -> torch.Tensor:
+    c, s, z, o = torch.cos(a), torch.sin(a), torch.zeros_like(a), torch.ones_like(a)
+    return torch.stack([torch.stack([c, s, z], -1), torch.stack([-s, c, z], -1), torch.stack([z, z, o], -1)], -2)
+
+
+def _ry(a: torch.Tensor) -> torch.Tensor:
+    c, s, z, o = torch.cos(a), torch.sin(a), torch.zeros_like(a), torch.ones_like(a)
+    return torch.stack([torch.stack([c, z, -s], -1), torch.stack([z, o, z], -1), torch.stack([s, z, c], -1)], -2)
+
+
+def spin_frames(times_s: Any, spin: torch.Tensor, frame: str = "ecliptic") -> torch.Tensor:
+    """Body frames ``(T, 3, 3)`` at ``times_s (T,)`` of the spin ``spin = (λ, β, φ₀, ω)`` (rad,
+    rad, rad, rad/s; a tensor, differentiable): :func:`cssat.scene.attitude.spin_frame` with
+    ``pole_lon_deg = λ``, ``pole_lat_deg = β``, ``phase_deg = φ₀``, ``period_s = 2π/ω``, in
+    torch (``spin``'s dtype and device)."""
+    frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
+    spin = torch.as_tensor(spin)
+    if spin.shape != (4,):
+        raise FieldError("spin", f"expected (lon, lat, phase, omega) of shape (4,), got {tuple(spin.shape)}")
+    t = torch.as_tensor(np.asarray(times_s, dtype=np.float64), dtype=spin.dtype, device=spin.device)
+    fixed = _ry(math.pi / 2 - spin[1]) @ _rz(spin[0])
+    if frame == "ecliptic":
+        ce, se = math.cos(math.radians(OBLIQUITY_DEG)), math.sin(math.radians(OBLIQUITY_DEG))
+        fixed = fixed @ torch.tensor([[1.0, 0.0, 0.0], [0.0, ce, se], [0.0, -se, ce]], dtype=spin.dtype, device=spin.device)
+    return _rz(spin[2] + spin[3] * t) @ fixed
+
+
+def _model(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float, c: dict,
+           albedos: bool = False) -> Any:
+    """The soft-shadowed light curve ``(T,)`` of the family ``p`` in the spin ``x (4,)``, the free
+    albedos solved against ``c["y"]`` (``albedos``: ``(curve, albedos (P,))``)."""
+    R = spin_frames(t, x, c["frame"])
+    S, V = torch.einsum("tij,tj->ti", R, Si), torch.einsum("tij,tj->ti", R, Oi)
+    vis = soft_visibility(p, S, V, tau=tau, front_only=True, **c["geo"])
+    Y = box_wing_light_curve(p, S, V, vis, by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
+    a = profile_albedos(Y, c["y"], c["sigma"], p[c["cd_idx"]], c["cd_free"])
+    return (Y @ a, a) if albedos else Y @ a
+
+
+def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_deg: float, pole_lat_deg: float,
+                period_s: float, phase_deg: float = 0.0, *, sigma: Any = None, frame: str = "ecliptic", fixed: Any = (),
+                shape: bool = False, huber: float = 3.0, softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 40,
+                panels: int = 2, divisions: int = 4, dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40,
+                **parts: Any) -> dict[str, Any]:
+    """The spin ``(λ, β, P, φ₀)`` that best fits ``flux (T,)`` (per unit irradiance at 1 m, m²)
+    at ``times_s (T,)`` with the family ``p`` (:func:`~cssat.inversion.parametric.param_names`'
+    order for ``dishes`` and ``parts``) held — or, with ``shape``, its geometry (every parameter
+    but the albedos and those in ``fixed``) refined jointly with the spin, in
+    :func:`~cssat.inversion.parametric_fit.fit_box_wing`'s variables, after a first run of the
+    spin alone at the first ``τ`` (the joint minimum, which an alternation of shape fits and spin
+    refinements reaches only slowly — the pole and the shape are correlated — and a joint run
+    from a start degrees off can stall short of) — from the start ``pole_lon_deg, pole_lat_deg,
+    period_s, phase_deg``; ``sun, obs (T, 3)`` the inertial unit directions from the object
+    (``frame``'s axes: GCRS, its pole read as ecliptic or equatorial); ``sigma (T,)`` the 1σ
+    (None: ones). The albedos not named in ``fixed`` are solved at every evaluation (module
+    docstring). ``softness``: the shadow edges' ``τ``, each a fraction of ``p``'s mean bus
+    half-size, one L-BFGS-B run of ``maxiter`` iterations at each, in turn.
+
+    Returns ``pole_lon_deg, pole_lat_deg, period_s, phase_deg``, ``loss`` and
+    ``rms_over_noise`` (at the last ``τ``), ``params`` (the family's, ``p`` itself without
+    ``shape``; the free albedos as solved), and the Gauss–Newton 1σ with the
+    geometry of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the
+    reduced χ² where above 1; ``pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``;
+    ``period_err_s``). Its coverage is not measured over many seeds (module docstring)."""
+    names = param_names(dishes, **parts)
+    pt = torch.as_tensor(np.asarray(p, dtype=np.float64))
+    if pt.shape != (len(names),):
+        raise FieldError("p", f"expected {len(names)} values {names}, got shape {tuple(pt.shape)}")
+    fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
+    if [n for n in fixed if n not in names]:
+        raise FieldError("fixed", f"expected names among {list(names)}, got {fixed}")
+    huber = float_param(huber, "huber", 0.0, open_lo=True)
+    maxiter = int_param(maxiter, "maxiter", 1, 10_000)
+    period_s = float(period_s)
+    if not (math.isfinite(period_s) and period_s != 0):
+        raise FieldError("period_s", f"expected a non-zero finite period (s), got {period_s!r}")
+    if not softness or any(not (float(s) > 0) for s in softness):
+        raise FieldError("softness", f"expected positive fractions of the bus size, got {softness!r}")
+    y = torch.as_tensor(np.asarray(flux, dtype=np.float64))
+    sg = torch.ones_like(y) if sigma is None else torch.as_tensor(np.asarray(sigma, dtype=np.float64))
+    t = np.asarray(times_s, dtype=np.float64)
+    Si, Oi = (torch.as_tensor(np.asarray(v, dtype=np.float64)) for v in (sun, obs))
+    if not (t.shape == y.shape == sg.shape and Si.shape == Oi.shape == (len(t), 3)):
+        raise FieldError("flux", f"expected times, flux, sigma (T,) and sun, obs (T, 3) alike, got {t.shape}, "
+                                 f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(Si.shape)}, {tuple(Oi.shape)}")
+    cds = [n for n in names if n.startswith("cd_")]
+    c = dict(frame=frame, y=y, sigma=sg, cd_idx=torch.as_tensor([names.index(n) for n in cds]),
+             cd_free=torch.as_tensor([n not in fixed for n in cds]),
+             geo=dict(panels=panels, divisions=divisions, **parts,
+                      **(dict(dishes=dishes, dish_rings=dish_rings, dish_segments=dish_segments) if dishes else {})))
+    span = float(t.max() - t.min()) or 1.0  # ω scaled by the span: one unit turns the last sample by one radian
+    scale = torch.as_tensor([1.0, 1.0, 1.0, 1.0 / span], dtype=torch.float64)
+    x0 = np.array([math.radians(pole_lon_deg), math.radians(pole_lat_deg), math.radians(phase_deg),
+                   2 * math.pi / period_s]) / scale.numpy()
+    bool_free = [bool(shape) and n not in fixed and not n.startswith("cd_") for n in names]
+    transform = _transform(names)
+    z0 = _to_z(pt.numpy(), transform)
+    free_idx = torch.as_tensor(np.flatnonzero(bool_free), dtype=torch.long)
+    x0 = np.concatenate([x0, z0.numpy()[bool_free]])
+    size = (math.log(1e-3), math.log(1e3))  # fit_box_wing's bounds on the log sizes
+    bounds = [(None, None)] * 4 + [size if n in SIZE_NAMES else (None, None) for n, f in zip(names, bool_free) if f]
+    bus = float(pt[:3].mean())
+
+    def unpack(x):  # (spin (4,), p)
+        return x[:4] * scale, (_to_p(z0.index_put((free_idx,), x[4:]), transform) if len(free_idx) else pt)
+
+    def loss(x, tau):
+        sp, q = unpack(x)
+        r = (y - _model(sp, q, t, Si, Oi, tau, c)) / sg
+        return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
+
+    def value_and_grad(x, tau):
+        xt = torch.as_tensor(x, dtype=torch.float64).requires_grad_(True)
+        f = loss(xt, tau)
+        (g,) = torch.autograd.grad(f, xt)
+        return float(f.detach()), g.numpy()
+
+    from scipy.optimize import minimize  # heavy: scipy.optimize
+
+    def run(x, tau, k):  # L-BFGS-B over the first k variables, the rest held
+        def vg(xs):
+            f, g = value_and_grad(np.concatenate([xs, x[k:]]), tau)
+            return f, g[:k]
+
+        xs = minimize(vg, x[:k], jac=True, method="L-BFGS-B", bounds=bounds[:k], options=dict(maxiter=maxiter)).x
+        return np.concatenate([xs, x[k:]])
+
+    x = run(x0, softness[0] * bus, 4) if len(free_idx) else x0  # the spin alone first: a joint start stalls
+    for s in softness:
+        x = run(x, s * bus, len(x))
+    tau = float(softness[-1]) * bus
+    with torch.no_grad():
+        sp, q = unpack(torch.as_tensor(x))
+        spin = sp.numpy()
+        m, a = _model(sp, q, t, Si, Oi, tau, c, albedos=True)
+        q = q.index_put((c["cd_idx"],), a)
+        out = dict(loss=float(loss(torch.as_tensor(x), tau)), rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()),
+                   params=q.numpy().copy())
+    cov = _covariance(spin, q, t, Si, Oi, tau, c, [n not in fixed and not n.startswith("cd_") for n in names])
+    lon, lat, ph, om = spin
+    cb = math.cos(lat)
+    pole_err = math.degrees(math.sqrt(max(cov[0, 0] * cb * cb + cov[1, 1], 0.0)))
+    return dict(out, pole_lon_deg=math.degrees(lon) % 360.0, pole_lat_deg=math.degrees(lat), period_s=float(2 * math.pi / om),
+                phase_deg=math.degrees(ph) % 360.0, pole_err_deg=pole_err,
+                period_err_s=float(2 * math.pi / om**2 * math.sqrt(max(cov[3, 3], 0.0))), cov=cov)
+
+
+def _covariance(spin: np.ndarray, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
+                c: dict, free: list[bool]) -> np.ndarray:
+    """The spin's Gauss–Newton covariance ``(4, 4)``: ``(JᵀJ)⁻¹`` of the noise-normalised
+    residuals in the spin and the free geometry of ``p`` (central differences; the geometry
+    marginalised), times the reduced χ² where above 1."""
+    y, sg = c["y"], c["sigma"]
+    theta = np.concatenate([spin, p.numpy()[free]])
+    idx = np.flatnonzero(free)
+    steps = np.concatenate([[1e-6, 1e-6, 1e-6, 1e-6 * abs(spin[3])], 1e-6 * np.maximum(np.abs(theta[4:]), 1e-2)])
+
+    def residual(th):
+        q = p.clone()
+        q[torch.as_tensor(idx)] = torch.as_tensor(th[4:])
+        return ((y - _model(torch.as_tensor(th[:4]), q, t, Si, Oi, tau, c)) / sg).numpy()
+
+    with torch.no_grad():
+        r0 = residual(theta)
+        J = np.empty((len(r0), len(theta)))
+        for k, h in enumerate(steps):
+            e = np.zeros_like(theta)
+            e[k] = h
+            J[:, k] = (residual(theta + e) - residual(theta - e)) / (2 * h)
+    dof = max(len(r0) - len(theta), 1)
+    C = np.linalg.pinv(J.T @ J)[:4, :4]
+    return C * max(1.0, float(r0 @ r0) / dof)
