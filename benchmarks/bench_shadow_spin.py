@@ -16,8 +16,10 @@ its docstring), the attitude is searched instead of given:
    (:func:`cssat.inversion.parametric_spin.refine_spin`, ``shape=True``): first with the box-wing
    without dishes (the EGI start in the convex spin's frame, fitted; cheap), then — the finer
    family fitted in that refined frame (step 3 there) — with the finer family;
-5. scored: the pole's separation from the truth's against the stated radial 1σ (inside the
-   68.27 % / 95.45 % circles of a circular Gaussian: 1.0714 / 1.7579 × it), the period, the
+5. scored: the verdict (the third night held out: ``refine_spin``'s ``heldout``; an unreliable
+   pole states no 1σ), the pole's separation from the truth's against the radial 1σ — stated
+   where reliable, the formal one either way (inside the 68.27 % / 95.45 % circles of a circular
+   Gaussian: 1.0714 / 1.7579 × it) — the period, the
    held-out night's rms ratio against the true mesh's, the volume IoU with the true mesh turned
    into the fitted frame.
 
@@ -119,13 +121,17 @@ def spin_fine_row(name: str, geo: B.Geometry, *, seed: int = 0, floor: float = 0
     def refine(p, names, parts_kw, label):  # the spin and the shape jointly (the bus albedo held)
         nonlocal spin
         r = refine_spin(t[fit], y[fit], Si[fit], Oi[fit], p, *spin[:4], sigma=sigma[fit], frame=spin[4],
-                        fixed=("cd_bus",), shape=True, **parts_kw)
+                        fixed=("cd_bus",), shape=True, heldout=(t[held], y[held], Si[held], Oi[held], sigma[held]),
+                        **parts_kw)
         spin = (r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], spin[4])
         sep = separation_deg(spin[:2], (B.SPIN["pole_lon_deg"], B.SPIN["pole_lat_deg"]))
-        history.append(dict(stage=label, sep_deg=sep, pole_err_deg=r["pole_err_deg"], period_s=r["period_s"],
-                            period_err_s=r["period_err_s"], rms_over_noise=r["rms_over_noise"],
-                            cpu_s=time.process_time() - c0))
-        print(f"{name} {surface} {label}: pole {sep:.3f}° off, 1σ {r['pole_err_deg']:.3f}°, fit rms/σ "
+        history.append(dict(stage=label, sep_deg=sep, pole_err_deg=r["pole_err_deg"],
+                            formal_pole_err_deg=r["formal_pole_err_deg"], period_s=r["period_s"],
+                            period_err_s=r["period_err_s"], rms_over_noise=r["rms_over_noise"], verdict=r["verdict"],
+                            why=r["verdict_why"], heldout_chi2_n=r["heldout_chi2"] / r["heldout_n"],
+                            heldout_limit_n=r["heldout_threshold"] / r["heldout_n"], cpu_s=time.process_time() - c0))
+        print(f"{name} {surface} {label}: pole {sep:.3f}° off, 1σ {r['formal_pole_err_deg']:.3f}° ({r['verdict']}: "
+              f"held-out χ²/n {history[-1]['heldout_chi2_n']:.2f}, limit {history[-1]['heldout_limit_n']:.2f}), fit rms/σ "
               f"{r['rms_over_noise']:.2f}, {time.process_time() - c0:.0f} CPU-s", file=sys.stderr, flush=True)
         return r["params"]
 
@@ -154,9 +160,10 @@ def spin_fine_row(name: str, geo: B.Geometry, *, seed: int = 0, floor: float = 0
     last = history[-1]
     return dict(mesh=name, surface=surface, seed=seed, floor=floor, convex=convex, shape_at_convex_pole=dict(
         rms_ratio=shape0["rms_ratio"], iou=shape0["iou"], cpu_s=shape0["cpu_s"]), rounds=history,
-        sep_deg=last["sep_deg"], pole_err_deg=last["pole_err_deg"], sep_over_err=last["sep_deg"] / last["pole_err_deg"],
-        inside_68=last["sep_deg"] <= CIRCLE[0] * last["pole_err_deg"],
-        inside_95=last["sep_deg"] <= CIRCLE[1] * last["pole_err_deg"], period_s=spin[2],
+        sep_deg=last["sep_deg"], verdict=last["verdict"], why=last["why"], pole_err_deg=last["pole_err_deg"],
+        formal_pole_err_deg=last["formal_pole_err_deg"], sep_over_err=last["sep_deg"] / last["formal_pole_err_deg"],
+        inside_68=last["sep_deg"] <= CIRCLE[0] * last["formal_pole_err_deg"],
+        inside_95=last["sep_deg"] <= CIRCLE[1] * last["formal_pole_err_deg"], period_s=spin[2],
         period_true_s=B.SPIN["period_s"], rms_ratio=math.sqrt(chi2 / chi2_true), iou=iou, cpu_s=cpu,
         params=dict(zip(names, map(float, p))))
 

@@ -117,3 +117,30 @@ def test_refine_spin_with_the_shape_recovers_both_from_a_wrong_shape():
     held = refine_spin(t, y, sun, obs, q, *start, sigma=sigma, fixed=("cd_bus",), maxiter=40)
     assert held["rms_over_noise"] > r["rms_over_noise"]  # the wrong shape held cannot fit as well
     assert np.array_equal(held["params"][:7], q[:7])  # held means held
+
+
+def test_refine_spin_verdict_withholds_the_1sigma_where_the_held_out_night_is_missed():
+    """A right model predicts a held-out night within the noise: reliable, 1σ given. The same fit judged
+    on a night of another object (a wing twice as long) is unreliable and states no 1σ; no sigma: unreliable."""
+    t, y, sigma, sun, obs, p, spin = _scene(n=240, seed=4)
+    fit, held = t < 86400.0 + 4 * 3600.0, t >= 86400.0 + 4 * 3600.0
+    ho = (t[held], y[held], sun[held], obs[held], sigma[held])
+    r = refine_spin(t[fit], y[fit], sun[fit], obs[fit], p, *spin, sigma=sigma[fit], fixed=("cd_bus",), heldout=ho,
+                    maxiter=20)
+    assert r["verdict"] == "reliable" and math.isfinite(r["pole_err_deg"]) and r["heldout_n"] == int(held.sum())
+    other = p.copy()
+    other[3] *= 2.0
+    from cssat.scene.attitude import spin_frame, to_body
+
+    R = spin_frame(t[held], *spin, "ecliptic")
+    S, V = to_body(R, sun[held]), to_body(R, obs[held])
+    y_other = box_wing_light_curve(torch.as_tensor(other), S, V, box_wing_visibility(other, S, V), range_km=1e-3,
+                                   irradiance=1.0).numpy()
+    bad = refine_spin(t[fit], y[fit], sun[fit], obs[fit], p, *spin, sigma=sigma[fit], fixed=("cd_bus",), maxiter=20,
+                      heldout=(t[held], y_other, sun[held], obs[held], sigma[held]))
+    assert bad["verdict"] == "unreliable" and "held-out" in bad["verdict_why"]
+    assert math.isnan(bad["pole_err_deg"]) and math.isnan(bad["period_err_s"]) and bad["formal_pole_err_deg"] > 0
+    blind = refine_spin(t[fit], y[fit], sun[fit], obs[fit], p, *spin, fixed=("cd_bus",), maxiter=5)
+    assert blind["verdict"] == "unreliable" and math.isnan(blind["pole_err_deg"])
+    with pytest.raises(FieldError, match="heldout"):
+        refine_spin(t[fit], y[fit], sun[fit], obs[fit], p, *spin, heldout=ho[:4])

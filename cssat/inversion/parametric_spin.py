@@ -65,21 +65,27 @@ def spin_frames(times_s: Any, spin: torch.Tensor, frame: str = "ecliptic") -> to
     return _rz(spin[2] + spin[3] * t) @ fixed
 
 
-def _model(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float, c: dict,
-           albedos: bool = False) -> Any:
-    """The soft-shadowed light curve ``(T,)`` of the family ``p`` in the spin ``x (4,)``, the free
-    albedos solved against ``c["y"]`` (``albedos``: ``(curve, albedos (P,))``)."""
+def _by_part(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
+             c: dict) -> torch.Tensor:
+    """Each part's soft-shadowed curve at unit albedo ``(T, P)``, the family ``p`` in the spin ``x (4,)``."""
     R = spin_frames(t, x, c["frame"])
     S, V = torch.einsum("tij,tj->ti", R, Si), torch.einsum("tij,tj->ti", R, Oi)
     vis = soft_visibility(p, S, V, tau=tau, front_only=True, **c["geo"])
-    Y = box_wing_light_curve(p, S, V, vis, by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
+    return box_wing_light_curve(p, S, V, vis, by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
+
+
+def _model(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float, c: dict,
+           albedos: bool = False) -> Any:
+    """The light curve ``(T,)`` of the family ``p`` in the spin ``x (4,)``, the free albedos solved
+    against ``c["y"]`` (``albedos``: ``(curve, albedos (P,))``)."""
+    Y = _by_part(x, p, t, Si, Oi, tau, c)
     a = profile_albedos(Y, c["y"], c["sigma"], p[c["cd_idx"]], c["cd_free"])
     return (Y @ a, a) if albedos else Y @ a
 
 
 def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_deg: float, pole_lat_deg: float,
                 period_s: float, phase_deg: float = 0.0, *, sigma: Any = None, frame: str = "ecliptic", fixed: Any = (),
-                shape: bool = False, huber: float = 3.0, softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 40,
+                shape: bool = False, heldout: Any = None, huber: float = 3.0, softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 40,
                 panels: int = 2, divisions: int = 4, dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40,
                 **parts: Any) -> dict[str, Any]:
     """The spin ``(λ, β, P, φ₀)`` that best fits ``flux (T,)`` (per unit irradiance at 1 m, m²)
@@ -101,7 +107,15 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     ``shape``; the free albedos as solved), and the Gauss–Newton 1σ with the
     geometry of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the
     reduced χ² where above 1; ``pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``;
-    ``period_err_s``). Its coverage is not measured over many seeds (module docstring)."""
+    ``period_err_s``; ``formal_pole_err_deg`` the same whatever the verdict).
+
+    The verdict (:func:`cssat.inversion.spin_errors.verdict_keys`, as
+    :func:`~cssat.inversion.estimate_spin`'s): ``heldout = (times_s, flux, sun, obs, sigma)`` of
+    samples not fitted (e.g. a night), predicted with the fitted spin, shape and albedos and
+    tested against the χ² the noise allows there; ``verdict`` ``"unreliable"`` (and
+    ``pole_err_deg``, ``period_err_s`` NaN: no 1σ) when it fails, when ``sigma`` is None, or —
+    nothing held out — when the fitted samples' χ² is above the noise's. Keys ``verdict``,
+    ``verdict_why``, ``heldout_chi2``, ``heldout_n``, ``heldout_threshold``."""
     names = param_names(dishes, **parts)
     pt = torch.as_tensor(np.asarray(p, dtype=np.float64))
     if pt.shape != (len(names),):
@@ -176,37 +190,70 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         q = q.index_put((c["cd_idx"],), a)
         out = dict(loss=float(loss(torch.as_tensor(x), tau)), rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()),
                    params=q.numpy().copy())
-    cov = _covariance(spin, q, t, Si, Oi, tau, c, [n not in fixed and not n.startswith("cd_") for n in names])
+    held = _heldout(heldout, c)
+    free = [n not in fixed and not n.startswith("cd_") for n in names]
+    J, r0, J_h, r_h = _jacobians(spin, q, t, Si, Oi, tau, c, free, held)
+    from cssat.inversion.spin_errors import verdict_keys  # local: scipy.stats, only for a verdict
+
+    verdict = verdict_keys(J, len(r0), float(r0 @ r0), sigma is not None, None if held is None else (r_h, J_h),
+                           "the pole")
+    dof = max(len(r0) - J.shape[1], 1)
+    cov = np.linalg.pinv(J.T @ J)[:4, :4] * max(1.0, float(r0 @ r0) / dof)
     lon, lat, ph, om = spin
     cb = math.cos(lat)
     pole_err = math.degrees(math.sqrt(max(cov[0, 0] * cb * cb + cov[1, 1], 0.0)))
-    return dict(out, pole_lon_deg=math.degrees(lon) % 360.0, pole_lat_deg=math.degrees(lat), period_s=float(2 * math.pi / om),
-                phase_deg=math.degrees(ph) % 360.0, pole_err_deg=pole_err,
-                period_err_s=float(2 * math.pi / om**2 * math.sqrt(max(cov[3, 3], 0.0))), cov=cov)
+    period_err = float(2 * math.pi / om**2 * math.sqrt(max(cov[3, 3], 0.0)))
+    ok = verdict["verdict"] == "reliable"
+    return dict(out, **verdict, pole_lon_deg=math.degrees(lon) % 360.0, pole_lat_deg=math.degrees(lat),
+                period_s=float(2 * math.pi / om), phase_deg=math.degrees(ph) % 360.0,
+                pole_err_deg=pole_err if ok else math.nan, period_err_s=period_err if ok else math.nan,
+                formal_pole_err_deg=pole_err, cov=cov)
 
 
-def _covariance(spin: np.ndarray, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
-                c: dict, free: list[bool]) -> np.ndarray:
-    """The spin's Gauss–Newton covariance ``(4, 4)``: ``(JᵀJ)⁻¹`` of the noise-normalised
-    residuals in the spin and the free geometry of ``p`` (central differences; the geometry
-    marginalised), times the reduced χ² where above 1."""
-    y, sg = c["y"], c["sigma"]
+def _heldout(heldout: Any, c: dict) -> tuple | None:
+    """``heldout = (times_s, flux, sun, obs, sigma)`` checked, as ``(t, y, sun, obs, sigma)`` arrays and tensors."""
+    if heldout is None:
+        return None
+    if len(heldout) != 5:
+        raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
+    t = np.asarray(heldout[0], dtype=np.float64)
+    y, S, O = (torch.as_tensor(np.asarray(v, dtype=np.float64)) for v in heldout[1:4])
+    sg = torch.ones_like(y) if heldout[4] is None else torch.as_tensor(np.asarray(heldout[4], dtype=np.float64))
+    if not (t.shape == y.shape == sg.shape and S.shape == O.shape == (len(t), 3)) or bool((sg <= 0).any()):
+        raise FieldError("heldout", f"expected times, flux, positive sigma (T,) and sun, obs (T, 3), got {t.shape}, "
+                                    f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(S.shape)}, {tuple(O.shape)}")
+    return t, y, S, O, sg
+
+
+def _jacobians(spin: np.ndarray, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
+               c: dict, free: list[bool], held: tuple | None) -> tuple:
+    """``(J, r, J_held, r_held)``: the noise-normalised residuals of the fitted samples ``r (T,)`` and
+    their Jacobian ``J (T, 4 + G)`` in the spin and the free geometry of ``p`` (central differences,
+    the albedos solved again at each step: the variable projection's), and the same of the
+    held-out samples predicted with the fitted samples' albedos (None without ``held``)."""
     theta = np.concatenate([spin, p.numpy()[free]])
-    idx = np.flatnonzero(free)
+    idx = torch.as_tensor(np.flatnonzero(free), dtype=torch.long)
     steps = np.concatenate([[1e-6, 1e-6, 1e-6, 1e-6 * abs(spin[3])], 1e-6 * np.maximum(np.abs(theta[4:]), 1e-2)])
 
-    def residual(th):
-        q = p.clone()
-        q[torch.as_tensor(idx)] = torch.as_tensor(th[4:])
-        return ((y - _model(torch.as_tensor(th[:4]), q, t, Si, Oi, tau, c)) / sg).numpy()
+    def residuals(th):
+        q = p.index_put((idx,), torch.as_tensor(th[4:]))
+        x = torch.as_tensor(th[:4])
+        m, a = _model(x, q, t, Si, Oi, tau, c, albedos=True)
+        r = ((c["y"] - m) / c["sigma"]).numpy()
+        if held is None:
+            return r, None
+        th_, y_h, S_h, O_h, sg_h = held
+        return r, ((y_h - _by_part(x, q, th_, S_h, O_h, tau, c) @ a) / sg_h).numpy()
 
     with torch.no_grad():
-        r0 = residual(theta)
+        r0, rh0 = residuals(theta)
         J = np.empty((len(r0), len(theta)))
+        J_h = None if held is None else np.empty((len(rh0), len(theta)))
         for k, h in enumerate(steps):
             e = np.zeros_like(theta)
             e[k] = h
-            J[:, k] = (residual(theta + e) - residual(theta - e)) / (2 * h)
-    dof = max(len(r0) - len(theta), 1)
-    C = np.linalg.pinv(J.T @ J)[:4, :4]
-    return C * max(1.0, float(r0 @ r0) / dof)
+            (rp, hp), (rm, hm) = residuals(theta + e), residuals(theta - e)
+            J[:, k] = (rp - rm) / (2 * h)
+            if J_h is not None:
+                J_h[:, k] = (hp - hm) / (2 * h)
+    return J, r0, J_h, rh0
