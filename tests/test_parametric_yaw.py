@@ -41,14 +41,32 @@ def _turned_egi(hinge_deg, psi0_deg, grid=0):
 @pytest.mark.parametrize("hinge", [35.0, 0.0, -50.0])
 @pytest.mark.parametrize("psi0", [0.0, 27.0, -63.0, 150.0])
 def test_the_turn_is_the_panels_azimuth(hinge, psi0):
-    """Panels not facing the pole: one candidate, the true turn modulo 180° (a mirror pair is
-    symmetric under a half turn) — to 1e-9° from the exact EGI, to 2° from a 600-normal grid."""
+    """Panels not facing the pole: the true turn modulo 180° (a mirror pair is symmetric under a
+    half turn) first — to 1e-9° from the exact EGI, to 2° from a 600-normal grid — and a quarter
+    turn on second (where the bus outweighs the panels, below)."""
     from cssat.inversion.parametric_fit import box_wing_yaw
 
-    (psi,) = box_wing_yaw(*_turned_egi(hinge, psi0))
-    assert _mod(math.degrees(psi) - psi0, 180.0) < 1e-9
-    (psi,) = box_wing_yaw(*_turned_egi(hinge, psi0, grid=600))
+    psi, quarter = box_wing_yaw(*_turned_egi(hinge, psi0))
+    assert _mod(math.degrees(psi) - psi0, 180.0) < 1e-9 and _mod(math.degrees(quarter - psi), 360.0) == pytest.approx(90.0)
+    psi, _ = box_wing_yaw(*_turned_egi(hinge, psi0, grid=600))
     assert _mod(math.degrees(psi) - psi0, 180.0) < 2.0
+
+
+def test_a_bus_heavier_than_the_panels_leaves_the_turn_among_the_candidates():
+    """Small panels on a large bus: the heaviest direction is a bus face, not the panels' normal —
+    the true turn is then the second candidate (mod 180°), not the first."""
+    from cssat.inversion.egi import egi
+    from cssat.inversion.parametric import box_wing_mesh
+    from cssat.inversion.parametric_fit import box_wing_yaw
+
+    p = P.copy()
+    p[[0, 1, 2, 3, 4]] = [2.0, 1.0, 2.5, 1.5, 0.6]  # ±y faces 4 × 5 m: 20 m² a side; the panels 0.9 m² a side
+    p[5] = math.radians(60.0)
+    N, A = egi(box_wing_mesh(p, divisions=2))
+    for psi0 in (0.0, 27.0, -63.0):
+        cands = box_wing_yaw(N @ _rz(psi0).T, A)
+        assert _mod(math.degrees(cands[0]) - psi0, 180.0) > 45.0  # the first is the bus's ±y face: a quarter off
+        assert min(_mod(math.degrees(c) - psi0, 180.0) for c in cands) < 1e-9
 
 
 def test_panels_facing_the_pole_leave_a_quarter_turn_open_and_one_panel_a_half_turn():
@@ -62,7 +80,8 @@ def test_panels_facing_the_pole_leave_a_quarter_turn_open_and_one_panel_a_half_t
         assert len(cands) == 2 and abs(abs(math.degrees(cands[1] - cands[0])) % 180 - 90) < 1e-9
         assert min(_mod(math.degrees(c) - psi0, 180.0) for c in cands) < 1e-9
     one = box_wing_yaw(*_turned_egi(35.0, 27.0), panels=1)
-    assert len(one) == 2 and _mod(math.degrees(one[1] - one[0]), 360.0) == pytest.approx(180.0, abs=1e-9)
+    assert len(one) == 4 and _mod(math.degrees(one[2] - one[0]), 360.0) == pytest.approx(180.0, abs=1e-9)
+    assert min(_mod(math.degrees(c) - 27.0, 360.0) for c in one) < 1e-9  # one panel: the turn itself, not modulo 180°
     with pytest.raises(FieldError, match="areas"):
         box_wing_yaw(np.zeros((3, 3)), np.zeros(3))
     with pytest.raises(FieldError, match="panels"):

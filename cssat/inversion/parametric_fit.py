@@ -53,12 +53,15 @@ def box_wing_yaw(normals: Any, areas: Any, *, panels: int = 2) -> tuple[float, .
     x–z plane.
 
     ψ is the azimuth of the heaviest direction (antipodal normals pooled within 15°; their
-    area-weighted mean direction, so not quantised to the grid of normals). Where that direction is
-    within 15° of the pole (panels facing ±z: a Lambertian EGI does not see their in-plane axis),
-    the heaviest direction within 30° of the x–y plane is used instead — a bus face, whose azimuth
-    fixes the axes only modulo 90°: ψ and ψ + 90° are returned. With ``panels=1`` (one panel, at
-    +y) each ψ + 180° too (a mirror pair is symmetric under that turn, one panel is not). The caller
-    picks among them (e.g. by the start's loss).
+    area-weighted mean direction, so not quantised to the grid of normals): the panels' normal
+    where they outweigh the bus — but a bus face where they do not (the spacebus-like of
+    ``benchmarks/_platforms.py`` from its searched spin: the heaviest direction a side face, ψ off
+    by 90°, its box-wing start χ²/n 4075 against 361 a quarter turn on), so ψ + 90° is returned
+    too, second. Where that direction is within 15° of the pole (panels facing ±z: a Lambertian
+    EGI does not see their in-plane axis), the heaviest direction within 30° of the x–y plane is
+    used instead — a bus face, ψ and ψ + 90° again. With ``panels=1`` (one panel, at +y) each
+    ψ + 180° too (a mirror pair is symmetric under that turn, one panel is not). The caller picks
+    among them (e.g. by the start's loss, as the experiment's parametric stage does).
 
     ASSUMPTION: the spin axis is perpendicular to the panels' axis (a box-wing rotating about its
     largest moment of inertia, or any axis in the panels' normal plane)."""
@@ -70,11 +73,10 @@ def box_wing_yaw(normals: Any, areas: Any, *, panels: int = 2) -> tuple[float, .
         return v / np.linalg.norm(v)
 
     n = mean_direction(int(np.argmax(pooled)))
-    out = [math.atan2(n[1], n[0])]
     if math.hypot(n[0], n[1]) < math.sin(math.radians(15)):
         side = np.abs(N[:, 2]) <= math.sin(math.radians(30))
         n = mean_direction(int(np.argmax(np.where(side, pooled, -1))))
-        out = [math.atan2(n[1], n[0]), math.atan2(n[1], n[0]) + math.pi / 2]
+    out = [math.atan2(n[1], n[0]), math.atan2(n[1], n[0]) + math.pi / 2]
     if panels == 1:
         out += [psi + math.pi for psi in out]
     return tuple(float((psi + math.pi) % (2 * math.pi) - math.pi) for psi in out)
