@@ -97,6 +97,8 @@ def test_refine_spin_errors_name_their_field():
         refine_spin(t, y, sun, obs, p, *spin, softness=())
     with pytest.raises(FieldError, match="flux"):
         refine_spin(t, y[:-1], sun, obs, p, *spin)
+    with pytest.raises(FieldError, match="sigma"):
+        refine_spin(t, y, sun, obs, p, *spin, sigma=np.zeros_like(y))
     with pytest.raises(FieldError, match="spin"):
         spin_frames(t, torch.zeros(3, dtype=torch.float64))
     with pytest.raises(FieldError, match="frame"):

@@ -137,6 +137,9 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     if not (t.shape == y.shape == sg.shape and Si.shape == Oi.shape == (len(t), 3)):
         raise FieldError("flux", f"expected times, flux, sigma (T,) and sun, obs (T, 3) alike, got {t.shape}, "
                                  f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(Si.shape)}, {tuple(Oi.shape)}")
+    if bool((sg <= 0).any()):
+        raise FieldError("sigma", "expected positive 1σ values")
+    held = _heldout(heldout)
     cds = [n for n in names if n.startswith("cd_")]
     c = dict(frame=frame, y=y, sigma=sg, cd_idx=torch.as_tensor([names.index(n) for n in cds]),
              cd_free=torch.as_tensor([n not in fixed for n in cds]),
@@ -190,7 +193,6 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         q = q.index_put((c["cd_idx"],), a)
         out = dict(loss=float(loss(torch.as_tensor(x), tau)), rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()),
                    params=q.numpy().copy())
-    held = _heldout(heldout, c)
     free = [n not in fixed and not n.startswith("cd_") for n in names]
     J, r0, J_h, r_h = _jacobians(spin, q, t, Si, Oi, tau, c, free, held)
     from cssat.inversion.spin_errors import verdict_keys  # local: scipy.stats, only for a verdict
@@ -210,7 +212,7 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                 formal_pole_err_deg=pole_err, cov=cov)
 
 
-def _heldout(heldout: Any, c: dict) -> tuple | None:
+def _heldout(heldout: Any) -> tuple | None:
     """``heldout = (times_s, flux, sun, obs, sigma)`` checked, as ``(t, y, sun, obs, sigma)`` arrays and tensors."""
     if heldout is None:
         return None
