@@ -303,6 +303,14 @@ def heldout_chi2(p: np.ndarray, geo: Geometry, y: np.ndarray, sigma: np.ndarray,
     return float(np.mean(((y[mask] - m) / sigma[mask]) ** 2))
 
 
+def turned(mesh: Any, R: np.ndarray) -> Any:
+    """``mesh`` with its vertices turned by ``R (3, 3)`` (``v → R v``), its materials and parts kept."""
+    from cssat.scene.mesh import Mesh
+
+    return Mesh(mesh.vertices @ np.asarray(R).T, mesh.faces, mesh.cd, mesh.cs, name=mesh.name, part=mesh.part,
+                part_names=mesh.part_names)
+
+
 def closed_volume(mesh: Any) -> float:
     """The volume (m³) of the mesh's watertight components (vertices merged), as the IoU counts it."""
     import trimesh
@@ -554,7 +562,6 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     from cssat.inversion import invert_convex
     from cssat.inversion.parametric import param_names
     from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
-    from cssat.scene.mesh import Mesh
 
     tr = truth(name, surface)
     if tr.fine is None:
@@ -565,9 +572,7 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     if fit_geo is not None:  # fitted and scored in another frame: the truth turned into it for the IoU
         geo = fit_geo
         if to_fit is not None:
-            tr = Truth(Mesh(tr.mesh.vertices @ np.asarray(to_fit).T, tr.mesh.faces, tr.mesh.cd, tr.mesh.cs,
-                            name=tr.mesh.name, part=tr.mesh.part, part_names=tr.mesh.part_names),
-                       tr.dishes, tr.iou, tr.nominal, tr.note, tr.fine)
+            tr = Truth(turned(tr.mesh, to_fit), tr.dishes, tr.iou, tr.nominal, tr.note, tr.fine)
     fit = geo.night < 2
     S, V = geo.sun[fit], geo.observer[fit]
     fkw = _family_kw(0, st["divisions"], parts)

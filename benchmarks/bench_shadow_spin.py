@@ -100,7 +100,6 @@ def spin_fine_row(name: str, geo: B.Geometry, *, seed: int = 0, floor: float = 0
     from cssat.inversion.parametric_spin import refine_spin
     from cssat.inversion.spin_errors import separation_deg
     from cssat.models.egi.config import InversionConfig
-    from cssat.scene.mesh import Mesh
 
     inv = InversionConfig()
     tr = B.truth(name, surface)
@@ -151,9 +150,7 @@ def spin_fine_row(name: str, geo: B.Geometry, *, seed: int = 0, floor: float = 0
     p = refine(np.array([shape0["params"][k] for k in names]), names, kw, "finer family")
     cpu = time.process_time() - c0
     g = spin_geometry(geo, *spin)
-    T = to_frame(geo, *spin)
-    m = tr.mesh
-    turned = Mesh(m.vertices @ T.T, m.faces, m.cd, m.cs, name=m.name, part=m.part, part_names=m.part_names)
+    turned = B.turned(tr.mesh, to_frame(geo, *spin))
     chi2 = B.heldout_chi2(p, g, y, sigma, held, 0, B.FIT["divisions"], parts)
     chi2_true = float(np.mean(((y[held] - clean[held]) / sigma[held]) ** 2))
     iou, _ = B._iou(turned, p, 0, B.FIT["divisions"], n_points, parts)
