@@ -27,11 +27,19 @@ import torch
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 
-__all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing", "profile_albedos"]
+__all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing", "profile_albedos", "soft_l1"]
 
 #: the parameters fitted as logarithms of a length (m)
 SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth", "dish2_radius", "dish2_depth", "panel_gap",
               "boom_width", "deck_a", "deck_b", "deck_h")
+#: the log sizes' bounds (1 mm – 1 km): a long L-BFGS step would otherwise underflow a size to 0
+LOG_SIZE_BOUNDS = (math.log(1e-3), math.log(1e3))
+
+
+def soft_l1(r: torch.Tensor, huber: float) -> torch.Tensor:
+    """The fit's robust loss of noise-normalised residuals ``r``: the mean of
+    ``2 k² (sqrt(1 + (r/k)²) − 1)``, ``k = huber`` (module docstring)."""
+    return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
 
 
 def _pooled_egi(normals: Any, areas: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -130,8 +138,9 @@ def profile_albedos(Y: torch.Tensor, y: torch.Tensor, sigma: torch.Tensor, cd: t
     ``by_part``): the ``free (P,)`` bool entries solved within [1e-4, 1], the others held at
     ``cd (P,)``. Exact bounded least squares: every assignment of the free albedos to "solved",
     "at 1e-4" or "at 1" (3^P ≤ 27 small solves, P ≤ 3) is tried and the feasible one of least cost
-    kept (the unconstrained solution at once when it is within them). Differentiable in ``Y`` (a variable projection: the fit's gradient sees the albedos
-    follow the geometry). Least squares, not a robust loss: a glint the model lacks pulls them."""
+    kept (the unconstrained solution at once when it is within them). Differentiable in ``Y`` (a
+    variable projection: the fit's gradient sees the albedos follow the geometry). Least squares,
+    not a robust loss: a glint the model lacks pulls them."""
     lo, hi = 1e-4, 1.0
     Yw, yw = Y / sigma[:, None], y / sigma
     k = torch.nonzero(free).flatten().tolist()
@@ -215,8 +224,7 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
             from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
 
             vis = soft_visibility(_to_p(z, transform), S, V, tau=vis, front_only=True, **geo)
-        r = (yt - model(_to_p(z, transform), vis)) / sg
-        return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
+        return soft_l1((yt - model(_to_p(z, transform), vis)) / sg, huber)
 
     cd_idx = torch.as_tensor([names.index(n) for n in names if n.startswith("cd_")])
     cd_free = torch.as_tensor([n not in fixed for n in names if n.startswith("cd_")])
@@ -235,9 +243,8 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
 
     free_idx = torch.as_tensor(np.flatnonzero(free))
     # the albedos (fitted as logarithms) at most 1: a diffuse surface reflects no more than arrives; the sizes
-    # (logarithms) within 1 mm – 1 km: a long L-BFGS step would otherwise underflow a size to 0
-    size = (math.log(1e-3), math.log(1e3))
-    bounds = [(None, 0.0) if n.startswith("cd_") else size if n in SIZE_NAMES else (None, None)
+    # (logarithms) within LOG_SIZE_BOUNDS
+    bounds = [(None, 0.0) if n.startswith("cd_") else LOG_SIZE_BOUNDS if n in SIZE_NAMES else (None, None)
               for n, f in zip(names, free) if f]
 
     def full(x):

@@ -1,7 +1,8 @@
 """The shadowed box-wing's own spin: the pole, phase and period refined by gradient through the
 parametric family's soft-shadowed light curve (:mod:`cssat.inversion.parametric`,
-:mod:`cssat.inversion.soft_shadow`), its shape held — the step the convex EGI's spin search
-(:func:`cssat.inversion.estimate_spin`) cannot take on a self-shadowing satellite.
+:mod:`cssat.inversion.soft_shadow`), its shape held or refined with it — the step the convex
+EGI's spin search (:func:`cssat.inversion.estimate_spin`) cannot take on a self-shadowing
+satellite.
 
 The body frame of a spin about body +z is :func:`cssat.scene.attitude.spin_frame`'s
 ``v_body = R_z(φ₀ + ω t) R_y(90° − β) R_z(λ) E v`` (:func:`spin_frames`, the same in torch, so
@@ -33,7 +34,8 @@ import torch
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, param_names
-from cssat.inversion.parametric_fit import SIZE_NAMES, _to_p, _to_z, _transform, profile_albedos
+from cssat.inversion.parametric_fit import (LOG_SIZE_BOUNDS, SIZE_NAMES, _to_p, _to_z, _transform, profile_albedos,
+                                            soft_l1)
 from cssat.inversion.soft_shadow import soft_visibility
 from cssat.scene.attitude import OBLIQUITY_DEG
 
@@ -87,8 +89,9 @@ def _model(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi
 
 def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_deg: float, pole_lat_deg: float,
                 period_s: float, phase_deg: float = 0.0, *, sigma: Any = None, frame: str = "ecliptic", fixed: Any = (),
-                shape: bool = False, heldout: Any = None, huber: float = 3.0, softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 40,
-                panels: int = 2, divisions: int = 4, dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40,
+                shape: bool = False, heldout: Any = None, huber: float = 3.0,
+                softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 40, panels: int = 2,
+                divisions: int = 4, dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40,
                 **parts: Any) -> dict[str, Any]:
     """The spin ``(λ, β, P, φ₀)`` that best fits ``flux (T,)`` (per unit irradiance at 1 m, m²)
     at ``times_s (T,)`` with the family ``p`` (:func:`~cssat.inversion.parametric.param_names`'
@@ -132,16 +135,10 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         raise FieldError("period_s", f"expected a non-zero finite period (s), got {period_s!r}")
     if not softness or any(not (float(s) > 0) for s in softness):
         raise FieldError("softness", f"expected positive fractions of the bus size, got {softness!r}")
-    y = torch.as_tensor(np.asarray(flux, dtype=np.float64))
-    sg = torch.ones_like(y) if sigma is None else torch.as_tensor(np.asarray(sigma, dtype=np.float64))
-    t = np.asarray(times_s, dtype=np.float64)
-    Si, Oi = (torch.as_tensor(np.asarray(v, dtype=np.float64)) for v in (sun, obs))
-    if not (t.shape == y.shape == sg.shape and Si.shape == Oi.shape == (len(t), 3)):
-        raise FieldError("flux", f"expected times, flux, sigma (T,) and sun, obs (T, 3) alike, got {t.shape}, "
-                                 f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(Si.shape)}, {tuple(Oi.shape)}")
-    if bool((sg <= 0).any()):
-        raise FieldError("sigma", "expected positive 1σ values")
-    held = _heldout(heldout)
+    t, y, Si, Oi, sg = _series((times_s, flux, sun, obs, sigma), "flux", "sigma")
+    if heldout is not None and len(heldout) != 5:
+        raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
+    held = None if heldout is None else _series(heldout, "heldout", "heldout")
     cds = [n for n in names if n.startswith("cd_")]
     c = dict(frame=frame, y=y, sigma=sg, cd_idx=torch.as_tensor([names.index(n) for n in cds]),
              cd_free=torch.as_tensor([n not in fixed for n in cds]),
@@ -151,13 +148,14 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     scale = torch.as_tensor([1.0, 1.0, 1.0, 1.0 / span], dtype=torch.float64)
     x0 = np.array([math.radians(pole_lon_deg), math.radians(pole_lat_deg), math.radians(phase_deg),
                    2 * math.pi / period_s]) / scale.numpy()
-    bool_free = [bool(shape) and n not in fixed and not n.startswith("cd_") for n in names]
+    free = [n not in fixed and not n.startswith("cd_") for n in names]  # the geometry the 1σ marginalises
+    bool_free = [bool(shape) and f for f in free]  # ... and the fit refines, with shape
     transform = _transform(names)
     z0 = _to_z(pt.numpy(), transform)
     free_idx = torch.as_tensor(np.flatnonzero(bool_free), dtype=torch.long)
     x0 = np.concatenate([x0, z0.numpy()[bool_free]])
-    size = (math.log(1e-3), math.log(1e3))  # fit_box_wing's bounds on the log sizes
-    bounds = [(None, None)] * 4 + [size if n in SIZE_NAMES else (None, None) for n, f in zip(names, bool_free) if f]
+    bounds = [(None, None)] * 4 + [LOG_SIZE_BOUNDS if n in SIZE_NAMES else (None, None)
+                                   for n, f in zip(names, bool_free) if f]
     bus = float(pt[:3].mean())
 
     def unpack(x):  # (spin (4,), p)
@@ -165,8 +163,7 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
 
     def loss(x, tau):
         sp, q = unpack(x)
-        r = (y - _model(sp, q, t, Si, Oi, tau, c)) / sg
-        return (2 * huber**2 * (torch.sqrt(1 + (r / huber) ** 2) - 1)).mean()
+        return soft_l1((y - _model(sp, q, t, Si, Oi, tau, c)) / sg, huber)
 
     def value_and_grad(x, tau):
         xt = torch.as_tensor(x, dtype=torch.float64).requires_grad_(True)
@@ -195,7 +192,6 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         q = q.index_put((c["cd_idx"],), a)
         out = dict(loss=float(loss(torch.as_tensor(x), tau)), rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()),
                    params=q.numpy().copy())
-    free = [n not in fixed and not n.startswith("cd_") for n in names]
     J, r0, J_h, r_h = _jacobians(spin, q, t, Si, Oi, tau, c, free, held)
     from cssat.inversion.spin_errors import verdict_keys  # local: scipy.stats, only for a verdict
 
@@ -214,18 +210,17 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                 formal_pole_err_deg=pole_err, cov=cov)
 
 
-def _heldout(heldout: Any) -> tuple | None:
-    """``heldout = (times_s, flux, sun, obs, sigma)`` checked, as ``(t, y, sun, obs, sigma)`` arrays and tensors."""
-    if heldout is None:
-        return None
-    if len(heldout) != 5:
-        raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
-    t = np.asarray(heldout[0], dtype=np.float64)
-    y, S, O = (torch.as_tensor(np.asarray(v, dtype=np.float64)) for v in heldout[1:4])
-    sg = torch.ones_like(y) if heldout[4] is None else torch.as_tensor(np.asarray(heldout[4], dtype=np.float64))
-    if not (t.shape == y.shape == sg.shape and S.shape == O.shape == (len(t), 3)) or bool((sg <= 0).any()):
-        raise FieldError("heldout", f"expected times, flux, positive sigma (T,) and sun, obs (T, 3), got {t.shape}, "
-                                    f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(S.shape)}, {tuple(O.shape)}")
+def _series(series: Any, field: str, sigma_field: str) -> tuple:
+    """``(times_s, flux, sun, obs, sigma)`` checked (``sigma`` None: ones), as ``(t, y, sun, obs,
+    sigma)`` arrays and tensors; errors name ``field`` (shapes) or ``sigma_field`` (a 1σ ≤ 0)."""
+    t = np.asarray(series[0], dtype=np.float64)
+    y, S, O = (torch.as_tensor(np.asarray(v, dtype=np.float64)) for v in series[1:4])
+    sg = torch.ones_like(y) if series[4] is None else torch.as_tensor(np.asarray(series[4], dtype=np.float64))
+    if not (t.shape == y.shape == sg.shape and S.shape == O.shape == (len(t), 3)):
+        raise FieldError(field, f"expected times, flux, sigma (T,) and sun, obs (T, 3) alike, got {t.shape}, "
+                                f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(S.shape)}, {tuple(O.shape)}")
+    if bool((sg <= 0).any()):
+        raise FieldError(sigma_field, "expected positive 1σ values")
     return t, y, S, O, sg
 
 
