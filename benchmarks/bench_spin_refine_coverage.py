@@ -12,8 +12,11 @@ shape fit would hand it — then the spin refined jointly with the shape
 (``refine_spin(shape=True)``: soft shadows, the panel albedo solved, the bus albedo held at the
 truth's 0.3; with ``--held`` the shape held at its start instead); the third night held out
 for ``refine_spin``'s verdict (its own noise stream: the fitted nights' draws as before). Each row: the pole's separation from the truth and the
-stated radial 1σ; the report: the share inside the 68.27 % / 95.45 % circles (1.0714 / 1.7579
-× the radial 1σ of a circular Gaussian).
+stated radial 1σ (``pole_err_deg``: since the softness term, the Gauss–Newton 1σ ⊕ that term,
+as ``refine_spin`` states it where reliable, with ``formal_pole_err_deg`` the Gauss–Newton one
+beside it; rows written before, e.g. ``benchmarks/studies/refine_spin_verdict_0-99.jsonl``,
+carry the Gauss–Newton one alone as ``pole_err_deg``); the report: the share inside the
+68.27 % / 95.45 % circles (1.0714 / 1.7579 × the radial 1σ of a circular Gaussian).
 
     PYTHONPATH=$PWD python benchmarks/bench_spin_refine_coverage.py --seeds 100 --workers 2 --out refine_cov.jsonl
     PYTHONPATH=$PWD python benchmarks/bench_spin_refine_coverage.py --report refine_cov.jsonl
@@ -91,8 +94,15 @@ def case(seed: int, floor: float = 0.015, shape: bool = True) -> dict:
                     heldout=(th, y_h, Sh, Oh, sigma_h))
     cur = (r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"])
     sep = separation_deg(cur[:2], spin[:2])
-    return dict(seed=seed, sep_deg=sep, pole_err_deg=r["formal_pole_err_deg"], verdict=r["verdict"],
-                heldout_chi2_n=r["heldout_chi2"] / r["heldout_n"], heldout_limit_n=r["heldout_threshold"] / r["heldout_n"], period_err_rel=(cur[2] - spin[2]) / r["period_err_s"],
+    # the 1σ stated whatever the verdict: the Gauss–Newton one ⊕ the softness term (refine_spin's pole_err_deg
+    # where reliable); the Gauss–Newton one alone beside it
+    pole_err = math.hypot(r["formal_pole_err_deg"], r["softness_pole_shift_deg"])
+    period_err = math.hypot(r["formal_period_err_s"], r["softness_period_shift_s"])
+    return dict(seed=seed, sep_deg=sep, pole_err_deg=pole_err, formal_pole_err_deg=r["formal_pole_err_deg"],
+                softness_pole_shift_deg=r["softness_pole_shift_deg"], verdict=r["verdict"],
+                heldout_chi2_n=r["heldout_chi2"] / r["heldout_n"], heldout_limit_n=r["heldout_threshold"] / r["heldout_n"],
+                period_err_rel=(cur[2] - spin[2]) / period_err,
+                formal_period_err_rel=(cur[2] - spin[2]) / r["formal_period_err_s"],
                 rms_over_noise=r["rms_over_noise"], truth=list(spin), fitted=list(cur), cpu_s=time.process_time() - c0)
 
 
@@ -109,6 +119,13 @@ def report(rows: list[dict]) -> None:
 
 
 def _report(rows: list[dict], label: str) -> None:
+    _coverage(rows, label)
+    if all("formal_pole_err_deg" in r for r in rows):  # rows since the softness term: the Gauss–Newton 1σ alone
+        _coverage([dict(r, pole_err_deg=r["formal_pole_err_deg"], period_err_rel=r["formal_period_err_rel"])
+                   for r in rows], f"{label}, the Gauss–Newton 1σ alone")
+
+
+def _coverage(rows: list[dict], label: str) -> None:
     n = len(rows)
     s = np.array([r["sep_deg"] / r["pole_err_deg"] for r in rows])
     pe = np.array([abs(r["period_err_rel"]) for r in rows])

@@ -146,3 +146,21 @@ def test_refine_spin_verdict_withholds_the_1sigma_where_the_held_out_night_is_mi
     assert blind["verdict"] == "unreliable" and math.isnan(blind["pole_err_deg"])
     with pytest.raises(FieldError, match="heldout"):
         refine_spin(t[fit], y[fit], sun[fit], obs[fit], p, *spin, heldout=ho[:4])
+
+
+def test_refine_spin_1sigma_adds_the_move_between_the_last_two_softnesses():
+    """The 1σ is the Gauss–Newton one ⊕ the pole's (period's) move from the next-to-last softness's
+    solution — checked against a run stopped at that softness (the same steps up to it)."""
+    t, y, sigma, sun, obs, p, spin = _scene(n=120, seed=5)
+    start = (spin[0] + 1.0, spin[1] - 1.0, spin[2], spin[3])
+    kw = dict(sigma=sigma, fixed=("cd_bus",), maxiter=15)
+    r = refine_spin(t, y, sun, obs, p, *start, softness=(0.05, 0.02, 0.01), **kw)
+    stop = refine_spin(t, y, sun, obs, p, *start, softness=(0.05, 0.02), **kw)
+    move = separation_deg((r["pole_lon_deg"], r["pole_lat_deg"]), (stop["pole_lon_deg"], stop["pole_lat_deg"]))
+    assert r["verdict"] == "reliable" and move > 1e-4
+    assert r["softness_pole_shift_deg"] == pytest.approx(move, rel=1e-6)
+    assert r["softness_period_shift_s"] == pytest.approx(abs(r["period_s"] - stop["period_s"]), rel=1e-6, abs=1e-9)
+    assert r["pole_err_deg"] == pytest.approx(math.hypot(r["formal_pole_err_deg"], move), rel=1e-9)
+    assert r["period_err_s"] == pytest.approx(math.hypot(r["formal_period_err_s"], r["softness_period_shift_s"]))
+    one = refine_spin(t, y, sun, obs, p, *start, softness=(0.05,), **kw)  # one softness: no term measured
+    assert one["softness_pole_shift_deg"] == 0.0 and one["pole_err_deg"] == one["formal_pole_err_deg"]

@@ -109,10 +109,15 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
 
     Returns ``pole_lon_deg, pole_lat_deg, period_s, phase_deg``, ``loss`` and
     ``rms_over_noise`` (at the last ``τ``), ``params`` (the family's, ``p`` itself without
-    ``shape``; the free albedos as solved), and the Gauss–Newton 1σ with the
-    geometry of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the
-    reduced χ² where above 1; ``pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``;
-    ``period_err_s``; ``formal_pole_err_deg`` the same whatever the verdict).
+    ``shape``; the free albedos as solved), and the 1σ: the Gauss–Newton one with the geometry
+    of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the reduced χ²
+    where above 1; ``formal_pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``,
+    and ``formal_period_err_s``, given whatever the verdict) added in quadrature to the
+    softness term — the pole's and the period's move between the last two softnesses'
+    solutions (``softness_pole_shift_deg``, ``softness_period_shift_s``; 0 with one softness):
+    the soft shadows' bias, which shrinks with ``τ`` (a move of the same order is left at the
+    last), and the truncated runs' unfinished descent, neither of which the curvature sees —
+    ``pole_err_deg`` and ``period_err_s``.
 
     The verdict (:func:`cssat.inversion.spin_errors.verdict_keys`, as
     :func:`~cssat.inversion.estimate_spin`'s): ``heldout = (times_s, flux, sun, obs, sigma)`` of
@@ -182,8 +187,10 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         return np.concatenate([xs, x[k:]])
 
     x = run(x0, softness[0] * bus, 4) if len(free_idx) else x0  # the spin alone first: a joint start stalls
+    spins = []  # the spin after each τ: the last two's difference is the softness term of the 1σ
     for s in softness:
         x = run(x, s * bus, len(x))
+        spins.append((x[:4] * scale.numpy()).copy())
     tau = float(softness[-1]) * bus
     with torch.no_grad():
         sp, q = unpack(torch.as_tensor(x))
@@ -201,13 +208,28 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     cov = np.linalg.pinv(J.T @ J)[:4, :4] * max(1.0, float(r0 @ r0) / dof)
     lon, lat, ph, om = spin
     cb = math.cos(lat)
-    pole_err = math.degrees(math.sqrt(max(cov[0, 0] * cb * cb + cov[1, 1], 0.0)))
-    period_err = float(2 * math.pi / om**2 * math.sqrt(max(cov[3, 3], 0.0)))
+    formal_pole = math.degrees(math.sqrt(max(cov[0, 0] * cb * cb + cov[1, 1], 0.0)))
+    formal_period = float(2 * math.pi / om**2 * math.sqrt(max(cov[3, 3], 0.0)))
+    shift_pole, shift_period = _softness_shift(spins)
     ok = verdict["verdict"] == "reliable"
     return dict(out, **verdict, pole_lon_deg=math.degrees(lon) % 360.0, pole_lat_deg=math.degrees(lat),
                 period_s=float(2 * math.pi / om), phase_deg=math.degrees(ph) % 360.0,
-                pole_err_deg=pole_err if ok else math.nan, period_err_s=period_err if ok else math.nan,
-                formal_pole_err_deg=pole_err, cov=cov)
+                pole_err_deg=math.hypot(formal_pole, shift_pole) if ok else math.nan,
+                period_err_s=math.hypot(formal_period, shift_period) if ok else math.nan,
+                formal_pole_err_deg=formal_pole, formal_period_err_s=formal_period,
+                softness_pole_shift_deg=shift_pole, softness_period_shift_s=shift_period, cov=cov)
+
+
+def _softness_shift(spins: list[np.ndarray]) -> tuple[float, float]:
+    """The pole's move (degrees) and the period's (s) between the last two softnesses' solutions
+    (each ``(λ, β, φ₀, ω)`` in radians, rad/s); ``(0, 0)`` with one softness (no term measured)."""
+    if len(spins) < 2:
+        return 0.0, 0.0
+    from cssat.inversion.spin_errors import separation_deg  # local: beside the verdict's
+
+    (l0, b0, _, w0), (l1, b1, _, w1) = spins[-2], spins[-1]
+    pole = separation_deg((math.degrees(l0), math.degrees(b0)), (math.degrees(l1), math.degrees(b1)))
+    return float(pole), float(abs(2 * math.pi / w1 - 2 * math.pi / w0))
 
 
 def _series(series: Any, field: str, sigma_field: str) -> tuple:
