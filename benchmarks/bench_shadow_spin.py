@@ -7,8 +7,10 @@ its docstring), the attitude is searched instead of given:
    experiment's default sizes, σ given, the third night held out) — its pole and period, its
    phase arbitrary;
 2. its frame turned about the pole so that the EGI's panels lie along ±y
-   (:func:`~cssat.inversion.parametric_fit.box_wing_yaw`, the candidates told apart by their
-   box-wing start's misfit, as ``inversion.parametric.yaw`` does);
+   (:func:`~cssat.inversion.parametric_fit.box_wing_yaw`, the candidates told apart by a brief
+   box-wing fit's misfit, :func:`~cssat.inversion.parametric_fit.best_box_wing_yaw`, as
+   ``inversion.parametric.yaw`` does; the rows in ``benchmarks/studies/shape_spin/`` were made
+   with the start's own misfit, which picks the same turn on all three meshes);
 3. the finer family (``bench_shadow_fit.fit_fine``: the EGI start, the no-dish box-wing, the
    parts at generic placements; the albedos solved, the bus albedo held at 0.3 — ``--albedos
    profile --albedo-prior``);
@@ -71,24 +73,15 @@ def to_frame(geo: B.Geometry, lon: float, lat: float, period: float, phase_deg: 
 
 
 def _yaw(sol: Any, geo: B.Geometry, y: np.ndarray, sigma: np.ndarray) -> float:
-    """The turn ψ (rad) of :func:`box_wing_yaw`'s candidates whose box-wing start misfits least."""
-    import torch
-
-    from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility
-    from cssat.inversion.parametric_fit import box_wing_start, box_wing_yaw
-    from cssat.scene.attitude import rot_z
+    """The turn ψ (rad) of :func:`box_wing_yaw`'s candidates whose brief box-wing fit misfits least on the
+    fitted nights (:func:`~cssat.inversion.parametric_fit.best_box_wing_yaw`, as the experiment picks)."""
+    from cssat.inversion.parametric_fit import best_box_wing_yaw
+    from cssat.models.egi.config import ParametricConfig
 
     fit = geo.night < 2
-    best = None
-    for psi in box_wing_yaw(sol.normals, sol.areas, panels=2):
-        g = spin_geometry(geo, sol.pole_lon_deg, sol.pole_lat_deg, sol.period_s, math.degrees(psi), sol.frame)
-        p0 = box_wing_start(sol.normals @ rot_z(np.array([psi]))[0].T, sol.areas, panels=2, cd0=B.CD0)
-        S, V = g.sun[fit], g.observer[fit]
-        m = box_wing_light_curve(torch.as_tensor(p0), S, V, box_wing_visibility(p0, S, V, divisions=4), divisions=4,
-                                 range_km=1e-3, irradiance=1.0).numpy()
-        loss = float(np.sum(((y[fit] - m) / sigma[fit]) ** 2))
-        best = min(best or (math.inf, psi), (loss, psi))
-    return best[1]
+    g = spin_geometry(geo, sol.pole_lon_deg, sol.pole_lat_deg, sol.period_s, 0.0, sol.frame)
+    return best_box_wing_yaw(sol.normals, sol.areas, y[fit], g.sun[fit], g.observer[fit], sigma[fit], panels=2,
+                             divisions=4, cd0=B.CD0, brief=ParametricConfig().yaw_brief)[0]
 
 
 def spin_fine_row(name: str, geo: B.Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "uniform",

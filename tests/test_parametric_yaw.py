@@ -69,6 +69,43 @@ def test_a_bus_heavier_than_the_panels_leaves_the_turn_among_the_candidates():
         assert min(_mod(math.degrees(c) - psi0, 180.0) for c in cands) < 1e-9
 
 
+def test_the_best_turn_of_a_bus_heavier_than_the_panels_is_the_true_one():
+    """Where the first candidate is a quarter off (the bus heavier), the misfit of a brief fit from
+    each candidate's start on the light curve seen in the turned frame picks the true turn (mod
+    180°) — where the start's own misfit picks the quarter turn (its cubic bus cannot show the
+    heavy ±y faces; the panels' start takes them a quarter off instead) — and one turn given is
+    returned as is; an empty list of turns, mismatched directions, a negative brief are refused."""
+    import torch
+
+    from cssat.inversion.egi import egi
+    from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility
+    from cssat.inversion.parametric_fit import best_box_wing_yaw, box_wing_start
+
+    p = P.copy()
+    p[[0, 1, 2, 3, 4]] = [2.0, 1.0, 2.5, 3.0, 1.0]  # ±y faces 20 m² a side, the panels 6 m²
+    p[5] = math.radians(60.0)
+    N, A = egi(box_wing_mesh(p, divisions=2))
+    rng = np.random.default_rng(1)
+    S, V = (v / np.linalg.norm(v, axis=1, keepdims=True) for v in rng.normal(size=(2, 200, 3)))
+    y = box_wing_light_curve(torch.as_tensor(p), S, V, box_wing_visibility(p, S, V, divisions=2), divisions=2,
+                             range_km=1e-3, irradiance=1.0).numpy()
+    for psi0 in (27.0, -63.0):
+        R = _rz(psi0)
+        psi, p0 = best_box_wing_yaw(N @ R.T, A, y, S @ R.T, V @ R.T, 0.01 * np.ones_like(y), divisions=2, brief=10)
+        assert _mod(math.degrees(psi) - psi0, 180.0) < 1e-9
+        start_only, _ = best_box_wing_yaw(N @ R.T, A, y, S @ R.T, V @ R.T, 0.01 * np.ones_like(y), divisions=2)
+        assert _mod(math.degrees(start_only) - psi0, 180.0) == pytest.approx(90.0)
+        turned = N @ R.T @ _rz(-math.degrees(psi)).T  # the start: box_wing_start of the EGI turned by R_z(−ψ)
+        assert np.array_equal(p0, box_wing_start(turned, A))
+    assert best_box_wing_yaw(N, A, y, S, V, yaws=(0.25,))[0] == 0.25
+    with pytest.raises(FieldError, match="yaws"):
+        best_box_wing_yaw(N, A, y, S, V, yaws=())
+    with pytest.raises(FieldError, match="sun"):
+        best_box_wing_yaw(N, A, y, S[:-1], V)
+    with pytest.raises(FieldError, match="brief"):
+        best_box_wing_yaw(N, A, y, S, V, brief=-1)
+
+
 def test_panels_facing_the_pole_leave_a_quarter_turn_open_and_one_panel_a_half_turn():
     """Panels facing ±z (hinge 90°): a Lambertian EGI does not see their axis; the bus faces fix the
     frame modulo 90°, so the true turn is one of the two candidates (mod 180°). One panel: each

@@ -27,7 +27,7 @@ import torch
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 
-__all__ = ["box_wing_start", "box_wing_yaw", "fit_box_wing", "profile_albedos", "soft_l1"]
+__all__ = ["best_box_wing_yaw", "box_wing_start", "box_wing_yaw", "fit_box_wing", "profile_albedos", "soft_l1"]
 
 #: the parameters fitted as logarithms of a length (m)
 SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth", "dish2_radius", "dish2_depth", "panel_gap",
@@ -88,6 +88,51 @@ def box_wing_yaw(normals: Any, areas: Any, *, panels: int = 2) -> tuple[float, .
     if panels == 1:
         out += [psi + math.pi for psi in out]
     return tuple(float((psi + math.pi) % (2 * math.pi) - math.pi) for psi in out)
+
+
+def best_box_wing_yaw(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, sigma: Any = None, *,
+                      yaws: Any = None, panels: int = 2, divisions: int = 4, cd0: float = 0.3,
+                      brief: int = 0) -> tuple[float, np.ndarray]:
+    """The turn ψ (rad) among ``yaws`` (default :func:`box_wing_yaw`'s candidates) whose box-wing
+    start fits ``flux (T,)`` best, and that start ``p (9,)``: for each ψ the EGI (``normals (K,
+    3)``, ``areas (K,)``) turned by ``R_z(−ψ)`` (vectors ``v @ R.T``) gives
+    :func:`box_wing_start` (``panels``, ``cd0``), whose light curve with Embree's shadows
+    (``divisions``) at the body-frame unit directions ``sun, obs (T, 3)`` turned alike is
+    scored by ``Σ ((flux − m) / sigma)²`` (``sigma (T,)``, None: ones; flux per unit irradiance
+    at 1 m, m²) — or, with ``brief = k > 0``, by the loss of :func:`fit_box_wing` run from it
+    for one outer iteration of ``k`` L-BFGS-B steps (the start itself is returned): a start's
+    cubic bus cannot show a bus heavier than its panels, and where the EGI's heaviest direction
+    is such a bus's face the start a quarter turn off can misfit less than the right one
+    (``tests/test_parametric_yaw.py``); a brief fit gives the bus its sizes first. One candidate
+    is returned unscored. The lowest wins (the first on a tie)."""
+    from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
+
+    brief = int_param(brief, "brief", 0, 10_000)
+    yaws = box_wing_yaw(normals, areas, panels=panels) if yaws is None else tuple(float(v) for v in yaws)
+    if not yaws:
+        raise FieldError("yaws", "expected at least one turn (rad)")
+    y = np.asarray(flux, dtype=np.float64)
+    S0, V0 = np.asarray(sun, dtype=np.float64), np.asarray(obs, dtype=np.float64)
+    if S0.shape != (len(y), 3) or V0.shape != S0.shape:
+        raise FieldError("sun", f"expected sun and obs (T, 3) with flux (T,), got {S0.shape}, {V0.shape}, {y.shape}")
+    N = np.asarray(normals, dtype=np.float64)
+    best = None
+    for psi in yaws:
+        R = rot_z(np.array([psi]))[0]
+        p0 = box_wing_start(N @ R.T, areas, panels=panels, cd0=cd0)
+        loss = 0.0
+        if len(yaws) > 1 and brief:
+            loss = fit_box_wing(y, S0 @ R.T, V0 @ R.T, p0, sigma=sigma, outer=1, inner=brief, panels=panels,
+                                divisions=divisions)[1]["loss"]
+        elif len(yaws) > 1:
+            S, V = S0 @ R.T, V0 @ R.T
+            m = box_wing_light_curve(torch.as_tensor(p0), S, V,
+                                     box_wing_visibility(p0, S, V, panels=panels, divisions=divisions),
+                                     range_km=1e-3, irradiance=1.0, panels=panels, divisions=divisions).numpy()
+            loss = float(np.sum(((y - m) / (1.0 if sigma is None else np.asarray(sigma, dtype=np.float64))) ** 2))
+        if best is None or loss < best[0]:
+            best = (loss, psi, p0)
+    return best[1], best[2]
 
 
 def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.3, aspect: float = 3.75) -> np.ndarray:

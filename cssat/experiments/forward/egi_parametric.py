@@ -29,7 +29,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     import torch  # heavy: torch, only to fit the box-wing
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
-    from cssat.inversion.parametric_fit import box_wing_start, box_wing_yaw, fit_box_wing  # heavy: torch
+    from cssat.inversion.parametric_fit import best_box_wing_yaw, box_wing_yaw, fit_box_wing  # heavy: torch
     from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
 
     res, fit, held, sigma, y = sol.res, m.fit, m.held, m.sigma, m.y
@@ -38,18 +38,11 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     searched = a.metrics.get("spin") == "search"  # z on the pole, the phase about it arbitrary: the panels' axis unknown
     yaws = box_wing_yaw(res.normals, res.areas, panels=o.panels) if o.yaw == "egi" or (o.yaw == "auto" and searched) \
         else (0.0,)
-    starts = []
-    for psi in yaws:  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
-        R = rot_z(np.array([psi]))[0]
-        S, V = a.sun_b @ R.T, a.obs_b @ R.T
-        p0 = box_wing_start(res.normals @ R.T, res.areas, panels=o.panels, cd0=o.cd0)
-        loss = 0.0
-        if len(yaws) > 1:  # the candidates told apart by their start's misfit on the fitted nights
-            m0 = box_wing_light_curve(torch.as_tensor(p0), S[fit], V[fit], box_wing_visibility(p0, S[fit], V[fit], **geo),
-                                      **kw).numpy()
-            loss = float(np.sum(((y[fit] - m0) / (1.0 if sigma is None else sigma[fit])) ** 2))
-        starts.append((loss, psi, R, S, V, p0))
-    _, psi, R, S, V, p0 = min(starts, key=lambda s_: s_[0])
+    # the candidates told apart by a brief fit's misfit on the fitted nights (or the start's: yaw_brief=0)
+    psi, p0 = best_box_wing_yaw(res.normals, res.areas, y[fit], a.sun_b[fit], a.obs_b[fit],
+                                None if sigma is None else sigma[fit], yaws=yaws, cd0=o.cd0, brief=o.yaw_brief, **geo)
+    R = rot_z(np.array([psi]))[0]  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
+    S, V = a.sun_b @ R.T, a.obs_b @ R.T
     p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, sigma=None if sigma is None else sigma[fit],
                            outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness,
                            albedos=o.albedos, fixed=("cd_bus",) if o.albedo_prior else (), **geo)

@@ -86,6 +86,10 @@ class ParametricConfig:
     softness: float = 0.1
     #: the box-wing's turn about the body z axis: auto (from the EGI when the spin was searched, else none) | egi | none
     yaw: str = "auto"
+    #: with several turns: each candidate's start fitted for this many L-BFGS steps and the turns told apart by
+    #: that brief fit's loss (0: by the start's own misfit, which can take a quarter turn on a bus heavier than
+    #: its panels)
+    yaw_brief: int = 10
     #: fit (by gradient, with the geometry) | profile (solved by least squares at every evaluation: the light curve
     #: is linear in them)
     albedos: str = "fit"
@@ -103,6 +107,7 @@ class ParametricConfig:
         self.visibility = choice_param(self.visibility, "inversion.parametric.visibility", ("cast", "soft"))
         self.softness = float_param(self.softness, "inversion.parametric.softness", 0.0, open_lo=True)
         self.yaw = choice_param(self.yaw, "inversion.parametric.yaw", ("auto", "egi", "none"))
+        self.yaw_brief = int_param(self.yaw_brief, "inversion.parametric.yaw_brief", 0, 500)
         self.albedos = choice_param(self.albedos, "inversion.parametric.albedos", ("fit", "profile"))
         self.albedo_prior = bool_param(self.albedo_prior, "inversion.parametric.albedo_prior")
 
