@@ -102,6 +102,8 @@ def test_the_best_turn_of_a_bus_heavier_than_the_panels_is_the_true_one():
         best_box_wing_yaw(N, A, y, S, V, yaws=())
     with pytest.raises(FieldError, match="sun"):
         best_box_wing_yaw(N, A, y, S[:-1], V)
+    with pytest.raises(FieldError, match="sigma"):
+        best_box_wing_yaw(N, A, y, S, V, np.ones(len(y) - 1))
     with pytest.raises(FieldError, match="brief"):
         best_box_wing_yaw(N, A, y, S, V, brief=-1)
 

@@ -115,6 +115,10 @@ def best_box_wing_yaw(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, s
     S0, V0 = np.asarray(sun, dtype=np.float64), np.asarray(obs, dtype=np.float64)
     if S0.shape != (len(y), 3) or V0.shape != S0.shape:
         raise FieldError("sun", f"expected sun and obs (T, 3) with flux (T,), got {S0.shape}, {V0.shape}, {y.shape}")
+    if sigma is not None:
+        sigma = np.asarray(sigma, dtype=np.float64)
+        if sigma.shape != y.shape or not bool((sigma > 0).all()):
+            raise FieldError("sigma", f"expected positive 1σ values of flux's shape {y.shape}, got {sigma.shape}")
     N = np.asarray(normals, dtype=np.float64)
     best = None
     for psi in yaws:
@@ -129,7 +133,7 @@ def best_box_wing_yaw(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, s
             m = box_wing_light_curve(torch.as_tensor(p0), S, V,
                                      box_wing_visibility(p0, S, V, panels=panels, divisions=divisions),
                                      range_km=1e-3, irradiance=1.0, panels=panels, divisions=divisions).numpy()
-            loss = float(np.sum(((y - m) / (1.0 if sigma is None else np.asarray(sigma, dtype=np.float64))) ** 2))
+            loss = float(np.sum(((y - m) / (1.0 if sigma is None else sigma)) ** 2))
         if best is None or loss < best[0]:
             best = (loss, psi, p0)
     return best[1], best[2]
