@@ -177,3 +177,5 @@ def test_a_bad_yaw_is_refused_by_name():
 
     with pytest.raises(FieldError, match=r"inversion\.parametric\.yaw.*auto.*egi.*none"):
         ParametricConfig(yaw="sideways")
+    with pytest.raises(FieldError, match=r"inversion\.parametric\.yaw_brief"):
+        ParametricConfig(yaw_brief=-1)
