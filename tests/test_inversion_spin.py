@@ -354,3 +354,10 @@ def test_the_attitude_line_prints_no_withheld_one_sigma():
                   tumble_verdict="unreliable")
     for line in (_attitude_line(bad), _attitude_line(tumble)):
         assert "nan" not in line and "±" not in line and line.endswith("unreliable (no 1σ)"), line
+    # the spin refined through the shadowed box-wing (inversion.parametric.refine_spin): its own verdict and 1σ
+    refined = dict(spin, parametric_spin_pole_lon_deg=11.0, parametric_spin_pole_lat_deg=21.0,
+                   parametric_spin_pole_err_deg=None, parametric_spin_verdict="unreliable")
+    line = _attitude_line(refined)
+    assert "± 0.5°" in line and line.endswith("shadowed box-wing (11.00°, 21.00°), unreliable (no 1σ)"), line
+    ok = _attitude_line(dict(refined, parametric_spin_pole_err_deg=0.2, parametric_spin_verdict="reliable"))
+    assert ok.endswith("(11.00°, 21.00°) ± 0.2°, reliable"), ok

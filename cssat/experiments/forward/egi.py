@@ -229,9 +229,15 @@ def _attitude_line(m: dict[str, Any]) -> str:
         return f" ± {v:.2g}{unit}" if v is not None and math.isfinite(v) else ""
 
     if m.get("spin") == "search":
+        refined = ""
+        if m.get("parametric_spin_pole_lon_deg") is not None:  # inversion.parametric.refine_spin
+            v = m["parametric_spin_verdict"]
+            refined = (f"; through the shadowed box-wing ({m['parametric_spin_pole_lon_deg']:.2f}°, "
+                       f"{m['parametric_spin_pole_lat_deg']:.2f}°){pm('parametric_spin_pole_err_deg', '°')}, {v}"
+                       f"{' (no 1σ)' if v == 'unreliable' else ''}")
         return (f"spin pole ({m['spin_pole_lon_deg']:.2f}°, {m['spin_pole_lat_deg']:.2f}°){pm('spin_pole_err_deg', '°')}, "
                 f"period {m['spin_period_s']:.6f}{pm('spin_period_err_s', '')} s, reduced χ² {m['spin_reduced_chi2']:.3g}"
-                f"{', ambiguous' if m['spin_ambiguous'] else ''}{tail}")
+                f"{', ambiguous' if m['spin_ambiguous'] else ''}{tail}{refined}")
     if m.get("spin") == "tumbling":
         return (f"tumbling L ({m['tumble_L_lon_deg']:.2f}°, {m['tumble_L_lat_deg']:.2f}°){pm('tumble_err_L_err_deg', '°')}, "
                 f"P_ω {m['tumble_P_omega_s']:.4f} s, P_φ {m['tumble_P_phi_s']:.4f} s, {m['tumble_mode']}, "

@@ -46,6 +46,10 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, sigma=None if sigma is None else sigma[fit],
                            outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness,
                            albedos=o.albedos, fixed=("cd_bus",) if o.albedo_prior else (), **geo)
+    if o.refine_spin and searched and a.sol is not None and hasattr(a.sol, "pole_lon_deg"):
+        p, R, S, V, refined = _refine_spin(o, m, a, p, psi)
+        info = dict(info, params=dict(zip(info["params"], map(float, p))))
+        sol.metrics.update(refined)
     vis = box_wing_visibility(p, S, V, **geo)
     sol.convex_model_unit = sol.model_unit
     sol.model_unit = box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw).numpy()
@@ -65,6 +69,30 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
               parametric_yaw_deg=float(np.degrees(psi)), **{f"parametric_{k}": v for k, v in info["params"].items()})
+
+
+def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float) -> tuple:
+    """The searched spin refined with the box-wing ``p`` fitted in its frame turned by ``ψ``
+    (:func:`~cssat.inversion.parametric_spin.refine_spin`, ``shape=True``; the held-out nights its
+    verdict): ``(p, R, S, V, metrics)`` — the refined family, the turn ``R (3, 3)`` from the searched
+    spin's body frame to the refined one at the first sample (vectors ``v @ R.T``), the body-frame Sun
+    and observer ``(T, 3)`` of the refined spin, and ``parametric_spin_*`` metrics."""
+    from cssat.inversion.parametric_spin import refine_spin  # heavy: torch
+    from cssat.scene.attitude import spin_frame, to_body  # heavy: cssat.scene imports torch
+
+    fit, held, sigma, sp = m.fit, m.held, m.sigma, a.sol
+    ho = None if sigma is None or not held.any() else (m.t[held], m.y[held], m.sun_in[held], m.obs_in[held], sigma[held])
+    r = refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], p, sp.pole_lon_deg, sp.pole_lat_deg, sp.period_s,
+                    float(np.degrees(psi)), sigma=None if sigma is None else sigma[fit], frame=sp.frame,
+                    fixed=("cd_bus",) if o.albedo_prior else (), shape=True, heldout=ho, huber=o.huber,
+                    panels=o.panels, divisions=o.divisions)
+    frames = spin_frame(m.t, r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], sp.frame)
+    keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "phase_deg", "pole_err_deg", "period_err_s", "formal_pole_err_deg",
+            "formal_period_err_s", "softness_pole_shift_deg", "softness_period_shift_s", "rms_over_noise", "verdict",
+            "verdict_why", "heldout_chi2", "heldout_n", "heldout_threshold")
+    out = {f"parametric_spin_{k}": (None if isinstance(r[k], float) and not np.isfinite(r[k]) else r[k]) for k in keys}
+    return (np.asarray(r["params"]), frames[0] @ a.frames[0].T, to_body(frames, m.sun_in), to_body(frames, m.obs_in),
+            out)
 
 
 def score_parametric(mesh: Any, sol: Any, to_fit: np.ndarray) -> dict[str, Any]:

@@ -143,6 +143,10 @@ def score_truth(p: Any, m: Any, a: Any, sol: EGISolution) -> dict[str, Any]:
         if attitude.period_s < 0:  # a retrograde spin is a prograde one about the opposite pole
             lon, lat = lon + 180.0, -lat
         metrics["pole_error_deg"] = separation_deg((spin.pole_lon_deg, spin.pole_lat_deg), (lon, lat))
+        refined = sol.metrics.get("parametric_spin_pole_lon_deg")
+        if refined is not None:  # the spin refined through the shadowed box-wing (inversion.parametric.refine_spin)
+            metrics["parametric_spin_pole_error_deg"] = separation_deg(
+                (refined, sol.metrics["parametric_spin_pole_lat_deg"]), (lon, lat))
     return metrics
 
 

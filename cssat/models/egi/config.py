@@ -90,6 +90,9 @@ class ParametricConfig:
     #: that brief fit's loss (0: by the start's own misfit, which can take a quarter turn on a bus heavier than
     #: its panels)
     yaw_brief: int = 10
+    #: with a searched spin: refine the pole, phase and period through the fitted box-wing's soft-shadowed light curve
+    #: jointly with its shape (cssat.inversion.parametric_spin.refine_spin; the held-out nights give its verdict)
+    refine_spin: bool = False
     #: fit (by gradient, with the geometry) | profile (solved by least squares at every evaluation: the light curve
     #: is linear in them)
     albedos: str = "fit"
@@ -110,6 +113,7 @@ class ParametricConfig:
         self.yaw_brief = int_param(self.yaw_brief, "inversion.parametric.yaw_brief", 0, 500)
         self.albedos = choice_param(self.albedos, "inversion.parametric.albedos", ("fit", "profile"))
         self.albedo_prior = bool_param(self.albedo_prior, "inversion.parametric.albedo_prior")
+        self.refine_spin = bool_param(self.refine_spin, "inversion.parametric.refine_spin")
 
 
 @dataclass
