@@ -179,3 +179,9 @@ def test_a_bad_yaw_is_refused_by_name():
         ParametricConfig(yaw="sideways")
     with pytest.raises(FieldError, match=r"inversion\.parametric\.yaw_brief"):
         ParametricConfig(yaw_brief=-1)
+    from cssat.models.egi.config import InversionConfig
+
+    for kw in (dict(shape="convex"), dict(shape="parametric", spin="known")):
+        with pytest.raises(FieldError, match=r"inversion\.parametric\.refine_spin.*shape=parametric"):
+            InversionConfig(parametric=dict(refine_spin=True), **kw)
+    assert InversionConfig(shape="parametric", parametric=dict(refine_spin=True)).parametric.refine_spin

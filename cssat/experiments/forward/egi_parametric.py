@@ -8,6 +8,7 @@ one in the headline metrics (the convex one kept as ``convex_*``), its mesh writ
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import numpy as np
@@ -17,6 +18,8 @@ from cssat.experiments.forward.egi_score import rms, typical
 from cssat.scene.mesh import Mesh
 
 __all__ = ["solve_parametric", "score_parametric", "write_parametric"]
+
+log = logging.getLogger("cssat")
 
 
 def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
@@ -50,6 +53,9 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
         p, R, S, V, refined = _refine_spin(o, m, a, p, psi)
         info = dict(info, params=dict(zip(info["params"], map(float, p))))
         sol.metrics.update(refined)
+    elif o.refine_spin:
+        log.warning("inversion.parametric.refine_spin: no searched spin to refine (the attitude was %s)",
+                    a.metrics.get("spin"))
     vis = box_wing_visibility(p, S, V, **geo)
     sol.convex_model_unit = sol.model_unit
     sol.model_unit = box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw).numpy()

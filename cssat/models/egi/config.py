@@ -175,6 +175,10 @@ class InversionConfig:
         self.local_starts = int_param(self.local_starts, "inversion.local_starts", 0, 8)
         self.shape = choice_param(self.shape, "inversion.shape", ("convex", "parametric"))
         self.parametric = typed_group(ParametricConfig, self.parametric, "inversion.parametric")
+        if self.parametric.refine_spin and (self.shape != "parametric" or self.spin in ("known", "tumbling")):
+            raise FieldError("inversion.parametric.refine_spin", "refines a searched spin through the fitted box-wing: "
+                                                                 "needs inversion.shape=parametric and inversion.spin "
+                                                                 f"search or auto, got shape={self.shape}, spin={self.spin}")
         self.tumbling = dict(self.tumbling or {})
 
     def search(self) -> dict[str, Any]:
