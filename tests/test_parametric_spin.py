@@ -103,6 +103,8 @@ def test_refine_spin_errors_name_their_field():
         spin_frames(t, torch.zeros(3, dtype=torch.float64))
     with pytest.raises(FieldError, match="frame"):
         spin_frames(t, torch.zeros(4, dtype=torch.float64), frame="galactic")
+    with pytest.raises(FieldError, match="device"):
+        refine_spin(t, y, sun, obs, p, *spin, device="gpu9")
 
 
 def test_refine_spin_with_the_shape_recovers_both_from_a_wrong_shape():

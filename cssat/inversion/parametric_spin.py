@@ -95,7 +95,7 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                 shape: bool = False, heldout: Any = None, huber: float = 3.0,
                 softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 40, panels: int = 2,
                 divisions: int = 4, dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40,
-                **parts: Any) -> dict[str, Any]:
+                device: Any = None, **parts: Any) -> dict[str, Any]:
     """The spin ``(λ, β, P, φ₀)`` that best fits ``flux (T,)`` (per unit irradiance at 1 m, m²)
     at ``times_s (T,)`` with the family ``p`` (:func:`~cssat.inversion.parametric.param_names`'
     order for ``dishes`` and ``parts``) held — or, with ``shape``, its geometry (every parameter
@@ -108,7 +108,10 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     (``frame``'s axes: GCRS, its pole read as ecliptic or equatorial); ``sigma (T,)`` the 1σ
     (None: ones). The albedos not named in ``fixed`` are solved at every evaluation (module
     docstring). ``softness``: the shadow edges' ``τ``, each a fraction of ``p``'s mean bus
-    half-size, one L-BFGS-B run of ``maxiter`` iterations at each, in turn.
+    half-size, one L-BFGS-B run of ``maxiter`` iterations at each, in turn. ``device``: where
+    the light curves, shadows and gradients are computed (default the CPU; e.g. ``"cuda"``) —
+    the inputs are moved there and the results come back as NumPy arrays and floats (the
+    optimiser's steps, the Jacobian's differences and the 1σ are small and stay on the CPU).
 
     Returns ``pole_lon_deg, pole_lat_deg, period_s, phase_deg``, ``loss`` and
     ``rms_over_noise`` (at the last ``τ``), ``params`` (the family's, ``p`` itself without
@@ -130,6 +133,10 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     nothing held out — when the fitted samples' χ² is above the noise's. Keys ``verdict``,
     ``verdict_why``, ``heldout_chi2``, ``heldout_n``, ``heldout_threshold``."""
     names = param_names(dishes, **parts)
+    try:  # the light curves' and the gradients' device (the optimiser's steps and the 1σ on the CPU)
+        dev = torch.device("cpu" if device is None else device)
+    except (RuntimeError, TypeError) as e:
+        raise FieldError("device", f"expected a torch device such as 'cpu' or 'cuda', got {device!r}") from e
     pt = torch.as_tensor(np.asarray(p, dtype=np.float64))
     if pt.shape != (len(names),):
         raise FieldError("p", f"expected {len(names)} values {names}, got shape {tuple(pt.shape)}")
@@ -143,13 +150,13 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         raise FieldError("period_s", f"expected a non-zero finite period (s), got {period_s!r}")
     if not softness or any(not (float(s) > 0) for s in softness):
         raise FieldError("softness", f"expected positive fractions of the bus size, got {softness!r}")
-    t, y, Si, Oi, sg = _series((times_s, flux, sun, obs, sigma), "flux", "sigma")
+    t, y, Si, Oi, sg = _series((times_s, flux, sun, obs, sigma), "flux", "sigma", dev)
     if heldout is not None and len(heldout) != 5:
         raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
-    held = None if heldout is None else _series(heldout, "heldout", "heldout")
+    held = None if heldout is None else _series(heldout, "heldout", "heldout", dev)
     cds = [n for n in names if n.startswith("cd_")]
-    c = dict(frame=frame, y=y, sigma=sg, cd_idx=torch.as_tensor([names.index(n) for n in cds]),
-             cd_free=torch.as_tensor([n not in fixed for n in cds]),
+    c = dict(frame=frame, y=y, sigma=sg, cd_idx=torch.as_tensor([names.index(n) for n in cds], device=dev),
+             cd_free=torch.as_tensor([n not in fixed for n in cds], device=dev),
              geo=dict(panels=panels, divisions=divisions, **parts,
                       **(dict(dishes=dishes, dish_rings=dish_rings, dish_segments=dish_segments) if dishes else {})))
     span = float(t.max() - t.min()) or 1.0  # ω scaled by the span: one unit turns the last sample by one radian
@@ -160,11 +167,14 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     bool_free = [bool(shape) and f for f in free]  # ... and the fit refines, with shape
     transform = _transform(names)
     z0 = _to_z(pt.numpy(), transform)
-    free_idx = torch.as_tensor(np.flatnonzero(bool_free), dtype=torch.long)
     x0 = np.concatenate([x0, z0.numpy()[bool_free]])
+    pt, z0, scale = pt.to(dev), z0.to(dev), scale.to(dev)
+    transform = tuple(v.to(dev) for v in transform)
+    free_idx = torch.as_tensor(np.flatnonzero(bool_free), dtype=torch.long, device=dev)
     bounds = [(None, None)] * 4 + [LOG_SIZE_BOUNDS if n in SIZE_NAMES else (None, None)
                                    for n, f in zip(names, bool_free) if f]
     bus = float(pt[:3].mean())
+    scale_np = scale.cpu().numpy()
 
     def unpack(x):  # (spin (4,), p)
         return x[:4] * scale, (_to_p(z0.index_put((free_idx,), x[4:]), transform) if len(free_idx) else pt)
@@ -174,10 +184,10 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         return soft_l1((y - _model(sp, q, t, Si, Oi, tau, c)) / sg, huber)
 
     def value_and_grad(x, tau):
-        xt = torch.as_tensor(x, dtype=torch.float64).requires_grad_(True)
+        xt = torch.as_tensor(x, dtype=torch.float64, device=dev).requires_grad_(True)
         f = loss(xt, tau)
         (g,) = torch.autograd.grad(f, xt)
-        return float(f.detach()), g.numpy()
+        return float(f.detach()), g.cpu().numpy()
 
     from scipy.optimize import minimize  # heavy: scipy.optimize
 
@@ -193,15 +203,15 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     spins = []  # the spin after each τ: the last two's difference is the softness term of the 1σ
     for s in softness:
         x = run(x, s * bus, len(x))
-        spins.append((x[:4] * scale.numpy()).copy())
+        spins.append((x[:4] * scale_np).copy())
     tau = float(softness[-1]) * bus
     with torch.no_grad():
-        sp, q = unpack(torch.as_tensor(x))
-        spin = sp.numpy()
+        sp, q = unpack(torch.as_tensor(x, device=dev))
+        spin = sp.cpu().numpy()
         m, a = _model(sp, q, t, Si, Oi, tau, c, albedos=True)
         q = q.index_put((c["cd_idx"],), a)
-        out = dict(loss=float(loss(torch.as_tensor(x), tau)), rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()),
-                   params=q.numpy().copy())
+        out = dict(loss=float(loss(torch.as_tensor(x, device=dev), tau)),
+                   rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()), params=q.cpu().numpy().copy())
     J, r0, J_h, r_h = _jacobians(spin, q, t, Si, Oi, tau, c, free, held)
     from cssat.inversion.spin_errors import verdict_keys  # local: scipy.stats, only for a verdict
 
@@ -235,7 +245,7 @@ def _softness_shift(spins: list[np.ndarray]) -> tuple[float, float]:
     return float(pole), float(abs(2 * math.pi / w1 - 2 * math.pi / w0))
 
 
-def _series(series: Any, field: str, sigma_field: str) -> tuple:
+def _series(series: Any, field: str, sigma_field: str, device: torch.device) -> tuple:
     """``(times_s, flux, sun, obs, sigma)`` checked (``sigma`` None: ones), as ``(t, y, sun, obs,
     sigma)`` arrays and tensors; errors name ``field`` (shapes) or ``sigma_field`` (a 1σ ≤ 0)."""
     t = np.asarray(series[0], dtype=np.float64)
@@ -246,7 +256,7 @@ def _series(series: Any, field: str, sigma_field: str) -> tuple:
                                 f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(S.shape)}, {tuple(O.shape)}")
     if bool((sg <= 0).any()):
         raise FieldError(sigma_field, "expected positive 1σ values")
-    return t, y, S, O, sg
+    return t, y.to(device), S.to(device), O.to(device), sg.to(device)
 
 
 def _jacobians(spin: np.ndarray, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
@@ -255,19 +265,19 @@ def _jacobians(spin: np.ndarray, p: torch.Tensor, t: np.ndarray, Si: torch.Tenso
     their Jacobian ``J (T, 4 + G)`` in the spin and the free geometry of ``p`` (central differences,
     the albedos solved again at each step: the variable projection's), and the same of the
     held-out samples predicted with the fitted samples' albedos (None without ``held``)."""
-    theta = np.concatenate([spin, p.numpy()[free]])
-    idx = torch.as_tensor(np.flatnonzero(free), dtype=torch.long)
+    theta = np.concatenate([spin, p.cpu().numpy()[free]])
+    idx = torch.as_tensor(np.flatnonzero(free), dtype=torch.long, device=p.device)
     steps = np.concatenate([[1e-6, 1e-6, 1e-6, 1e-6 * abs(spin[3])], 1e-6 * np.maximum(np.abs(theta[4:]), 1e-2)])
 
     def residuals(th):
-        q = p.index_put((idx,), torch.as_tensor(th[4:]))
-        x = torch.as_tensor(th[:4])
+        q = p.index_put((idx,), torch.as_tensor(th[4:], device=p.device))
+        x = torch.as_tensor(th[:4], device=p.device)
         m, a = _model(x, q, t, Si, Oi, tau, c, albedos=True)
-        r = ((c["y"] - m) / c["sigma"]).numpy()
+        r = ((c["y"] - m) / c["sigma"]).cpu().numpy()
         if held is None:
             return r, None
         th_, y_h, S_h, O_h, sg_h = held
-        return r, ((y_h - _by_part(x, q, th_, S_h, O_h, tau, c) @ a) / sg_h).numpy()
+        return r, ((y_h - _by_part(x, q, th_, S_h, O_h, tau, c) @ a) / sg_h).cpu().numpy()
 
     with torch.no_grad():
         r0, rh0 = residuals(theta)
