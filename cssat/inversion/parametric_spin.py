@@ -18,13 +18,12 @@ ASSUMPTIONS: the satellite spins uniformly about its body +z (a principal axis);
 frame is that body frame turned so that the bus is on its axes and the panels along ±y (the
 phase ``φ₀`` holds that turn); the start is within the basin of the right pole (a local
 refinement, not a search: a few degrees on the box-wings of ``benchmarks/bench_shadow_fit.py``);
-the 1σ is the curvature's at the minimum ⊕ the move between the last two shadow softnesses —
-measured in its model class only (a box-wing without dishes started 2° off:
-``benchmarks/bench_spin_refine_coverage.py``; on 100 fresh seeds it holds the pole in its 68.27 /
-95.45 % circles on 65.9 / 94.5 % of the 91 reliable, the curvature's alone 58.2 / 90.1 %); a
-neighbouring minimum the held-out night does not tell apart stays possible (5 of 91 reliable poles
-outside the 95.45 % circle, the worst 3.2σ); the period's 1σ under-covers (60 / 90 % within 1σ /
-2σ).
+the 1σ is the curvature's at the minimum ⊕ the move between the last two shadow softnesses and
+is NOT yet calibrated: in its model class (a box-wing without dishes started 2° off,
+``benchmarks/bench_spin_refine_coverage.py``, 200 fresh seeds) it holds the pole in its 68.27 /
+95.45 % circles on 62.8 / 91.8 % of the 183 reliable (the curvature's alone 56.3 / 88.5 %); a
+neighbouring minimum the held-out night does not tell apart stays possible (15 of 183 reliable
+poles outside the 95.45 % circle); the period's 1σ under-covers more (53 / 86 % within 1σ / 2σ).
 """
 
 from __future__ import annotations
