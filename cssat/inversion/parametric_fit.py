@@ -125,15 +125,16 @@ def best_box_wing_yaw(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, s
         R = rot_z(np.array([psi]))[0]
         p0 = box_wing_start(N @ R.T, areas, panels=panels, cd0=cd0)
         loss = 0.0
-        if len(yaws) > 1 and brief:
-            loss = fit_box_wing(y, S0 @ R.T, V0 @ R.T, p0, sigma=sigma, outer=1, inner=brief, panels=panels,
-                                divisions=divisions)[1]["loss"]
-        elif len(yaws) > 1:
+        if len(yaws) > 1:  # the Sun and observer turned alike
             S, V = S0 @ R.T, V0 @ R.T
-            m = box_wing_light_curve(torch.as_tensor(p0), S, V,
-                                     box_wing_visibility(p0, S, V, panels=panels, divisions=divisions),
-                                     range_km=1e-3, irradiance=1.0, panels=panels, divisions=divisions).numpy()
-            loss = float(np.sum(((y - m) / (1.0 if sigma is None else sigma)) ** 2))
+            if brief:
+                loss = fit_box_wing(y, S, V, p0, sigma=sigma, outer=1, inner=brief, panels=panels,
+                                    divisions=divisions)[1]["loss"]
+            else:
+                m = box_wing_light_curve(torch.as_tensor(p0), S, V,
+                                         box_wing_visibility(p0, S, V, panels=panels, divisions=divisions),
+                                         range_km=1e-3, irradiance=1.0, panels=panels, divisions=divisions).numpy()
+                loss = float(np.sum(((y - m) / (1.0 if sigma is None else sigma)) ** 2))
         if best is None or loss < best[0]:
             best = (loss, psi, p0)
     return best[1], best[2]

@@ -159,21 +159,20 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
              geo=dict(panels=panels, divisions=divisions, **parts,
                       **(dict(dishes=dishes, dish_rings=dish_rings, dish_segments=dish_segments) if dishes else {})))
     span = float(t.max() - t.min()) or 1.0  # ω scaled by the span: one unit turns the last sample by one radian
-    scale = torch.as_tensor([1.0, 1.0, 1.0, 1.0 / span], dtype=torch.float64)
+    scale_np = np.array([1.0, 1.0, 1.0, 1.0 / span])
     x0 = np.array([math.radians(pole_lon_deg), math.radians(pole_lat_deg), math.radians(phase_deg),
-                   2 * math.pi / period_s]) / scale.numpy()
+                   2 * math.pi / period_s]) / scale_np
     free = [n not in fixed and not n.startswith("cd_") for n in names]  # the geometry the 1σ marginalises
     bool_free = [bool(shape) and f for f in free]  # ... and the fit refines, with shape
     transform = _transform(names)
     z0 = _to_z(pt.numpy(), transform)
     x0 = np.concatenate([x0, z0.numpy()[bool_free]])
-    pt, z0, scale = pt.to(dev), z0.to(dev), scale.to(dev)
+    pt, z0, scale = pt.to(dev), z0.to(dev), torch.as_tensor(scale_np, device=dev)
     transform = tuple(v.to(dev) for v in transform)
     free_idx = torch.as_tensor(np.flatnonzero(bool_free), dtype=torch.long, device=dev)
     bounds = [(None, None)] * 4 + [LOG_SIZE_BOUNDS if n in SIZE_NAMES else (None, None)
                                    for n, f in zip(names, bool_free) if f]
     bus = float(pt[:3].mean())
-    scale_np = scale.cpu().numpy()
 
     def unpack(x):  # (spin (4,), p)
         return x[:4] * scale, (_to_p(z0.index_put((free_idx,), x[4:]), transform) if len(free_idx) else pt)

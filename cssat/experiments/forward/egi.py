@@ -220,9 +220,10 @@ class EGILightCurve(ForwardModel):
 def _attitude_line(m: dict[str, Any]) -> str:
     """The attitude found, from the metrics: the spin's pole and period, the tumbler's ``L`` and
     periods (each with its 1σ, reduced χ² and verdict), or "attitude known (oracle)"."""
-    verdict = m.get("spin_verdict", m.get("tumble_verdict"))
-    tail = f", {verdict}" if verdict else ""
-    tail += " (no 1σ)" if verdict == "unreliable" else ""
+    def said(verdict: Any) -> str:  # ", reliable" or ", unreliable (no 1σ)"; nothing without a verdict
+        return (f", {verdict}" + (" (no 1σ)" if verdict == "unreliable" else "")) if verdict else ""
+
+    tail = said(m.get("spin_verdict", m.get("tumble_verdict")))
 
     def pm(key: str, unit: str) -> str:  # "± 1σ", or nothing where it is withheld (an unreliable fit)
         v = m.get(key)
@@ -231,10 +232,9 @@ def _attitude_line(m: dict[str, Any]) -> str:
     if m.get("spin") == "search":
         refined = ""
         if m.get("parametric_spin_pole_lon_deg") is not None:  # inversion.parametric.refine_spin
-            v = m["parametric_spin_verdict"]
             refined = (f"; through the shadowed box-wing ({m['parametric_spin_pole_lon_deg']:.2f}°, "
-                       f"{m['parametric_spin_pole_lat_deg']:.2f}°){pm('parametric_spin_pole_err_deg', '°')}, {v}"
-                       f"{' (no 1σ)' if v == 'unreliable' else ''}")
+                       f"{m['parametric_spin_pole_lat_deg']:.2f}°){pm('parametric_spin_pole_err_deg', '°')}"
+                       f"{said(m['parametric_spin_verdict'])}")
         return (f"spin pole ({m['spin_pole_lon_deg']:.2f}°, {m['spin_pole_lat_deg']:.2f}°){pm('spin_pole_err_deg', '°')}, "
                 f"period {m['spin_period_s']:.6f}{pm('spin_period_err_s', '')} s, reduced χ² {m['spin_reduced_chi2']:.3g}"
                 f"{', ambiguous' if m['spin_ambiguous'] else ''}{tail}{refined}")

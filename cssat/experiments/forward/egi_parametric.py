@@ -49,7 +49,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, sigma=None if sigma is None else sigma[fit],
                            outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness,
                            albedos=o.albedos, fixed=("cd_bus",) if o.albedo_prior else (), **geo)
-    if o.refine_spin and searched and a.sol is not None and hasattr(a.sol, "pole_lon_deg"):
+    if o.refine_spin and searched:  # a searched spin: a.sol is its SpinSolution
         p, R, S, V, refined = _refine_spin(o, m, a, p, psi)
         info = dict(info, params=dict(zip(info["params"], map(float, p))))
         sol.metrics.update(refined)
