@@ -49,7 +49,7 @@ nominal ones (**all fitted from the true geometry**: the fit without the start's
 ``booms``, ``deck``, ``dish_pair``) with each truth's parts given (``Truth.fine``, a topology oracle
 as the dish count is; known for ``astra_defunct`` — four panels a wing on yokes, a mirror pair of
 dishes — and the two platforms), by :func:`fit_fine`: the EGI start and the box-wing without
-dishes as above, then :func:`fine_starts` (generic fractions of the fitted bus and wing, the dishes
+dishes as above, then :func:`cssat.inversion.parametric_parts.part_starts` (generic fractions of the fitted bus and wing, the dishes
 at the generic placements) each fitted briefly, the best in full → the **fine, from the EGI** row;
 the oracle rows **fine: true geometry, albedos fitted** and **fine: all fitted from the true
 geometry**. What the finer family leaves out: the Astra-like's telemetry plate, the b702's tower
@@ -58,7 +58,7 @@ dish and engine, the spacebus's omni mast.
 With ``--family fine`` also: ``--albedos profile`` (:func:`~cssat.inversion.parametric_fit.fit_box_wing`'s
 albedos solved by bounded least squares at every evaluation instead of fitted by gradient),
 ``--albedo-prior`` (the bus albedo held at ``CD0`` = 0.3 after the no-dish fit, its start
-rescaled by :func:`with_albedo_prior`: the family's one exactly flat direction — every length × s,
+rescaled by :func:`cssat.inversion.parametric_parts.with_albedo_prior`: the family's one exactly flat direction — every length × s,
 every albedo ÷ s² — fixed by a prior, so the absolute size and the raw IoU rest on it; for the
 ``uniform`` truths that prior is their true albedo, for ``materials`` 0.3 against the bus's 0.35),
 ``--fine-pairs`` (a free dish pair: the 3 × 3 combinations of the generic placements),
@@ -266,20 +266,6 @@ def simulate(mesh: Any, geo: Geometry, floor: float, seed: int) -> tuple[np.ndar
     return y, sigma, clean
 
 
-def _dish_starts(p9: np.ndarray, dishes: int) -> list[tuple[str, np.ndarray]]:
-    """Generic dish placements on the fitted bus (module docstring): ``(label, p (17,))``."""
-    a, b, c = p9[:3]
-    r = 0.6 * float(np.mean(p9[:3]))
-    depth, cd = 0.3 * r, CD0
-    if dishes == 1:
-        spots = {"+z face": (0, 0, c, 0.0, 0.0), "-z face": (0, 0, -c, math.pi, 0.0),
-                 "+x face": (a, 0, 0, math.pi / 2, 0.0), "-x face": (-a, 0, 0, math.pi / 2, math.pi)}
-    else:  # a pair mirrored through the y-z plane
-        spots = {"±x faces, out": (a, 0, 0, math.pi / 2, 0.0), "±x edges, +z": (a + 0.5 * r, 0, 0, 0.0, 0.0),
-                 "±x edges, -z": (a + 0.5 * r, 0, 0, math.pi, 0.0)}
-    return [(k, np.r_[p9, v, r, depth, cd]) for k, v in spots.items()]
-
-
 def _family_kw(dishes: int, divisions: int, parts: dict | None = None) -> dict:
     """The family's keywords (two panels, the functions' default): ``dishes`` with the benchmark's
     dish cells, or the finer ``parts``."""
@@ -352,6 +338,7 @@ def fit_truth(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, 
     from cssat.inversion import invert_convex
     from cssat.inversion.parametric import PARAM_NAMES, param_names
     from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
+    from cssat.inversion.parametric_parts import dish_starts
 
     tr = truth(name, surface) if mesh is None else mesh
     st = dict(FIT, **(fit_settings or {}))
@@ -382,7 +369,7 @@ def fit_truth(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, 
         out = [(f"no dishes{tag}", 0, p_nd, info_nd, time.process_time() - c0, "EGI")]
         if dish_fit and tr.dishes:
             best = None
-            for label, ps in _dish_starts(p_nd, tr.dishes):
+            for label, ps in dish_starts(p_nd, tr.dishes, cd0=CD0):
                 if albedos is not None:
                     ps[-1] = albedos[2]
                 p_s, info_s = family_fit(ps, tr.dishes, outer=2, inner=20, fixed=fixed)
@@ -427,49 +414,6 @@ def _scored(name: str, surface: str, tr: Truth, geo: Geometry, y: np.ndarray, si
                 params=info["params"], nominal=nominal, note=tr.note)
 
 
-def fine_starts(p9: np.ndarray, parts: dict, flip: bool = False, pairs: bool = False) -> list[tuple[str, np.ndarray]]:
-    """Starts of the finer family (``parts``) from a fitted box-wing ``p9 (9,)``: each wing's
-    length split into ``wing_panels`` panels with gaps of 2 % of it; booms of side 5 % of the bus's
-    mean half-size; a deck box of a third of the bus's half-sizes and a fifth of its height; the
-    dishes at :func:`_dish_starts`' generic placements (a free pair starting as mirror images; with
-    ``flip`` each placement also with its dishes' axes reversed, the concave side the other way).
-    With ``pairs`` and a free pair (``dish_pair="free"``), every combination of placements instead:
-    the first dish at one, the second at another's mirror image (3 × 3 starts).
-    Generic fractions, the same for every truth: ``(label, p)``."""
-    from cssat.inversion.parametric import param_names
-
-    if flip and pairs:
-        raise ValueError("fine_starts: flip and pairs together are not defined (choose one)")
-    a, b, c, L, W = p9[:5]
-    n, dishes = parts.get("wing_panels", 1), parts.get("dishes", 0)
-    g0 = 0.02 * L
-    base = dict(zip(param_names(), map(float, p9)), length=(L - (n - 1) * g0) / n if n > 1 else L, panel_gap=g0,
-                boom_width=0.05 * float(np.mean(p9[:3])), deck_a=a / 3, deck_b=b / 3, deck_h=2 * c / 5)
-    names = param_names(**parts)
-    out = []
-    for label, p17 in (_dish_starts(p9, dishes) if dishes else [("no dishes", np.asarray(p9))]):
-        q = dict(base, **dict(zip(param_names(dishes), map(float, p17))))
-        q["length"] = base["length"]
-        if dishes:  # the first dish's mirror image: vertex (-x, y, z), axis (-a_x, a_y, a_z), i.e. azimuth pi - phi
-            q.update({f"dish2_{k}": q[f"dish_{k}"] for k in ("y", "z", "tilt", "radius", "depth")},
-                     dish2_x=-q["dish_x"], dish2_azimuth=math.pi - q["dish_azimuth"])
-        out.append((label, np.array([q[k] for k in names])))
-        if pairs and parts.get("dish_pair") == "free":
-            out.pop()
-            for label2, p2 in _dish_starts(p9, dishes):
-                d2 = dict(zip(param_names(dishes), map(float, p2)))
-                q.update({f"dish2_{k}": d2[f"dish_{k}"] for k in ("y", "z", "tilt", "radius", "depth")},
-                         dish2_x=-d2["dish_x"], dish2_azimuth=math.pi - d2["dish_azimuth"])
-                out.append((f"{label}; {label2}", np.array([q[k] for k in names])))
-        if flip and dishes:
-            for pre in ("dish", "dish2"):
-                if f"{pre}_tilt" in q:
-                    q[f"{pre}_tilt"] = math.pi - q[f"{pre}_tilt"]
-                    q[f"{pre}_azimuth"] = q[f"{pre}_azimuth"] + math.pi
-            out.append((label + ", flipped", np.array([q[k] for k in names])))
-    return out
-
-
 def search_starts(p9: np.ndarray, parts: dict, n: int, seed: int = 0) -> list[tuple[str, np.ndarray]]:
     """``n`` random starts of the finer family (``parts``) about a fitted box-wing ``p9 (9,)``, for a
     global search (:func:`fit_fine`'s ``search``): the bus's half-sizes and the wing's length and
@@ -479,13 +423,14 @@ def search_starts(p9: np.ndarray, parts: dict, n: int, seed: int = 0) -> list[tu
     ``U(0.4, 0.9)`` × the bus's mean half-size, depth 0.3 × radius, ``cd_dish`` ``CD0 × exp(N(0,
     0.3²))`` (a free pair: the second dish drawn the same way, independently); the deck's half-sizes
     ``U(0.2, 0.5)`` of the bus's and height ``U(0.1, 0.5)`` × ``2c``; gaps and booms as
-    :func:`fine_starts`. ``cd_bus`` is kept (the albedo prior, if it is held). Reproducible by
+    :func:`~cssat.inversion.parametric_parts.part_starts`. ``cd_bus`` is kept (the albedo prior, if it is held). Reproducible by
     ``seed``: ``(label, p)``."""
     from cssat.inversion.parametric import param_names
+    from cssat.inversion.parametric_parts import part_starts
 
     rng = np.random.default_rng(seed)
     names = param_names(**parts)
-    base = dict(zip(names, map(float, fine_starts(p9, parts)[0][1])))
+    base = dict(zip(names, map(float, part_starts(p9, parts, cd0=CD0)[0][1])))
     out = []
 
     def ln(s):  # a log-normal factor
@@ -522,23 +467,6 @@ def search_starts(p9: np.ndarray, parts: dict, n: int, seed: int = 0) -> list[tu
     return out
 
 
-def with_albedo_prior(p: np.ndarray, names: tuple, cd_bus: float = CD0) -> np.ndarray:
-    """``p`` rescaled so that its bus albedo is ``cd_bus`` with the same light curve: every length
-    times ``s = sqrt(cd/cd_bus)``, every albedo over ``s²`` (flux is albedo × area; the shadows are
-    scale-free), the other albedos clipped at 1. The family's one exactly flat direction fixed by
-    an albedo prior."""
-    from cssat.inversion.parametric_fit import SIZE_NAMES
-
-    q = dict(zip(names, map(float, p)))
-    s2 = q["cd_bus"] / cd_bus
-    for k in q:
-        if k in SIZE_NAMES or k == "gap" or k.endswith(("_x", "_y", "_z")):
-            q[k] *= math.sqrt(s2)
-        elif k.startswith("cd_"):
-            q[k] = min(q[k] / s2, 1.0)
-    return np.array([q[k] for k in names])
-
-
 def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, surface: str = "materials",
              n_normals: int = 500, fit_settings: dict | None = None, oracle: bool = True, n_points: int = 100_000,
              flip: bool = False, brief_divisions: int | None = None, keep: int = 1, search: int = 0,
@@ -546,15 +474,15 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
              fit_geo: Geometry | None = None, to_fit: np.ndarray | None = None) -> dict:
     """The finer family (the truth's ``Truth.fine`` parts given: a topology oracle, as the dish
     count is in :func:`fit_truth`) on one truth: **fine, from the EGI** — the EGI start, the
-    box-wing without dishes fitted (:func:`fit_truth`'s first stage), then each of
-    :func:`fine_starts` fitted briefly (``outer`` 2, ``inner`` 20; at ``brief_divisions`` cells when
+    box-wing without dishes fitted (:func:`fit_truth`'s first stage), then
+    :func:`cssat.inversion.parametric_parts.fit_parts`: each of its starts fitted briefly (``outer`` 2, ``inner`` 20; at ``brief_divisions`` cells when
     given; with ``flip`` each dish start also with its axis reversed), the ``keep`` best by their
     fit-night loss fitted in full, the best of those kept. ``search`` > 0: a global search instead —
     :func:`search_starts`' ``search`` random starts and the generic ones, each fitted briefly with the
     cast visibility (cheap: no soft shadows; ``outer, inner = brief_iters``, at ``brief_divisions`` or 2
     cells), the ``keep`` best in full. ``prior``: the bus albedo held at ``CD0`` (the start rescaled
-    by :func:`with_albedo_prior`), fixing the family's flat size–albedo direction. ``pairs``:
-    :func:`fine_starts`'. With ``oracle``: **fine: true geometry, albedos fitted** (what this family can
+    by :func:`~cssat.inversion.parametric_parts.with_albedo_prior`), fixing the family's flat size–albedo direction. ``pairs``:
+    :func:`~cssat.inversion.parametric_parts.part_starts`'. With ``oracle``: **fine: true geometry, albedos fitted** (what this family can
     reach on the truth) and **fine: all fitted from the true geometry**. Rows as :func:`fit_truth`'s.
     ``fit_geo``: the samples in another body frame than the truth's (an estimated spin's, e.g.
     ``benchmarks/bench_shadow_spin.py``), fitted and scored there; ``to_fit (3, 3)`` turns the true
@@ -562,6 +490,7 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     from cssat.inversion import invert_convex
     from cssat.inversion.parametric import param_names
     from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
+    from cssat.inversion.parametric_parts import fit_parts, part_starts, with_albedo_prior
 
     tr = truth(name, surface)
     if tr.fine is None:
@@ -588,24 +517,18 @@ def fit_fine(name: str, geo: Geometry, *, seed: int = 0, floor: float = 0.015, s
     p_nd, _ = run(box_wing_start(egi.normals, egi.areas, panels=2, cd0=CD0), fine=False)
     held = ["cd_bus"] if prior else []
     if prior:
-        p_nd = with_albedo_prior(p_nd, param_names())
-    starts = fine_starts(p_nd, parts, flip=flip, pairs=pairs)
+        p_nd = with_albedo_prior(p_nd, param_names(), cd_bus=CD0)
+    starts = part_starts(p_nd, parts, flip=flip, pairs=pairs, cd0=CD0)
     brief = dict(outer=2, inner=20, **({"divisions": brief_divisions} if brief_divisions else {}))
     if search:
         starts += search_starts(p_nd, parts, search, seed=seed)
         brief = dict(outer=brief_iters[0], inner=brief_iters[1], divisions=brief_divisions or 2, visibility="cast")
-    briefs = []
-    for label, ps in starts:
-        p_s, info_s = run(ps, fixed=held, **brief)
-        briefs.append((info_s["loss"], label, p_s))
-    briefs.sort(key=lambda b: b[0])
-    print(f"{name} {surface}: {len(briefs)} brief fits, {time.process_time() - c0:.0f} CPU-s so far; the best: "
-          + ", ".join(f"{lab} {loss:.3f}" for loss, lab, _ in briefs[:4]), file=sys.stderr, flush=True)
-    fulls = []
-    for _, label, p_s in briefs[:keep]:
-        p_f, info_f = run(p_s, fixed=held)
-        fulls.append((info_f["loss"], label, p_f, info_f))
-    _, label, p_f, info_f = min(fulls, key=lambda f: f[0])
+    cells = {k: v for k, v in fkw.items() if k not in parts}
+    p_f, info_f = fit_parts(y[fit], S, V, p_nd, parts, sigma=sigma[fit], starts=starts, brief=brief, keep=keep,
+                            panels=2, fixed=held, **dict(st, **cells))
+    print(f"{name} {surface}: {len(starts)} brief fits; the best: "
+          + ", ".join(f"{lab} {loss:.3f}" for lab, loss in info_f["briefs"][:4]), file=sys.stderr, flush=True)
+    label = info_f["start"]
     rows.append(("fine, from the EGI", p_f, info_f, time.process_time() - c0, f"EGI, then the parts at {label}"))
     if oracle:
         nom = np.array(list(true_params.values()))

@@ -90,6 +90,7 @@ def spin_fine_row(name: str, geo: B.Geometry, *, seed: int = 0, floor: float = 0
     from cssat.inversion import estimate_spin, invert_convex
     from cssat.inversion.parametric import param_names
     from cssat.inversion.parametric_fit import box_wing_start, fit_box_wing
+    from cssat.inversion.parametric_parts import with_albedo_prior
     from cssat.inversion.parametric_spin import refine_spin
     from cssat.inversion.spin_errors import separation_deg
     from cssat.models.egi.config import InversionConfig
@@ -133,7 +134,7 @@ def spin_fine_row(name: str, geo: B.Geometry, *, seed: int = 0, floor: float = 0
     st = dict(B.FIT, visibility="soft", albedos="profile")
     p_nd, _ = fit_box_wing(y[fit], g.sun[fit], g.observer[fit], box_wing_start(egi.normals, egi.areas, panels=2, cd0=B.CD0),
                            sigma=sigma[fit], panels=2, **st)
-    refine(B.with_albedo_prior(p_nd, param_names()), param_names(), dict(divisions=B.FIT["divisions"]), "box-wing")
+    refine(with_albedo_prior(p_nd, param_names(), cd_bus=B.CD0), param_names(), dict(divisions=B.FIT["divisions"]), "box-wing")
     res = B.fit_fine(name, geo, seed=seed, floor=floor, surface=surface, oracle=False, prior=True,
                      fit_settings=dict(visibility="soft", albedos="profile"), fit_geo=spin_geometry(geo, *spin),
                      to_fit=to_frame(geo, *spin))

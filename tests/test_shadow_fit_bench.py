@@ -100,6 +100,7 @@ def test_the_finer_familys_truth_parameters_are_the_meshes_parts(name):
     import bench_shadow_fit as bench
 
     from cssat.inversion.parametric import box_wing_mesh, param_names
+    from cssat.inversion.parametric_parts import part_starts
 
     def prism(r, length, n):
         return n * r**2 * math.sin(2 * math.pi / n) / 2 * length
@@ -115,45 +116,7 @@ def test_the_finer_familys_truth_parameters_are_the_meshes_parts(name):
     if name != "astra_defunct":  # the platforms' wings are the facets of the cells' albedo
         assert t.mesh.areas[t.mesh.cd == 0.1].sum() == pytest.approx(true_wing, rel=1e-9)
     p9 = np.array([1.0, 1.0, 1.5, 8.0, 2.0, 0.3, 1.0, 0.3, 0.3])
-    for _, p in bench.fine_starts(p9, parts):
+    for _, p in part_starts(p9, parts):
         q = dict(zip(param_names(**parts), p))
         n = parts["wing_panels"]
         assert n * q["length"] + (n - 1) * q["panel_gap"] == pytest.approx(8.0, rel=1e-12)
-
-
-def test_the_albedo_prior_rescale_keeps_the_shadowed_light_curve():
-    """``with_albedo_prior``: every length times s and every albedo over s² gives the same light
-    curve at the same visibility, and Embree casts the same visibility at both scales (the
-    family's exact size–albedo degeneracy), with the bus albedo at the prior; the free pair's paired starts hold every
-    combination of the generic placements, the diagonal the mirror starts."""
-    import torch
-
-    import bench_shadow_fit as bench
-
-    from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
-
-    parts = dict(dishes=2, dish_pair="free", wing_panels=3, booms=True, deck=True)
-    names = param_names(**parts)
-    p9 = np.array([1.1, 1.0, 2.3, 1.9, 2.2, -0.7, 1.2, 0.45, 0.2])
-    p = bench.fine_starts(p9, parts)[0][1]
-    q = bench.with_albedo_prior(p, names, cd_bus=0.3)
-    s = math.sqrt(0.45 / 0.3)
-    assert dict(zip(names, q))["cd_bus"] == pytest.approx(0.3, rel=1e-12)
-    assert dict(zip(names, q))["a"] == pytest.approx(1.1 * s, rel=1e-12)
-    rng = np.random.default_rng(0)
-    S, V = rng.normal(size=(60, 3)), rng.normal(size=(60, 3))
-    S, V = S / np.linalg.norm(S, axis=1)[:, None], V / np.linalg.norm(V, axis=1)[:, None]
-    kw = dict(divisions=2, dish_rings=4, dish_segments=16, **parts)
-    vis = [box_wing_visibility(x, S, V, **kw) for x in (p, q)]
-    # the cast agrees but where a cell's centroid lies on another part's face (the deck on the bus): Embree's
-    # ray offset is absolute, so there the grazing ray's verdict depends on the scale
-    assert float((vis[0] == vis[1]).double().mean()) > 0.999
-    y = [box_wing_light_curve(torch.as_tensor(x), S, V, vis[0], range_km=1e-3, irradiance=1.0, **kw).numpy()
-         for x in (p, q)]
-    np.testing.assert_allclose(y[1], y[0], rtol=1e-10)
-    paired = bench.fine_starts(p9, parts, pairs=True)
-    plain = bench.fine_starts(p9, parts)
-    assert len(paired) == 9 and len(plain) == 3
-    for k in range(3):
-        np.testing.assert_array_equal(paired[4 * k][1], plain[k][1])
-    assert len({tuple(x) for _, x in paired}) == 9
