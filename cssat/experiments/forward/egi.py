@@ -210,10 +210,11 @@ class EGILightCurve(ForwardModel):
 
     def headline(self, metrics: dict[str, Any], run: Run) -> str:
         typ = metrics.get("heldout_typical_over_noise")
-        return ("inversion: {} samples over {} nights, {}{}, EGI {} normals, held-out rms {}× noise{}".format(
+        shape = {"parts": ", the box-wing with its parts", "plain": ", the box-wing"}.get(metrics.get("parametric_family"), "")
+        return ("inversion: {} samples over {} nights, {}{}, EGI {} normals{}, held-out rms {}× noise{}".format(
             metrics["n_samples"], metrics["n_nights_observed"], _attitude_line(metrics),
             f", pole error {metrics['pole_error_deg']:.2f}°" if "pole_error_deg" in metrics else "",
-            metrics["egi_n_normals"], f"{metrics['heldout_rms_over_noise']:.2f}" if metrics.get("heldout_rms_over_noise") else "-",
+            metrics["egi_n_normals"], shape, f"{metrics['heldout_rms_over_noise']:.2f}" if metrics.get("heldout_rms_over_noise") else "-",
             f" (typical sample {typ:.2f}×)" if typ is not None else ""))
 
 

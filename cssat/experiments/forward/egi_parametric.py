@@ -2,7 +2,9 @@
 a box-wing (:mod:`cssat.inversion.parametric`) fitted through its Embree-shadowed light
 curve, started from the convex EGI (in a searched spin's frame, turned about the pole first so
 that the EGI's panels lie along ±y: :func:`~cssat.inversion.parametric_fit.box_wing_yaw`,
-``inversion.parametric.yaw``); its prediction of the held-out nights replaces the convex
+``inversion.parametric.yaw``), then — with ``inversion.parametric.dishes``, ``wing_panels``, ``booms``,
+``deck`` — the finer family from it (:func:`~cssat.inversion.parametric_parts.fit_parts`: the
+parts at generic places, each start fitted briefly, the best in full); its prediction of the held-out nights replaces the convex
 one in the headline metrics (the convex one kept as ``convex_*``), its mesh written as
 ``shape_parametric.obj`` and scored by volume IoU against the true mesh (``shape_iou_true``)."""
 
@@ -33,11 +35,11 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
     from cssat.inversion.parametric_fit import best_box_wing_yaw, box_wing_yaw, fit_box_wing  # heavy: torch
+    from cssat.inversion.parametric_parts import fit_parts  # heavy: torch
     from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
 
     res, fit, held, sigma, y = sol.res, m.fit, m.held, m.sigma, m.y
-    geo = dict(panels=o.panels, divisions=o.divisions)
-    kw = dict(range_km=1e-3, irradiance=1.0, **geo)
+    geo = dict(panels=o.panels, divisions=o.divisions)  # the plain box-wing's
     searched = a.metrics.get("spin") == "search"  # z on the pole, the phase about it arbitrary: the panels' axis unknown
     yaws = box_wing_yaw(res.normals, res.areas, panels=o.panels) if o.yaw == "egi" or (o.yaw == "auto" and searched) \
         else (0.0,)
@@ -46,11 +48,23 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
                                 None if sigma is None else sigma[fit], yaws=yaws, cd0=o.cd0, brief=o.yaw_brief, **geo)
     R = rot_z(np.array([psi]))[0]  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
     S, V = a.sun_b @ R.T, a.obs_b @ R.T
-    p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, sigma=None if sigma is None else sigma[fit],
-                           outer=o.outer, inner=o.inner, huber=o.huber, visibility=o.visibility, softness=o.softness,
-                           albedos=o.albedos, fixed=("cd_bus",) if o.albedo_prior else (), **geo)
+    fit_kw = dict(sigma=None if sigma is None else sigma[fit], outer=o.outer, inner=o.inner, huber=o.huber,
+                  visibility=o.visibility, softness=o.softness, albedos=o.albedos,
+                  fixed=("cd_bus",) if o.albedo_prior else ())
+    p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, **fit_kw, **geo)
+    parts, family, start = o.parts(), "plain", None
+    if parts:  # the finer family from the plain fit: its parts at generic places, each fitted briefly, the best in full
+        q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, **fit_kw,
+                          **{k: v for k, v in o.family().items() if k not in parts})
+        if qi["loss"] <= info["loss"]:  # it holds the plain box-wing (parts shrunk away): a higher loss is a local minimum
+            p, info, family, start, geo = q, qi, "parts", qi["start"], o.family()
+        else:
+            log.warning("inversion.parametric: the finer family %s ended above the plain box-wing's loss (%.4g > %.4g, "
+                        "a local minimum from its %d starts): the plain box-wing is kept", parts, qi["loss"],
+                        info["loss"], len(qi["briefs"]))
+    kw = dict(range_km=1e-3, irradiance=1.0, **geo)
     if o.refine_spin and searched:  # a searched spin: a.sol is its SpinSolution
-        p, R, S, V, refined = _refine_spin(o, m, a, p, psi)
+        p, R, S, V, refined = _refine_spin(o, m, a, p, psi, geo)
         info = dict(info, params=dict(zip(info["params"], map(float, p))))
         sol.metrics.update(refined)
     elif o.refine_spin:
@@ -74,11 +88,14 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_over_noise=rh / nh if nh and held.any() else None,
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
-              parametric_yaw_deg=float(np.degrees(psi)), **{f"parametric_{k}": v for k, v in info["params"].items()})
+              parametric_yaw_deg=float(np.degrees(psi)), parametric_family=family,
+              parametric_parts_start=start,
+              **{f"parametric_{k}": v for k, v in info["params"].items()})
 
 
-def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float) -> tuple:
-    """The searched spin refined with the box-wing ``p`` fitted in its frame turned by ``ψ``
+def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict) -> tuple:
+    """The searched spin refined with the box-wing ``p`` (its ``family``'s keywords: panels, cells,
+    parts) fitted in its frame turned by ``ψ``
     (:func:`~cssat.inversion.parametric_spin.refine_spin`, ``shape=True``; the held-out nights its
     verdict): ``(p, R, S, V, metrics)`` — the refined family, the turn ``R (3, 3)`` from the searched
     spin's body frame to the refined one at the first sample (vectors ``v @ R.T``), the body-frame Sun
@@ -90,8 +107,7 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float) -> tuple:
     ho = None if sigma is None or not held.any() else (m.t[held], m.y[held], m.sun_in[held], m.obs_in[held], sigma[held])
     r = refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], p, sp.pole_lon_deg, sp.pole_lat_deg, sp.period_s,
                     float(np.degrees(psi)), sigma=None if sigma is None else sigma[fit], frame=sp.frame,
-                    fixed=("cd_bus",) if o.albedo_prior else (), shape=True, heldout=ho, huber=o.huber,
-                    panels=o.panels, divisions=o.divisions)
+                    fixed=("cd_bus",) if o.albedo_prior else (), shape=True, heldout=ho, huber=o.huber, **family)
     frames = spin_frame(m.t, r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], sp.frame)
     keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "phase_deg", "pole_err_deg", "period_err_s", "formal_pole_err_deg",
             "formal_period_err_s", "softness_pole_shift_deg", "softness_period_shift_s", "rms_over_noise", "verdict",

@@ -99,6 +99,20 @@ class ParametricConfig:
     #: hold the bus albedo at cd0: the absolute size then comes from that prior (scaling every length by s and every
     #: albedo by 1/s² gives the same light curve, shadows included)
     albedo_prior: bool = False
+    #: the finer family (cssat.inversion.parametric_parts.fit_parts, after the plain box-wing): reflector dishes
+    #: 0 | 1 | 2 on the bus (a topology given, not searched)
+    dishes: int = 0
+    #: with 2 dishes: mirror (mirror images through the y-z plane) | free (the second dish its own place and size)
+    dish_pair: str = "mirror"
+    #: panels a wing (1-32; more than one: separated by a fitted gap)
+    wing_panels: int = 1
+    #: a square boom from the bus to each wing's root
+    booms: bool = False
+    #: an Earth-deck box on the bus's +z face
+    deck: bool = False
+    #: a dish's cells: rings x segments (the benchmarks' 4 x 16; each cell has its own ray-cast visibility)
+    dish_rings: int = 4
+    dish_segments: int = 16
 
     def __post_init__(self) -> None:
         self.panels = int_param(self.panels, "inversion.parametric.panels", 1, 2)
@@ -114,6 +128,32 @@ class ParametricConfig:
         self.albedos = choice_param(self.albedos, "inversion.parametric.albedos", ("fit", "profile"))
         self.albedo_prior = bool_param(self.albedo_prior, "inversion.parametric.albedo_prior")
         self.refine_spin = bool_param(self.refine_spin, "inversion.parametric.refine_spin")
+        self.dishes = int_param(self.dishes, "inversion.parametric.dishes", 0, 2)
+        self.dish_pair = choice_param(self.dish_pair, "inversion.parametric.dish_pair", ("mirror", "free"))
+        if self.dish_pair == "free" and self.dishes != 2:
+            raise FieldError("inversion.parametric.dish_pair", f"'free' needs inversion.parametric.dishes=2, got {self.dishes}")
+        self.wing_panels = int_param(self.wing_panels, "inversion.parametric.wing_panels", 1, 32)
+        self.booms = bool_param(self.booms, "inversion.parametric.booms")
+        self.deck = bool_param(self.deck, "inversion.parametric.deck")
+        self.dish_rings = int_param(self.dish_rings, "inversion.parametric.dish_rings", 1, 64)
+        self.dish_segments = int_param(self.dish_segments, "inversion.parametric.dish_segments", 3, 256)
+
+    def parts(self) -> dict[str, Any]:
+        """The finer family's parts asked for (:func:`~cssat.inversion.parametric.param_names`'
+        keywords), only those away from the plain box-wing: ``{}`` for the plain one."""
+        out: dict[str, Any] = {}
+        if self.dishes:
+            out.update(dishes=self.dishes, **({"dish_pair": "free"} if self.dish_pair == "free" else {}))
+        if self.wing_panels > 1:
+            out["wing_panels"] = self.wing_panels
+        out.update({k: True for k in ("booms", "deck") if getattr(self, k)})
+        return out
+
+    def family(self) -> dict[str, Any]:
+        """The keywords of the family's functions (``box_wing_*``, ``fit_box_wing``, ``refine_spin``):
+        ``panels``, ``divisions``, the parts and, with dishes, their cells."""
+        cells = dict(dish_rings=self.dish_rings, dish_segments=self.dish_segments) if self.dishes else {}
+        return dict(panels=self.panels, divisions=self.divisions, **self.parts(), **cells)
 
 
 @dataclass
