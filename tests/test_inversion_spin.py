@@ -194,6 +194,13 @@ def test_the_experiment_inverts_its_own_light_curve_file(tmp_path, inversion_sim
     assert 0.5 < ea["areas"].sum() / ea["true_areas"].sum() < 2.0, (ea["areas"].sum(), ea["true_areas"].sum())
     saved = json.loads((tmp_path / "obs" / "metrics.json").read_text())
     assert saved["status"] == "ok" and "pole_error_deg" not in saved
+    # what the true mesh reaches on the held-out night: its noiseless curve against the data, recomputed here
+    held = ~ea["fit"].astype(bool)
+    true_rms = float(np.sqrt(np.mean((ea["flux"] - ea["clean"])[held] ** 2)))
+    assert a["true_heldout_rms"] == pytest.approx(true_rms, rel=1e-9)
+    assert a["true_heldout_rms_over_noise"] == pytest.approx(true_rms / np.sqrt(np.mean(ea["sigma"][held] ** 2)), rel=1e-9)
+    assert a["heldout_rms_over_true"] == pytest.approx(a["heldout_rms"] / true_rms, rel=1e-9)
+    assert not {"true_heldout_rms", "heldout_rms_over_true"} & set(saved)  # no truth for a measured curve
 
 
 def test_the_experiment_names_its_bad_settings(tmp_path):
