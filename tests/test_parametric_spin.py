@@ -168,20 +168,16 @@ def test_refine_spin_1sigma_adds_the_move_between_the_last_two_softnesses():
     assert one["softness_pole_shift_deg"] == 0.0 and one["pole_err_deg"] == one["formal_pole_err_deg"]
 
 
-def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
-    """The inversion experiment's parametric stage with ``inversion.parametric.refine_spin``: a
-    searched spin 1.56° off the truth's pole, its phase 40° off the box-wing's frame (the turn found
-    first) — the refined pole is brought to within half that, the refined model predicts the
-    held-out night better than the box-wing fitted at the searched spin, and the stage reports the
-    refinement's verdict with a 1σ only where reliable (here the joint fit stops 0.5° off in a
-    neighbouring shape, and the held-out night says unreliable: no 1σ); without the option no
-    refinement is reported."""
+def _searched_stage():
+    """The stage's scene of :func:`test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing`:
+    ``(stage, (lon, lat), start)`` — ``stage(config)`` runs the parametric stage on a searched spin
+    1.56° off the truth's pole, its phase 40° off the box-wing's frame, and returns its metrics and
+    solution."""
     from types import SimpleNamespace
 
     from cssat.experiments.forward.egi_parametric import solve_parametric
     from cssat.inversion.egi import egi
     from cssat.inversion.parametric import box_wing_mesh
-    from cssat.models.egi.config import ParametricConfig
     from cssat.scene.attitude import rot_z, spin_frame, to_body
 
     t, y, sigma, sun, obs, p, (lon, lat, period, phase) = _scene(n=240, seed=6)
@@ -201,13 +197,27 @@ def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
                         sol=SimpleNamespace(pole_lon_deg=start[0], pole_lat_deg=start[1], period_s=period,
                                             frame="ecliptic"))
 
-    def stage(refine):
+    def stage(o):
         sol = SimpleNamespace(res=SimpleNamespace(normals=N @ rot_z(np.array([math.radians(phase)]))[0], areas=areas),
                               model_unit=np.zeros(len(t)), metrics={})
-        solve_parametric(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=refine), m, a, sol)
-        return sol.metrics
+        solve_parametric(o, m, a, sol)
+        return sol.metrics, sol
 
-    plain, refined = stage(False), stage(True)
+    return stage, (lon, lat), start
+
+
+def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
+    """The inversion experiment's parametric stage with ``inversion.parametric.refine_spin``: a
+    searched spin 1.56° off the truth's pole, its phase 40° off the box-wing's frame (the turn found
+    first) — the refined pole is brought to within half that, the refined model predicts the
+    held-out night better than the box-wing fitted at the searched spin, and the stage reports the
+    refinement's verdict with a 1σ only where reliable (here the joint fit stops 0.5° off in a
+    neighbouring shape, and the held-out night says unreliable: no 1σ); without the option no
+    refinement is reported."""
+    from cssat.models.egi.config import ParametricConfig
+
+    stage, (lon, lat), start = _searched_stage()
+    plain, refined = (stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=r))[0] for r in (False, True))
     assert "parametric_spin_pole_lon_deg" not in plain
     sep = separation_deg((refined["parametric_spin_pole_lon_deg"], refined["parametric_spin_pole_lat_deg"]), (lon, lat))
     assert sep < 0.5 * separation_deg(start, (lon, lat))
@@ -217,3 +227,16 @@ def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
     assert (err is None) == (verdict == "unreliable") and refined["parametric_spin_formal_pole_err_deg"] > 0
     if verdict == "reliable":
         assert sep < 4 * err
+
+
+def test_the_stage_refines_the_spin_through_the_finer_family_it_kept():
+    """With parts asked for (one dish) and kept, the spin refinement runs through that family: its
+    metrics hold the dish and the refined spin's verdict, its mesh the dish."""
+    from cssat.models.egi.config import ParametricConfig
+
+    stage, _, _ = _searched_stage()
+    metrics, sol = stage(ParametricConfig(outer=2, inner=30, divisions=2, albedo_prior=True, refine_spin=True, dishes=1,
+                                          dish_rings=2, dish_segments=8))
+    assert metrics["parametric_family"] == "parts" and metrics["parametric_dish_radius"] > 0
+    assert metrics["parametric_spin_verdict"] in ("reliable", "unreliable") and metrics["parametric_spin_period_s"] > 0
+    assert "dish" in sol.param_mesh.part_names
