@@ -133,7 +133,10 @@ def fit_parts(y: Any, sun: Any, observer: Any, p9: Any, parts: dict[str, Any], *
     ``fixed``, ``dish_rings``, ``dish_segments``, ...), the lowest loss kept. Returns ``(p, info)``:
     ``p`` in ``param_names(**parts)``' order, ``info`` the full fit's (``loss``,
     ``rms_over_noise``, ``params``) with ``start`` (the winning start's label) and ``briefs``
-    (every start's ``(label, loss)``, lowest first)."""
+    (every start's ``(label, loss)``, lowest first). The finer family holds ``p9`` (its parts
+    shrunk away), yet from these starts its fit can end at a higher loss than ``p9``'s — a local
+    minimum: compare ``info["loss"]`` with the plain fit's and keep the lower, as the inversion
+    experiment's stage does (``parametric_family``)."""
     from cssat.inversion.parametric_fit import fit_box_wing  # heavy: torch
 
     keep = int_param(keep, "keep", 1)
