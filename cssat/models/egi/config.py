@@ -64,7 +64,9 @@ class NightsConfig:
 @dataclass
 class ParametricConfig:
     """``inversion.parametric.*``: the box-wing fitted after the EGI for ``inversion.shape:
-    parametric`` (:func:`cssat.inversion.parametric_fit.fit_box_wing`)."""
+    parametric`` (:func:`cssat.inversion.parametric_fit.fit_box_wing`) and, with parts asked for
+    (``dishes``, ``wing_panels``, ``booms``, ``deck``), the finer family from it
+    (:func:`cssat.inversion.parametric_parts.fit_parts`)."""
 
     WHAT: ClassVar[str] = "a setting of the box-wing fit"
 
