@@ -1,214 +1,185 @@
-"""The finer family's starts and fit (cssat.inversion.parametric_parts): the starts' geometry
-against the mesh builder's own mirror pair and the axis formula, the albedo prior's exact
-degeneracy (the same shadowed light curve), the fit on a truth in the family against the plain
-box-wing's, and the errors' fields."""
+"""The parametric family's finer parts (cssat.inversion.parametric: wings of several panels with gaps,
+booms, a deck box, a free pair of unequal dishes): the shadowed light curve of the same satellite built
+independently from cssat.scene.models' parts, closed volumes against their analytic sums, the soft
+shadows against the ray cast, gradients against finite differences, and named errors."""
 
 import math
 
 import numpy as np
 import pytest
+import torch
 
-P9 = np.array([1.1, 1.0, 2.3, 1.9, 2.2, -0.7, 1.2, 0.45, 0.2])
+from cssat._checks import FieldError
+from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility, param_names
 
-
-def _unit(rng, n):
-    x = rng.normal(size=(n, 3))
-    return x / np.linalg.norm(x, axis=1)[:, None]
-
-
-def _axis(tilt, azimuth):
-    return np.array([math.sin(tilt) * math.cos(azimuth), math.sin(tilt) * math.sin(azimuth), math.cos(tilt)])
-
-
-def test_a_free_pairs_start_is_the_mirror_pair_and_a_flip_reverses_each_axis():
-    """The free pair's mirror start builds the mesh the family's own mirror pair builds (the
-    builder mirrors through the y–z plane itself); ``flip`` reverses each dish's axis vector; the
-    dish starts sit on the fitted bus's faces as documented; a split wing keeps the fitted span."""
-    from cssat.inversion.parametric import box_wing_mesh, param_names
-    from cssat.inversion.parametric_parts import dish_starts, part_starts
-
-    free = dict(dishes=2, dish_pair="free", wing_panels=3, booms=True)
-    mirror = dict(free, dish_pair="mirror")
-    kw = dict(divisions=1, dish_rings=3, dish_segments=8)
-    for (label, pf), (label_m, pm) in zip(part_starts(P9, free), part_starts(P9, mirror)):
-        assert label == label_m
-        vf = box_wing_mesh(pf, **kw, **free).vertices
-        vm = box_wing_mesh(pm, **kw, **mirror).vertices
-        np.testing.assert_allclose(np.sort(vf.round(9), axis=0), np.sort(vm.round(9), axis=0), atol=1e-9)
-        q = dict(zip(param_names(**free), pf))
-        assert 3 * q["length"] + 2 * q["panel_gap"] == pytest.approx(P9[3], rel=1e-12)
-    names = param_names(**free)
-    for (_, p), (_, pf) in zip(part_starts(P9, free)[::1], part_starts(P9, free, flip=True)[1::2]):
-        q, qf = dict(zip(names, p)), dict(zip(names, pf))
-        for pre in ("dish", "dish2"):
-            np.testing.assert_allclose(_axis(qf[f"{pre}_tilt"], qf[f"{pre}_azimuth"]),
-                                       -_axis(q[f"{pre}_tilt"], q[f"{pre}_azimuth"]), atol=1e-12)
-    a, b, c = P9[:3]
-    one = dict(dish_starts(P9, 1))
-    for label, centre, out in (("+z face", (0, 0, c), (0, 0, 1)), ("-z face", (0, 0, -c), (0, 0, -1)),
-                               ("+x face", (a, 0, 0), (1, 0, 0)), ("-x face", (-a, 0, 0), (-1, 0, 0))):
-        d = one[label][9:]
-        np.testing.assert_allclose(d[:3], centre, atol=1e-12)
-        np.testing.assert_allclose(_axis(d[3], d[4]), out, atol=1e-12)
-        assert d[5] == pytest.approx(0.6 * (a + b + c) / 3) and d[6] == pytest.approx(0.3 * d[5])
+PARTS = dict(dishes=2, dish_pair="free", wing_panels=3, booms=True, deck=True)
+# a 3.2 x 3.0 x 4.2 m bus; wings of three 2.6 x 3.0 m panels with 0.12 m gaps on 1.8 m booms, at 20 deg;
+# a 1.35 m reflector on +x tilted 27 deg, a 0.9 m one low on -x looking out (not its mirror image);
+# a 1.0 x 0.8 x 0.8 m box on the Earth deck
+GEOM = dict(a=1.6, b=1.5, c=2.1, length=2.6, width=3.0, hinge=math.radians(20), gap=1.8, cd_bus=0.35, cd_panel=0.1,
+            dish_x=1.75, dish_y=0.0, dish_z=1.0, dish_tilt=math.atan2(0.5, 1.0), dish_azimuth=0.0, dish_radius=1.35,
+            dish_depth=0.4, cd_dish=0.6, dish2_x=-1.7, dish2_y=-0.2, dish2_z=-0.4, dish2_tilt=math.atan2(1.0, 0.3),
+            dish2_azimuth=math.pi, dish2_radius=0.9, dish2_depth=0.25, panel_gap=0.12, boom_width=0.1, deck_a=0.5,
+            deck_b=0.4, deck_h=0.8)
+CELLS = dict(divisions=2, dish_rings=4, dish_segments=16)
 
 
-def test_the_albedo_prior_rescale_keeps_the_shadowed_light_curve():
-    """``with_albedo_prior``: every length times s and every albedo over s² gives the same light
-    curve at the same visibility, and Embree casts the same visibility at both scales (the
-    family's exact size–albedo degeneracy), with the bus albedo at the prior; the free pair's
-    paired starts hold every combination of the generic placements, the diagonal the mirror starts."""
-    import torch
-
-    from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
-    from cssat.inversion.parametric_parts import part_starts, with_albedo_prior
-
-    parts = dict(dishes=2, dish_pair="free", wing_panels=3, booms=True, deck=True)
-    names = param_names(**parts)
-    p = part_starts(P9, parts)[0][1]
-    q = with_albedo_prior(p, names, cd_bus=0.3)
-    s = math.sqrt(0.45 / 0.3)
-    assert dict(zip(names, q))["cd_bus"] == pytest.approx(0.3, rel=1e-12)
-    assert dict(zip(names, q))["a"] == pytest.approx(1.1 * s, rel=1e-12)
-    rng = np.random.default_rng(0)
-    S, V = _unit(rng, 60), _unit(rng, 60)
-    kw = dict(divisions=2, dish_rings=4, dish_segments=16, **parts)
-    vis = [box_wing_visibility(x, S, V, **kw) for x in (p, q)]
-    # the cast agrees but where a cell's centroid lies on another part's face (the deck on the bus): Embree's
-    # ray offset is absolute, so there the grazing ray's verdict depends on the scale
-    assert float((vis[0] == vis[1]).double().mean()) > 0.999
-    y = [box_wing_light_curve(torch.as_tensor(x), S, V, vis[0], range_km=1e-3, irradiance=1.0, **kw).numpy()
-         for x in (p, q)]
-    np.testing.assert_allclose(y[1], y[0], rtol=1e-10)
-    paired = part_starts(P9, parts, pairs=True)
-    plain = part_starts(P9, parts)
-    assert len(paired) == 9 and len(plain) == 3
-    for k in range(3):
-        np.testing.assert_array_equal(paired[4 * k][1], plain[k][1])
-    assert len({tuple(x) for _, x in paired}) == 9
+def _p(**over):
+    g = dict(GEOM, **over)
+    return np.array([g[k] for k in param_names(**PARTS)])
 
 
-def test_fit_parts_finds_a_dish_the_plain_box_wing_cannot_hold():
-    """A truth in the family (a box-wing with one dish on its +z face, cast shadows, 2 % noise,
-    Sun and observer anywhere): the plain box-wing fitted from the truth's own bus and wings misses
-    it by 4σ; ``fit_parts`` from that fit picks the +z start by its brief loss, reaches 1.3σ (the
-    truth's own ≈ 0.94σ), and reports every start's brief loss, lowest first."""
-    import torch
+def _procedural(g):
+    """The same satellite from cssat.scene.models' box, panel and dish (written here from the
+    module docstring's geometry, not from the family's code), merged."""
+    from cssat.scene.mesh import merge
+    from cssat.scene.models import box, dish, panel
 
-    from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility
-    from cssat.inversion.parametric_fit import fit_box_wing
-    from cssat.inversion.parametric_parts import fit_parts
-
-    truth = np.r_[1.0, 0.9, 1.2, 4.0, 1.5, math.radians(25.0), 0.6, 0.3, 0.2, 0.0, 0.0, 1.2, 0.0, 0.0, 0.8, 0.25, 0.6]
-    kw = dict(panels=2, divisions=1, dish_rings=3, dish_segments=10)
-    rng = np.random.default_rng(1)
-    S, V = _unit(rng, 120), _unit(rng, 120)
-    vis = box_wing_visibility(truth, S, V, dishes=1, **kw)
-    clean = box_wing_light_curve(torch.as_tensor(truth), S, V, vis, range_km=1e-3, irradiance=1.0, dishes=1,
-                                 **kw).numpy()
-    sigma = 0.02 * clean + 0.002 * float(np.median(clean))
-    y = clean + sigma * rng.normal(size=len(clean))
-    p9, plain = fit_box_wing(y, S, V, truth[:9], sigma=sigma, outer=2, inner=40, **kw)
-    p, info = fit_parts(y, S, V, p9, dict(dishes=1), sigma=sigma, brief=dict(outer=1, inner=15), outer=2, inner=60,
-                        albedos="profile", **kw)
-    assert plain["rms_over_noise"] > 3.5
-    assert info["rms_over_noise"] < 2.0
-    assert info["params"]["dish_z"] > 1.0 and info["start"] == "+z face"
-    losses = [loss for _, loss in info["briefs"]]
-    assert [lab for lab, _ in info["briefs"]][0] == info["start"] and losses == sorted(losses) and len(losses) == 4
-    assert info["loss"] <= losses[0]
-    np.testing.assert_array_equal(p, np.array(list(info["params"].values())))
+    a, b, c = g["a"], g["b"], g["c"]
+    parts = [box((2 * a, 2 * b, 2 * c), divisions=2, cd=g["cd_bus"], cs=0.0)]
+    h = g["hinge"]
+    w = g["width"] * np.array([math.sin(h), 0.0, math.cos(h)])
+    for side in (1, -1):
+        for k in range(3):
+            y0 = b + g["gap"] + k * (g["length"] + g["panel_gap"])
+            u = np.array([0.0, side * g["length"], 0.0])
+            origin = np.array([0.0, side * y0, 0.0]) - w / 2
+            first, second, cells = (u, w, (1, 2)) if side > 0 else (w, u, (2, 1))  # ceil(2 / 3) = 1 cell along y
+            parts.append(panel(first, second, origin, divisions=cells, cd=g["cd_panel"], cs=0.0))
+    for side in (1, -1):
+        parts.append(box((g["boom_width"], g["gap"], g["boom_width"]), center=(0.0, side * (b + g["gap"] / 2), 0.0),
+                         divisions=1, cd=g["cd_bus"], cs=0.0))  # a thin boom: one cell a face
+    parts.append(box((2 * g["deck_a"], 2 * g["deck_b"], g["deck_h"]), center=(0.0, 0.0, c + g["deck_h"] / 2), divisions=2,
+                     cd=g["cd_bus"], cs=0.0))
+    for pre in ("dish", "dish2"):
+        t, phi = g[f"{pre}_tilt"], g[f"{pre}_azimuth"]
+        axis = (math.sin(t) * math.cos(phi), math.sin(t) * math.sin(phi), math.cos(t))
+        parts.append(dish(g[f"{pre}_radius"], g[f"{pre}_depth"], center=(g[f"{pre}_x"], g[f"{pre}_y"], g[f"{pre}_z"]),
+                          axis=axis, rings=4, segments=16, cd=g["cd_dish"], cs=0.0))
+    return merge(parts)
 
 
-def test_the_parts_errors_name_their_field():
-    from cssat.inversion.parametric import param_names
-    from cssat.inversion.parametric_parts import dish_starts, fit_parts, part_starts, with_albedo_prior
-
-    with pytest.raises(ValueError, match="flip"):
-        part_starts(P9, dict(dishes=2, dish_pair="free"), flip=True, pairs=True)
-    with pytest.raises(ValueError, match="p9"):
-        part_starts(P9[:8], dict(dishes=1))
-    with pytest.raises(ValueError, match="dishes"):
-        dish_starts(P9, 3)
-    with pytest.raises(ValueError, match="dish_pair"):
-        part_starts(P9, dict(dishes=2, dish_pair="sideways"))
-    with pytest.raises(ValueError, match="cd_bus"):
-        with_albedo_prior(P9, param_names(), cd_bus=0.0)
-    with pytest.raises(ValueError, match="names"):
-        with_albedo_prior(P9, param_names()[:5])
-    with pytest.raises(ValueError, match="starts"):
-        fit_parts(np.ones(5), np.ones((5, 3)), np.ones((5, 3)), P9, dict(dishes=1), starts=[])
-    with pytest.raises(ValueError, match="keep"):
-        fit_parts(np.ones(5), np.ones((5, 3)), np.ones((5, 3)), P9, dict(dishes=1), keep=0)
+def _directions(T, seed):
+    rng = np.random.default_rng(seed)
+    S = rng.normal(size=(T, 3))
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    V = S + 0.6 * rng.normal(size=(T, 3))
+    return S, V / np.linalg.norm(V, axis=1, keepdims=True)
 
 
-def test_the_experiments_stage_fits_the_finer_family_when_asked(caplog):
-    """``inversion.parametric.dishes`` (and the other parts) reach the stage: with ``dishes=1`` its
-    metrics hold the dish's parameters, its mesh a dish part, and its prediction is the family's
-    light curve at those parameters recomputed here with the asked cells (a stage that dropped the
-    parts anywhere would predict another curve); without, the plain box-wing's nine; where the
-    finer family's fit ends above the plain one's loss (a local minimum: it holds the plain one),
-    the plain one is kept, said in ``parametric_family`` and a warning; bad settings are refused
-    by their key. (Whether the finer family fits better is the benchmarks' question:
-    BENCHMARKS.md, "A finer family".)"""
-    from types import SimpleNamespace
+def test_the_parts_light_curve_is_the_procedural_satellites_with_shadows():
+    from cssat.optics.photometry import facet_brightness
 
-    import torch
-
-    from cssat._checks import FieldError
-    from cssat.experiments.forward.egi_parametric import solve_parametric
-    from cssat.inversion.egi import egi
-    from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility, param_names
-    from cssat.models.egi.config import ParametricConfig
-
-    for bad, key in ((dict(dishes=3), "dishes"), (dict(dishes=1, dish_pair="free"), "dish_pair"),
-                     (dict(dish_pair="left"), "dish_pair"), (dict(wing_panels=0), "wing_panels"),
-                     (dict(booms="yes"), "booms"), (dict(dish_rings=0), "dish_rings")):
-        with pytest.raises(FieldError, match=rf"inversion\.parametric\.{key}"):
-            ParametricConfig(**bad)
-    assert ParametricConfig().parts() == {} and ParametricConfig().family() == dict(panels=2, divisions=4)
-    assert ParametricConfig(dishes=2, dish_pair="free", deck=True).parts() == dict(dishes=2, dish_pair="free", deck=True)
-    truth = np.r_[1.0, 0.9, 1.2, 4.0, 1.5, math.radians(25.0), 0.6, 0.3, 0.2, 0.0, 0.0, 1.2, 0.0, 0.0, 0.8, 0.25, 0.6]
-    kw = dict(panels=2, divisions=1, dish_rings=3, dish_segments=10, dishes=1)
-    N, A = egi(box_wing_mesh(truth, **kw))
-    fit = np.arange(160) < 110
-    for seed, dishes, family in ((1, 0, "plain"), (1, 1, "parts"), (2, 1, "plain")):
-        rng = np.random.default_rng(seed)
-        S, V = _unit(rng, 160), _unit(rng, 160)
-        clean = box_wing_light_curve(torch.as_tensor(truth), S, V, box_wing_visibility(truth, S, V, **kw),
-                                     range_km=1e-3, irradiance=1.0, **kw).numpy()
-        sigma = 0.02 * clean + 0.002 * float(np.median(clean))
-        y = clean + sigma * rng.normal(size=len(clean))
-        m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y)
-        a = SimpleNamespace(sun_b=S, obs_b=V, metrics={"spin": "known"})
-        sol = SimpleNamespace(res=SimpleNamespace(normals=N, areas=A), model_unit=np.zeros(160), metrics={})
-        caplog.clear()
-        solve_parametric(ParametricConfig(divisions=1, outer=2, inner=40, dishes=dishes, dish_rings=3, dish_segments=10),
-                         m, a, sol)
-        assert sol.metrics["parametric_family"] == family
-        assert sol.metrics["parametric_parts_start"] == ("+z face" if family == "parts" else None)
-        assert ("ended above the plain box-wing's loss" in caplog.text) == (dishes and family == "plain")
-        parts = family != "plain"
-        names = param_names(1 if parts else 0)
-        assert {k for k in sol.metrics if k.startswith("parametric_")} - {"parametric_yaw_deg", "parametric_family",
-                                                                              "parametric_parts_start"} == \
-            {f"parametric_{k}" for k in names}
-        assert ("dish" in sol.param_mesh.part_names) == parts
-        p = np.array([sol.metrics[f"parametric_{k}"] for k in names])
-        fam = dict(panels=2, divisions=1, **(dict(dishes=1, dish_rings=3, dish_segments=10) if parts else {}))
-        again = box_wing_light_curve(torch.as_tensor(p), S, V, box_wing_visibility(p, S, V, **fam), range_km=1e-3,
-                                     irradiance=1.0, **fam).numpy()
-        np.testing.assert_allclose(sol.model_unit, again, rtol=1e-12)
-        rms = math.sqrt(float(np.mean((y[fit] - again[fit]) ** 2)))
-        assert sol.metrics["fit_rms"] == pytest.approx(rms, rel=1e-9)
+    S, V = _directions(80, 0)
+    p = torch.as_tensor(_p())
+    y = box_wing_light_curve(p, S, V, box_wing_visibility(p, S, V, **CELLS, **PARTS), range_km=1e-3, irradiance=1.0,
+                             **CELLS, **PARTS)
+    ref = facet_brightness(_procedural(GEOM), S, V, range_km=1e-3, irradiance=1.0, shadows=True).sum(1)
+    torch.testing.assert_close(y, ref, rtol=1e-9, atol=1e-12)
+    # each part carries light or shadow: without the deck, or with the wing one 7.84 m panel, the curve moves
+    for over, parts in (({}, dict(PARTS, deck=False)), ({"length": 3 * 2.6 + 0.24}, dict(PARTS, wing_panels=1))):
+        q = np.array([dict(GEOM, **over)[k] for k in param_names(**parts)])
+        other = box_wing_light_curve(torch.as_tensor(q), S, V, box_wing_visibility(q, S, V, **CELLS, **parts),
+                                     range_km=1e-3, irradiance=1.0, **CELLS, **parts)
+        assert float((other - ref).abs().max()) > 0.01 * float(ref.max())
 
 
-def test_the_log_line_says_which_family_was_kept():
-    from cssat.experiments.forward.egi import EGILightCurve
+def test_closed_volume_is_the_analytic_sum_of_bus_booms_and_deck():
+    import trimesh
 
-    base = dict(n_samples=676, n_nights_observed=3, egi_n_normals=33, heldout_rms_over_noise=1.32)
-    lines = {fam: EGILightCurve.headline(None, dict(base, **({"parametric_family": fam} if fam else {})), None)
-             for fam in ("parts", "plain", None)}
-    assert "EGI 33 normals, the box-wing with its parts, held-out rms 1.32× noise" in lines["parts"]
-    assert "EGI 33 normals, the box-wing, held-out rms" in lines["plain"]
-    assert "EGI 33 normals, held-out rms" in lines[None]
+    m = box_wing_mesh(_p(), **CELLS, **PARTS)
+    tm = trimesh.Trimesh(m.vertices, m.faces, process=True)
+    vol = sum(abs(b.volume) for b in tm.split(only_watertight=True))
+    g = GEOM
+    expected = 8 * g["a"] * g["b"] * g["c"] + 2 * g["boom_width"] ** 2 * g["gap"] + 4 * g["deck_a"] * g["deck_b"] * g["deck_h"]
+    assert vol == pytest.approx(expected, rel=1e-9)
+    assert m.part_names == ("bus", "panel", "dish")
+    # the wings' area: 2 wings x 3 panels x length x width, two-sided
+    assert m.areas[m.part == 1].sum() == pytest.approx(2 * 2 * 3 * g["length"] * g["width"], rel=1e-12)
+
+
+def test_soft_shadows_of_the_parts_tend_to_the_ray_cast():
+    """At τ = 0.1 mm the soft visibility thresholded at ½ is Embree's on the bus, booms, deck and
+    panels' sub-facets facing both the Sun and the observer (the dishes cast their aperture disk,
+    so a few differ): ≥ 97 % agree, and there are shadows to get right."""
+    from cssat.inversion.parametric import _geometry, box_wing
+    from cssat.inversion.soft_shadow import soft_visibility
+
+    S, V = _directions(150, 1)
+    p = _p()
+    hard = box_wing_visibility(p, S, V, **CELLS, **PARTS).numpy()
+    soft = soft_visibility(p, S, V, tau=1e-4, **CELLS, **PARTS).numpy()
+    v, f, part, _ = box_wing(torch.as_tensor(p), **CELLS, **PARTS)
+    N, _ = _geometry(v, f)
+    front = (((torch.as_tensor(S) @ N.T) > 1e-6) & ((torch.as_tensor(V) @ N.T) > 1e-6)).numpy()
+    m = front & (part[None, :] < 2)
+    assert 0.05 < 1 - hard[m].mean() < 0.5
+    assert (hard[m] == (soft[m] > 0.5)).mean() >= 0.97
+
+
+def test_the_parts_gradients_are_the_finite_differences():
+    from cssat.inversion.soft_shadow import soft_visibility
+
+    S, V = _directions(6, 2)
+    names = param_names(**PARTS)
+    kw = dict(divisions=1, dish_rings=2, dish_segments=6, **PARTS)
+    p = torch.as_tensor(_p(), dtype=torch.float64)
+
+    def y(q):
+        return box_wing_light_curve(q, S, V, soft_visibility(q, S, V, tau=0.2, **kw), range_km=1e-3, irradiance=1.0, **kw)
+
+    pt = p.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(y(pt).sum(), pt)
+    h = 1e-6
+    for name in ("panel_gap", "boom_width", "deck_a", "deck_h", "dish2_x", "dish2_radius", "gap"):
+        k = names.index(name)
+        e = torch.zeros_like(p)
+        e[k] = h
+        fd = (float(y(p + e).sum()) - float(y(p - e).sum())) / (2 * h)
+        assert float(g[k]) == pytest.approx(fd, rel=1e-5, abs=1e-9), name
+        assert fd != 0.0, name
+
+
+def test_bad_part_options_are_named():
+    with pytest.raises(FieldError, match="dish_pair.*needs dishes=2"):
+        param_names(1, dish_pair="free")
+    with pytest.raises(FieldError, match="dish_pair"):
+        param_names(2, dish_pair="unequal")
+    with pytest.raises(FieldError, match="wing_panels"):
+        param_names(wing_panels=0)
+    with pytest.raises(FieldError, match="booms"):
+        param_names(booms="yes")
+    with pytest.raises(FieldError, match="params.panel_gap"):
+        box_wing_mesh(_p(panel_gap=-0.1), **CELLS, **PARTS)
+    with pytest.raises(FieldError, match="params.deck_h"):
+        box_wing_mesh(_p(deck_h=0.0), **CELLS, **PARTS)
+    with pytest.raises(FieldError, match="params"):
+        box_wing_mesh(_p()[:-1], **CELLS, **PARTS)
+    assert param_names(**PARTS) == tuple(GEOM)  # the documented order: box-wing, dishes, second dish, gap, boom, deck
+
+
+def test_front_only_soft_visibility_gives_the_same_light_curve_and_gradient():
+    """``front_only`` computes the soft shadows only where a sub-facet faces both the Sun and the
+    observer: there it equals the dense computation, elsewhere 0; the light curve (whose
+    ``(S·N)₊ (V·N)₊`` is 0 there) and its gradient are the dense one's to round-off."""
+    from cssat.inversion.parametric import _geometry, box_wing
+    from cssat.inversion.soft_shadow import soft_visibility
+
+    S, V = _directions(40, 3)
+    kw = dict(CELLS, **PARTS)
+    p = torch.as_tensor(_p())
+    dense = soft_visibility(p, S, V, tau=0.05, **kw)
+    sparse = soft_visibility(p, S, V, tau=0.05, front_only=True, **kw)
+    v, f, _, _ = box_wing(p, **kw)
+    N, _ = _geometry(v, f)
+    front = ((torch.as_tensor(S) @ N.T) > 0) & ((torch.as_tensor(V) @ N.T) > 0)
+    assert 0.1 < float(front.double().mean()) < 0.6
+    torch.testing.assert_close(sparse[front], dense[front], rtol=1e-12, atol=1e-14)
+    assert float(sparse[~front].abs().max()) == 0.0
+    grads = []
+    for fo in (False, True):
+        q = p.clone().requires_grad_(True)
+        y = box_wing_light_curve(q, S, V, soft_visibility(q, S, V, tau=0.05, front_only=fo, **kw), **kw)
+        grads.append((y.detach(), torch.autograd.grad(y.sum(), q)[0]))
+    torch.testing.assert_close(grads[1][0], grads[0][0], rtol=1e-12, atol=0)
+    torch.testing.assert_close(grads[1][1], grads[0][1], rtol=1e-9, atol=1e-20)
