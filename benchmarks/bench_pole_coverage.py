@@ -225,11 +225,23 @@ def tumble_case(seed: int, search: dict | None = None, egi: str = "grid") -> dic
             "heldout_chi2_n": sol.heldout_chi2 / sol.heldout_n, "heldout_limit_n": sol.heldout_threshold / sol.heldout_n,
             "L_err_deg": sol.errors["L_err_deg"], "formal_L_err_deg": sol.errors["formal_L_err_deg"],
             "grid_L_shift_deg": sol.errors["grid_L_shift_deg"],
-            "bootstrap_L_err_deg": sol.errors.get("bootstrap_L_err_deg"),
+            "bootstrap_L_err_deg": sol.errors.get("bootstrap_L_err_deg"), **_ellipse(sol, lon, lat),
             "fitted": [st.i1, st.i2, 1 / st.f_omega_hz, 1 / st.f_phi_hz], "ambiguous": sol.ambiguous,
             "errors": {k: sol.errors.get(k) for k in ("i1", "i2", "P_omega_s", "P_phi_s")}, "truth": [i1, i2, math.degrees(alpha), 1 / truth.f_omega_hz,
                                                                           1 / truth.f_phi_hz, lon, lat],
             "search": opts, "cpu_s": time.process_time() - clock}
+
+
+def _ellipse(sol, lon: float, lat: float) -> dict:
+    """The row's ``L`` ellipse keys and the truth's region levels: Hotelling's (``L_level``, what
+    ``TumblingSolution.L_level`` reports) and the Gaussian's with the covariance taken as known."""
+    from cssat.inversion.ellipse import ellipse_level
+
+    e = {k: sol.errors.get(k) for k in ("L_major_deg", "L_minor_deg", "L_pa_deg", "L_dof")}
+    if e["L_major_deg"] is None or e["L_major_deg"] != e["L_major_deg"]:
+        return e
+    known = ellipse_level((sol.state.lon_deg, sol.state.lat_deg), (lon, lat), e["L_major_deg"], e["L_minor_deg"], e["L_pa_deg"])
+    return dict(e, L_level=sol.L_level(lon, lat), L_level_known=known)
 
 
 def _verdicts(part: str, rs: list[dict], found_if, found_label: str, usable) -> list[tuple[str, list[dict]]]:
@@ -263,6 +275,13 @@ def report_tumble(rs: list[dict]) -> None:
             zg = np.array([r["sep_deg"] / r["grid_L_shift_deg"] for r in sub])
             print(f"    the bootstrap's part alone {100 * np.mean(zb <= R68):.1f} / {100 * np.mean(zb <= R95):.1f} %; the grid's "
                   f"alone {100 * np.mean(zg <= R68):.1f} / {100 * np.mean(zg <= R95):.1f} %")
+        if all(r.get("L_level") is not None for r in sub):  # the 1σ ellipse's regions (what L_level reports)
+            for key, what in (("L_level", "Hotelling's (L_dof replicates)"), ("L_level_known", "the covariance as known")):
+                lv = np.array([r[key] for r in sub])
+                k68, k95 = int((lv <= 0.6827).sum()), int((lv <= 0.9545).sum())
+                print(f"    L inside its 1σ ellipse's regions, {what}: 68.27 % {100 * k68 / m:.1f} % ({_p(k68, m, 0.6827)}); "
+                      f"95.45 % {100 * k95 / m:.1f} % ({_p(k95, m, 0.9545)})")
+            print(f"    the ellipse's axis ratio: median {np.median([r['L_major_deg'] / max(r['L_minor_deg'], 1e-12) for r in sub]):.2f}")
         if all("errors" in r for r in sub):  # the moments' and periods' 1σ: |error| within 1 and 2 of it (68.27 / 95.45 %)
             for j, k in enumerate(("i1", "i2", "P_omega_s", "P_phi_s")):
                 z1 = np.array([abs(r["fitted"][j] - r["truth"][[0, 1, 3, 4][j]]) / r["errors"][k] for r in sub])
@@ -362,7 +381,7 @@ def main() -> None:
     p.add_argument("--egi", choices=("grid", "off"), default="grid",
                    help="in class: the truth's EGI on the fit's own grid of normals, or off any grid")
     p.add_argument("--out", default=None, help="JSON lines, appended; seeds already there are skipped")
-    p.add_argument("--report", default=None, help="only tabulate this JSON-lines file")
+    p.add_argument("--report", nargs="+", default=None, help="only tabulate these JSON-lines files, pooled")
     p.add_argument("--search", nargs="*", default=[], metavar="KEY=INT",
                    help="the search's settings changed, e.g. n_poles=200 n_starts=12 n_refine=4 (default: SEARCH)")
     args = p.parse_args()
@@ -374,8 +393,10 @@ def main() -> None:
             p.error(f"--search {kv!r}: expected KEY=INT with KEY one of {', '.join(known)}")
         search[key] = int(value)
     if args.report:
-        with open(args.report) as fh:
-            rows = [json.loads(x) for x in fh if x.strip()]
+        rows = []
+        for name in args.report:
+            with open(name) as fh:
+                rows += [json.loads(x) for x in fh if x.strip()]
         return report([r for r in rows if "error" not in r])
     done = set()
     if args.out and os.path.exists(args.out):

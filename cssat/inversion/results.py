@@ -215,7 +215,22 @@ def series_fit(times_s: Any, flux: Any, period_s: float, n_harmonics: int, *, si
             "trend": trend, "zero_points": zp}
 
 
-class SpinSolution(Result):
+class _Judged(Result):
+    """A solution with a held-out verdict (``estimate_spin`` step 6, ``estimate_tumbling`` step 5)."""
+
+    @property
+    def verdict(self) -> str | None:
+        """``"reliable"`` or ``"unreliable"`` (the model tested on held-out data against the
+        noise); when unreliable the direction's (pole's, ``L``'s) 1σ are NaN."""
+        return self._data.get("verdict")
+
+    @property
+    def verdict_why(self) -> str | None:
+        """The verdict's reason, one sentence."""
+        return self._data.get("verdict_why")
+
+
+class SpinSolution(_Judged):
     """What :func:`~cssat.inversion.estimate_spin` returns. The spin of
     :func:`cssat.scene.attitude.spin_frame` (body +z along the pole, phase 0 at ``times_s = 0``):
     ``pole_lon_deg``, ``pole_lat_deg`` (ecliptic λ, β or equatorial α, δ — ``frame``), the
@@ -305,17 +320,6 @@ class SpinSolution(Result):
             out.update(spin_pole_radius_68_deg=prof["radius_68_deg"], spin_pole_radius_95_deg=prof["radius_95_deg"])
         return out
 
-    @property
-    def verdict(self) -> str | None:
-        """``"reliable"`` or ``"unreliable"`` (:func:`~cssat.inversion.estimate_spin` step 6: the
-        model tested on held-out data against the noise); when unreliable the pole's 1σ are NaN."""
-        return self._data.get("verdict")
-
-    @property
-    def verdict_why(self) -> str | None:
-        """The verdict's reason, one sentence."""
-        return self._data.get("verdict_why")
-
     def __repr__(self) -> str:
         d = self._data
         return (f"SpinSolution(pole ({d['pole_lon_deg']:.2f}°, {d['pole_lat_deg']:.2f}°) ± {d['pole_err_deg']:.2g}°, "
@@ -323,7 +327,7 @@ class SpinSolution(Result):
                 f"{', ambiguous' if d['ambiguous'] else ''})")
 
 
-class TumblingSolution(Result):
+class TumblingSolution(_Judged):
     """What :func:`~cssat.inversion.estimate_tumbling` returns: ``state``
     (:class:`~cssat.inversion.TumblingState`, the body frame its principal frame), ``normals (K,
     3)``/``areas (K,)`` (the EGI in that frame, those with area), ``chi2``, ``reduced_chi2``,
@@ -331,11 +335,11 @@ class TumblingSolution(Result):
     :data:`~cssat.inversion.period_verdict.MODEL_FITS_CHI2`, else None; false means the 1σ count
     the model's misfit — glints, shadows, materials it lacks — as white noise), ``residual
     (T,)`` (flux − fit on every sample), ``errors`` (1σ of ``i1, i2, P_omega_s, P_phi_s, t0_s,
-    L_lon_deg, L_lat_deg, phi0_deg`` and ``L_err_deg``, the angular 1σ of ``L``: the formal
-    Gauss–Newton 1σ on the state and the support's areas, scaled by the reduced χ² when above 1
-    — or with ``bootstrap = B`` the RMS shift over ``B`` warm-started parametric bootstrap refits,
-    ``bootstrap_L_err_deg`` — added in quadrature to the RMS shift of the fit on ``error_grids``
-    grids of normals (turned; refined with the bootstrap) — ``formal_L_err_deg``, ``grid_L_shift_deg``), ``lattice_hz`` (the light curve's two
+    L_lon_deg, L_lat_deg, phi0_deg``; ``L_err_deg``, the radial 1σ of ``L``: Gauss–Newton's, or
+    with ``bootstrap = B`` the RMS shift of ``B`` warm-started bootstrap refits
+    (``bootstrap_L_err_deg``), ⊕ the RMS shift on ``error_grids`` other grids of normals
+    (``grid_L_shift_deg``); ``L``'s 1σ ellipse ``L_major_deg, L_minor_deg, L_pa_deg, L_dof``
+    from the same refits — :meth:`L_level`), ``lattice_hz`` (the light curve's two
     fundamental frequencies the search started from), ``frequency_pairs`` (the ``(P_ω, P_φ)``
     hypotheses searched), ``alternatives`` (other refined minima with ``delta_chi2`` in units of
     the reduced χ² and ``separation_deg`` of their ``L``) and ``ambiguous`` (one of them within
@@ -363,6 +367,13 @@ class TumblingSolution(Result):
         """The body frames ``(T, 3, 3)`` at ``times_s``."""
         return self.state.frames(times_s)
 
+    def L_level(self, lon_deg: float, lat_deg: float) -> float:
+        """The level of ``L``'s smallest error region holding ``(lon_deg, lat_deg)`` (inside the
+        68.27 % one when ≤ 0.6827; :func:`~cssat.inversion.ellipse.errors_level`)."""
+        from cssat.inversion.ellipse import errors_level  # local: the ellipse's own module
+
+        return errors_level(self.errors, "L", (self.state.lon_deg, self.state.lat_deg), (lon_deg, lat_deg))
+
     def predict(self, times_s: Any, sun: Any, obs: Any) -> np.ndarray:
         """The fitted light curve ``(T,)`` at ``times_s`` for inertial ``sun``/``obs (T, 3)``."""
         from cssat.inversion.egi import egi_light_curve  # heavy: cssat.inversion.egi imports torch
@@ -381,17 +392,6 @@ class TumblingSolution(Result):
         out.update({f"tumble_{k}": d[k] for k in ("verdict", "verdict_why", "heldout_chi2", "heldout_n", "heldout_threshold",
                                                   "L_interval") if k in d})
         return out
-
-    @property
-    def verdict(self) -> str | None:
-        """``"reliable"`` or ``"unreliable"`` (:func:`~cssat.inversion.estimate_tumbling` step 5);
-        when unreliable the 1σ of ``L`` are NaN."""
-        return self._data.get("verdict")
-
-    @property
-    def verdict_why(self) -> str | None:
-        """The verdict's reason, one sentence."""
-        return self._data.get("verdict_why")
 
     def __repr__(self) -> str:
         s, d = self.state, self._data

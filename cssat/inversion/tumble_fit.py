@@ -113,16 +113,18 @@ def _check_tumble(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarr
 
 
 def _formal_errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float,
-                   weighted: bool) -> tuple[np.ndarray, float, np.ndarray]:
+                   weighted: bool) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """Gauss–Newton on the eight numbers ``x (8,)`` and the support's areas of the EGI ``a (K,)``:
-    the 1σ ``(8,)`` (scaled by the reduced χ² — when above 1 if ``weighted``), the reduced χ² and
-    the support ``(K,)`` (bool)."""
+    the 1σ ``(8,)`` (scaled by the reduced χ² — when above 1 if ``weighted``), the reduced χ², the
+    support ``(K,)`` (bool) and ``L``'s covariance ``(2, 2)`` in its tangent plane (east, north;
+    degrees²)."""
     sup = _support(a)
     J = _tumble_jacobian(final, state, x, a, sup, span)
     dof = max(len(final.t) - J.shape[1], 1)
     red = chi2 / dof
     cov = np.linalg.pinv(J.T @ J)[:8, :8] * (max(red, 1.0) if weighted else red)
-    return np.sqrt(np.clip(np.diag(cov), 0, None)), red, sup
+    d = np.diag([math.cos(math.radians(state.lat_deg)), 1.0])  # (λ, β) → (east, north)
+    return np.sqrt(np.clip(np.diag(cov), 0, None)), red, sup, d @ cov[5:7, 5:7] @ d
 
 
 def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, chi2: float, span: float, weighted: bool,
@@ -141,19 +143,29 @@ def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, ch
     solution (``final_fev``, the EGI re-solved by NNLS at every step) on the same grid, the root
     mean square of their shifts. The bootstrap measures the χ² valley as the refit sees it: where
     the NNLS support changes along it, the valley is far flatter than the curvature with the
-    support held (the formal 1σ of ``L`` in class is ~10× too small)."""
-    e, red, sup = _formal_errors(final, state, x, a, chi2, span, weighted)
-    formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
+    support held (the formal 1σ of ``L`` in class is ~10× too small).
 
-    def refit(fit: _TFit) -> tuple[np.ndarray, float]:
+    ``L``'s 1σ ellipse (``L_major_deg``, ``L_minor_deg``, ``L_pa_deg``; :mod:`cssat.inversion.ellipse`):
+    the same refits' offsets in ``L``'s tangent plane — the replicates' second moments (or the
+    formal covariance) plus the grids' — with ``L_dof`` the replicates it was estimated from (0:
+    the formal one). ``L_major_deg² + L_minor_deg²`` is ``L_err_deg²`` to the tangent plane's
+    accuracy; the ellipse keeps the valley's shape, which the radial 1σ's circle loses."""
+    from cssat.inversion.ellipse import ellipse_of_cov, tangent_offset  # local: the ellipse's own module
+
+    e, red, sup, cov_L = _formal_errors(final, state, x, a, chi2, span, weighted)
+    formal_L = float(np.hypot(e[6], math.cos(math.radians(state.lat_deg)) * e[5]))
+    centre = (state.lon_deg, state.lat_deg)
+
+    def refit(fit: _TFit) -> tuple[np.ndarray, float, np.ndarray]:  # the shift, L's separation and its (east, north)
         _, xg, _ = _refine(fit, x, state.alpha, span, final_fev, state.t_ref_s, state.frame)
-        return xg - x, _separation_deg((state.lon_deg, state.lat_deg), (float(xg[5]), float(xg[6])))
+        to = (float(xg[5]), float(xg[6]))
+        return xg - x, _separation_deg(centre, to), tangent_offset(centre, to)
 
     # the EGI grid's bias (it dominates at high SNR): the fit again on a turned grid, or with the bootstrap the grid refined
     grid = [refit(_TFit(final.t, final.y, final.w, final.S, final.O, (_refined if bootstrap else _turned)(final.N, g), final.brdf))
             for g in range(grids)]
-    shift = np.sqrt(np.mean(np.square([d for d, _ in grid]), axis=0))
-    grid_L = float(np.sqrt(np.mean(np.square([s_ for _, s_ in grid]))))
+    shift = np.sqrt(np.mean(np.square([d for d, _, _ in grid]), axis=0))
+    grid_L = float(np.sqrt(np.mean(np.square([s_ for _, s_, _ in grid]))))
     noise, noise_L = e, formal_L
     out: dict[str, float] = {}
     if bootstrap:
@@ -162,15 +174,23 @@ def _errors(final: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, ch
         sd = np.sqrt(max(red, 1.0) if weighted else red) / final.w
         boot = [refit(_TFit(final.t, model + sd * rng.standard_normal(len(model)), final.w, final.S, final.O, final.N,
                             final.brdf)) for _ in range(bootstrap)]
-        noise = np.sqrt(np.mean(np.square([d for d, _ in boot]), axis=0))
-        noise_L = float(np.sqrt(np.mean(np.square([s_ for _, s_ in boot]))))
+        noise = np.sqrt(np.mean(np.square([d for d, _, _ in boot]), axis=0))
+        noise_L = float(np.sqrt(np.mean(np.square([s_ for _, s_, _ in boot]))))
         out["bootstrap_L_err_deg"] = noise_L
+        cov_L = _moments(boot)
+    major, minor, pa = ellipse_of_cov(cov_L + _moments(grid))
     errors = {"i1": np.hypot(noise[0], shift[0]), "i2": np.hypot(noise[1], shift[1]),
               "P_omega_s": np.hypot(noise[2], shift[2]) / x[2] ** 2, "P_phi_s": np.hypot(noise[3], shift[3]) / x[3] ** 2,
               "t0_s": np.hypot(noise[4], shift[4]), "L_lon_deg": np.hypot(noise[5], shift[5]),
               "L_lat_deg": np.hypot(noise[6], shift[6]), "phi0_deg": np.hypot(noise[7], shift[7]),
-              "L_err_deg": float(np.hypot(noise_L, grid_L)), "formal_L_err_deg": formal_L, "grid_L_shift_deg": grid_L, **out}
+              "L_err_deg": float(np.hypot(noise_L, grid_L)), "formal_L_err_deg": formal_L, "grid_L_shift_deg": grid_L,
+              "L_major_deg": major, "L_minor_deg": minor, "L_pa_deg": pa, "L_dof": float(bootstrap), **out}
     return {k: float(v) for k, v in errors.items()}, red, sup
+
+
+def _moments(refits: list[tuple]) -> np.ndarray:
+    """``L``'s second moments ``(2, 2)`` (degrees²) over the refits' ``(east, north)`` offsets."""
+    return np.mean([np.outer(o, o) for _, _, o in refits], axis=0)
 
 
 def _alternatives(others: list[tuple], x: np.ndarray, chi2: float, red: float, state: TumblingState) -> list[dict[str, Any]]:
