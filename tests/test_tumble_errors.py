@@ -77,10 +77,16 @@ def test_the_bootstrap_1sigma_of_L_matches_a_brute_force_monte_carlo():
     # the valley along L is flatter than its curvature — why the bootstrap exists
     assert errors["formal_L_err_deg"] < mc_rms / 1.7
     assert errors["L_err_deg"] == pytest.approx(math.hypot(boot, errors["grid_L_shift_deg"]))
+    # L's 1σ ellipse is the same refits' spread kept in two dimensions: its axes add up, in
+    # quadrature, to the radial 1σ (the tangent plane's offsets are the separations)
+    assert math.hypot(errors["L_major_deg"], errors["L_minor_deg"]) == pytest.approx(errors["L_err_deg"], rel=1e-6)
+    assert errors["L_major_deg"] >= errors["L_minor_deg"] > 0 and errors["L_dof"] == 16
     # without the bootstrap the noise's part is the formal one (the old behaviour)
     plain, _, _ = _errors(fit, state, x, a, chi2, span, True, fev, grids=1)
     assert "bootstrap_L_err_deg" not in plain
     assert plain["L_err_deg"] == pytest.approx(math.hypot(plain["formal_L_err_deg"], plain["grid_L_shift_deg"]))
+    assert math.hypot(plain["L_major_deg"], plain["L_minor_deg"]) == pytest.approx(plain["L_err_deg"], rel=1e-6)
+    assert plain["L_dof"] == 0  # the formal covariance: the Gaussian's regions
 
 
 @pytest.mark.parametrize("value", [-1, 1001, 2.5, "x"])

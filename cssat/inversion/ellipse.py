@@ -30,6 +30,8 @@ import numpy as np
 
 from cssat._checks import FieldError
 
+__all__ = ["tangent_offset", "error_ellipse", "ellipse_of_cov", "ellipse_level", "errors_level"]
+
 
 def _unit(lon_deg: float, lat_deg: float) -> np.ndarray:
     lo, la = math.radians(lon_deg), math.radians(lat_deg)
@@ -93,6 +95,8 @@ def ellipse_level(center: tuple[float, float], point: tuple[float, float], major
     e, n = tangent_offset(center, point)
     pa = math.radians(pa_deg)
     u, w = e * math.sin(pa) + n * math.cos(pa), e * math.cos(pa) - n * math.sin(pa)  # along, across the major axis
+    tiny = 1e-9 * math.hypot(e, n)  # the projection's rounding: a point on a flat ellipse's line is on it
+    u, w = (0.0 if abs(u) <= tiny else u), (0.0 if abs(w) <= tiny else w)
     if (w and not minor_deg) or (u and not major_deg):
         return 1.0  # off a zero-width ellipse's line (or its point)
     m2 = (u * u / major_deg**2 if u else 0.0) + (w * w / minor_deg**2 if w else 0.0)
