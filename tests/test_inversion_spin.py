@@ -200,7 +200,11 @@ def test_the_experiment_inverts_its_own_light_curve_file(tmp_path, inversion_sim
     assert a["true_heldout_rms"] == pytest.approx(true_rms, rel=1e-9)
     assert a["true_heldout_rms_over_noise"] == pytest.approx(true_rms / np.sqrt(np.mean(ea["sigma"][held] ** 2)), rel=1e-9)
     assert a["heldout_rms_over_true"] == pytest.approx(a["heldout_rms"] / true_rms, rel=1e-9)
-    assert not {"true_heldout_rms", "heldout_rms_over_true"} & set(saved)  # no truth for a measured curve
+    # the reduced χ² a held-out test reads, of the true mesh and of the fit, recomputed here
+    sig_h = ea["sigma"][held]
+    assert a["true_heldout_chi2_n"] == pytest.approx(np.mean(((ea["flux"] - ea["clean"])[held] / sig_h) ** 2), rel=1e-9)
+    assert a["heldout_chi2_n"] == pytest.approx(np.mean(((ea["flux"] - ea["model"])[held] / sig_h) ** 2), rel=1e-9)
+    assert not {"true_heldout_rms", "heldout_rms_over_true", "true_heldout_chi2_n"} & set(saved)  # no truth for a measured curve
 
 
 def test_the_experiment_names_its_bad_settings(tmp_path):

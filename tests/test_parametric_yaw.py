@@ -168,6 +168,8 @@ def test_the_stage_in_a_turned_frame_fits_only_with_the_turn():
     assert _mod(a40["parametric_yaw_deg"] - 40.0, 180.0) < 1e-6 and _mod(a100["parametric_yaw_deg"] + 100.0, 180.0) < 1e-6
     assert a40["heldout_rms_over_noise"] == pytest.approx(a100["heldout_rms_over_noise"], rel=1e-6)
     assert a40["heldout_rms_over_noise"] == pytest.approx(own["heldout_rms_over_noise"], rel=0.1)
+    # with one σ for every sample the held-out reduced χ² is the rms over the noise, squared
+    assert a40["heldout_chi2_n"] == pytest.approx(a40["heldout_rms_over_noise"] ** 2, rel=1e-9)
     none = _stage("none")
     assert none["parametric_yaw_deg"] == 0.0 and none["heldout_rms_over_noise"] > 5 * own["heldout_rms_over_noise"]
 

@@ -57,6 +57,13 @@ def typical(resid: np.ndarray, sigma: np.ndarray | None, m: np.ndarray) -> float
     return float(np.median(np.abs(resid[m] / sigma[m])) / 0.6745) if sigma is not None and m.any() else None
 
 
+def chi2_n(resid: np.ndarray, sigma: np.ndarray | None, m: np.ndarray) -> float | None:
+    """``mean (r/σ)²`` over the samples ``m``: the reduced χ² a held-out test reads (1 for a model
+    at the noise; a misfit on the faint samples, where σ is smallest, weighs more here than in the
+    rms); None without ``sigma`` or samples."""
+    return float(np.mean((resid[m] / sigma[m]) ** 2)) if sigma is not None and m.any() else None
+
+
 _rms, _typical = rms, typical  # the old private names, kept for old imports
 
 
@@ -93,6 +100,7 @@ def solve_egi(p: Any, m: Any, a: Any) -> EGISolution:
         egi_n_normals=int(res.areas.size), egi_area_m2=float(res.areas.sum()), fit_rms=rms_fit,
         fit_rms_over_noise=(rms_fit / noise_fit) if noise_fit else None,
         heldout_rms=rms_held, heldout_rms_over_noise=(rms_held / noise_held) if noise_held and held.any() else None,
+        heldout_chi2_n=chi2_n(resid, sigma, held),
         heldout_rms_relative=(rms_held / float(np.sqrt(np.mean(y[held] ** 2)))) if held.any() else None,
         fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
         shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
@@ -133,6 +141,7 @@ def score_truth(p: Any, m: Any, a: Any, sol: EGISolution) -> dict[str, Any]:
         metrics["true_heldout_rms"] = true_rms
         if m.sigma is not None:
             metrics["true_heldout_rms_over_noise"] = true_rms / rms(m.sigma, m.held)
+            metrics["true_heldout_chi2_n"] = chi2_n(m.y - m.clean_w * m.unit, m.sigma, m.held)
         if sol.metrics.get("heldout_rms") is not None and true_rms > 0:
             metrics["heldout_rms_over_true"] = sol.metrics["heldout_rms"] / true_rms
     if res.mesh is not None:
