@@ -168,6 +168,23 @@ def test_refine_spin_1sigma_adds_the_move_between_the_last_two_softnesses():
     assert one["softness_pole_shift_deg"] == 0.0 and one["pole_err_deg"] == one["formal_pole_err_deg"]
 
 
+def test_refine_spin_never_returns_a_fit_worse_than_its_start():
+    """Started at the truth, a first run at very soft shadows (τ = the bus's size) leads the spin
+    away and two steps at the last τ do not bring it back: the refinement's loss is above the
+    start's there, so the start is returned (its loss, its pole, ``kept_start``); with steps
+    enough the refinement ends below the start and is returned."""
+    t, y, sigma, sun, obs, p, spin = _scene(n=120, seed=5)
+    kw = dict(sigma=sigma, fixed=("cd_bus",), softness=(1.0, 0.01))
+    lost = refine_spin(t, y, sun, obs, p, *spin, maxiter=2, **kw)
+    assert lost["kept_start"] and lost["refined_loss"] > 2 * lost["start_loss"]
+    assert lost["loss"] == lost["start_loss"]
+    assert separation_deg((lost["pole_lon_deg"], lost["pole_lat_deg"]), spin[:2]) < 1e-5
+    assert lost["period_s"] == pytest.approx(spin[2], rel=1e-12)
+    done = refine_spin(t, y, sun, obs, p, *spin, maxiter=30, **kw)
+    assert not done["kept_start"] and done["loss"] == done["refined_loss"] < done["start_loss"]
+    assert done["start_loss"] == pytest.approx(lost["start_loss"], rel=1e-12)  # the same start, the same τ
+
+
 def _searched_stage():
     """The stage's scene of :func:`test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing`:
     ``(stage, (lon, lat), start)`` — ``stage(config)`` runs the parametric stage on a searched spin

@@ -113,8 +113,11 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     optimiser's steps, the Jacobian's differences and the 1σ are small and stay on the CPU).
 
     Returns ``pole_lon_deg, pole_lat_deg, period_s, phase_deg``, ``loss`` and
-    ``rms_over_noise`` (at the last ``τ``), ``params`` (the family's, ``p`` itself without
-    ``shape``; the free albedos as solved), and the 1σ: the Gauss–Newton one with the geometry
+    ``rms_over_noise`` (at the last ``τ``; ``start_loss`` and ``refined_loss`` the start's and
+    the refinement's there — where the start's is lower the start is returned, ``kept_start``
+    True: the schedule of softnesses can lead the descent into a worse minimum than the one it
+    started in, and a refinement is never worse than its start), ``params`` (the family's, ``p``
+    itself without ``shape``; the free albedos as solved), and the 1σ: the Gauss–Newton one with the geometry
     of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the reduced χ²
     where above 1; ``formal_pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``,
     and ``formal_period_err_s``, given whatever the verdict) added in quadrature to the
@@ -203,12 +206,17 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         x = run(x, s * bus, len(x))
         spins.append((x[:4] * scale_np).copy())
     tau = float(softness[-1]) * bus
+    with torch.no_grad():  # never worse than the start: the softness schedule can lead the descent off
+        start_loss, end_loss = (float(loss(torch.as_tensor(v, device=dev), tau)) for v in (x0, x))
+    kept_start = start_loss < end_loss
+    if kept_start:
+        x = x0
     with torch.no_grad():
         sp, q = unpack(torch.as_tensor(x, device=dev))
         spin = sp.cpu().numpy()
         m, a = _model(sp, q, t, Si, Oi, tau, c, albedos=True)
         q = q.index_put((c["cd_idx"],), a)
-        out = dict(loss=float(loss(torch.as_tensor(x, device=dev), tau)),
+        out = dict(loss=min(start_loss, end_loss), start_loss=start_loss, refined_loss=end_loss, kept_start=kept_start,
                    rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()), params=q.cpu().numpy().copy())
     J, r0, J_h, r_h = _jacobians(spin, q, t, Si, Oi, tau, c, free, held)
     from cssat.inversion.spin_errors import verdict_keys  # local: scipy.stats, only for a verdict

@@ -111,7 +111,10 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
     frames = spin_frame(m.t, r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], sp.frame)
     keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "phase_deg", "pole_err_deg", "period_err_s", "formal_pole_err_deg",
             "formal_period_err_s", "softness_pole_shift_deg", "softness_period_shift_s", "rms_over_noise", "verdict",
-            "verdict_why", "heldout_chi2", "heldout_n", "heldout_threshold")
+            "verdict_why", "heldout_chi2", "heldout_n", "heldout_threshold", "kept_start")
+    if r["kept_start"]:
+        log.warning("inversion.parametric.refine_spin: the refinement ended above its start's loss (%.4g > %.4g): "
+                    "the searched spin and the family's fit in its frame are kept", r["refined_loss"], r["start_loss"])
     out = {f"parametric_spin_{k}": (None if isinstance(r[k], float) and not np.isfinite(r[k]) else r[k]) for k in keys}
     return (np.asarray(r["params"]), frames[0] @ a.frames[0].T, to_body(frames, m.sun_in), to_body(frames, m.obs_in),
             out)
