@@ -236,6 +236,7 @@ def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
     stage, (lon, lat), start = _searched_stage()
     plain, refined = (stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=r))[0] for r in (False, True))
     assert "parametric_spin_pole_lon_deg" not in plain
+    assert refined["parametric_spin_kept_start"] is False  # the refinement moved: the start was worse
     sep = separation_deg((refined["parametric_spin_pole_lon_deg"], refined["parametric_spin_pole_lat_deg"]), (lon, lat))
     assert sep < 0.5 * separation_deg(start, (lon, lat))
     assert refined["heldout_rms"] < plain["heldout_rms"]
