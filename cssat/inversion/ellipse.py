@@ -10,11 +10,12 @@ For a spread along one line the circle of radius ``1.0714 ×`` the radial 1σ ho
 - :func:`tangent_offset`: a direction's offset from a centre in the centre's tangent plane
   (azimuthal equidistant: east, north in degrees, the length the great-circle separation);
 - :func:`error_ellipse`: the 1σ ellipse ``(major, minor, position angle)`` of a set of such
-  offsets, or of a covariance ``(2, 2)``, from their second moments about zero (the fit's own
-  answer is the centre);
+  offsets, from their second moments about zero (the fit's own answer is the centre);
+  :func:`ellipse_of_cov` the same of a covariance ``(2, 2)``;
 - :func:`ellipse_level`: the confidence level of the smallest region that holds a direction — a
   Gaussian's, or with the covariance estimated from ``dof`` replicates Hotelling's (the F
-  distribution). A direction is inside the 68.27 % region when its level is at most 0.6827.
+  distribution). A direction is inside the 68.27 % region when its level is at most 0.6827;
+  :func:`errors_level` reads the ellipse from an estimator's ``errors``.
 
 Assumptions: offsets small enough that the tangent plane holds them (a few degrees: the
 projection's error is of the order of the square of the offset in radians); the spread Gaussian
@@ -84,10 +85,10 @@ def ellipse_level(center: tuple[float, float], point: tuple[float, float], major
     (``(longitude, latitude)`` in degrees), for the 1σ ellipse ``(major_deg, minor_deg, pa_deg)``
     (:func:`error_ellipse`): with ``m²`` the point's Mahalanobis distance squared, ``1 −
     exp(−m²/2)`` (the χ² of two degrees of freedom: the covariance known), or with the covariance
-    estimated from ``dof ≥ 3`` zero-mean replicates Hotelling's ``F₂,dof−1(m² (dof − 1) / (2 dof))``
-    (wider: the 95.45 % region's radius is 1.15× the Gaussian's at ``dof = 20``). The point is
-    inside the ``q`` region when the level is at most ``q``; 1.0 for a point off a degenerate
-    (zero-width) ellipse's line."""
+    estimated from ``dof ≥ 3`` zero-mean replicates Hotelling's ``F₂,dof−1(m² (dof − 1) / (2
+    dof))`` (wider: at ``dof = 20`` the 68.27 % region's radius is 1.06× the Gaussian's, the
+    95.45 % one's 1.12×). The point is inside the ``q`` region when the level is at most ``q``;
+    1.0 for a point off a degenerate (zero-width) ellipse's line."""
     if not (minor_deg >= 0 and major_deg >= minor_deg):
         raise FieldError("minor_deg", f"expected 0 ≤ minor ≤ major, got minor {minor_deg!r}, major {major_deg!r}")
     if dof and (int(dof) != dof or dof < 3):
