@@ -272,7 +272,7 @@ def report_tumble(rs: list[dict]) -> None:
               f"median L_err_deg {np.median([r['L_err_deg'] for r in sub]):.3f}°, cpu {np.median([r['cpu_s'] for r in sub]):.0f} s")
         if all(r.get("bootstrap_L_err_deg") is not None for r in sub):  # the parts of the 1σ, each alone
             zb = np.array([r["sep_deg"] / r["bootstrap_L_err_deg"] for r in sub])
-            zg = np.array([r["sep_deg"] / r["grid_L_shift_deg"] for r in sub])
+            zg = np.array([r["sep_deg"] / r["grid_L_shift_deg"] if r["grid_L_shift_deg"] > 0 else math.inf for r in sub])
             print(f"    the bootstrap's part alone {100 * np.mean(zb <= R68):.1f} / {100 * np.mean(zb <= R95):.1f} %; the grid's "
                   f"alone {100 * np.mean(zg <= R68):.1f} / {100 * np.mean(zg <= R95):.1f} %")
         if all(r.get("L_level") is not None for r in sub):  # the 1σ ellipse's regions (what L_level reports)
@@ -306,9 +306,22 @@ def _p(k: int, n: int, level: float) -> str:
     return f"p {binomtest(k, n, level).pvalue:.2g}" if n else "p nan"
 
 
+def powerless(rows: list[dict]) -> list[dict]:
+    """The rows with the held-out test's power rule applied (``HELDOUT_MAX_LIMIT``, since the
+    ellipse study): a reliable row whose allowed χ²/n is above it reread as unreliable, and said."""
+    from cssat.inversion.spin_errors import HELDOUT_MAX_LIMIT
+
+    weak = [r for r in rows if r.get("verdict") == "reliable" and (r.get("heldout_limit_n") or 0) > HELDOUT_MAX_LIMIT]
+    if weak:
+        print(f"{len(weak)} reliable rows whose held-out test allowed χ²/n > {HELDOUT_MAX_LIMIT:g} counted unreliable "
+              f"(seeds {', '.join(str(r['seed']) for r in weak)})")
+    return [{**r, "verdict": "unreliable"} if r in weak else r for r in rows]
+
+
 def report(rows: list[dict]) -> None:
     from cssat.inversion.spin_errors import POLE_DELTA_CHI2  # the region's levels: 2.30, 6.18
 
+    rows = powerless(rows)
     for part in sorted({r["part"] for r in rows}):
         rs = [r for r in rows if r["part"] == part]
         if part == "tumble":
