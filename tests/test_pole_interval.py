@@ -44,6 +44,13 @@ def test_judge_says_why_and_needs_the_noise():
     assert v == "unreliable" and "sigma" in why
     v, why = judge(None, 0, None, chi2_fit=100.0, n_fit=100, fit_threshold=150.0, sigma_given=True, what="the pole")
     assert v == "reliable" and "overfitting" in why
+    # a test without power: a right model may miss the held-out samples by χ²/n up to 8,000 — passing
+    # it at 2,500 says nothing (a tumbler 138° off did); at an allowed 1.9 a pass still counts
+    v, why = judge(250_000.0, 100, 800_000.0, chi2_fit=100.0, n_fit=100, fit_threshold=150.0, sigma_given=True,
+                   what="the angular momentum's direction")
+    assert v == "unreliable" and "cannot test" in why and "8e+03" in why
+    v, _ = judge(150.0, 100, 190.0, chi2_fit=100.0, n_fit=100, fit_threshold=150.0, sigma_given=True, what="the pole")
+    assert v == "reliable"
 
 
 def _geometry(t):
