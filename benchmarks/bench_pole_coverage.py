@@ -161,6 +161,7 @@ def case(seed: int, part: str = "class", glint: float = 1.0, search: dict | None
     row = {"seed": seed, "part": part, "egi": egi, "sep_deg": separation_deg((sol.pole_lon_deg, sol.pole_lat_deg), (ra, dec)),
            "period_rel": abs(sol.period_s / period - 1), "verdict": sol.verdict, "reduced_chi2": sol.reduced_chi2,
            "heldout_chi2_n": sol.heldout_chi2 / sol.heldout_n, "heldout_limit_n": sol.heldout_threshold / sol.heldout_n,
+           "heldout_leverage_n": sol.get("heldout_leverage", float("nan")) / sol.heldout_n,
            "pole_err_deg": sol.pole_err_deg, "laplace_pole_err_deg": sol.laplace_pole_err_deg, "noise": s,
            "ambiguous": sol.ambiguous, "grid_pole_shift_deg": sol.grid_pole_shift_deg,
            "search": {k: SEARCH[k] for k in ("n_poles", "n_starts", "n_refine", "error_grids", "bootstrap", "local_starts")},
@@ -223,6 +224,7 @@ def tumble_case(seed: int, search: dict | None = None, egi: str = "grid") -> dic
             "i_err": max(abs(st.i1 - i1), abs(st.i2 - i2)), "mode_right": bool(st.short_axis == truth.short_axis),
             "verdict": sol.verdict, "verdict_why": sol.verdict_why, "reduced_chi2": sol.reduced_chi2, "noise": s,
             "heldout_chi2_n": sol.heldout_chi2 / sol.heldout_n, "heldout_limit_n": sol.heldout_threshold / sol.heldout_n,
+            "heldout_leverage_n": sol.get("heldout_leverage", float("nan")) / sol.heldout_n,
             "L_err_deg": sol.errors["L_err_deg"], "formal_L_err_deg": sol.errors["formal_L_err_deg"],
             "grid_L_shift_deg": sol.errors["grid_L_shift_deg"],
             "bootstrap_L_err_deg": sol.errors.get("bootstrap_L_err_deg"), **_ellipse(sol, lon, lat),
@@ -307,14 +309,17 @@ def _p(k: int, n: int, level: float) -> str:
 
 
 def powerless(rows: list[dict]) -> list[dict]:
-    """The rows with the held-out test's power rule applied (``HELDOUT_MAX_LIMIT``, since the
-    ellipse study): a reliable row whose allowed χ²/n is above it reread as unreliable, and said."""
-    from cssat.inversion.spin_errors import HELDOUT_MAX_LIMIT
+    """The rows with the held-out test's power rule applied (``HELDOUT_MAX_LEVERAGE``, since the
+    ellipse study) where they carry the leverage: a reliable row whose fitted parameters predict
+    the held-out samples more loosely than that reread as unreliable, and said. Rows written
+    before it carry no leverage and keep their verdict (``heldout_limit_n`` above 2 flags the few
+    that could move: a limit is at least ``1 + leverage``)."""
+    from cssat.inversion.spin_errors import HELDOUT_MAX_LEVERAGE
 
-    weak = [r for r in rows if r.get("verdict") == "reliable" and (r.get("heldout_limit_n") or 0) > HELDOUT_MAX_LIMIT]
+    weak = [r for r in rows if r.get("verdict") == "reliable" and (r.get("heldout_leverage_n") or 0) > HELDOUT_MAX_LEVERAGE]
     if weak:
-        print(f"{len(weak)} reliable rows whose held-out test allowed χ²/n > {HELDOUT_MAX_LIMIT:g} counted unreliable "
-              f"(seeds {', '.join(str(r['seed']) for r in weak)})")
+        print(f"{len(weak)} reliable rows whose fitted parameters predict the held-out samples with more than "
+              f"{HELDOUT_MAX_LEVERAGE:g}× the noise's variance counted unreliable (seeds {', '.join(str(r['seed']) for r in weak)})")
     return [{**r, "verdict": "unreliable"} if r in weak else r for r in rows]
 
 

@@ -101,6 +101,7 @@ def case(seed: int, floor: float = 0.015, shape: bool = True) -> dict:
     return dict(seed=seed, sep_deg=sep, pole_err_deg=pole_err, formal_pole_err_deg=r["formal_pole_err_deg"],
                 softness_pole_shift_deg=r["softness_pole_shift_deg"], verdict=r["verdict"],
                 heldout_chi2_n=r["heldout_chi2"] / r["heldout_n"], heldout_limit_n=r["heldout_threshold"] / r["heldout_n"],
+                heldout_leverage_n=r["heldout_leverage"] / r["heldout_n"],
                 period_err_rel=(cur[2] - spin[2]) / period_err,
                 formal_period_err_rel=(cur[2] - spin[2]) / r["formal_period_err_s"],
                 rms_over_noise=r["rms_over_noise"], truth=list(spin), fitted=list(cur), cpu_s=time.process_time() - c0)

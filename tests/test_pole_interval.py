@@ -44,12 +44,13 @@ def test_judge_says_why_and_needs_the_noise():
     assert v == "unreliable" and "sigma" in why
     v, why = judge(None, 0, None, chi2_fit=100.0, n_fit=100, fit_threshold=150.0, sigma_given=True, what="the pole")
     assert v == "reliable" and "overfitting" in why
-    # a test without power: a right model may miss the held-out samples by χ²/n up to 8,000 — passing
-    # it at 2,500 says nothing (a tumbler 138° off did); at an allowed 1.9 a pass still counts
+    # a test without power: the fitted parameters predict the held-out samples with 8,000× the noise's
+    # variance — passing at χ²/n 2,500 says nothing (a tumbler 138° off did); at 0.9× a pass still counts
     v, why = judge(250_000.0, 100, 800_000.0, chi2_fit=100.0, n_fit=100, fit_threshold=150.0, sigma_given=True,
-                   what="the angular momentum's direction")
-    assert v == "unreliable" and "cannot test" in why and "8e+03" in why
-    v, _ = judge(150.0, 100, 190.0, chi2_fit=100.0, n_fit=100, fit_threshold=150.0, sigma_given=True, what="the pole")
+                   what="the angular momentum's direction", leverage=799_000.0)
+    assert v == "unreliable" and "cannot test" in why and "7.99e+03×" in why
+    v, _ = judge(150.0, 100, 250.0, chi2_fit=100.0, n_fit=100, fit_threshold=150.0, sigma_given=True, what="the pole",
+                 leverage=90.0)
     assert v == "reliable"
 
 

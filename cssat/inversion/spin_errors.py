@@ -99,11 +99,12 @@ def _night_split(search: Any, t: np.ndarray, y: np.ndarray, S: np.ndarray, O: np
 #: the tail probability of the held-out test: a model whose held-out χ² is above its (1 − α)
 #: quantile under "the model is right and the noise is the stated σ" is called unreliable
 HELDOUT_ALPHA = 1e-3
-#: the held-out test's power: where a right model may miss the held-out samples by a reduced χ²
-#: above this (its fitted parameters predict them loosely: a long extrapolation, a flat valley),
-#: passing the test says little — a tumbler 138° off passed at χ²/n 2.5e5 under a limit of 8.2e5
-#: (BENCHMARKS "L's 1σ ellipse") — and the verdict is unreliable
-HELDOUT_MAX_LIMIT = 2.0
+#: the held-out test's power: where the fitted parameters predict the held-out samples more
+#: loosely than the noise itself (their prediction variance summed, ``tr P`` of
+#: :func:`heldout_threshold`, above this × the samples' count: a long extrapolation, a flat
+#: valley) passing the test says little — a tumbler 138° off passed at χ²/n 2.5e5 under a limit
+#: of 8.2e5 (BENCHMARKS "L's 1σ ellipse") — and the verdict is unreliable
+HELDOUT_MAX_LEVERAGE = 1.0
 
 
 def _spin_jacobian(fit: Any, lon: float, lat: float, f: float, a: np.ndarray, sup: np.ndarray, span: float) -> np.ndarray:
@@ -153,11 +154,12 @@ def heldout_threshold(J_fit: np.ndarray, J_held: np.ndarray, alpha: float = HELD
 
 
 def judge(chi2_held: float | None, n_held: int, threshold: float | None, *, chi2_fit: float, n_fit: int,
-          fit_threshold: float | None, sigma_given: bool, what: str) -> tuple[str, str]:
+          fit_threshold: float | None, sigma_given: bool, what: str, leverage: float | None = None) -> tuple[str, str]:
     """``(verdict, why)``: ``"reliable"`` when the model predicts data it was not fitted to
     within what the noise allows (``chi2_held`` of ``n_held`` samples at most ``threshold``, from
-    :func:`heldout_threshold`), ``"unreliable"`` otherwise — and when it cannot be tested: a
-    threshold above :data:`HELDOUT_MAX_LIMIT` × ``n_held`` (a test without power), no
+    :func:`heldout_threshold`), ``"unreliable"`` otherwise — and when it cannot be tested: the
+    fitted parameters' prediction variance on the held-out samples (``leverage``, ``tr P``)
+    above :data:`HELDOUT_MAX_LEVERAGE` × ``n_held`` (a test without power), no
     noise level given, or no held-out data and a fitted χ² above ``fit_threshold`` (without
     held-out data a fit that passes is called reliable with the caveat in ``why``: a flexible
     model can pass the fitted samples' test by overfitting). ``what``: the quantity whose 1σ
@@ -171,10 +173,10 @@ def judge(chi2_held: float | None, n_held: int, threshold: float | None, *, chi2
             return "unreliable", (f"the model predicts the {n_held} held-out samples at χ²/n {red:.3g}, above the "
                                   f"{lim:.3g} the noise allows (p < {HELDOUT_ALPHA:g}): the model does not describe "
                                   f"this object, so {what} may be wrong by more than any 1σ and none is reported")
-        if lim > HELDOUT_MAX_LIMIT:
-            return "unreliable", (f"the held-out samples cannot test the model: a right one may miss them by χ²/n up "
-                                  f"to {lim:.3g} (its fitted parameters predict them too loosely; above "
-                                  f"{HELDOUT_MAX_LIMIT:g} the test says little), so {what}'s 1σ is not reported")
+        if leverage is not None and leverage > HELDOUT_MAX_LEVERAGE * n_held:
+            return "unreliable", (f"the held-out samples cannot test the model: its fitted parameters predict them "
+                                  f"with {leverage / n_held:.3g}× the noise's variance (a right model may miss them "
+                                  f"by χ²/n up to {lim:.3g}), so {what}'s 1σ is not reported")
         return "reliable", (f"the model predicts the {n_held} held-out samples at χ²/n {red:.3g}, within the {lim:.3g} "
                             f"the noise allows")
     red = chi2_fit / max(n_fit, 1)
@@ -193,20 +195,22 @@ POLE_DELTA_CHI2 = {"68": 2.2957, "95": 6.1801}
 def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, held: tuple | None,
                  what: str) -> dict[str, Any]:
     """The verdict's keys (``verdict``, ``verdict_why``, ``heldout_chi2``, ``heldout_n``,
-    ``heldout_threshold``) of a fit of ``n_fit`` samples with Jacobian ``J_fit (n_fit, p)`` and
+    ``heldout_threshold``, ``heldout_leverage``) of a fit of ``n_fit`` samples with Jacobian ``J_fit (n_fit, p)`` and
     χ² ``chi2``: ``held = (r, J_held)`` the held-out samples' weighted residual ``r (n,)`` and
     Jacobian ``(n, p)`` (:func:`heldout_threshold`), or None (no held-out data or no σ); then
     :func:`judge`, the fitted χ² tested at ``1 − HELDOUT_ALPHA`` where nothing is held out."""
     from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only for a verdict
 
-    out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None}
+    out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None, "heldout_leverage": None}
     if held is not None:
         r, J_held = held
-        out.update(heldout_chi2=float(r @ r), heldout_n=int(len(r)),
-                   heldout_threshold=heldout_threshold(J_fit, J_held)["threshold"])
+        th = heldout_threshold(J_fit, J_held)
+        out.update(heldout_chi2=float(r @ r), heldout_n=int(len(r)), heldout_threshold=th["threshold"],
+                   heldout_leverage=th["leverage"])
     dof = max(n_fit - J_fit.shape[1], 1)
     verdict, why = judge(out["heldout_chi2"], out["heldout_n"], out["heldout_threshold"], chi2_fit=chi2, n_fit=dof,
-                         fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sigma_given, what=what)
+                         fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sigma_given, what=what,
+                         leverage=out["heldout_leverage"])
     return {"verdict": verdict, "verdict_why": why, **out}
 
 
