@@ -223,12 +223,8 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
 
     verdict = verdict_keys(J, len(r0), float(r0 @ r0), sigma is not None, None if held is None else (r_h, J_h),
                            "the pole")
-    dof = max(len(r0) - J.shape[1], 1)
-    cov = np.linalg.pinv(J.T @ J)[:4, :4] * max(1.0, float(r0 @ r0) / dof)
+    cov, formal_pole, formal_period = _formal(J, r0, spin)
     lon, lat, ph, om = spin
-    cb = math.cos(lat)
-    formal_pole = math.degrees(math.sqrt(max(cov[0, 0] * cb * cb + cov[1, 1], 0.0)))
-    formal_period = float(2 * math.pi / om**2 * math.sqrt(max(cov[3, 3], 0.0)))
     shift_pole, shift_period = _softness_shift(spins)
     ok = verdict["verdict"] == "reliable"
     return dict(out, **verdict, pole_lon_deg=math.degrees(lon) % 360.0, pole_lat_deg=math.degrees(lat),
@@ -237,6 +233,17 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                 period_err_s=math.hypot(formal_period, shift_period) if ok else math.nan,
                 formal_pole_err_deg=formal_pole, formal_period_err_s=formal_period,
                 softness_pole_shift_deg=shift_pole, softness_period_shift_s=shift_period, cov=cov)
+
+
+def _formal(J: np.ndarray, r0: np.ndarray, spin: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """The Gauss–Newton covariance ``(4, 4)`` of ``(λ, β, φ₀, ω)`` from the Jacobian ``J (T, 4 +
+    G)`` and residuals ``r0 (T,)`` (the geometry marginalised; scaled by the reduced χ² where above
+    1), and the pole's radial 1σ (degrees) and the period's (s) at ``spin``."""
+    dof = max(len(r0) - J.shape[1], 1)
+    cov = np.linalg.pinv(J.T @ J)[:4, :4] * max(1.0, float(r0 @ r0) / dof)
+    cb = math.cos(spin[1])
+    pole = math.degrees(math.sqrt(max(cov[0, 0] * cb * cb + cov[1, 1], 0.0)))
+    return cov, pole, float(2 * math.pi / spin[3] ** 2 * math.sqrt(max(cov[3, 3], 0.0)))
 
 
 def _softness_shift(spins: list[np.ndarray]) -> tuple[float, float]:
