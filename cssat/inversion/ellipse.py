@@ -30,20 +30,16 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat.inversion.spin_errors import _pole_vector
 
 __all__ = ["tangent_offset", "error_ellipse", "ellipse_of_cov", "ellipse_level", "errors_level"]
-
-
-def _unit(lon_deg: float, lat_deg: float) -> np.ndarray:
-    lo, la = math.radians(lon_deg), math.radians(lat_deg)
-    return np.array([math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)])
 
 
 def tangent_offset(center: tuple[float, float], point: tuple[float, float]) -> np.ndarray:
     """``(2,)``: the direction ``point`` seen from ``center`` (each ``(longitude, latitude)`` in
     degrees) as ``(east, north)`` in degrees — the azimuthal equidistant projection about
     ``center``: its length is the great-circle separation, its bearing the great circle's."""
-    c, p = _unit(*center), _unit(*point)
+    c, p = _pole_vector(*center), _pole_vector(*point)
     lo = math.radians(center[0])
     east = np.array([-math.sin(lo), math.cos(lo), 0.0])
     north = np.cross(c, east)

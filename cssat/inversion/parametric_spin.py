@@ -117,8 +117,8 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     the refinement's there — where the start's is lower the start is returned, ``kept_start``
     True: the schedule of softnesses can lead the descent into a worse minimum than the one it
     started in, and a refinement is never worse than its start), ``params`` (the family's, ``p``
-    itself without ``shape``; the free albedos as solved), and the 1σ: the Gauss–Newton one with the geometry
-    of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the reduced χ²
+    itself without ``shape``; the free albedos as solved), and the 1σ: the Gauss–Newton one with
+    the geometry of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the reduced χ²
     where above 1; ``formal_pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``,
     and ``formal_period_err_s``, given whatever the verdict) added in quadrature to the
     softness term — the pole's and the period's move between the last two softnesses'
@@ -208,10 +208,8 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     tau = float(softness[-1]) * bus
     with torch.no_grad():  # never worse than the start: the softness schedule can lead the descent off
         start_loss, end_loss = (float(loss(torch.as_tensor(v, device=dev), tau)) for v in (x0, x))
-    kept_start = start_loss < end_loss
-    if kept_start:
-        x = x0
-    with torch.no_grad():
+        kept_start = start_loss < end_loss
+        x = x0 if kept_start else x
         sp, q = unpack(torch.as_tensor(x, device=dev))
         spin = sp.cpu().numpy()
         m, a = _model(sp, q, t, Si, Oi, tau, c, albedos=True)

@@ -137,11 +137,12 @@ def score_truth(p: Any, m: Any, a: Any, sol: EGISolution) -> dict[str, Any]:
     to_fit = a.frames[0] @ m.true_frames[0].T
     metrics["egi_recovered_share"] = egi_recovered_share(tn_fit, ta, res.normals, res.areas)
     if m.clean_w is not None and m.held.any():  # what the true mesh itself reaches on the held-out nights, at this noise
-        true_rms = rms(m.y - m.clean_w * m.unit, m.held)
+        true_resid = m.y - m.clean_w * m.unit
+        true_rms = rms(true_resid, m.held)
         metrics["true_heldout_rms"] = true_rms
         if m.sigma is not None:
             metrics["true_heldout_rms_over_noise"] = true_rms / rms(m.sigma, m.held)
-            metrics["true_heldout_chi2_n"] = chi2_n(m.y - m.clean_w * m.unit, m.sigma, m.held)
+            metrics["true_heldout_chi2_n"] = chi2_n(true_resid, m.sigma, m.held)
         if sol.metrics.get("heldout_rms") is not None and true_rms > 0:
             metrics["heldout_rms_over_true"] = sol.metrics["heldout_rms"] / true_rms
     if res.mesh is not None:
