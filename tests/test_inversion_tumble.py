@@ -335,3 +335,42 @@ def test_a_longitude_run_past_a_turn_is_the_same_direction():
     assert far.lon_deg == pytest.approx(40.0, abs=1e-9)
     t = np.linspace(0, 3600, 7)
     np.testing.assert_allclose(far.frames(t), near.frames(t), atol=1e-9)
+
+
+def _unit(lon_deg: float, lat_deg: float) -> np.ndarray:
+    lo, la = math.radians(lon_deg), math.radians(lat_deg)
+    return np.array([math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)])
+
+
+def test_the_continuation_carries_distinct_basins_not_copies_of_one():
+    """Seed 932's first arc in miniature: four minima of one basin (L within 2°, across the
+    longitude's wrap; frequencies a few thousandths of a turn apart over the 2-h arc) ahead of
+    the other side's. The kept set is checked against a brute force written here: a minimum is
+    a copy when, against a better one already kept, the angle between the unit vectors of L is
+    under 10° and both frequencies differ by under a quarter turn over the arc."""
+    from cssat.inversion.tumble_fit import _distinct_minima
+
+    arc = 7200.0
+
+    def m(chi2, P_w, P_p, lon, lat):
+        return (chi2, np.array([0.74, 0.85, 1 / P_w, 1 / P_p, 100.0, lon, lat, 30.0]), 0.4)
+
+    minima = [m(115.3, 1575.2, 297.349, -147.6, 73.7), m(151.2, 1574.41, 297.306, 211.2, 71.9),
+              m(151.3, 1574.17, 297.299, -149.4, 72.0), m(151.3, 1574.61, 297.312, -149.6, 72.0),
+              m(160.0, 1575.2, 290.0, -147.6, 73.7),  # the same L, P_φ 1.2 turns apart over the arc
+              m(186.9, 1572.26, 298.322, -23.5, -71.5), m(186.9, 1572.25, 298.322, -23.3, -71.5)]
+
+    def brute(n, minima=minima, arc=arc):
+        kept = []
+        for c, x, a in minima:
+            copy = any(math.degrees(math.acos(np.clip(_unit(x[5], x[6]) @ _unit(k[5], k[6]), -1, 1))) < 10
+                       and abs(x[2] - k[2]) * arc < 0.25 and abs(x[3] - k[3]) * arc < 0.25 for _, k, _ in kept)
+            if not copy and len(kept) < n:
+                kept.append((c, x, a))
+        return [c for c, _, _ in kept]
+
+    assert brute(3) == [115.3, 160.0, 186.9]  # the brute force itself: one of each basin
+    for n in (1, 2, 3, 5):
+        assert [c for c, _, _ in _distinct_minima(minima, n, arc)] == brute(n)
+    # over 1e7 s (116 days) the closest two of the four are 0.8 turn apart: each is its own basin
+    assert len(_distinct_minima(minima[:4], 4, 1e7)) == 4 == len(brute(4, minima[:4], 1e7))

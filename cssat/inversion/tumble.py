@@ -22,7 +22,7 @@ from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import TumblingSolution
 from cssat.inversion.spin_errors import rivals
-from cssat.inversion.tumble_fit import _alternatives, _check_tumble, _continuation, _errors, _refine, _support
+from cssat.inversion.tumble_fit import _alternatives, _check_tumble, _continuation, _distinct_minima, _errors, _refine, _support
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
 
@@ -70,8 +70,10 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        reflective, the EGI re-solved by NNLS at each step: variable projection) in all eight
        numbers ``(i₁, i₂, f_ω, f_φ, t₀, λ, β, φ₀)`` on ``mid_samples`` samples and
        ``mid_normals`` normals; the ``n_starts`` best refined fully (``max_fev``); the
-       ``n_refine`` best carried to arcs ``growth`` times longer (a continuation in time: the phases
-       stay coherent while the span grows) up to every sample, then fitted on ``max_samples``
+       ``n_refine`` best distinct basins (``L`` 10° apart or a frequency a quarter turn apart
+       over the arc: :func:`~cssat.inversion.tumble_fit._distinct_minima`) carried to arcs
+       ``growth`` times longer (a continuation in time: the phases stay coherent while the span
+       grows) up to every sample, then fitted on ``max_samples``
        samples and ``n_normals`` normals (``final_fev``). Every motion has a twin — the body
        turned 180° about its circulation axis, half a period of ``ω`` on
        (:meth:`TumblingState.twin`) — that is the same motion in space but puts the EGI on the
@@ -146,8 +148,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     n_mid = int_param(mid_samples, "mid_samples", 16)
     arc_fit = _TFit.spread(samples, arc, n_mid, mid_N, brdf)
     screened = sorted((_refine(arc_fit, q[1], q[2], arc_s, screen_fev, t_ref, frame) for q in starts), key=lambda r: r[0])
-    cur = sorted((_refine(arc_fit, r[1], r[2], arc_s, max_fev, t_ref, frame) for r in screened[:n_starts]),
-                 key=lambda r: r[0])[:n_refine]
+    cur = _distinct_minima(sorted((_refine(arc_fit, r[1], r[2], arc_s, max_fev, t_ref, frame) for r in screened[:n_starts]),
+                                  key=lambda r: r[0]), n_refine, arc_s)
     log.info("estimate_tumbling: %d starts refined on the first arc, %.1f s (best reduced chi2 %.3g)", len(starts),
              time.perf_counter() - clock, cur[0][0] / len(arc_fit.t))
     cur = _continuation(samples, cur, arc_s, growth, n_mid, mid_N, brdf, max_fev, t_ref, frame, clock)

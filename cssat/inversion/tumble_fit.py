@@ -57,6 +57,31 @@ def _refine(fit: _TFit, x0: np.ndarray, alpha0: float, span_s: float, maxfev: in
     return (float(2 * res.cost), x, st.alpha if st is not None else alpha0)
 
 
+#: two refined minima of the first arc are one basin reached from two starts when their ``L`` lie
+#: within this many degrees and both frequencies within :data:`SAME_CYCLES` turns over the arc
+SAME_L_DEG = 10.0
+SAME_CYCLES = 0.25
+
+
+def _distinct_minima(minima: list[tuple], n: int, arc_s: float) -> list[tuple]:
+    """The ``n`` best of the refined ``minima`` (``(chi2, x (8,), alpha)``, best first) that are
+    distinct basins: a minimum whose ``L`` lies within :data:`SAME_L_DEG` of a better one kept and
+    whose frequencies ``f_ω``, ``f_φ`` both differ from its by less than :data:`SAME_CYCLES` turns
+    over ``arc_s`` seconds (below the arc's resolution) is that basin again, and skipped — the
+    continuation carries what is kept, and ``n`` copies of one basin would spend every slot on
+    it. Fewer than ``n`` when fewer are distinct."""
+    kept: list[tuple] = []
+    for r in minima:
+        x = r[1]
+        if not any(_separation_deg((float(x[5]), float(x[6])), (float(k[1][5]), float(k[1][6]))) < SAME_L_DEG
+                   and abs(x[2] - k[1][2]) * arc_s < SAME_CYCLES and abs(x[3] - k[1][3]) * arc_s < SAME_CYCLES
+                   for k in kept):
+            kept.append(r)
+        if len(kept) == n:
+            break
+    return kept
+
+
 def _continuation(samples: tuple, cur: list[tuple], arc_s: float, growth: float, n_mid: int, mid_N: np.ndarray, brdf: Any,
                   max_fev: int, t_ref: float, frame: str, clock: float) -> list[tuple]:
     """The refined minima ``cur`` (``(chi2, x, alpha)``) carried from the first ``arc_s`` seconds
