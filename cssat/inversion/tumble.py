@@ -18,11 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import TumblingSolution
 from cssat.inversion.spin_errors import rivals
-from cssat.inversion.tumble_fit import _alternatives, _check_tumble, _continuation, _distinct_minima, _errors, _refine, _support
+from cssat.inversion.tumble_fit import (_alternatives, _check_tumble, _continuation, _distinct_minima, _errors, _refine, _rephase,
+                                        _support)
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
 
@@ -40,7 +41,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
                       n_refine: int = 4, coarse_normals: int = 64, coarse_samples: int = 160, mid_normals: int = 150,
                       mid_samples: int = 400, n_normals: int = 600, max_samples: int = 1200, growth: float = 3.0,
                       max_fev: int = 200, screen_fev: int = 30, final_fev: int = 60, error_grids: int = 1, bootstrap: int = 20,
-                      heldout: Any = None) -> TumblingSolution:
+                      rephase: bool = True, heldout: Any = None) -> TumblingSolution:
     """The torque-free tumbling state (:class:`TumblingState`) and EGI of an object from its light
     curve ``flux (T,)`` at ``times_s (T,)``, the Sun and observer directions ``sun``, ``obs (T, 3)``
     (inertial unit vectors from the object), ``sigma`` its 1σ, ``brdf`` (default Lambert): the
@@ -73,8 +74,11 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        ``n_refine`` best distinct basins (``L`` 10° apart or a frequency a quarter turn apart
        over the arc: :func:`~cssat.inversion.tumble_fit._distinct_minima`) carried to arcs
        ``growth`` times longer (a continuation in time: the phases stay coherent while the span
-       grows) up to every sample, then fitted on ``max_samples``
-       samples and ``n_normals`` normals (``final_fev``). Every motion has a twin — the body
+       grows) up to every sample; with ``rephase`` (default) each one's two phases searched again
+       at that span from ``n_t0 × n_phi`` starts, the lowest χ² kept
+       (:func:`~cssat.inversion.tumble_fit._rephase`: the continuation keeps the first arc's
+       phases while the frequencies move); then fitted on ``max_samples`` samples and
+       ``n_normals`` normals (``final_fev``). Every motion has a twin — the body
        turned 180° about its circulation axis, half a period of ``ω`` on
        (:meth:`TumblingState.twin`) — that is the same motion in space but puts the EGI on the
        grid turned; the twin is refined too and kept when it fits better.
@@ -153,6 +157,10 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     log.info("estimate_tumbling: %d starts refined on the first arc, %.1f s (best reduced chi2 %.3g)", len(starts),
              time.perf_counter() - clock, cur[0][0] / len(arc_fit.t))
     cur = _continuation(samples, cur, arc_s, growth, n_mid, mid_N, brdf, max_fev, t_ref, frame, clock)
+    if rephase:  # the phases searched again at the full span (the continuation kept the first arc's)
+        cur = _rephase(_TFit.spread(samples, np.ones(len(t), bool), n_mid, mid_N, brdf), cur, n_t0, n_phi, max_fev, t_ref, frame)
+        log.info("estimate_tumbling: phases rescanned, %.1f s (best reduced chi2 %.3g)", time.perf_counter() - clock,
+                 cur[0][0] / min(n_mid, len(t)))
     final = _TFit.spread(samples, np.ones(len(t), bool), max_samples, fine_N, brdf)
     cur = sorted((_refine(final, r[1], r[2], span, final_fev, t_ref, frame) for r in cur), key=lambda r: r[0])
     log.info("estimate_tumbling: final fit, %.1f s", time.perf_counter() - clock)
@@ -219,6 +227,7 @@ def check_tumbling_options(**options: Any) -> None:
         int_param(o[k], k, 1, 10**7)
     int_param(o["error_grids"], "error_grids", 1, 64)
     int_param(o["bootstrap"], "bootstrap", 0, 1000)
+    bool_param(o["rephase"], "rephase")
     int_param(o["coarse_normals"], "coarse_normals", 8, 10**6)
     for k in ("coarse_samples", "mid_normals", "mid_samples", "n_normals", "max_samples"):
         int_param(o[k], k, 16, 10**7)

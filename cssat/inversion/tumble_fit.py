@@ -99,6 +99,36 @@ def _continuation(samples: tuple, cur: list[tuple], arc_s: float, growth: float,
     return cur
 
 
+#: the rescan's first stage: Levenberg–Marquardt steps from each phase start, and how many of
+#: those starts are refined fully
+REPHASE_FEV, REPHASE_KEEP = 10, 3
+
+
+def _rephase(fit: _TFit, cur: list[tuple], n_t0: int, n_phi: int, max_fev: int, t_ref: float, frame: str) -> list[tuple]:
+    """Each continued minimum of ``cur`` (``(chi2, x (8,), alpha)`` on ``fit``: every sample's
+    span) with its two phases searched again at that span: from ``n_t0 × n_phi`` starts — the
+    polhode phase ``t₀`` on ``n_t0`` steps of ``1/f_ω``, the precession phase ``φ₀`` on
+    ``n_phi`` steps of a turn, the other six numbers the minimum's — :data:`REPHASE_FEV` steps of
+    :func:`_refine`, the :data:`REPHASE_KEEP` best refined fully (``max_fev``), the lowest χ² of
+    those and the minimum itself kept; best first. The continuation carries the phases of the
+    first arc's minimum while its frequencies move (a tumbler's true side, carried from the first
+    arc 21° off with P_φ 0.07 % off, was continued to the right periods but stopped 11° from its
+    L at its first-arc phases; rescanned, its phases found a χ² below the mirror solution's)."""
+    span = float(fit.t[-1] - fit.t[0])
+    out = []
+    for c, x, al in cur:
+        starts = []
+        for dt in np.arange(n_t0) / (n_t0 * x[2]):
+            for dphi in np.arange(n_phi) * (360.0 / n_phi):
+                x1 = x.copy()
+                x1[4], x1[7] = x1[4] + dt, (x1[7] + dphi) % 360.0
+                starts.append(_refine(fit, x1, al, span, REPHASE_FEV, t_ref, frame))
+        starts.sort(key=lambda r: r[0])
+        out.append(min([(c, x, al)] + [_refine(fit, r[1], r[2], span, max_fev, t_ref, frame) for r in starts[:REPHASE_KEEP]],
+                       key=lambda r: r[0]))
+    return sorted(out, key=lambda r: r[0])
+
+
 def _tumble_jacobian(fit: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, sup: np.ndarray,
                      span: float) -> np.ndarray:
     """The whitened Jacobian ``(T, 8 + S)`` of the EGI model on ``fit``'s samples in the eight
