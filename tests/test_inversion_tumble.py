@@ -374,3 +374,43 @@ def test_the_continuation_carries_distinct_basins_not_copies_of_one():
         assert [c for c, _, _ in _distinct_minima(minima, n, arc)] == brute(n)
     # over 1e7 s (116 days) the closest two of the four are 0.8 turn apart: each is its own basin
     assert len(_distinct_minima(minima[:4], 4, 1e7)) == 4 == len(brute(4, minima[:4], 1e7))
+
+
+def test_the_rescan_of_the_phases_finds_a_minimum_its_start_missed():
+    """A continued minimum whose two phases are the first arc's while its frequencies are right
+    (here: the truth with ``φ₀`` half a turn and ``t₀`` a third of the polhode period off, the
+    light curve noiseless). Refined from there alone, Levenberg–Marquardt stops far above the
+    truth's χ² (asserted: the case needs the rescan); ``_rephase`` from the same start reaches
+    the truth's χ² within the noise's scale and L within 1°. The truth's χ² is computed here
+    from the truth's own state (one NNLS solve), not from the code under test."""
+    from cssat.inversion.spin import _separation_deg
+    from cssat.inversion.tumble_fit import _refine, _rephase
+    from cssat.inversion.tumble_state import _TFit
+    from test_tumble_errors import _in_class_case
+
+    truth, (t, sun, obs), grid, clean = _in_class_case()
+    sig = 0.01 * clean.mean()
+    y = clean + sig * np.random.default_rng(3).standard_normal(len(t))
+    fit = _TFit.spread((t, y, np.full(len(t), 1.0 / sig), sun, obs), np.ones(len(t), bool), 240, grid, None)
+    span = float(t[-1] - t[0])
+    _, chi2_truth = fit.solve(truth)
+    x0 = truth.vector()
+    x0[4] += 1 / (3 * x0[2])
+    x0[7] = (x0[7] + 180.0) % 360.0
+    alone = _refine(fit, x0, truth.alpha, span, 200, truth.t_ref_s, truth.frame)
+    assert alone[0] > 3 * chi2_truth  # stuck: the start's phases are in another basin
+    c, x, _ = _rephase(fit, [alone], 6, 8, 200, truth.t_ref_s, truth.frame)[0]
+    assert c <= chi2_truth + 3 * math.sqrt(2 * len(fit.t))  # the truth's minimum, within the χ²'s own spread
+    assert _separation_deg((float(x[5]), float(x[6])), (truth.lon_deg, truth.lat_deg)) < 1.0
+
+
+@pytest.mark.parametrize("value", ["x", 2, None])
+def test_a_bad_rephase_is_refused_before_any_work(value):
+    from cssat.inversion.tumble import check_tumbling_options, estimate_tumbling
+
+    t = np.arange(0, 3600, 10.0)
+    v = np.tile([1.0, 0.0, 0.0], (len(t), 1))
+    with pytest.raises(FieldError, match="rephase"):
+        check_tumbling_options(rephase=value)
+    with pytest.raises(FieldError, match="rephase"):
+        estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), rephase=value)

@@ -22,8 +22,8 @@ from cssat._checks import FieldError, bool_param, choice_param, float_param, int
 from cssat.inversion.period_verdict import MODEL_FITS_CHI2
 from cssat.inversion.results import TumblingSolution
 from cssat.inversion.spin_errors import rivals
-from cssat.inversion.tumble_fit import (_alternatives, _check_tumble, _continuation, _distinct_minima, _errors, _refine, _rephase,
-                                        _support)
+from cssat.inversion.tumble_fit import (_alternatives, _best_motion, _check_tumble, _continuation, _distinct_minima, _errors,
+                                        _refine, _rephase, _support)
 from cssat.inversion.tumble_search import INERTIA_GRID, _CoarseGrid, _distinct_starts, _given_pairs, _lattice_pairs
 from cssat.inversion.tumble_state import TumblingState, _TFit, torque_free_invariants, tumbling_rates
 
@@ -122,6 +122,7 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     grid_I = _check_inertia_grid(inertia_grid)
     error_grids = int_param(error_grids, "error_grids", 1, 64)  # step 4's, refused before any work
     bootstrap = int_param(bootstrap, "bootstrap", 0, 1000)
+    rephase = bool_param(rephase, "rephase")
     n_poles, n_t0, n_phi, n_starts, n_refine = (int_param(v, k, 1) for v, k in (
         (n_poles, "n_poles"), (n_t0, "n_t0"), (n_phi, "n_phi"), (n_starts, "n_starts"), (n_refine, "n_refine")))
     arc = t <= t_ref + arc_s
@@ -164,26 +165,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
     final = _TFit.spread(samples, np.ones(len(t), bool), max_samples, fine_N, brdf)
     cur = sorted((_refine(final, r[1], r[2], span, final_fev, t_ref, frame) for r in cur), key=lambda r: r[0])
     log.info("estimate_tumbling: final fit, %.1f s", time.perf_counter() - clock)
-    # the best refined minimum that is a motion (a refinement can stop where no torque-free motion has its numbers)
-    keep = [(r, st) for r in cur for st in [TumblingState.from_vector(r[1], r[2], t_ref, frame)] if st is not None]
-    if not keep:
-        raise RuntimeError("estimate_tumbling: no refined minimum is a torque-free motion (the refinements ended where "
-                           "no rigid body has those numbers): widen the search (n_starts, n_refine) or give periods_s")
-    cur = [r for r, _ in keep]
-    (chi2, x, alpha), state = keep[0]
-    # the motion's twin (the body turned 180° about its circulation axis): the same motion in space,
-    # whose EGI may sit better on the fixed grid of normals — kept, refined, when it fits better
-    twin = state.twin()
-    if twin is not None:
-        _, c_twin = final.solve(twin)
-        if c_twin < chi2:
-            refined = _refine(final, twin.vector(), twin.alpha, span, final_fev, t_ref, frame)
-            motions = [(r, st) for r in (refined, (float(c_twin), twin.vector(), twin.alpha))  # kept only as a motion
-                       for st in [TumblingState.from_vector(r[1], r[2], t_ref, frame)] if st is not None]
-            if motions:
-                cur[0], state = min(motions, key=lambda m: m[0][0])
-            log.info("estimate_tumbling: the twin motion fits better (chi2 %.6g -> %.6g)", chi2, cur[0][0])
-            chi2, x, alpha = cur[0]
+    cur, state = _best_motion(final, cur, span, final_fev, t_ref, frame)
+    chi2, x, alpha = cur[0]
     state.lon_deg = float((state.lon_deg + 180.0) % 360.0 - 180.0)
     state.phi0_deg = float(state.phi0_deg % 360.0)
     a, chi2 = final.solve(state)

@@ -129,6 +129,33 @@ def _rephase(fit: _TFit, cur: list[tuple], n_t0: int, n_phi: int, max_fev: int, 
     return sorted(out, key=lambda r: r[0])
 
 
+def _best_motion(final: _TFit, cur: list[tuple], span: float, final_fev: int, t_ref: float,
+                 frame: str) -> tuple[list[tuple], TumblingState]:
+    """The refined minima ``cur`` (``(chi2, x, alpha)`` on ``final``, best first) kept where
+    they are torque-free motions (a refinement can stop where no rigid body has its numbers) and
+    the best one's state; where the best one's twin (:meth:`TumblingState.twin`: the body turned
+    180° about its circulation axis — the same motion in space, whose EGI may sit better on the
+    fixed grid of normals) fits better, the twin refined (or as it is, whichever is lower and a
+    motion) replaces it. ``RuntimeError`` when no minimum is a motion."""
+    keep = [(r, st) for r in cur for st in [TumblingState.from_vector(r[1], r[2], t_ref, frame)] if st is not None]
+    if not keep:
+        raise RuntimeError("estimate_tumbling: no refined minimum is a torque-free motion (the refinements ended where "
+                           "no rigid body has those numbers): widen the search (n_starts, n_refine) or give periods_s")
+    cur = [r for r, _ in keep]
+    (chi2, _, _), state = keep[0]
+    twin = state.twin()
+    if twin is not None:
+        _, c_twin = final.solve(twin)
+        if c_twin < chi2:
+            refined = _refine(final, twin.vector(), twin.alpha, span, final_fev, t_ref, frame)
+            motions = [(r, st) for r in (refined, (float(c_twin), twin.vector(), twin.alpha))  # kept only as a motion
+                       for st in [TumblingState.from_vector(r[1], r[2], t_ref, frame)] if st is not None]
+            if motions:
+                cur[0], state = min(motions, key=lambda m: m[0][0])
+            log.info("estimate_tumbling: the twin motion fits better (chi2 %.6g -> %.6g)", chi2, cur[0][0])
+    return cur, state
+
+
 def _tumble_jacobian(fit: _TFit, state: TumblingState, x: np.ndarray, a: np.ndarray, sup: np.ndarray,
                      span: float) -> np.ndarray:
     """The whitened Jacobian ``(T, 8 + S)`` of the EGI model on ``fit``'s samples in the eight
