@@ -342,12 +342,13 @@ def _unit(lon_deg: float, lat_deg: float) -> np.ndarray:
     return np.array([math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)])
 
 
-def test_the_continuation_carries_distinct_basins_not_copies_of_one():
+def test_the_continuation_carries_every_basin_not_only_copies_of_one():
     """Seed 932's first arc in miniature: four minima of one basin (L within 2°, across the
     longitude's wrap; frequencies a few thousandths of a turn apart over the 2-h arc) ahead of
-    the other side's. The kept set is checked against a brute force written here: a minimum is
-    a copy when, against a better one already kept, the angle between the unit vectors of L is
-    under 10° and both frequencies differ by under a quarter turn over the arc."""
+    the other side's. Carried: the ``n`` best as before and, beside them, the best of each other
+    basin until ``n`` basins are carried — checked against a brute force written here: a minimum
+    is a copy of another when the angle between the unit vectors of their L is under 10° and both
+    frequencies differ by under a quarter turn over the arc."""
     from cssat.inversion.tumble_fit import _distinct_minima
 
     arc = 7200.0
@@ -361,19 +362,24 @@ def test_the_continuation_carries_distinct_basins_not_copies_of_one():
               m(186.9, 1572.26, 298.322, -23.5, -71.5), m(186.9, 1572.25, 298.322, -23.3, -71.5)]
 
     def brute(n, minima=minima, arc=arc):
-        kept = []
-        for c, x, a in minima:
-            copy = any(math.degrees(math.acos(np.clip(_unit(x[5], x[6]) @ _unit(k[5], k[6]), -1, 1))) < 10
-                       and abs(x[2] - k[2]) * arc < 0.25 and abs(x[3] - k[3]) * arc < 0.25 for _, k, _ in kept)
-            if not copy and len(kept) < n:
-                kept.append((c, x, a))
-        return [c for c, _, _ in kept]
+        def copy(x, k):
+            angle = math.degrees(math.acos(np.clip(_unit(x[5], x[6]) @ _unit(k[5], k[6]), -1, 1)))
+            return angle < 10 and abs(x[2] - k[2]) * arc < 0.25 and abs(x[3] - k[3]) * arc < 0.25
 
-    assert brute(3) == [115.3, 160.0, 186.9]  # the brute force itself: one of each basin
+        heads = []
+        for i, (_, x, _) in enumerate(minima):
+            if not any(copy(x, minima[h][1]) for h in heads):
+                heads.append(i)
+        return sorted(minima[i][0] for i in sorted(set(range(min(n, len(minima)))) | set(heads[:n])))
+
+    assert brute(3) == [115.3, 151.2, 151.3, 160.0, 186.9]  # the brute force itself: the 3 best and 2 more basins
+    assert brute(1) == [115.3]
     for n in (1, 2, 3, 5):
         assert [c for c, _, _ in _distinct_minima(minima, n, arc)] == brute(n)
-    # over 1e7 s (116 days) the closest two of the four are 0.8 turn apart: each is its own basin
-    assert len(_distinct_minima(minima[:4], 4, 1e7)) == 4 == len(brute(4, minima[:4], 1e7))
+    # over the arc the two best are one basin: a third minimum, the next basin's, is carried; over
+    # 1e7 s (116 days) the closest two of the first four are 0.8 turn apart, each its own basin: none
+    assert len(_distinct_minima(minima[:5], 2, arc)) == 3 == len(brute(2, minima[:5], arc))
+    assert len(_distinct_minima(minima[:5], 2, 1e7)) == 2 == len(brute(2, minima[:5], 1e7))
 
 
 def test_the_rescan_of_the_phases_finds_a_minimum_its_start_missed():
@@ -399,7 +405,9 @@ def test_the_rescan_of_the_phases_finds_a_minimum_its_start_missed():
     x0[7] = (x0[7] + 180.0) % 360.0
     alone = _refine(fit, x0, truth.alpha, span, 200, truth.t_ref_s, truth.frame)
     assert alone[0] > 3 * chi2_truth  # stuck: the start's phases are in another basin
-    c, x, _ = _rephase(fit, [alone], 6, 8, 200, truth.t_ref_s, truth.frame)[0]
+    out = _rephase(fit, [alone], 6, 8, 200, truth.t_ref_s, truth.frame)
+    assert len(out) == 2 and out[1][0] == alone[0]  # the rescanned minimum added beside the continued one
+    c, x, _ = out[0]
     assert c <= chi2_truth + 3 * math.sqrt(2 * len(fit.t))  # the truth's minimum, within the χ²'s own spread
     assert _separation_deg((float(x[5]), float(x[6])), (truth.lon_deg, truth.lat_deg)) < 1.0
 

@@ -71,13 +71,13 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
        reflective, the EGI re-solved by NNLS at each step: variable projection) in all eight
        numbers ``(i₁, i₂, f_ω, f_φ, t₀, λ, β, φ₀)`` on ``mid_samples`` samples and
        ``mid_normals`` normals; the ``n_starts`` best refined fully (``max_fev``); the
-       ``n_refine`` best distinct basins (``L`` 10° apart or a frequency a quarter turn apart
-       over the arc: :func:`~cssat.inversion.tumble_fit._distinct_minima`) carried to arcs
+       ``n_refine`` best, and the best of each other basin until ``n_refine`` basins are carried
+       (:func:`~cssat.inversion.tumble_fit._distinct_minima`), carried to arcs
        ``growth`` times longer (a continuation in time: the phases stay coherent while the span
        grows) up to every sample; with ``rephase`` (default) each one's two phases searched again
-       at that span from ``n_t0 × n_phi`` starts, the lowest χ² kept
+       at that span from ``n_t0 × n_phi`` starts, the best added beside it where lower
        (:func:`~cssat.inversion.tumble_fit._rephase`: the continuation keeps the first arc's
-       phases while the frequencies move); then fitted on ``max_samples`` samples and
+       phases while the frequencies move); then each fitted on ``max_samples`` samples and
        ``n_normals`` normals (``final_fev``). Every motion has a twin — the body
        turned 180° about its circulation axis, half a period of ``ω`` on
        (:meth:`TumblingState.twin`) — that is the same motion in space but puts the EGI on the

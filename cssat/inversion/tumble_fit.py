@@ -63,23 +63,31 @@ SAME_L_DEG = 10.0
 SAME_CYCLES = 0.25
 
 
+def _same_basin(x: np.ndarray, k: np.ndarray, span_s: float) -> bool:
+    """Whether the states ``x``, ``k (8,)`` are one basin over ``span_s`` seconds: ``L`` within
+    :data:`SAME_L_DEG`, both frequencies within :data:`SAME_CYCLES` turns over the span."""
+    return (_separation_deg((float(x[5]), float(x[6])), (float(k[5]), float(k[6]))) < SAME_L_DEG
+            and abs(x[2] - k[2]) * span_s < SAME_CYCLES and abs(x[3] - k[3]) * span_s < SAME_CYCLES)
+
+
 def _distinct_minima(minima: list[tuple], n: int, arc_s: float) -> list[tuple]:
-    """The ``n`` best of the refined ``minima`` (``(chi2, x (8,), alpha)``, best first) that are
-    distinct basins: a minimum whose ``L`` lies within :data:`SAME_L_DEG` of a better one kept and
-    whose frequencies ``f_ω``, ``f_φ`` both differ from its by less than :data:`SAME_CYCLES` turns
-    over ``arc_s`` seconds (below the arc's resolution) is that basin again, and skipped — the
-    continuation carries what is kept, and ``n`` copies of one basin would spend every slot on
-    it. Fewer than ``n`` when fewer are distinct."""
-    kept: list[tuple] = []
+    """The minima to carry from the refined ``minima`` (``(chi2, x (8,), alpha)``, best first):
+    the ``n`` best, and beside them the best of every other distinct basin until ``n`` basins
+    are carried. A minimum whose ``L`` lies within :data:`SAME_L_DEG` of a better one's and whose
+    frequencies ``f_ω``, ``f_φ`` both differ from its by less than :data:`SAME_CYCLES` turns over
+    ``arc_s`` seconds (below the arc's resolution) is that basin again. Copies of one basin are
+    kept among the ``n`` best (their continuations can part), but ``n`` copies of one basin
+    would leave the others uncarried — a tumbler whose three best were one basin, the truth's
+    fifth, was fitted at a mirror L 170° off. Best first; at most ``2n - 1``."""
+    heads: list[tuple] = []  # the best minimum of each basin, best first
     for r in minima:
-        x = r[1]
-        if not any(_separation_deg((float(x[5]), float(x[6])), (float(k[1][5]), float(k[1][6]))) < SAME_L_DEG
-                   and abs(x[2] - k[1][2]) * arc_s < SAME_CYCLES and abs(x[3] - k[1][3]) * arc_s < SAME_CYCLES
-                   for k in kept):
-            kept.append(r)
-        if len(kept) == n:
-            break
-    return kept
+        if not any(_same_basin(r[1], h[1], arc_s) for h in heads):
+            heads.append(r)
+    kept = list(minima[:n])
+    for h in heads[:n]:
+        if not any(h is k for k in kept):
+            kept.append(h)
+    return sorted(kept, key=lambda r: r[0])
 
 
 def _continuation(samples: tuple, cur: list[tuple], arc_s: float, growth: float, n_mid: int, mid_N: np.ndarray, brdf: Any,
@@ -105,18 +113,25 @@ REPHASE_FEV, REPHASE_KEEP = 10, 3
 
 
 def _rephase(fit: _TFit, cur: list[tuple], n_t0: int, n_phi: int, max_fev: int, t_ref: float, frame: str) -> list[tuple]:
-    """Each continued minimum of ``cur`` (``(chi2, x (8,), alpha)`` on ``fit``: every sample's
-    span) with its two phases searched again at that span: from ``n_t0 × n_phi`` starts — the
-    polhode phase ``t₀`` on ``n_t0`` steps of ``1/f_ω``, the precession phase ``φ₀`` on
-    ``n_phi`` steps of a turn, the other six numbers the minimum's — :data:`REPHASE_FEV` steps of
-    :func:`_refine`, the :data:`REPHASE_KEEP` best refined fully (``max_fev``), the lowest χ² of
-    those and the minimum itself kept; best first. The continuation carries the phases of the
-    first arc's minimum while its frequencies move (a tumbler's true side, carried from the first
-    arc 21° off with P_φ 0.07 % off, was continued to the right periods but stopped 11° from its
-    L at its first-arc phases; rescanned, its phases found a χ² below the mirror solution's)."""
+    """The continued minima ``cur`` (``(chi2, x (8,), alpha)`` on ``fit``: every sample's span,
+    best first) and beside each the best minimum of its two phases searched again at that span,
+    where that is lower: from ``n_t0 × n_phi`` starts — the polhode phase ``t₀`` on ``n_t0``
+    steps of ``1/f_ω``, the precession phase ``φ₀`` on ``n_phi`` steps of a turn, the other six
+    numbers the minimum's — :data:`REPHASE_FEV` steps of
+    :func:`_refine`, the :data:`REPHASE_KEEP` best refined fully (``max_fev``). A minimum of the
+    same basin (:func:`_same_basin`) as a better one of ``cur`` — a copy continued to the same
+    place, whose phases the better one's scan covered — is not scanned again. Best
+    first. The continuation carries the first arc's phases while its frequencies move (a
+    tumbler's true side, carried 21° off with P_φ 0.07 % off, was continued to the right periods
+    but stopped 11° from its L; rescanned, it fitted below the mirror solution that was the
+    answer). The rescanned minima are added, not swapped in: on this coarse fit a lower χ² can
+    be a worse fit on the fine one, which decides."""
     span = float(fit.t[-1] - fit.t[0])
-    out = []
+    out: list[tuple] = []
     for c, x, al in cur:
+        if any(_same_basin(x, o[1], span) for o in out):  # a copy continued to the same place: scanned once
+            out.append((c, x, al))
+            continue
         starts = []
         for dt in np.arange(n_t0) / (n_t0 * x[2]):
             for dphi in np.arange(n_phi) * (360.0 / n_phi):
@@ -124,8 +139,10 @@ def _rephase(fit: _TFit, cur: list[tuple], n_t0: int, n_phi: int, max_fev: int, 
                 x1[4], x1[7] = x1[4] + dt, (x1[7] + dphi) % 360.0
                 starts.append(_refine(fit, x1, al, span, REPHASE_FEV, t_ref, frame))
         starts.sort(key=lambda r: r[0])
-        out.append(min([(c, x, al)] + [_refine(fit, r[1], r[2], span, max_fev, t_ref, frame) for r in starts[:REPHASE_KEEP]],
-                       key=lambda r: r[0]))
+        best = min((_refine(fit, r[1], r[2], span, max_fev, t_ref, frame) for r in starts[:REPHASE_KEEP]), key=lambda r: r[0])
+        out.append((c, x, al))
+        if best[0] < c:  # another minimum of the phases: carried beside the continued one (the fine fit decides)
+            out.append(best)
     return sorted(out, key=lambda r: r[0])
 
 
