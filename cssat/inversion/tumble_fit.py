@@ -117,12 +117,12 @@ def _rephase(fit: _TFit, cur: list[tuple], n_t0: int, n_phi: int, max_fev: int, 
     best first) and beside each the best minimum of its two phases searched again at that span,
     where that is lower: from ``n_t0 × n_phi`` starts — the polhode phase ``t₀`` on ``n_t0``
     steps of ``1/f_ω``, the precession phase ``φ₀`` on ``n_phi`` steps of a turn, the other six
-    numbers the minimum's — :data:`REPHASE_FEV` steps of
-    :func:`_refine`, the :data:`REPHASE_KEEP` best refined fully (``max_fev``). A minimum of the
-    same basin (:func:`_same_basin`) as a better one of ``cur`` — a copy continued to the same
-    place, whose phases the better one's scan covered — is not scanned again. Best
-    first. The continuation carries the first arc's phases while its frequencies move (a
-    tumbler's true side, carried 21° off with P_φ 0.07 % off, was continued to the right periods
+    numbers the minimum's — :data:`REPHASE_FEV` steps of :func:`_refine`, the
+    :data:`REPHASE_KEEP` best refined fully (``max_fev``). A minimum of the same basin
+    (:func:`_same_basin`) as a better one of ``cur`` — a copy continued to the same place, whose
+    phases the better one's scan covered — is not scanned again. Best first. The continuation
+    carries the first arc's phases while its frequencies move (a tumbler's true side, carried
+    19° off with P_φ 0.07 % off, was continued to the right periods
     but stopped 11° from its L; rescanned, it fitted below the mirror solution that was the
     answer). The rescanned minima are added, not swapped in: on this coarse fit a lower χ² can
     be a worse fit on the fine one, which decides."""
