@@ -59,6 +59,31 @@ def test_a_kill_while_writing_never_leaves_new_arrays_beside_old_metrics(tmp_pat
     assert consistent(d) and load_saved(d)["m"] == 200
 
 
+def test_moving_another_set_aside_retracts_its_status_before_its_files(tmp_path, monkeypatch):
+    """``move_aside`` interrupted after its first move (a kill, simulated: the second
+    ``os.replace`` raises) leaves no ``ok`` status beside a set whose files are gone — the race
+    the kill test above hits once in a while when it kills just as ``arrays.npz`` vanishes."""
+    import cssat.experiments.results as R
+
+    for name in ("arrays.npz", "lightcurve.csv"):
+        (tmp_path / name).write_bytes(b"x")
+    saved = {"status": "ok", "experiment": "sim1", "config_sha": "aaa", "files": {"arrays.npz": "h", "lightcurve.csv": "h"}}
+    (tmp_path / "metrics.json").write_text("{}")
+    moved, real = [], os.replace
+
+    def replace_then_die(src, dst):
+        if moved:
+            raise KeyboardInterrupt("killed")
+        moved.append(Path(src).name)
+        real(src, dst)
+
+    monkeypatch.setattr(R.os, "replace", replace_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        R.move_aside(tmp_path, saved, "sim1", "bbb")
+    assert moved == ["metrics.json"] and not (tmp_path / "metrics.json").exists()
+    assert (tmp_path / "arrays.npz").exists() and (tmp_path / "previous" / "sim1-aaa" / "metrics.json").exists()
+
+
 @pytest.mark.parametrize("delay", [0.3, 1.0, 2.0, 3.0])
 def test_kills_at_any_moment_then_resume(tmp_path, delay):
     d = tmp_path / "run"

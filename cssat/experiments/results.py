@@ -149,7 +149,7 @@ def move_aside(out_dir: Path, saved: dict | None, experiment: str | None, sha: s
         return None
     name = f"{saved.get('experiment') or 'run'}-{saved.get('config_sha') or 'unknown'}"
     dest = Path(out_dir) / "previous" / "".join(c if c.isalnum() or c in "-_." else "_" for c in str(name))
-    for rel in [*old, "metrics.json"]:
+    for rel in ["metrics.json", *old]:  # its status first: a kill midway leaves no "ok" beside missing files
         src = Path(out_dir) / rel
         if src.is_file() and ".." not in Path(rel).parts and not Path(rel).is_absolute():
             target = dest / rel
