@@ -258,8 +258,13 @@ def _verdicts(part: str, rs: list[dict], found_if, found_label: str, usable) -> 
     return [(label, sub) for label, sub in (("reliable", rel), ("reliable and found", [r for r in rel if r in found])) if sub]
 
 
+def tumble_found(r: dict) -> bool:
+    """A tumbler row found: L within 5°, both periods within 1e-3."""
+    return r["sep_deg"] < 5 and r["period_rel"] < 1e-3
+
+
 def report_tumble(rs: list[dict]) -> None:
-    for label, sub in _verdicts("tumble", rs, lambda r: r["sep_deg"] < 5 and r["period_rel"] < 1e-3,
+    for label, sub in _verdicts("tumble", rs, tumble_found,
                                 "L < 5°, periods < 1e-3", lambda r: r["L_err_deg"] == r["L_err_deg"]):
         m = len(sub)
         z = np.array([r["sep_deg"] / r["L_err_deg"] for r in sub])

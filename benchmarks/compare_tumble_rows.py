@@ -13,14 +13,10 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-
-def _found(r: dict) -> bool:
-    return r["sep_deg"] < 5 and r["period_rel"] < 1e-3  # bench_pole_coverage's report_tumble
+import bench_pole_coverage as B  # noqa: E402
 
 
 def _rows(name: str) -> dict[int, dict]:
-    import bench_pole_coverage as B
-
     with open(name) as fh:
         rows = [json.loads(x) for x in fh if x.strip()]
     return {r["seed"]: r for r in B.powerless([r for r in rows if "error" not in r])}
@@ -33,15 +29,15 @@ def main(before_name: str, after_name: str) -> None:
     for label, rows in (("before", before), ("after", after)):
         sub = [rows[s] for s in seeds]
         rel = [r for r in sub if r["verdict"] == "reliable"]
-        print(f"  {label}: found {sum(map(_found, sub))}, reliable {len(rel)}, reliable and found "
-              f"{sum(map(_found, rel))}, wrong and reliable {sum(not _found(r) for r in rel)} "
-              f"(seeds {[r['seed'] for r in rel if not _found(r)]}); median cpu {sorted(r['cpu_s'] for r in sub)[len(sub) // 2]:.0f} s")
+        print(f"  {label}: found {sum(map(B.tumble_found, sub))}, reliable {len(rel)}, reliable and found "
+              f"{sum(map(B.tumble_found, rel))}, wrong and reliable {sum(not B.tumble_found(r) for r in rel)} "
+              f"(seeds {[r['seed'] for r in rel if not B.tumble_found(r)]}); median cpu {sorted(r['cpu_s'] for r in sub)[len(sub) // 2]:.0f} s")
     print("seeds whose answer moved (L by more than 1°, or the verdict):")
     for s in seeds:
         b, a = before[s], after[s]
         if abs(a["sep_deg"] - b["sep_deg"]) > 1 or a["verdict"] != b["verdict"]:
-            print(f"  seed {s}: L {b['sep_deg']:.2f}° off ({b['verdict']}, found {_found(b)}) → {a['sep_deg']:.2f}° off "
-                  f"({a['verdict']}, found {_found(a)}); period {b['period_rel']:.1e} → {a['period_rel']:.1e}")
+            print(f"  seed {s}: L {b['sep_deg']:.2f}° off ({b['verdict']}, found {B.tumble_found(b)}) → {a['sep_deg']:.2f}° off "
+                  f"({a['verdict']}, found {B.tumble_found(a)}); period {b['period_rel']:.1e} → {a['period_rel']:.1e}")
 
 
 if __name__ == "__main__":

@@ -412,13 +412,14 @@ def test_the_rescan_of_the_phases_finds_a_minimum_its_start_missed():
     assert _separation_deg((float(x[5]), float(x[6])), (truth.lon_deg, truth.lat_deg)) < 1.0
 
 
-@pytest.mark.parametrize("value", ["x", 2, None])
-def test_a_bad_rephase_is_refused_before_any_work(value):
+@pytest.mark.parametrize("key,value", [("bootstrap", -1), ("bootstrap", 1001), ("bootstrap", 2.5), ("bootstrap", "x"),
+                                       ("rephase", "x"), ("rephase", 2), ("rephase", None)])
+def test_a_bad_bootstrap_or_rephase_is_refused_before_any_work(key, value):
     from cssat.inversion.tumble import check_tumbling_options, estimate_tumbling
 
     t = np.arange(0, 3600, 10.0)
     v = np.tile([1.0, 0.0, 0.0], (len(t), 1))
-    with pytest.raises(FieldError, match="rephase"):
-        check_tumbling_options(rephase=value)
-    with pytest.raises(FieldError, match="rephase"):
-        estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), rephase=value)
+    with pytest.raises(FieldError, match=key):
+        check_tumbling_options(**{key: value})
+    with pytest.raises(FieldError, match=key):
+        estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), **{key: value})

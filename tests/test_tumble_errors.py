@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from cssat._checks import FieldError
 
 SIDEREAL_DAY = 86164.0905
 
@@ -88,14 +87,3 @@ def test_the_bootstrap_1sigma_of_L_matches_a_brute_force_monte_carlo():
     assert math.hypot(plain["L_major_deg"], plain["L_minor_deg"]) == pytest.approx(plain["L_err_deg"], rel=1e-6)
     assert plain["L_dof"] == 0  # the formal covariance: the Gaussian's regions
 
-
-@pytest.mark.parametrize("value", [-1, 1001, 2.5, "x"])
-def test_a_bad_bootstrap_count_is_refused_before_any_work(value):
-    from cssat.inversion.tumble import check_tumbling_options, estimate_tumbling
-
-    t = np.arange(0, 3600, 10.0)
-    v = np.tile([1.0, 0.0, 0.0], (len(t), 1))
-    with pytest.raises(FieldError, match="bootstrap"):
-        check_tumbling_options(bootstrap=value)
-    with pytest.raises(FieldError, match="bootstrap"):
-        estimate_tumbling(t, np.ones_like(t), v, v, periods_s=(100.0, 50.0), bootstrap=value)

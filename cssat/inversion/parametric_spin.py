@@ -118,8 +118,8 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     True: the schedule of softnesses can lead the descent into a worse minimum than the one it
     started in, and a refinement is never worse than its start), ``params`` (the family's, ``p``
     itself without ``shape``; the free albedos as solved), and the 1σ: the Gauss–Newton one with
-    the geometry of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the reduced χ²
-    where above 1; ``formal_pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``,
+    the geometry of ``p`` free beside the spin (``cov (4, 4)`` of ``(λ, β, φ₀, ω)`` scaled by the
+    reduced χ² where above 1; ``formal_pole_err_deg`` the pole's radial 1σ, ``√(σ²_{λ cos β} + σ²_β)``,
     and ``formal_period_err_s``, given whatever the verdict) added in quadrature to the
     softness term — the pole's and the period's move between the last two softnesses'
     solutions (``softness_pole_shift_deg``, ``softness_period_shift_s``; 0 with one softness):

@@ -195,9 +195,10 @@ POLE_DELTA_CHI2 = {"68": 2.2957, "95": 6.1801}
 def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, held: tuple | None,
                  what: str) -> dict[str, Any]:
     """The verdict's keys (``verdict``, ``verdict_why``, ``heldout_chi2``, ``heldout_n``,
-    ``heldout_threshold``, ``heldout_leverage``) of a fit of ``n_fit`` samples with Jacobian ``J_fit (n_fit, p)`` and
-    χ² ``chi2``: ``held = (r, J_held)`` the held-out samples' weighted residual ``r (n,)`` and
-    Jacobian ``(n, p)`` (:func:`heldout_threshold`), or None (no held-out data or no σ); then
+    ``heldout_threshold``, ``heldout_leverage``) of a fit of ``n_fit`` samples with Jacobian
+    ``J_fit (n_fit, p)`` and χ² ``chi2``: ``held = (r, J_held)`` the held-out samples' weighted
+    residual ``r (n,)`` and Jacobian ``(n, p)`` (:func:`heldout_threshold`), or None (no held-out
+    data or no σ); then
     :func:`judge`, the fitted χ² tested at ``1 − HELDOUT_ALPHA`` where nothing is held out."""
     from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only for a verdict
 

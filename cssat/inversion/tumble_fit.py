@@ -79,15 +79,11 @@ def _distinct_minima(minima: list[tuple], n: int, arc_s: float) -> list[tuple]:
     kept among the ``n`` best (their continuations can part), but ``n`` copies of one basin
     would leave the others uncarried — a tumbler whose three best were one basin, the truth's
     fifth, was fitted at a mirror L 170° off. Best first; at most ``2n - 1``."""
-    heads: list[tuple] = []  # the best minimum of each basin, best first
-    for r in minima:
-        if not any(_same_basin(r[1], h[1], arc_s) for h in heads):
-            heads.append(r)
-    kept = list(minima[:n])
-    for h in heads[:n]:
-        if not any(h is k for k in kept):
-            kept.append(h)
-    return sorted(kept, key=lambda r: r[0])
+    heads: list[int] = []  # the best minimum of each basin, best first
+    for i, r in enumerate(minima):
+        if not any(_same_basin(r[1], minima[h][1], arc_s) for h in heads):
+            heads.append(i)
+    return [minima[i] for i in sorted(set(range(min(n, len(minima)))) | set(heads[:n]))]
 
 
 def _continuation(samples: tuple, cur: list[tuple], arc_s: float, growth: float, n_mid: int, mid_N: np.ndarray, brdf: Any,
