@@ -92,7 +92,7 @@ def _model(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi
 def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_deg: float, pole_lat_deg: float,
                 period_s: float, phase_deg: float = 0.0, *, sigma: Any = None, frame: str = "ecliptic", fixed: Any = (),
                 shape: bool = False, heldout: Any = None, huber: float = 3.0,
-                softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 40, panels: int = 2,
+                softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 200, panels: int = 2,
                 divisions: int = 4, dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40,
                 device: Any = None, **parts: Any) -> dict[str, Any]:
     """The spin ``(λ, β, P, φ₀)`` that best fits ``flux (T,)`` (per unit irradiance at 1 m, m²)
@@ -107,7 +107,11 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     (``frame``'s axes: GCRS, its pole read as ecliptic or equatorial); ``sigma (T,)`` the 1σ
     (None: ones). The albedos not named in ``fixed`` are solved at every evaluation (module
     docstring). ``softness``: the shadow edges' ``τ``, each a fraction of ``p``'s mean bus
-    half-size, one L-BFGS-B run of ``maxiter`` iterations at each, in turn. ``device``: where
+    half-size, one L-BFGS-B run of at most ``maxiter`` iterations at each, in turn (runs of 40 ended
+    where the arithmetic's last bits had led them: a start moved by 1e-9° moved the answer by up to
+    0.27°, above its 1σ, and an earlier session's machine gave other answers for the same code and
+    seeds; at 200 by at most 0.009° on the same six in-class seeds — BENCHMARKS.md, "Converged").
+    ``device``: where
     the light curves, shadows and gradients are computed (default the CPU; e.g. ``"cuda"``) —
     the inputs are moved there and the results come back as NumPy arrays and floats (the
     optimiser's steps, the Jacobian's differences and the 1σ are small and stay on the CPU).
