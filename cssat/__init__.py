@@ -6,18 +6,21 @@ Layers (``../shared/DESIGN.md``): ``cssat.scene`` (orbits, attitudes, meshes), `
 ``cssat.physics`` (atmospheres, noise, measurements), ``cssat.recon`` (solvers, denoisers),
 ``cssat.metrics``, ``cssat.plots``, ``cssat.experiments`` and the Hydra app ``cssat.app``.
 Every one is an attribute of ``cssat``, imported on first use, so ``import cssat`` stays fast.
+``cssat.FieldError`` (a ``ValueError``) is what a bad input raises: its ``field`` names the input.
 """
 
 from __future__ import annotations
 
 import importlib
 
+from cssat._checks import FieldError
+
 __version__ = "0.1.0"
 
 #: the subpackages and modules reachable as ``cssat.<name>`` (imported lazily)
 SUBMODULES = ("scene", "optics", "data", "sparse", "reference", "physics", "recon", "inversion", "metrics", "plots",
               "experiments", "summary", "catalogue")
-__all__ = [*SUBMODULES, "__version__"]
+__all__ = [*SUBMODULES, "FieldError", "__version__"]
 
 
 def __getattr__(name: str):

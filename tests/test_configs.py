@@ -220,7 +220,7 @@ def test_the_egi_models_settings_are_typed_with_one_set_of_defaults():
 
     own = yaml.safe_load((CONF / "experiment" / "inversion.yaml").read_text())
     assert set(own) & set(EGIConfig.SETTINGS) == {"observed"} and own["observed"] == {"time_col": "time_utc"}
-    cfg = compose_cfg("experiment=inversion_tumbling", "nights.n=2", "inversion.parametric.panels=1")
+    cfg = compose_cfg("experiment=inversion_tumbling", "nights.n=2", "inversion.shape=parametric", "inversion.parametric.panels=1")
     assert OmegaConf.get_type(cfg.nights) is NightsConfig and OmegaConf.get_type(cfg.inversion) is InversionConfig
     s = EGISettings.from_config(cfg)
     # inversion_tumbling.yaml's own values over the typed defaults; the rest the defaults

@@ -100,3 +100,11 @@ def test_experiment_refuses_a_bad_shape_setting():
         EGISettings.from_config({"inversion": {"shape": "parametric", "parametric": {"panels": 3}}})
     with pytest.raises(FieldError, match="inversion.parametric.wings"):
         EGISettings.from_config({"inversion": {"parametric": {"wings": 2}}})
+    # a setting of the parametric fit without it (the convex shape): refused, not ignored, whichever setting
+    for key, value in (("booms", True), ("dishes", 2), ("wing_panels", 3), ("deck", True), ("visibility", "soft"),
+                       ("cd0", 0.5)):
+        with pytest.raises(FieldError, match=rf"inversion\.parametric\.{key}: .*inversion\.shape=parametric"):
+            EGISettings.from_config({"inversion": {"parametric": {key: value}}})
+        s = EGISettings.from_config({"inversion": {"shape": "parametric", "parametric": {key: value}}})
+        assert getattr(s.inversion.parametric, key) == value
+    assert EGISettings.from_config({"inversion": {"parametric": {"booms": False}}}).inversion.shape == "convex"  # a default

@@ -67,3 +67,81 @@ def test_a_full_disk_is_said_in_words(err, says):
 
     line = _os_error(err, "outputs/run")
     assert says in line and line.split(": ", 1)[1].strip()
+
+
+def _curve(n=48):
+    """A small spinning-plate light curve: times, flux, Sun and observer directions."""
+    t = np.linspace(0.0, 7200.0, n)
+    sun = np.tile([1.0, 0.0, 0.0], (n, 1))
+    obs = np.stack([np.cos(0.3 + 1e-5 * t), np.sin(0.3 + 1e-5 * t), np.zeros(n)], 1)
+    return t, 1.0 + 0.3 * np.cos(2 * np.pi * t / 600.0) ** 2, sun, obs
+
+
+@pytest.mark.parametrize("change, key, says", [
+    (dict(flux="zero"), "flux", "no sample is above 0"),  # was "reliable" at a 1σ of 0
+    (dict(brdf="lambert"), "brdf", "a BRDF model"),  # was AttributeError: 'str' object has no attribute 'evaluate'
+    (dict(sigma="x"), "sigma", "expected numbers"),
+    (dict(times_s=["a"] * 48), "times_s", "expected numbers"),
+    (dict(n=3), "flux", "at least 4 samples"),  # was IndexError / ZeroDivisionError
+])
+@pytest.mark.parametrize("which", ["spin", "tumbling"])
+def test_a_light_curve_the_inversions_cannot_use_is_refused_by_name(change, key, says, which):
+    from cssat.inversion import estimate_spin, estimate_tumbling
+
+    change = dict(change)
+    t, y, sun, obs = _curve(change.pop("n", 48))
+    if change.pop("flux", None) == "zero":
+        y = np.zeros_like(y)
+    kw = {**dict(times_s=t, flux=y, sun=sun, obs=obs, sigma=0.01), **change}
+    fn = estimate_spin if which == "spin" else estimate_tumbling
+    with pytest.raises(FieldError, match=says) as e:
+        fn(kw.pop("times_s"), kw.pop("flux"), kw.pop("sun"), kw.pop("obs"), **kw)
+    assert e.value.field == key
+
+
+def test_a_period_range_longer_than_the_track_is_refused_by_name():
+    from cssat.inversion import estimate_period
+
+    t, y, _, _ = _curve(200)  # 7,200 s
+    with pytest.raises(FieldError, match=r"holds one trial frequency over stretches of 7200 s") as e:  # was IndexError
+        estimate_period(t, y, min_period_s=1e6, max_period_s=2e6)
+    assert e.value.field == "min_period_s"
+
+
+@pytest.mark.parametrize("options, key", [
+    (dict(inertia_grid=[]), "inertia_grid"),  # was "min() arg is an empty sequence" after the search
+    (dict(n_screen=0), "n_screen"),  # estimate_tumbling itself now checks what check_tumbling_options checks
+    (dict(max_fev=0), "max_fev"),  # was scipy's "max_nfev must be None or positive integer"
+    (dict(min_period_s=1e5, max_period_s=2e5), "min_period_s"),  # was "cannot convert float NaN to integer"
+])
+def test_the_tumbling_inversions_options_are_refused_by_name_before_its_search(options, key):
+    from cssat.inversion import estimate_tumbling
+    from cssat.inversion.tumble import check_tumbling_options
+
+    t, y, sun, obs = _curve(400)
+    with pytest.raises(FieldError) as e:
+        estimate_tumbling(t, y, sun, obs, sigma=0.01, arc_s=3600.0, **options)
+    assert e.value.field == key
+    with pytest.raises(FieldError, match="heldout: unknown option"):  # the experiment gives it: not an option
+        check_tumbling_options(heldout=(t, y, sun, obs, 0.01))
+
+
+def test_a_device_this_machine_lacks_is_refused_by_name():
+    import torch
+
+    from cssat.inversion.parametric_spin import refine_spin
+
+    t, y, sun, obs = _curve(24)
+    p = np.array([1.2, 1.0, 1.8, 6.0, 2.0, 0.5, 1.0, 0.3, 0.2])
+    for device in ["meta", "gpu9"] + ([] if torch.cuda.is_available() else ["cuda"]):
+        with pytest.raises(FieldError, match="expected a torch device this machine has") as e:  # was AssertionError
+            refine_spin(t, y, sun, obs, p, 60.0, 35.0, 600.0, device=device)
+        assert e.value.field == "device"
+
+
+def test_the_error_class_is_public():
+    import cssat
+
+    assert issubclass(cssat.FieldError, ValueError) and "FieldError" in cssat.__all__
+    with pytest.raises(cssat.FieldError):
+        cssat.inversion.estimate_period([0.0, 1.0], [1.0, 1.0], convention="nope")

@@ -21,6 +21,9 @@ INV = ["experiment=inversion", *TINY["inversion"]]
     (OCC, "array.exposure_s=100", "array.exposure_s"),
     (OCC, "array.aperture_m=1000", "array.aperture_m"),
     (OCC, "array.n_slots=0", "array.n_slots"),
+    (OCC, "array.n_slots=1", "array.n_slots"),  # one telescope: no held-out test (was refused after the truth, naming
+    (OCC, "array.fill=1e-6", "array.fill"),  # an internal positions_m)
+    (INV, "inversion.parametric.booms=true", "inversion.parametric.booms"),  # without shape=parametric: was ignored
     (OCC, "silhouette.ground=9", "silhouette.ground"),
     (INV, "inversion.n_poles=0", "inversion.n_poles"),
     (INV, "inversion.max_period_s=10", "inversion.max_period_s"),

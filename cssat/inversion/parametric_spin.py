@@ -139,10 +139,12 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     nothing held out — when the fitted samples' χ² is above the noise's. Keys ``verdict``,
     ``verdict_why``, ``heldout_chi2``, ``heldout_n``, ``heldout_threshold``."""
     names = param_names(dishes, **parts)
-    try:  # the light curves' and the gradients' device (the optimiser's steps and the 1σ on the CPU)
+    try:  # the light curves' and the gradients' device (the optimiser's steps and the 1σ on the CPU), tried
         dev = torch.device("cpu" if device is None else device)
-    except (RuntimeError, TypeError) as e:
-        raise FieldError("device", f"expected a torch device such as 'cpu' or 'cuda', got {device!r}") from e
+        torch.zeros(1, dtype=torch.float64, device=dev).sum().item()
+    except (RuntimeError, TypeError, AssertionError, NotImplementedError) as e:  # no such device, or not in this build
+        raise FieldError("device", f"expected a torch device this machine has, such as 'cpu' or 'cuda', got {device!r} "
+                                   f"({type(e).__name__}: {str(e)[:80]})") from e
     pt = torch.as_tensor(np.asarray(p, dtype=np.float64))
     if pt.shape != (len(names),):
         raise FieldError("p", f"expected {len(names)} values {names}, got shape {tuple(pt.shape)}")

@@ -144,6 +144,10 @@ def estimate_period(times_s: Any, flux: Any, *, sigma: Any = None, min_period_s:
     grid_step = 1.0 / (spp * longest) if multi else step
     check_grid(int((f_hi - f_lo) / grid_step) + 1, longest, lo, "max_period_s" if min_period_s is None else "min_period_s")
     freq = f_lo + grid_step * np.arange(int((f_hi - f_lo) / grid_step) + 1)
+    if len(freq) < 2:  # a range of periods far longer than the track: one trial frequency, no periodogram
+        raise FieldError("max_period_s" if min_period_s is None else "min_period_s",
+                         f"[{lo:.6g}, {hi:.6g}] s holds one trial frequency over stretches of {longest:.6g} s: periods "
+                         "this long are not resolved by the track; give a range of periods shorter than its stretches")
     power, peaks = _periodogram_peaks(t, cv.yp / w, None if sigma is None else 1.0 / w, freq, span, n_peaks,
                                       seg if multi else None)
     search = Aliases(cv, lo, hi, step, max_harmonics, f_harm, longest, m_fixed, grid_step)

@@ -31,20 +31,38 @@ from cssat.inversion.spin_search import (_bootstrap_spin, _coarse_scan, _distinc
 __all__ = ["estimate_period", "estimate_tumbling_periods", "estimate_spin", "SpinSolution", "MODEL_FITS_CHI2"]
 
 
-def _check_light_curve(times_s, flux, sun, obs, sigma):
-    """``t (T,), y (T,), S, O (T, 3), w = 1/σ (T,), σ (T,) or None`` as float64, checked."""
-    t = np.asarray(times_s, dtype=np.float64).reshape(-1)
-    y = np.asarray(flux, dtype=np.float64).reshape(-1)
-    S, O = (np.asarray(v, dtype=np.float64) for v in (sun, obs))
+def _as_floats(v: Any, field: str) -> np.ndarray:
+    """``v`` as a float64 array; a :class:`FieldError` naming ``field`` where it is not numbers."""
+    try:
+        return np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise FieldError(field, f"expected numbers, got {type(v).__name__} {str(v)[:60]!r}") from err
+
+
+def _check_light_curve(times_s, flux, sun, obs, sigma, brdf=None, fitted=True):
+    """``t (T,), y (T,), S, O (T, 3), w = 1/σ (T,), σ (T,) or None`` as float64, checked — where
+    ``fitted`` (not held-out samples) at least 4 samples and some light: a curve with no sample
+    above 0 has nothing to invert; ``brdf`` None or a model with ``evaluate`` (:mod:`cssat.optics`'
+    BRDFs)."""
+    if brdf is not None and not callable(getattr(brdf, "evaluate", None)):
+        raise FieldError("brdf", f"expected None (Lambert) or a BRDF model such as cssat.optics.brdf.Lambert(0.5), "
+                                 f"got {brdf!r}")
+    t = _as_floats(times_s, "times_s").reshape(-1)
+    y = _as_floats(flux, "flux").reshape(-1)
+    S, O = _as_floats(sun, "sun"), _as_floats(obs, "obs")
     T = len(t)
     if y.shape != t.shape or S.shape != (T, 3) or O.shape != (T, 3):
         raise FieldError("flux", f"expected times (T,), flux (T,) and sun/obs (T, 3), got {t.shape}, {y.shape}, {S.shape}, "
                                  f"{O.shape}")
+    if fitted and T < 4:
+        raise FieldError("flux", f"expected at least 4 samples, got {T}")
     if not (np.isfinite(t).all() and np.isfinite(y).all() and np.isfinite(S).all() and np.isfinite(O).all()):
         raise FieldError("flux", "the times, fluxes and directions must be finite")
     if np.any(np.diff(t) <= 0):
         raise FieldError("times_s", "the times must increase")
-    sig = None if sigma is None else np.broadcast_to(np.asarray(sigma, dtype=np.float64), (T,))
+    if fitted and not (y > 0).any():
+        raise FieldError("flux", "no sample is above 0: a light curve without light has no shape or spin to find")
+    sig = None if sigma is None else np.broadcast_to(_as_floats(sigma, "sigma"), (T,))
     if sig is not None and not (np.isfinite(sig).all() and (sig > 0).all()):
         raise FieldError("sigma", "the uncertainties must be finite and > 0")
     return t, y, S, O, (np.ones(T) if sig is None else 1.0 / sig), sig
@@ -199,7 +217,7 @@ def estimate_spin(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any = N
     motion has two periods), a convex body (or negligible self-shadowing), one BRDF shape.
     """
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
-    t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
+    t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma, brdf)
     if heldout is not None:  # checked before any work (step 6 reads it)
         _check_heldout(heldout)
     interval = choice_param(interval, "interval", ("profile", "laplace"))
@@ -351,7 +369,7 @@ def _check_heldout(heldout: Any) -> tuple[np.ndarray, ...]:
     if sh is None:
         raise FieldError("heldout", "the held-out samples need their sigma (the flux's 1σ) to be tested")
     try:
-        th, yh, Sh, Oh, wh, _ = _check_light_curve(th, yh, Sh, Oh, sh)
+        th, yh, Sh, Oh, wh, _ = _check_light_curve(th, yh, Sh, Oh, sh, fitted=False)
     except FieldError as e:
         raise FieldError("heldout", f"the held-out samples: {e.detail}") from e
     return th, yh, Sh, Oh, wh

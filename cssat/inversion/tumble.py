@@ -110,7 +110,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
 
     clock = time.perf_counter()
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
-    t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma)
+    check_tumbling_options(**{k: v for k, v in locals().items() if k in _option_names()})  # the options: before any work
+    t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma, brdf)
     if heldout is not None:  # checked before any work (step 5 reads it)
         from cssat.inversion.spin import _check_heldout  # heavy: cssat.inversion.spin imports the EGI operator (torch)
 
@@ -198,8 +199,7 @@ def check_tumbling_options(**options: Any) -> None:
     or unknown (a :class:`~cssat._checks.FieldError` naming it): counts ``>= 1`` (grids and
     samples ``>= 16``, coarse normals ``>= 8``), periods and the arc ``> 0``, ``max_period_s >
     min_period_s``, ``max_ratio >= 1``, ``growth > 1``, ``inertia_grid`` in the rigid-body triangle."""
-    allowed = [k for k, p in inspect.signature(estimate_tumbling).parameters.items()
-               if p.kind is p.KEYWORD_ONLY and k not in ("sigma", "brdf", "frame")]
+    allowed = _option_names()
     for k in options:
         if k not in allowed:
             raise FieldError(k, f"unknown option; allowed: {', '.join(allowed)}")
@@ -227,12 +227,21 @@ def check_tumbling_options(**options: Any) -> None:
     _check_inertia_grid(o["inertia_grid"])
 
 
+def _option_names() -> list[str]:
+    """:func:`estimate_tumbling`'s keyword options: its keyword-only arguments but the data
+    (``sigma``, ``heldout``) and the model's frame and BRDF, which are checked where they are read."""
+    return [k for k, p in inspect.signature(estimate_tumbling).parameters.items()
+            if p.kind is p.KEYWORD_ONLY and k not in ("sigma", "brdf", "frame", "heldout")]
+
+
 def _check_inertia_grid(inertia_grid: Any) -> np.ndarray:
     """The moments ``(M, 2)`` of ``inertia_grid``, each in the rigid-body triangle."""
     try:
         grid_I = np.asarray(inertia_grid, dtype=np.float64).reshape(-1, 2)
     except (TypeError, ValueError) as err:
         raise FieldError("inertia_grid", f"expected pairs (I1/I3, I2/I3), got {inertia_grid!r}") from err
+    if not len(grid_I):
+        raise FieldError("inertia_grid", "expected at least one pair (I1/I3, I2/I3), got none")
     if not np.all((grid_I[:, 0] > 0) & (grid_I[:, 0] <= grid_I[:, 1]) & (grid_I[:, 1] <= 1) & (grid_I.sum(1) >= 1)):
         raise FieldError("inertia_grid", "each (I1/I3, I2/I3) needs 0 < I1/I3 <= I2/I3 <= 1 <= I1/I3 + I2/I3")
     return grid_I

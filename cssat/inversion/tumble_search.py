@@ -68,6 +68,10 @@ def _lattice_pairs(t: np.ndarray, y: np.ndarray, w: np.ndarray, sig: np.ndarray 
 
     tp = estimate_tumbling_periods(t, y, sigma=sig, min_period_s=min_period_s, max_period_s=max_period_s, order=4)
     lattice = tp["frequencies_hz"]
+    if not np.all(np.isfinite(lattice)):
+        raise FieldError("min_period_s", f"the first arc ({float(np.ptp(t)):.6g} s) holds no two frequencies with periods in "
+                                         f"[{min_period_s:g}, {max_period_s:g}] s: give periods the arc resolves, a longer "
+                                         "arc_s, or periods_s")
     rhos = [fp / fw for i1, i2 in grid_I for fw, fp in (tumbling_rates(i1, i2, a) for a in np.radians(np.linspace(0.5, 89.5, 30)))
             if fw == fw]
     f_max = 1.0 / float_param(min_period_s, "min_period_s", 0.0, open_lo=True)

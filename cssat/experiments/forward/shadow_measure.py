@@ -194,6 +194,10 @@ def _check_sampling(p: ShadowPlan, geo: ShadowGeometry, run: Run) -> None:
                                              f"than {MAX_EXPOSURES:.0e}: lengthen it")
     side = int(size * s.silhouette.truth_oversample * ground)
     n_tel = max(1, int(round(s.array.fill * geo.n_slots)))
+    if n_tel < 2:  # the silhouette's held-out test leaves one telescope out: before the truth is rendered
+        raise FieldError("array.n_slots" if geo.n_slots < 2 else "array.fill",
+                         f"array.fill {s.array.fill:g} of {geo.n_slots} slots places {n_tel} telescope: the held-out test "
+                         "needs at least two (raise array.fill or array.n_slots)")
     kernel_px = int((s.array.aperture_m + speed * t_exp) / pixel * s.silhouette.truth_oversample) + 1
     parts = {"truth's shadow fields (complex, per wavelength)": 16 * (2 * side) ** 2 * 2,
              "smoothing kernel": 8 * kernel_px * kernel_px * 4, "series": 8 * n_tel * n_exp * 6}

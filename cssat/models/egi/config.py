@@ -23,7 +23,7 @@ key). This module imports no numpy or torch: Hydra imports it whenever it compos
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar, Dict, Mapping, Optional
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
@@ -221,6 +221,13 @@ class InversionConfig:
             raise FieldError("inversion.parametric.refine_spin", "refines a searched spin through the fitted box-wing: "
                                                                  "needs inversion.shape=parametric and inversion.spin "
                                                                  f"search or auto, got shape={self.shape}, spin={self.spin}")
+        if self.shape != "parametric":  # a setting of a fit that will not run would be ignored without a word
+            default = ParametricConfig()
+            for f in fields(ParametricConfig):
+                if getattr(self.parametric, f.name) != getattr(default, f.name):
+                    raise FieldError(f"inversion.parametric.{f.name}", "a setting of the parametric shape fit, which runs "
+                                                                       "only with inversion.shape=parametric, got "
+                                                                       f"shape={self.shape}")
         self.tumbling = dict(self.tumbling or {})
 
     def search(self) -> dict[str, Any]:
