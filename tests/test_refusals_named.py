@@ -145,3 +145,16 @@ def test_the_error_class_is_public():
     assert issubclass(cssat.FieldError, ValueError) and "FieldError" in cssat.__all__
     with pytest.raises(cssat.FieldError):
         cssat.inversion.estimate_period([0.0, 1.0], [1.0, 1.0], convention="nope")
+
+
+def test_a_fit_with_no_freedom_left_and_nothing_held_out_is_unreliable():
+    """As many parameters as samples, nothing held out: the fitted χ² is 0 whatever the truth, so
+    it tests nothing (17 samples under 64 normals came back reliable at χ²/ν 0). One sample more
+    than parameters and a χ² the noise allows: reliable, as before."""
+    from cssat.inversion.spin_errors import verdict_keys
+
+    J = np.random.default_rng(0).normal(size=(8, 8))
+    v = verdict_keys(J, 8, 0.0, True, None, "the pole")
+    assert v["verdict"] == "unreliable" and "8 fitted samples for 8 parameters" in v["verdict_why"]
+    J = np.random.default_rng(0).normal(size=(40, 8))
+    assert verdict_keys(J, 40, 30.0, True, None, "the pole")["verdict"] == "reliable"

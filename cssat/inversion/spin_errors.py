@@ -199,7 +199,9 @@ def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, 
     ``J_fit (n_fit, p)`` and χ² ``chi2``: ``held = (r, J_held)`` the held-out samples' weighted
     residual ``r (n,)`` and Jacobian ``(n, p)`` (:func:`heldout_threshold`), or None (no held-out
     data or no σ); then
-    :func:`judge`, the fitted χ² tested at ``1 − HELDOUT_ALPHA`` where nothing is held out."""
+    :func:`judge`, the fitted χ² tested at ``1 − HELDOUT_ALPHA`` where nothing is held out —
+    unreliable where nothing is held out and the fit has as many parameters as samples (its χ²
+    is 0 whatever the truth: an all-but-empty curve was called reliable)."""
     from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only for a verdict
 
     out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None, "heldout_leverage": None}
@@ -208,6 +210,9 @@ def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, 
         th = heldout_threshold(J_fit, J_held)
         out.update(heldout_chi2=float(r @ r), heldout_n=int(len(r)), heldout_threshold=th["threshold"],
                    heldout_leverage=th["leverage"])
+    if held is None and sigma_given and n_fit <= J_fit.shape[1]:  # a fit through every sample tests nothing
+        return {"verdict": "unreliable", "verdict_why": f"{n_fit} fitted samples for {J_fit.shape[1]} parameters and "
+                                                        f"nothing held out: the fit has no freedom left to test {what}", **out}
     dof = max(n_fit - J_fit.shape[1], 1)
     verdict, why = judge(out["heldout_chi2"], out["heldout_n"], out["heldout_threshold"], chi2_fit=chi2, n_fit=dof,
                          fit_threshold=float(_chi2.ppf(1 - HELDOUT_ALPHA, dof)), sigma_given=sigma_given, what=what,
