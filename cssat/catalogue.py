@@ -260,6 +260,10 @@ def characterise_file(path: str | os.PathLike, *, observed: Mapping[str, Any] | 
     """
     t0 = time.perf_counter()
     options = checked_options(options_text(observed, characterise, period, tumbling, stages))
+    if not isinstance(path, (str, os.PathLike)):
+        from cssat._checks import FieldError  # startup: light
+
+        raise FieldError("path", f"expected a file's path (str or os.PathLike), got {type(path).__name__} {path!r}")
     row: dict[str, Any] = dict.fromkeys(ROW_COLUMNS)
     row["file"] = os.fspath(path)
     try:

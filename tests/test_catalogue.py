@@ -79,6 +79,9 @@ def test_characterise_file_one_flat_row_a_file_and_a_bad_file_a_failed_row(tmp_p
         C.characterise_file(per, period={"min_periods": 3})
     with pytest.raises(ValueError, match=r"^stages\.spin: .*expected 'off'"):
         C.characterise_file(per, stages={"spin": "auto"})
+    for not_a_path in (None, 123, ["a.txt"]):  # was os.fspath's TypeError
+        with pytest.raises(ValueError, match=r"^path: expected a file's path"):
+            C.characterise_file(not_a_path)
 
 
 def _compose(overrides):

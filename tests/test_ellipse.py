@@ -86,8 +86,15 @@ def test_a_flat_ellipse_and_bad_input():
         ellipse_level(c, c, 0.1, 0.2, 0.0)
     with pytest.raises(FieldError, match="dof.*replicate count ≥ 3"):
         ellipse_level(c, c, 0.2, 0.1, 0.0, dof=2)
-    with pytest.raises(FieldError, match="cov.*finite \\(2, 2\\)"):
+    with pytest.raises(FieldError, match="cov.*a \\(2, 2\\) covariance"):
         ellipse_of_cov(np.eye(3))
+    with pytest.raises(FieldError, match="cov.*no negative variance"):  # was (1, 0, 90): not a covariance
+        ellipse_of_cov([[1.0, 0.0], [0.0, -1.0]])
+    with pytest.raises(FieldError, match="cov.*symmetric"):
+        ellipse_of_cov([[1.0, 0.5], [0.0, 1.0]])
+    with pytest.raises(FieldError, match="cov.*finite values"):
+        ellipse_of_cov([[math.nan, 0.0], [0.0, 1.0]])
+    assert ellipse_of_cov([[1.0, 1.0], [1.0, 1.0]])[1] == pytest.approx(0.0, abs=1e-7)  # singular: a flat ellipse
     with pytest.raises(FieldError, match="offsets.*at least one"):
         error_ellipse(np.zeros((0, 2)))
     with pytest.raises(FieldError, match="errors.*missing L_dof"):

@@ -105,6 +105,21 @@ def test_refine_spin_errors_name_their_field():
         spin_frames(t, torch.zeros(4, dtype=torch.float64), frame="galactic")
     with pytest.raises(FieldError, match="device"):
         refine_spin(t, y, sun, obs, p, *spin, device="gpu9")
+    # a hostile pass's: each was a raw TypeError / MemoryError, or accepted (shape="false" ran as True)
+    bad_y, bad_p = y.copy(), p.copy()
+    bad_y[3], bad_p[0] = np.nan, np.nan
+    for kw, field in ((dict(softness=0.05), "softness"), (dict(softness="abc"), "softness"), (dict(fixed=123), "fixed"),
+                      (dict(shape="false"), "shape"), (dict(divisions=100_000), "divisions"),
+                      (dict(pole_lon_deg="x"), "pole_lon_deg"), (dict(pole_lat_deg=200.0), "pole_lat_deg"),
+                      (dict(period_s=None), "period_s"), (dict(period_s=True), "period_s"), (dict(flux=bad_y), "flux"),
+                      (dict(p=bad_p), "p")):
+        args = dict(times_s=t, flux=y, sun=sun, obs=obs, p=p, pole_lon_deg=spin[0], pole_lat_deg=spin[1],
+                    period_s=spin[2], phase_deg=spin[3])
+        opts = {k: v for k, v in kw.items() if k not in args}
+        args.update({k: v for k, v in kw.items() if k in args})
+        with pytest.raises(FieldError) as e:
+            refine_spin(*args.values(), **opts)
+        assert e.value.field == field, (kw, e.value)
 
 
 def test_refine_spin_with_the_shape_recovers_both_from_a_wrong_shape():

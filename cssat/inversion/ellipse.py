@@ -67,9 +67,16 @@ def ellipse_of_cov(cov: Any) -> tuple[float, float, float]:
     north)`` in degrees²: the square roots of its eigenvalues and the major axis's position angle
     from north through east, in [0, 180)."""
     c = np.asarray(cov, dtype=np.float64)
-    if c.shape != (2, 2) or not np.all(np.isfinite(c)):
-        raise FieldError("cov", f"expected a finite (2, 2) covariance, got shape {c.shape}")
+    if c.shape != (2, 2):
+        raise FieldError("cov", f"expected a (2, 2) covariance, got shape {c.shape}")
+    if not np.all(np.isfinite(c)):
+        raise FieldError("cov", f"expected finite values, got {c.tolist()}")
+    scale = max(float(np.abs(c).max()), 1e-300)
+    if abs(c[0, 1] - c[1, 0]) > 1e-9 * scale:
+        raise FieldError("cov", f"expected a symmetric covariance, got {c.tolist()}")
     w, v = np.linalg.eigh((c + c.T) / 2)
+    if w[0] < -1e-9 * scale:  # rounding may leave a zero eigenvalue slightly below 0; a negative variance is refused
+        raise FieldError("cov", f"expected a covariance (no negative variance), got eigenvalues {w.tolist()}")
     w = np.clip(w, 0.0, None)
     pa = math.degrees(math.atan2(v[0, 1], v[1, 1])) % 180.0  # the major axis (the larger eigenvalue, last)
     return math.sqrt(w[1]), math.sqrt(w[0]), pa

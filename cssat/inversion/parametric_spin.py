@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from cssat._checks import FieldError, choice_param, float_param, int_param
+from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, param_names
 from cssat.inversion.parametric_fit import (LOG_SIZE_BOUNDS, SIZE_NAMES, _to_p, _to_z, _transform, profile_albedos,
                                             soft_l1)
@@ -146,18 +146,17 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         raise FieldError("device", f"expected a torch device this machine has, such as 'cpu' or 'cuda', got {device!r} "
                                    f"({type(e).__name__}: {str(e)[:80]})") from e
     pt = torch.as_tensor(np.asarray(p, dtype=np.float64))
-    if pt.shape != (len(names),):
-        raise FieldError("p", f"expected {len(names)} values {names}, got shape {tuple(pt.shape)}")
-    fixed = [fixed] if isinstance(fixed, str) else list(fixed or ())
-    if [n for n in fixed if n not in names]:
+    if pt.shape != (len(names),) or not bool(torch.isfinite(pt).all()):
+        raise FieldError("p", f"expected {len(names)} finite values {names}, got {pt.tolist()}")
+    fixed = [fixed] if isinstance(fixed, str) else list(fixed or ()) if isinstance(fixed, (list, tuple, set)) else fixed
+    if not isinstance(fixed, list) or [n for n in fixed if n not in names]:
         raise FieldError("fixed", f"expected names among {list(names)}, got {fixed}")
     huber = float_param(huber, "huber", 0.0, open_lo=True)
     maxiter = int_param(maxiter, "maxiter", 1, 10_000)
-    period_s = float(period_s)
-    if not (math.isfinite(period_s) and period_s != 0):
-        raise FieldError("period_s", f"expected a non-zero finite period (s), got {period_s!r}")
-    if not softness or any(not (float(s) > 0) for s in softness):
-        raise FieldError("softness", f"expected positive fractions of the bus size, got {softness!r}")
+    pole_lon_deg, pole_lat_deg, period_s, phase_deg, softness = _checked_start(pole_lon_deg, pole_lat_deg, period_s,
+                                                                               phase_deg, softness)
+    shape = bool_param(shape, "shape")
+    divisions = int_param(divisions, "divisions", 1, 16)
     t, y, Si, Oi, sg = _series((times_s, flux, sun, obs, sigma), "flux", "sigma", dev)
     if heldout is not None and len(heldout) != 5:
         raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
@@ -239,6 +238,24 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                 softness_pole_shift_deg=shift_pole, softness_period_shift_s=shift_period, cov=cov)
 
 
+def _checked_start(lon: Any, lat: Any, period: Any, phase: Any, softness: Any) -> tuple:
+    """The start ``(λ°, β°, P s, φ₀°)`` and the softnesses as floats, each refused by name where
+    it is not a number in range (``β`` in [−90, 90], ``P`` finite and non-zero; the softnesses a
+    non-empty sequence of finite fractions > 0)."""
+    lon, phase = float_param(lon, "pole_lon_deg"), float_param(phase, "phase_deg")
+    lat = float_param(lat, "pole_lat_deg", -90.0, 90.0)
+    period = float_param(period, "period_s")
+    if period == 0:
+        raise FieldError("period_s", "expected a non-zero finite period (s), got 0")
+    try:
+        soft = tuple(float_param(v, "softness", 0.0, open_lo=True) for v in softness)
+    except TypeError as e:
+        raise FieldError("softness", f"expected a sequence of positive fractions of the bus size, got {softness!r}") from e
+    if not soft:
+        raise FieldError("softness", f"expected positive fractions of the bus size, got {softness!r}")
+    return lon, lat, period, phase, soft
+
+
 def _formal(J: np.ndarray, r0: np.ndarray, spin: np.ndarray) -> tuple[np.ndarray, float, float]:
     """The Gauss–Newton covariance ``(4, 4)`` of ``(λ, β, φ₀, ω)`` from the Jacobian ``J (T, 4 +
     G)`` and residuals ``r0 (T,)`` (the geometry marginalised; scaled by the reduced χ² where above
@@ -271,6 +288,10 @@ def _series(series: Any, field: str, sigma_field: str, device: torch.device) -> 
     if not (t.shape == y.shape == sg.shape and S.shape == O.shape == (len(t), 3)):
         raise FieldError(field, f"expected times, flux, sigma (T,) and sun, obs (T, 3) alike, got {t.shape}, "
                                 f"{tuple(y.shape)}, {tuple(sg.shape)}, {tuple(S.shape)}, {tuple(O.shape)}")
+    names = ("times_s", field, "sun", "obs", sigma_field) if field == "flux" else (field,) * 5
+    for name, v in zip(names, (t, y, S, O, sg)):
+        if not np.all(np.isfinite(np.asarray(v))):
+            raise FieldError(name, "contains NaN or Inf")
     if bool((sg <= 0).any()):
         raise FieldError(sigma_field, "expected positive 1σ values")
     return t, y.to(device), S.to(device), O.to(device), sg.to(device)
