@@ -158,3 +158,23 @@ def test_a_fit_with_no_freedom_left_and_nothing_held_out_is_unreliable():
     assert v["verdict"] == "unreliable" and "8 fitted samples for 8 parameters" in v["verdict_why"]
     J = np.random.default_rng(0).normal(size=(40, 8))
     assert verdict_keys(J, 40, 30.0, True, None, "the pole")["verdict"] == "reliable"
+
+
+def test_a_brdf_table_that_is_not_text_and_gains_of_no_telescope_are_refused_by_name(tmp_path):
+    import gzip
+
+    from cssat.occultation.nuisance import scintillation_gains
+    from cssat.optics.brdf_table import read_brdf_table
+
+    packed = tmp_path / "table.txt.gz"
+    packed.write_bytes(gzip.compress(b"phi_in theta_in phi_out theta_out brdf\n0 10 0 10 0.3\n"))
+    with pytest.raises(FieldError, match="not a UTF-8 text table") as e:  # was UnicodeDecodeError
+        read_brdf_table(packed)
+    assert e.value.field == "path"
+    with pytest.raises(FieldError) as e:  # was ZeroDivisionError
+        scintillation_gains([[0.0, 0.0], [5.0, 0.0]], 0.5, 2e-4, 1.0, wavelength_m=0.0)
+    assert e.value.field == "wavelength_m"
+    for positions in (np.zeros((0, 2)), [[0.0, np.nan]]):  # was IndexError / NaN gains
+        with pytest.raises(FieldError) as e:
+            scintillation_gains(positions, 0.5, 2e-4, 1.0)
+        assert e.value.field == "positions_m"

@@ -51,6 +51,9 @@ def scintillation_gains(positions_m: Any, aperture_m: float, exposure_s: float, 
     from cssat.physics.turbulence import scintillation_covariance, scintillation_index  # heavy: scipy
 
     P = np.asarray(positions_m, dtype=np.float64).reshape(-1, 2)
+    if not len(P) or not np.all(np.isfinite(P)):
+        raise FieldError("positions_m", f"expected at least one telescope's finite (east, north) in m, got {P.tolist()}")
+    wavelength_m = float_param(wavelength_m, "wavelength_m", 0.0, open_lo=True)
     D = float_param(aperture_m, "array.aperture_m", 0.0, open_lo=True)
     t_exp = float_param(exposure_s, "array.exposure_s", 0.0)
     T = float_param(event_s, "event_s", 0.0)

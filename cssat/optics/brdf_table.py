@@ -129,21 +129,27 @@ def read_brdf_table(path: str | os.PathLike, field: str = "path") -> BRDFTable:
     if not os.path.isfile(path):
         raise FieldError(field, f"no such file: {path!r}")
     rows = []
-    with open(path, encoding="utf-8") as fh:
-        for k, line in enumerate(fh, 1):
-            s = line.split("#", 1)[0].strip()
-            if not s:
-                continue
-            parts = s.replace(",", " ").split()
-            try:
-                rows.append([float(x) for x in parts])
-            except ValueError:
-                if rows:
-                    raise FieldError(field, f"{path!r} line {k}: not numbers: {s[:60]!r}") from None
-                continue  # a header of column names
-            if len(parts) != len(COLUMNS):
-                raise FieldError(field, f"{path!r} line {k}: expected {len(COLUMNS)} columns {' '.join(COLUMNS)}, "
-                                        f"got {len(parts)}")
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise FieldError(field, f"{path!r} is not a UTF-8 text table (byte {e.start}: {raw[e.start:e.start + 1]!r}); "
+                                "a gzip or binary file must be unpacked first") from None
+    for k, line in enumerate(text.splitlines(), 1):
+        s = line.split("#", 1)[0].strip()
+        if not s:
+            continue
+        parts = s.replace(",", " ").split()
+        try:
+            rows.append([float(x) for x in parts])
+        except ValueError:
+            if rows:
+                raise FieldError(field, f"{path!r} line {k}: not numbers: {s[:60]!r}") from None
+            continue  # a header of column names
+        if len(parts) != len(COLUMNS):
+            raise FieldError(field, f"{path!r} line {k}: expected {len(COLUMNS)} columns {' '.join(COLUMNS)}, "
+                                    f"got {len(parts)}")
     if not rows:
         raise FieldError(field, f"{path!r} holds no rows of {' '.join(COLUMNS)}")
     data = np.asarray(rows, dtype=np.float64)
