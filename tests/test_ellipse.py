@@ -90,8 +90,6 @@ def test_a_flat_ellipse_and_bad_input():
         ellipse_of_cov(np.eye(3))
     with pytest.raises(FieldError, match="cov.*no negative variance"):  # was (1, 0, 90): not a covariance
         ellipse_of_cov([[1.0, 0.0], [0.0, -1.0]])
-    with pytest.raises(FieldError, match="cov.*symmetric"):
-        ellipse_of_cov([[1.0, 0.5], [0.0, 1.0]])
     with pytest.raises(FieldError, match="cov.*finite values"):
         ellipse_of_cov([[math.nan, 0.0], [0.0, 1.0]])
     assert ellipse_of_cov([[1.0, 1.0], [1.0, 1.0]])[1] == pytest.approx(0.0, abs=1e-7)  # singular: a flat ellipse
