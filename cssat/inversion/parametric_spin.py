@@ -19,11 +19,12 @@ frame is that body frame turned so that the bus is on its axes and the panels al
 phase ``φ₀`` holds that turn); the start is within the basin of the right pole (a local
 refinement, not a search: a few degrees on the box-wings of ``benchmarks/bench_shadow_fit.py``);
 the 1σ is the curvature's at the minimum ⊕ the move between the last two shadow softnesses and
-is NOT yet calibrated: in its model class (a box-wing without dishes started 2° off,
-``benchmarks/bench_spin_refine_coverage.py``, 200 fresh seeds) it holds the pole in its 68.27 /
-95.45 % circles on 62.8 / 91.8 % of the 183 reliable (the curvature's alone 56.3 / 88.5 %); a
-neighbouring minimum the held-out night does not tell apart stays possible (15 of 183 reliable
-poles outside the 95.45 % circle); the period's 1σ under-covers more (53 / 86 % within 1σ / 2σ).
+is NOT yet calibrated at 68 %: in its model class (a box-wing without dishes started 2° off,
+``benchmarks/bench_spin_refine_coverage.py``, 100 fresh seeds, run to convergence) it holds the
+pole in its 68.27 / 95.45 % circles on 61.7 / 93.6 % of the 94 reliable (the curvature's alone
+60.6 / 90.4 %), the worst miss 2.2× its 1σ (at 40 iterations a softness, whose answers rounding
+set, 62.8 / 91.8 % of 183 with misses to 8σ); the period's 1σ under-covers more (62 / 86 %
+within 1σ / 2σ).
 """
 
 from __future__ import annotations
