@@ -186,8 +186,9 @@ def test_refine_spin_1sigma_adds_the_move_between_the_last_two_softnesses():
 def test_refine_spin_converges_where_float_noise_cannot_move_it():
     """With the default iterations the joint refinement ends at its minimum: a start moved by
     1e-9° (the size of another machine's rounding along the descent) moves the answer by less
-    than 1e-3° and a hundredth of its 1σ (~0.24°), the period by a hundredth of its 1σ. Runs of 40 iterations ended where the arithmetic
-    had led them: on this scene the same move moved the pole by 0.016°, in class by up to 0.27°."""
+    than 1e-3° and a hundredth of its 1σ (~0.24°), the period by a hundredth of its 1σ. Runs of
+    40 iterations ended where the arithmetic had led them: on this scene the same move moved the
+    pole by 0.016°, in class by up to 0.27°."""
     t, y, sigma, sun, obs, p, spin = _scene(n=120, seed=5)
     q = p * np.r_[np.exp(np.random.default_rng(1).normal(0, 0.1, 7)), 1, 1]  # a shape 10 % off
     start = (spin[0] + 1.0, spin[1] - 1.0, spin[2] * (1 + 2e-5), spin[3] + 5.0)

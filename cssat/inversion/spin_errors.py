@@ -198,10 +198,9 @@ def verdict_keys(J_fit: np.ndarray, n_fit: int, chi2: float, sigma_given: bool, 
     ``heldout_threshold``, ``heldout_leverage``) of a fit of ``n_fit`` samples with Jacobian
     ``J_fit (n_fit, p)`` and χ² ``chi2``: ``held = (r, J_held)`` the held-out samples' weighted
     residual ``r (n,)`` and Jacobian ``(n, p)`` (:func:`heldout_threshold`), or None (no held-out
-    data or no σ); then
-    :func:`judge`, the fitted χ² tested at ``1 − HELDOUT_ALPHA`` where nothing is held out —
-    unreliable where nothing is held out and the fit has as many parameters as samples (its χ²
-    is 0 whatever the truth: an all-but-empty curve was called reliable)."""
+    data or no σ); then :func:`judge`, the fitted χ² tested at ``1 − HELDOUT_ALPHA`` where nothing
+    is held out — unreliable where nothing is held out and the fit has as many parameters as
+    samples (its χ² is 0 whatever the truth: an all-but-empty curve was called reliable)."""
     from scipy.stats import chi2 as _chi2  # heavy: scipy.stats, only for a verdict
 
     out: dict[str, Any] = {"heldout_chi2": None, "heldout_n": 0, "heldout_threshold": None, "heldout_leverage": None}

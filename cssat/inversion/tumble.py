@@ -110,7 +110,8 @@ def estimate_tumbling(times_s: Any, flux: Any, sun: Any, obs: Any, *, sigma: Any
 
     clock = time.perf_counter()
     frame = choice_param(frame, "frame", ("ecliptic", "equatorial"))
-    check_tumbling_options(**{k: v for k, v in locals().items() if k in _option_names()})  # the options: before any work
+    options = _option_names()  # the signature read once, not once a local
+    check_tumbling_options(**{k: v for k, v in locals().items() if k in options})  # the options: before any work
     t, y, S, O, w, sig = _check_light_curve(times_s, flux, sun, obs, sigma, brdf)
     if heldout is not None:  # checked before any work (step 5 reads it)
         from cssat.inversion.spin import _check_heldout  # heavy: cssat.inversion.spin imports the EGI operator (torch)
