@@ -17,6 +17,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
+from cssat.optics.shadow_sampling import check_resolution, sampled_visibility
 from cssat.optics.sun import AU_KM, SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V, SUN_RADIUS_KM  # re-exported
 from cssat.scene.mesh import Mesh, as_mesh
 
@@ -87,6 +88,7 @@ def facet_brightness(
     irradiance: float = SOLAR_IRRADIANCE_W_M2,
     specular_window_deg: float = 0.5,
     shadows: bool = False,
+    shadow_resolution_m: float | None = None,
     brdf: Any = None,
     materials: Any = None,
     glint: str | None = None,
@@ -101,7 +103,9 @@ def facet_brightness(
 
     for facets with ``S·N > 0`` and ``V·N > 0`` (zero otherwise), times ``sunlit`` (the fraction
     of the solar disk not hidden by the Earth; the paper ignores the eclipse) and ``visible``
-    (a ``(T, F)`` mask, e.g. from :func:`shadow_mask`; or ``shadows=True`` to cast the rays here).
+    (a ``(T, F)`` mask, e.g. from :func:`shadow_mask`; or ``shadows=True`` to cast the rays here:
+    from each facet's centroid, or with ``shadow_resolution_m`` (m) from points that far apart on
+    it, the facet's lit-and-seen fraction — a shadow edge then moves smoothly over a coarse mesh).
 
     Units: ``A_i`` m², ``r_topo = range_km`` converted to m, result in W/m² at the observer.
 
@@ -151,7 +155,10 @@ def facet_brightness(
     if getattr(mesh, "joints", ()):  # articulated parts (Sun-tracking arrays): posed at every sample
         return _per_pose(mesh, sun, observer, facet_brightness, dict(
             range_km=range_km, sun_range_km=sun_range_km, visible=visible, sunlit=sunlit, irradiance=irradiance,
-            specular_window_deg=specular_window_deg, shadows=shadows, brdf=brdf, materials=materials, glint=glint))
+            specular_window_deg=specular_window_deg, shadows=shadows, brdf=brdf, materials=materials, glint=glint,
+            shadow_resolution_m=shadow_resolution_m))
+    if shadow_resolution_m is not None and not shadows:
+        raise FieldError("shadow_resolution_m", "resolves the cast shadows: give it with shadows=True (or leave it null)")
     sl = torch.as_tensor(sunlit, dtype=torch.float64)
     if not bool(torch.isfinite(sl).all()) or bool((sl < 0).any()) or bool((sl > 1).any()):
         raise FieldError("sunlit", "the sunlit fraction of the solar disk must be in [0, 1]")
@@ -221,7 +228,7 @@ def facet_brightness(
             val = irradiance * A / rt**2 * sn * vn * f
         val = torch.where(front, val, torch.zeros_like(val)) * li
         if shadows:
-            vis = shadow_mask(mesh, S, V, candidates=front & (li > 0))
+            vis = shadow_mask(mesh, S, V, candidates=front & (li > 0), resolution_m=shadow_resolution_m)
             val = val * vis.to(device=dev, dtype=dtype)
         if visible is not None:
             val = val * visible[s:e].to(dtype)
@@ -288,10 +295,14 @@ def shadow_mask(
     candidates: Tensor | np.ndarray | None = None,
     offset: float | None = None,
     engine: str = "auto",
+    resolution_m: float | None = None,
 ) -> Tensor:
     """``(T, F)`` bool: facet ``i`` at step ``t`` is neither self-shadowed (the ray from its
     centroid towards the Sun hits the mesh) nor observer-shadowed (the ray towards the observer
-    hits the mesh) — the paper's Fig. 2 (a) and (b).
+    hits the mesh) — the paper's Fig. 2 (a) and (b). With ``resolution_m`` (m) instead ``(T, F)``
+    float64 in [0, 1]: the facet's fraction lit and seen, from rays at the centroids of its
+    sub-triangles of edges ≤ ``resolution_m`` (:mod:`cssat.optics.shadow_sampling`: a shadow
+    edge then moves over a facet smoothly, not in one step).
 
     Rays start at the centroid moved by ``offset`` (m; default ``1e-5 ×`` the mesh radius, plus
     1 mm at most) along the facet normal, so a facet never hits itself or a coincident back facet.
@@ -301,7 +312,9 @@ def shadow_mask(
     """
     mesh = as_mesh(mesh)
     if getattr(mesh, "joints", ()):  # articulated parts: the rays of each sample against its own pose
-        return _per_pose(mesh, sun, observer, shadow_mask, dict(candidates=candidates, offset=offset, engine=engine))
+        return _per_pose(mesh, sun, observer, shadow_mask, dict(candidates=candidates, offset=offset, engine=engine,
+                                                                 resolution_m=resolution_m))
+    resolution_m = check_resolution(resolution_m)
     sun_t = check_unit(sun, "sun").double().cpu()
     obs_t = check_unit(observer, "observer").double().cpu()
     T, F = sun_t.shape[0], len(mesh)
@@ -312,7 +325,7 @@ def shadow_mask(
         cand = torch.as_tensor(candidates).cpu().bool()
         if tuple(cand.shape) != (T, F):
             raise FieldError("candidates", f"expected shape ({T}, {F}), got {tuple(cand.shape)}")
-    out = torch.zeros(T, F, dtype=torch.bool)
+    out = torch.zeros(T, F, dtype=torch.bool if resolution_m is None else torch.float64)
     ti, fi = cand.nonzero(as_tuple=True)
     if len(ti) == 0:
         return out
@@ -334,9 +347,14 @@ def shadow_mask(
         from trimesh.ray.ray_triangle import RayMeshIntersector  # heavy: trimesh.ray, only for shadow_mask()
 
         inter = RayMeshIntersector(tm)
+    threaded = "embree" in type(inter).__module__
+    if resolution_m is not None:
+        frac = sampled_visibility(mesh.vertices[mesh.faces], mesh.normals, ti.numpy(), fi.numpy(), sun_t.numpy(),
+                                  obs_t.numpy(), resolution_m, offset, lambda o, d: _any_hit(inter, o, d, threaded))
+        out[ti, fi] = torch.as_tensor(frac)
+        return out
     origins = mesh.centroids[fi.numpy()] + offset * mesh.normals[fi.numpy()]
     blocked = np.zeros(len(ti), dtype=bool)
-    threaded = "embree" in type(inter).__module__
     for dirs in (sun_t[ti].numpy(), obs_t[ti].numpy()):
         todo = np.flatnonzero(~blocked)
         if len(todo):

@@ -168,6 +168,7 @@ class EGILightCurve(ForwardModel):
         metrics: dict[str, Any] = {"psnr": None, "ssim": None, "model": mesh.name, "seed": run.seed}
         if observed is None:  # what the truth had and what the inversion assumed: in class only when both agree
             metrics.update(truth_brdf=brdf.name if brdf is not None else "mesh", truth_shadows=s.shadows,
+                           truth_shadow_resolution_m=s.shadow_resolution_m,
                            inversion_brdf=model_brdf.name if model_brdf is not None else "lambert")
         return EGIPlan(s, cfg, spin_mode, inv.spin == "auto", solver, mesh, attitude, brdf, model_brdf, noise, observed,
                        metrics)
@@ -305,7 +306,8 @@ def _light_curve(p: EGIPlan, seed: int, sc: Any, keep: np.ndarray, t: np.ndarray
         sigma_w = err[keep] if err is not None else None
         clean_w = None
     else:
-        lc = simulate_light_curve(p.mesh, sc, shadows=p.settings.shadows, attitude=attitude, brdf=p.brdf)
+        lc = simulate_light_curve(p.mesh, sc, shadows=p.settings.shadows, attitude=attitude, brdf=p.brdf,
+                                  shadow_resolution_m=p.settings.shadow_resolution_m)
         clean_w = lc.flux.numpy()[keep]
         gen = torch.Generator().manual_seed(seed)
         y = torch.as_tensor(clean_w, dtype=torch.float64)[None]

@@ -11,6 +11,7 @@ defaults, stored in Hydra's ConfigStore as the config ``egi_settings`` (which
                     surface, the shape fitted after it (``inversion.parametric.*``:
                     :class:`ParametricConfig`), the tumbling search's options
 ``shadows``         the simulated truth's self-shadowing by ray casting (true)
+``shadow_resolution_m``  rays that far apart on each facet (m; null: one from its centroid)
 ``observations``    a measured light curve to invert (a path; null: simulate)
 ``observed.*``      how to read it (:class:`~cssat.models.observed.config.ReadConfig`)
 ==================  =========================================================================
@@ -247,6 +248,9 @@ class EGISettings:
     inversion: InversionConfig = field(default_factory=InversionConfig)
     #: the simulated truth's self- and observer-shadowing (ray cast)
     shadows: bool = True
+    #: the truth's shadows resolved below a facet: rays from points this far apart (m) on each
+    #: (cssat.optics.shadow_sampling); null: one ray from its centroid, a facet wholly lit or dark
+    shadow_resolution_m: Optional[float] = None
     #: a measured light curve (a path): invert it (scenario.tle must be the object's)
     observations: Any = None
     #: how to read it (cssat.data.read_light_curve)
@@ -254,6 +258,10 @@ class EGISettings:
 
     def __post_init__(self) -> None:
         bool_param(self.shadows, "shadows")
+        if self.shadow_resolution_m is not None:
+            float_param(self.shadow_resolution_m, "shadow_resolution_m", 0.0, open_lo=True)
+            if not self.shadows:
+                raise FieldError("shadow_resolution_m", "resolves the truth's cast shadows: it needs shadows=true")
         fit, n = self.nights.fit, self.nights.n
         if fit is not None and fit > n and not self.observations:
             raise FieldError("nights.fit", f"{fit} nights fitted of the {n} observed (nights.n): at most {n}")

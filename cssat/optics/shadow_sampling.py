@@ -1,0 +1,89 @@
+"""Shadows resolved below a facet: the lit-and-seen fraction of each facet from rays cast at many
+points on it (:func:`cssat.optics.photometry.shadow_mask`'s ``resolution_m``).
+
+A centroid ray makes a facet wholly lit or wholly dark, so a shadow edge moves over a facet in one
+step: a light curve of a coarse mesh (a bus face in 0.8 m cells) carries steps that the satellite
+does not have, of the size of the photometric noise (BENCHMARKS.md, "Converged shadows"). Here a
+facet of longest edge ``ℓ`` is split ``L = ⌈log₂(ℓ / resolution_m)⌉`` times at its edges'
+midpoints (``4^L`` equal sub-triangles, each edge ≤ ``resolution_m``); a ray pair (to the Sun, to
+the observer) leaves each sub-triangle's centroid, and the facet's visibility is the fraction of
+its sub-triangles neither self- nor observer-shadowed — exactly the mean, over the children, of the
+centroid visibility of the mesh subdivided to ``resolution_m`` (``trimesh.remesh.subdivide_to_size``),
+without building that mesh.
+
+ASSUMPTIONS: flat facets (the sub-triangles are in the facet's plane, at its normal's offset);
+equal weights (midpoint subdivision gives sub-triangles of equal area); at most :data:`MAX_LEVEL`
+splits (``4^6`` points) a facet.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from cssat._checks import float_param
+
+__all__ = ["MAX_LEVEL", "barycentric_points", "facet_levels", "sampled_visibility"]
+
+#: the most midpoint splits of one facet (4**MAX_LEVEL = 4096 rays a facet and direction)
+MAX_LEVEL = 6
+#: rays cast in one batch (memory: ~50 bytes a ray)
+_CHUNK_RAYS = 2_000_000
+
+
+def barycentric_points(level: int) -> np.ndarray:
+    """``(4**level, 3)`` barycentric coordinates of the centroids of a triangle's ``level``-fold
+    midpoint subdivision (``n = 2**level`` segments an edge: ``n(n+1)/2`` upright and ``n(n−1)/2``
+    inverted sub-triangles, all of area ``1/n²`` of the facet's)."""
+    n = 2**level
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    up = (i + j) <= n - 1
+    down = (i + j) <= n - 2
+    u = np.concatenate([(i[up] + 1 / 3) / n, (i[down] + 2 / 3) / n])
+    v = np.concatenate([(j[up] + 1 / 3) / n, (j[down] + 2 / 3) / n])
+    return np.stack([1.0 - u - v, u, v], axis=1)
+
+
+def facet_levels(triangles: np.ndarray, resolution_m: float) -> np.ndarray:
+    """``(F,)`` the splits ``L`` each facet of ``triangles (F, 3, 3)`` (m) needs for every edge of
+    its sub-triangles to be at most ``resolution_m`` (module docstring), capped at
+    :data:`MAX_LEVEL`."""
+    edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max(axis=1)
+    with np.errstate(divide="ignore"):
+        lev = np.ceil(np.log2(np.maximum(edges, 1e-300) / resolution_m))
+    return np.clip(lev, 0, MAX_LEVEL).astype(np.int64)
+
+
+def check_resolution(resolution_m: Any) -> float | None:
+    """``resolution_m`` checked: None (centroid rays) or a finite length > 0 (m)."""
+    return None if resolution_m is None else float_param(resolution_m, "resolution_m", 0.0, open_lo=True)
+
+
+def sampled_visibility(triangles: np.ndarray, normals: np.ndarray, ti: np.ndarray, fi: np.ndarray,
+                       sun: np.ndarray, observer: np.ndarray, resolution_m: float, offset: float,
+                       any_hit: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+    """``(n,)`` float64 in [0, 1]: the fraction of facet ``fi[k]`` lit and seen at step ``ti[k]``
+    (module docstring). ``triangles (F, 3, 3)``, ``normals (F, 3)`` the mesh's; ``sun, observer
+    (T, 3)`` unit vectors; ``offset`` (m) along the normal; ``any_hit(origins, dirs) → (N,) bool``
+    the ray engine's occlusion query."""
+    levels = facet_levels(triangles, resolution_m)
+    out = np.zeros(len(ti), dtype=np.float64)
+    for lev in np.unique(levels[fi]):
+        bary = barycentric_points(int(lev))
+        k = len(bary)
+        sel = np.flatnonzero(levels[fi] == lev)
+        step = max(1, _CHUNK_RAYS // k)
+        for s in range(0, len(sel), step):
+            idx = sel[s:s + step]
+            f, t = fi[idx], ti[idx]
+            pts = np.einsum("pj,njc->npc", bary, triangles[f]) + offset * normals[f][:, None, :]
+            origins = pts.reshape(-1, 3)
+            blocked = np.zeros(len(origins), dtype=bool)
+            for d in (sun[t], observer[t]):
+                todo = np.flatnonzero(~blocked)
+                if len(todo):
+                    dirs = np.repeat(d, k, axis=0)
+                    blocked[todo] |= any_hit(origins[todo], dirs[todo])
+            out[idx] = 1.0 - blocked.reshape(-1, k).mean(axis=1)
+    return out
