@@ -188,7 +188,7 @@ def test_apparent_magnitude_of_the_sun_from_its_spectrum():
 
 def test_threaded_ray_queries_equal_one_batch():
     pytest.importorskip("embreex")
-    from cssat.optics.photometry import _any_hit
+    from cssat.optics.shadow_sampling import any_hit as _any_hit
     from trimesh.ray.ray_pyembree import RayMeshIntersector
 
     m = astra_like()

@@ -9,7 +9,6 @@ Geometry inputs are body-frame unit vectors *from the object*: ``sun (T, 3)`` (t
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -17,7 +16,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
-from cssat.optics.shadow_sampling import check_resolution, sampled_visibility
+from cssat.optics.shadow_sampling import any_hit, check_resolution, sampled_visibility
 from cssat.optics.sun import AU_KM, SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V, SUN_RADIUS_KM  # re-exported
 from cssat.scene.mesh import Mesh, as_mesh
 
@@ -157,11 +156,7 @@ def facet_brightness(
             range_km=range_km, sun_range_km=sun_range_km, visible=visible, sunlit=sunlit, irradiance=irradiance,
             specular_window_deg=specular_window_deg, shadows=shadows, brdf=brdf, materials=materials, glint=glint,
             shadow_resolution_m=shadow_resolution_m))
-    if shadow_resolution_m is not None and not shadows:
-        raise FieldError("shadow_resolution_m", "resolves the cast shadows: give it with shadows=True (or leave it null)")
-    sl = torch.as_tensor(sunlit, dtype=torch.float64)
-    if not bool(torch.isfinite(sl).all()) or bool((sl < 0).any()) or bool((sl > 1).any()):
-        raise FieldError("sunlit", "the sunlit fraction of the solar disk must be in [0, 1]")
+    _checked_light(sunlit, shadows, shadow_resolution_m)
     sun_t = check_unit(sun, "sun")
     dtype = sun_t.dtype if sun_t.dtype in (torch.float32, torch.float64) else torch.float64
     dev = sun_t.device
@@ -238,6 +233,15 @@ def facet_brightness(
 
 #: the keyword arguments of facet_brightness / shadow_mask that hold one value per sample (or one for all)
 _PER_SAMPLE = ("range_km", "sun_range_km", "sunlit", "visible", "candidates")
+
+
+def _checked_light(sunlit: Any, shadows: bool, shadow_resolution_m: Any) -> None:
+    """``sunlit`` in [0, 1]; ``shadow_resolution_m`` only with ``shadows`` (a FieldError)."""
+    if shadow_resolution_m is not None and not shadows:
+        raise FieldError("shadow_resolution_m", "resolves the cast shadows: give it with shadows=True (or leave it null)")
+    sl = torch.as_tensor(sunlit, dtype=torch.float64)
+    if not bool(torch.isfinite(sl).all()) or bool((sl < 0).any()) or bool((sl > 1).any()):
+        raise FieldError("sunlit", "the sunlit fraction of the solar disk must be in [0, 1]")
 
 
 def _per_pose(mesh: Mesh, sun: Any, observer: Any, fn: Any, kwargs: dict) -> Tensor:
@@ -350,7 +354,7 @@ def shadow_mask(
     threaded = "embree" in type(inter).__module__
     if resolution_m is not None:
         frac = sampled_visibility(mesh.vertices[mesh.faces], mesh.normals, ti.numpy(), fi.numpy(), sun_t.numpy(),
-                                  obs_t.numpy(), resolution_m, offset, lambda o, d: _any_hit(inter, o, d, threaded))
+                                  obs_t.numpy(), resolution_m, offset, inter, threaded)
         out[ti, fi] = torch.as_tensor(frac)
         return out
     origins = mesh.centroids[fi.numpy()] + offset * mesh.normals[fi.numpy()]
@@ -358,36 +362,9 @@ def shadow_mask(
     for dirs in (sun_t[ti].numpy(), obs_t[ti].numpy()):
         todo = np.flatnonzero(~blocked)
         if len(todo):
-            blocked[todo] |= _any_hit(inter, origins[todo], dirs[todo], threaded)
+            blocked[todo] |= any_hit(inter, origins[todo], dirs[todo], threaded)
     out[ti, fi] = torch.as_tensor(~blocked)
     return out
-
-
-def _any_hit(inter, origins: np.ndarray, dirs: np.ndarray, threaded: bool) -> np.ndarray:
-    """Does each ray (unit ``dirs``) hit the mesh? With Embree, an occlusion query straight on
-    trimesh's Embree scene (about 3× faster than ``intersects_any``, which finds the first hit),
-    over ``torch.get_num_threads()`` threads for large batches (Embree releases the GIL and its
-    queries on a committed scene are thread-safe)."""
-    scene = getattr(inter, "_scene", None) if threaded else None
-    if scene is not None and hasattr(scene, "run"):
-
-        def query(o, d):
-            occ = scene.run(np.ascontiguousarray(o, dtype=np.float32), np.ascontiguousarray(d, dtype=np.float32),
-                            query="OCCLUDED")
-            return np.asarray(occ) != -1
-    else:
-
-        def query(o, d):
-            return np.asarray(inter.intersects_any(o, d), dtype=bool)
-
-    threads = torch.get_num_threads()
-    if not threaded or threads < 2 or len(origins) < 100_000:
-        return query(origins, dirs)
-
-    parts = np.array_split(np.arange(len(origins)), threads)
-    with ThreadPoolExecutor(threads) as pool:
-        hits = list(pool.map(lambda p: query(origins[p], dirs[p]), parts))
-    return np.concatenate(hits)
 
 
 def apparent_magnitude(flux_w_m2: Array | float, irradiance: float = SOLAR_IRRADIANCE_W_M2) -> Tensor:

@@ -9,7 +9,8 @@ midpoints (``4^L`` equal sub-triangles, each edge ≤ ``resolution_m``); a ray p
 the observer) leaves each sub-triangle's centroid, and the facet's visibility is the fraction of
 its sub-triangles neither self- nor observer-shadowed — exactly the mean, over the children, of the
 centroid visibility of the mesh subdivided to ``resolution_m`` (``trimesh.remesh.subdivide_to_size``),
-without building that mesh.
+without building that mesh. :func:`any_hit` is the ray engine's occlusion query that
+:func:`~cssat.optics.photometry.shadow_mask` casts its rays with.
 
 ASSUMPTIONS: flat facets (the sub-triangles are in the facet's plane, at its normal's offset);
 equal weights (midpoint subdivision gives sub-triangles of equal area); at most :data:`MAX_LEVEL`
@@ -18,13 +19,15 @@ splits (``4^6`` points) a facet.
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import numpy as np
+import torch
 
 from cssat._checks import float_param
 
-__all__ = ["MAX_LEVEL", "barycentric_points", "facet_levels", "sampled_visibility"]
+__all__ = ["MAX_LEVEL", "any_hit", "barycentric_points", "facet_levels", "sampled_visibility"]
 
 #: the most midpoint splits of one facet (4**MAX_LEVEL = 4096 rays a facet and direction)
 MAX_LEVEL = 6
@@ -61,12 +64,12 @@ def check_resolution(resolution_m: Any) -> float | None:
 
 
 def sampled_visibility(triangles: np.ndarray, normals: np.ndarray, ti: np.ndarray, fi: np.ndarray,
-                       sun: np.ndarray, observer: np.ndarray, resolution_m: float, offset: float,
-                       any_hit: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+                       sun: np.ndarray, observer: np.ndarray, resolution_m: float, offset: float, inter: Any,
+                       threaded: bool) -> np.ndarray:
     """``(n,)`` float64 in [0, 1]: the fraction of facet ``fi[k]`` lit and seen at step ``ti[k]``
     (module docstring). ``triangles (F, 3, 3)``, ``normals (F, 3)`` the mesh's; ``sun, observer
-    (T, 3)`` unit vectors; ``offset`` (m) along the normal; ``any_hit(origins, dirs) → (N,) bool``
-    the ray engine's occlusion query."""
+    (T, 3)`` unit vectors; ``offset`` (m) along the normal; ``inter`` the ray engine
+    (:func:`any_hit`'s, with ``threaded``)."""
     levels = facet_levels(triangles, resolution_m)
     out = np.zeros(len(ti), dtype=np.float64)
     for lev in np.unique(levels[fi]):
@@ -84,6 +87,33 @@ def sampled_visibility(triangles: np.ndarray, normals: np.ndarray, ti: np.ndarra
                 todo = np.flatnonzero(~blocked)
                 if len(todo):
                     dirs = np.repeat(d, k, axis=0)
-                    blocked[todo] |= any_hit(origins[todo], dirs[todo])
+                    blocked[todo] |= any_hit(inter, origins[todo], dirs[todo], threaded)
             out[idx] = 1.0 - blocked.reshape(-1, k).mean(axis=1)
     return out
+
+
+def any_hit(inter: Any, origins: np.ndarray, dirs: np.ndarray, threaded: bool) -> np.ndarray:
+    """Does each ray (unit ``dirs``) hit the mesh? With Embree, an occlusion query straight on
+    trimesh's Embree scene (about 3× faster than ``intersects_any``, which finds the first hit),
+    over ``torch.get_num_threads()`` threads for large batches (Embree releases the GIL and its
+    queries on a committed scene are thread-safe)."""
+    scene = getattr(inter, "_scene", None) if threaded else None
+    if scene is not None and hasattr(scene, "run"):
+
+        def query(o, d):
+            occ = scene.run(np.ascontiguousarray(o, dtype=np.float32), np.ascontiguousarray(d, dtype=np.float32),
+                            query="OCCLUDED")
+            return np.asarray(occ) != -1
+    else:
+
+        def query(o, d):
+            return np.asarray(inter.intersects_any(o, d), dtype=bool)
+
+    threads = torch.get_num_threads()
+    if not threaded or threads < 2 or len(origins) < 100_000:
+        return query(origins, dirs)
+
+    parts = np.array_split(np.arange(len(origins)), threads)
+    with ThreadPoolExecutor(threads) as pool:
+        hits = list(pool.map(lambda p: query(origins[p], dirs[p]), parts))
+    return np.concatenate(hits)
