@@ -145,7 +145,8 @@ def check_params(p: Any, panels: int, divisions: int, dishes: int = 0, **parts: 
 def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, np.ndarray, tuple[Tensor, Tensor, Tensor]]:
     """One dish of the dish geometry ``q (7,)`` (vertex x, y, z, tilt, azimuth, radius, depth):
     vertices ``(V, 3)``, faces (two-sided), the triangles of :func:`cssat.scene.models.dish` in its
-    order, differentiable in ``q``; and its aperture disk ``(centre (3,), unit axis (3,), radius)``."""
+    order, differentiable in ``q``; and its aperture disk ``(centre (3,), unit axis (3,), radius,
+    depth)``."""
     x, y, z, tilt, azim, radius, depth = q[:7].unbind()
     sign = -1.0 if mirror else 1.0
     zero = torch.zeros((), dtype=q.dtype, device=q.device)
@@ -171,7 +172,7 @@ def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, n
         N, _ = _geometry(verts.detach(), faces)
         if float((N @ a.detach()).mean()) < 0:
             faces = faces[:, ::-1].copy()
-    return torch.cat([verts, verts]), np.concatenate([faces, faces[:, ::-1] + len(verts)]), (c + depth * a, a, radius)
+    return torch.cat([verts, verts]), np.concatenate([faces, faces[:, ::-1] + len(verts)]), (c + depth * a, a, radius, depth)
 
 
 def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int, dish_segments: int,
@@ -180,7 +181,7 @@ def _assemble(p: Any, panels: int, divisions: int, dishes: int, dish_rings: int,
     (:mod:`cssat.inversion.soft_shadow`), each face's occluder ``(F,)`` (the part instance it
     belongs to: the bus 0, each wing, each boom, the deck, each dish) and the occluders:
     ``("box", centre, half-sizes)``, ``("panels", [(origin, u, w, length, width), ...])`` (a wing),
-    ``("disk", centre, axis, radius)`` (a dish's aperture)."""
+    ``("disk", centre, axis, radius, depth)`` (a dish's aperture, and its bowl's depth)."""
     p = check_params(p, panels, divisions, dishes, **parts)
     names = param_names(dishes, **parts)
     wing_panels, booms, deck = parts.get("wing_panels", 1), parts.get("booms", False), parts.get("deck", False)

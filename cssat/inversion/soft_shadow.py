@@ -20,8 +20,15 @@ softness ``tau``):
 A sub-facet is lit and seen with ``v = Π_parts (1 − hit_sun) Π_parts (1 − hit_obs)``; as ``τ →
 0`` ``v`` tends to the ray cast's 0/1 at the centroid (a dish as its disk).
 
-ASSUMPTIONS: a part does not shadow itself (the bus is convex and the panels flat; a dish's own
-rim on its bowl is not modelled; a wing's panels, in one plane, do not shadow each other), a dish
+A dish's own rim shadows its bowl: the space inside a paraboloid bowl up to its aperture is
+convex, so a ray from a point in it — a cell on the dish's concave side, or a cell of another part
+that the bowl holds (a bus face where a dish is set into it) — leaves it through the aperture disk
+(lit) or through the bowl's wall (shadowed): there the dish's factor is the soft hit of its disk,
+not one minus it. (Without this, on the finer family at the Astra-like's own geometry the soft
+light curve at τ = 0.1 mm was 0.75σ rms from the ray cast's at 16 cells; with it 0.07σ.)
+
+ASSUMPTIONS: no other part shadows itself (the bus is convex and the panels flat; a wing's panels,
+in one plane, do not shadow each other; the dish's convex back faces away from the bowl), a dish
 casts the shadow of its aperture disk (its depth is not in its outline: near edge-on, a deep
 dish's shadow is thinner here than cast), the two-sided panels' receivers sit on the plate's plane
 (their own plate is excluded, not cast).
@@ -77,10 +84,24 @@ def _soft_hit(P: Tensor, D: Tensor, occluder: tuple, tau: Tensor) -> Tensor:
             m = torch.minimum(torch.minimum(s, 1 - s) * L, torch.minimum(r, 1 - r) * W)
             miss = 1 - sig(m / tau) * ahead if miss is None else miss * (1 - sig(m / tau) * ahead)
         return 1 - miss
-    _, centre, axis, radius = occluder  # a dish: its aperture disk
+    centre, axis, radius = occluder[1:4]  # a dish: its aperture disk
     t, h = _ray_plane(P, D, centre, axis)
     rho = torch.linalg.vector_norm(h - centre, dim=-1)
     return sig((radius - rho) / tau) * sig(t / tau)
+
+
+def _in_bowl(P: Tensor, disk: tuple, N: Tensor, own: Tensor) -> Tensor:
+    """``(F,)`` bool: the sub-facets whose centroid ``P (F, 3)`` lies in the space the dish of
+    ``disk = ("disk", aperture centre, unit axis, radius, depth)`` encloses (its paraboloid bowl up
+    to the aperture plane) — of the dish's own sub-facets (``own``), those on its concave side
+    (normal ``N`` along the axis); of the other parts', those the bowl holds (a bus face inside a
+    dish set into it)."""
+    centre, axis, radius, depth = (x.detach() for x in disk[1:5])
+    rel = P - centre
+    h = (rel * axis).sum(-1)  # from the aperture plane, ≤ 0 below it
+    r = torch.linalg.vector_norm(rel - h[:, None] * axis, dim=-1)
+    held = (r < radius) & (h < 0) & (h > depth * ((r / radius) ** 2 - 1))
+    return torch.where(own, (N @ axis) > 0, held)
 
 
 def soft_visibility(p: Any, sun: Any, observer: Any, *, tau: float, panels: int = 2, divisions: int = 4,
@@ -106,18 +127,22 @@ def soft_visibility(p: Any, sun: Any, observer: Any, *, tau: float, panels: int 
     P = v[fi].mean(1)  # (F, 3) centroids
     lab = torch.as_tensor(inst, device=v.device)
     tau_t = torch.as_tensor(tau, dtype=v.dtype, device=v.device)
+    with torch.no_grad():  # which sub-facets face the Sun and observer, which lie in a dish's bowl (module docstring)
+        N, _ = _geometry(v.detach(), f)
+        inside = {k: _in_bowl(P.detach(), occ, N, lab == k) for k, occ in enumerate(occluders) if occ[0] == "disk"}
     if front_only:
-        with torch.no_grad():
-            N, _ = _geometry(v.detach(), f)
-            ti, ci = (((S @ N.T) > 0) & ((V @ N.T) > 0)).nonzero(as_tuple=True)
-        Pk, Sk, Vk, lk = P[ci], S[ti], V[ti], lab[ci]
+        ti, ci = (((S @ N.T) > 0) & ((V @ N.T) > 0)).nonzero(as_tuple=True)
+        Pk, Sk, Vk, lk, ik = P[ci], S[ti], V[ti], lab[ci], {k: b[ci] for k, b in inside.items()}
     else:
-        Pk, Sk, Vk, lk = P[None], S[:, None], V[:, None], lab[None, :]
+        Pk, Sk, Vk, lk, ik = P[None], S[:, None], V[:, None], lab[None, :], {k: b[None, :] for k, b in inside.items()}
     vis = torch.ones(torch.broadcast_shapes(Pk.shape, Sk.shape)[:-1], dtype=v.dtype, device=v.device)
     for D in (Sk, Vk):
         for k, occ in enumerate(occluders):
             hit = _soft_hit(Pk, D, occ, tau_t)
-            vis = vis * torch.where(lk == k, torch.ones_like(hit), 1 - hit)  # a part does not shadow itself
+            if k in ik:  # inside a bowl a ray leaves through the aperture (lit) or the bowl's wall (shadowed)
+                vis = vis * torch.where(ik[k], hit, torch.where(lk == k, torch.ones_like(hit), 1 - hit))
+            else:
+                vis = vis * torch.where(lk == k, torch.ones_like(hit), 1 - hit)  # no other part shadows itself
     if front_only:
         return torch.zeros((S.shape[0], len(f)), dtype=v.dtype, device=v.device).index_put((ti, ci), vis)
     return vis
