@@ -58,6 +58,32 @@ def test_soft_visibility_tends_to_the_ray_cast():
     assert 0.05 < 1 - hard[d].mean() and (hard[d] == (soft[d] > 0.5)).mean() >= 0.99
 
 
+def test_a_bus_face_held_in_a_dish_bowl_is_lit_through_its_aperture():
+    """A dish set into the bus's +x face (its vertex 0.15 m inside, looking out along +x): the bus
+    cells the bowl holds see out only through its aperture. At τ = 0.1 mm the soft visibility is
+    the ray cast's on ≥ 97 % of the bus's front-facing cells and on ≥ 97 % of those in the bowl
+    (with the dish treated as an outside occluder there, 21 %)."""
+    from cssat.inversion.parametric import box_wing, box_wing_visibility
+    from cssat.inversion.soft_shadow import soft_visibility
+
+    S, V = _directions(300, 2)
+    p17 = np.r_[P, [P[0] - 0.15, 0.0, 0.0, math.pi / 2, 0.0, 0.6, 0.3, 0.3]]
+    kw = dict(dishes=1, dish_rings=4, dish_segments=16, divisions=8)
+    hard = box_wing_visibility(p17, S, V, **kw).numpy()
+    soft = soft_visibility(p17, S, V, tau=1e-4, **kw).numpy()
+    front, part = _front(p17, S, V, **kw)
+    v, f, _, _ = box_wing(torch.as_tensor(p17), **kw)
+    c = v[torch.as_tensor(f)].mean(1).numpy()
+    h, r = c[:, 0] - (P[0] - 0.15), np.hypot(c[:, 1], c[:, 2])  # along the dish's axis from its vertex, off it
+    bus_held = (part == 0) & (r < 0.6) & (0.3 * (r / 0.6) ** 2 < h) & (h < 0.3)  # under the paraboloid's aperture
+    assert bus_held.sum() >= 4  # the bus cells inside the bowl
+    m = front & (part[None, :] == 0)
+    inb = front & bus_held[None, :]
+    assert hard[inb].mean() > 0.2  # some of them lit: a real test
+    assert (hard[m] == (soft[m] > 0.5)).mean() >= 0.97
+    assert (hard[inb] == (soft[inb] > 0.5)).mean() >= 0.97
+
+
 def test_the_soft_shadow_gives_the_gap_a_gradient_and_it_is_the_finite_difference():
     """With the visibility cast and held fixed, ∂y/∂gap is 0 (the shadow does not move); with the
     soft visibility it is not, and autograd's gradient of every parameter matches central
