@@ -294,14 +294,18 @@ def _geometry(v: Tensor, f: np.ndarray) -> tuple[Tensor, Tensor]:
 
 
 def box_wing_visibility(p: Any, sun: Any, observer: Any, *, panels: int = 2, divisions: int = 4, dishes: int = 0,
-                        dish_rings: int = 12, dish_segments: int = 40, **parts: Any) -> Tensor:
+                        dish_rings: int = 12, dish_segments: int = 40, resolution_m: float | None = None,
+                        **parts: Any) -> Tensor:
     """``(T, F)`` bool: each sub-facet neither self- nor observer-shadowed (Embree rays from its
-    centroid, :func:`cssat.optics.photometry.shadow_mask`) at the box-wing ``p`` (with its dishes).
+    centroid, :func:`cssat.optics.photometry.shadow_mask`) at the box-wing ``p`` (with its dishes);
+    with ``resolution_m`` (m) float64, each sub-facet's fraction lit and seen (rays from points
+    that far apart on it: a flat sub-facet's light is then that of a finer grid's).
     Geometry only: the albedos in ``p`` play no part (a fit's iterate may hold one above 1).
     ``parts``: :func:`box_wing`'s."""
     v, f, _, _ = box_wing(p, panels=panels, divisions=divisions, dishes=dishes, dish_rings=dish_rings,
                           dish_segments=dish_segments, **parts)
-    return shadow_mask(Mesh(v.detach().cpu().double().numpy(), f, 0.5, 0.0, name="box_wing"), sun, observer)
+    return shadow_mask(Mesh(v.detach().cpu().double().numpy(), f, 0.5, 0.0, name="box_wing"), sun, observer,
+                       resolution_m=resolution_m)
 
 
 def box_wing_light_curve(p: Tensor, sun: Any, observer: Any, visible: Tensor | None = None, *, panels: int = 2,

@@ -222,7 +222,8 @@ def profile_albedos(Y: torch.Tensor, y: torch.Tensor, sigma: torch.Tensor, cd: t
 def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None, panels: int = 2, divisions: int = 4,
                  outer: int = 5, inner: int = 40, huber: float = 3.0, dishes: int = 0, dish_rings: int = 12,
                  dish_segments: int = 40, fixed: Any = (), visibility: str = "cast",
-                 softness: float = 0.1, albedos: str = "fit", **parts: Any) -> tuple[np.ndarray, dict[str, Any]]:
+                 softness: float = 0.1, albedos: str = "fit", resolution_m: float | None = None,
+                 **parts: Any) -> tuple[np.ndarray, dict[str, Any]]:
     """The box-wing ``p (9,)`` fitting ``y (T,)`` (flux per unit irradiance at 1 m, i.e. m²) at
     body-frame ``sun, observer (T, 3)``, from ``p0 (9,)``; ``sigma (T,)`` the 1σ (None: ones).
     With ``dishes`` (1 or 2, :mod:`cssat.inversion.parametric`), ``p0`` and ``p`` are ``(17,)``:
@@ -242,6 +243,13 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     it began). Either way each outer iteration is scored, and the best kept, with the cast
     visibility (``loss``, ``rms_over_noise``: the hard-shadowed model's).
 
+    ``resolution_m`` (m; None: one ray a sub-facet): the cast visibility resolved below a
+    sub-facet (:func:`~cssat.inversion.parametric.box_wing_visibility`: each one's fraction lit
+    and seen), so the scored and returned model is that of a fine grid while the gradient runs on
+    ``divisions`` cells; with ``"soft"`` each outer iteration adds to the soft model the defect
+    ``Y_cast − Y_soft`` of each part's curve at its start (held fixed through the run: a defect
+    correction — at a fixed point the model is the resolved cast one, the gradient the soft one's).
+
     ``albedos``: ``"fit"`` (default) fits the albedos by gradient with the rest; ``"profile"`` solves
     them at every evaluation (:func:`profile_albedos`: σ-weighted least squares, the light curve being
     linear in them; those in ``fixed`` held) — the gradient steps move the geometry alone, along
@@ -259,6 +267,7 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     visibility = choice_param(visibility, "visibility", ("cast", "soft"))
     profile = choice_param(albedos, "albedos", ("fit", "profile")) == "profile"
     softness = float_param(softness, "softness", 0.0, open_lo=True)
+    resolution_m = None if resolution_m is None else float_param(resolution_m, "resolution_m", 0.0, open_lo=True)
     yt = torch.as_tensor(np.asarray(y, dtype=np.float64))
     sg = torch.ones_like(yt) if sigma is None else torch.as_tensor(np.asarray(sigma, dtype=np.float64))
     if sg.shape != yt.shape or bool((sg <= 0).any()):
@@ -269,21 +278,35 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     kw = dict(geo, range_km=1e-3, irradiance=1.0)
     from scipy.optimize import minimize  # heavy: scipy.optimize (torch.optim would import torch._dynamo, ~4 s)
 
-    def loss_of(z, vis):
+    def cast(z):
+        return box_wing_visibility(_to_p(z, transform), S, V, resolution_m=resolution_m, **geo)
+
+    def loss_of(z, vis, defect=None):
         if isinstance(vis, float):  # the soft visibility's τ (m): the shadows differentiable
             from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
 
             vis = soft_visibility(_to_p(z, transform), S, V, tau=vis, front_only=True, **geo)
-        return soft_l1((yt - model(_to_p(z, transform), vis)) / sg, huber)
+        return soft_l1((yt - model(_to_p(z, transform), vis, defect)) / sg, huber)
 
     cd_idx = torch.as_tensor([names.index(n) for n in names if n.startswith("cd_")])
     cd_free = torch.as_tensor([n not in fixed for n in names if n.startswith("cd_")])
 
-    def model(p, vis):
-        if not profile:
+    def model(p, vis, defect=None):
+        if not profile and defect is None:
             return box_wing_light_curve(p, S, V, vis, **kw)
         Y = box_wing_light_curve(p, S, V, vis, by_part=True, **kw)
-        return Y @ profile_albedos(Y, yt, sg, p[cd_idx], cd_free)
+        Y = Y if defect is None else Y + defect
+        return Y @ (profile_albedos(Y, yt, sg, p[cd_idx], cd_free) if profile else p[cd_idx])
+
+    def defect_at(z, tau):
+        """Each part's resolved cast curve less its soft one at ``z`` (fixed: no gradient)."""
+        from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
+
+        with torch.no_grad():
+            p = _to_p(z, transform)
+            soft = soft_visibility(p, S, V, tau=tau, front_only=True, **geo)
+            return (box_wing_light_curve(p, S, V, cast(z), by_part=True, **kw)
+                    - box_wing_light_curve(p, S, V, soft, by_part=True, **kw))
 
     p0 = np.asarray(p0, dtype=np.float64)
     if p0.shape != (len(names),):
@@ -302,10 +325,10 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
         xt = torch.as_tensor(x, dtype=torch.float64)
         return xt if free.all() else z0.index_put((free_idx,), xt)
 
-    def value_and_grad(x, vis):
+    def value_and_grad(x, vis, defect):
         xt = torch.as_tensor(x, dtype=torch.float64).requires_grad_(True)
         z = full(xt)
-        loss = loss_of(z, vis)
+        loss = loss_of(z, vis, defect)
         (g,) = torch.autograd.grad(loss, xt)
         return float(loss.detach()), g.numpy()
 
@@ -313,19 +336,20 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     best = (math.inf, z)
     if visibility == "soft":  # the start scored too (its cast visibility): a continuation ends no worse than it began
         with torch.no_grad():
-            best = (float(loss_of(z0, box_wing_visibility(_to_p(z0, transform), S, V, **geo))), z0)
+            best = (float(loss_of(z0, cast(z0))), z0)
     tau0 = softness * float(np.mean(p0[:3]))
     for k in range(outer):
-        vis = tau0 * 0.5**k if visibility == "soft" else box_wing_visibility(_to_p(z, transform), S, V, **geo)
+        vis = tau0 * 0.5**k if visibility == "soft" else cast(z)
+        defect = defect_at(z, vis) if visibility == "soft" and resolution_m is not None and free.any() else None
         if free.any():  # nothing free (every geometry held, the albedos profiled): only scored
-            z = full(minimize(value_and_grad, z.numpy()[free], args=(vis,), jac=True, method="L-BFGS-B", bounds=bounds,
-                              options={"maxiter": inner}).x)
+            z = full(minimize(value_and_grad, z.numpy()[free], args=(vis, defect), jac=True, method="L-BFGS-B",
+                              bounds=bounds, options={"maxiter": inner}).x)
         with torch.no_grad():  # score with the visibility recast at the new parameters
-            val = float(loss_of(z, box_wing_visibility(_to_p(z, transform), S, V, **geo)))
+            val = float(loss_of(z, cast(z)))
         if val < best[0]:
             best = (val, z)
     p = _to_p(best[1], transform)
-    vis = box_wing_visibility(p, S, V, **geo)
+    vis = cast(best[1])
     if profile:  # the albedos the loss used
         p = p.index_put((cd_idx,), profile_albedos(box_wing_light_curve(p, S, V, vis, by_part=True, **kw), yt, sg,
                                                    p[cd_idx], cd_free))

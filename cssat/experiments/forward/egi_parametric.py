@@ -4,7 +4,8 @@ curve, started from the convex EGI (in a searched spin's frame, turned about the
 that the EGI's panels lie along ±y: :func:`~cssat.inversion.parametric_fit.box_wing_yaw`,
 ``inversion.parametric.yaw``), then — with ``inversion.parametric.dishes``, ``wing_panels``, ``booms``,
 ``deck`` — the finer family from it (:func:`~cssat.inversion.parametric_parts.fit_parts`: the
-parts at generic places, each start fitted briefly, the best in full); its prediction of the held-out nights replaces the convex
+parts at generic places, each start fitted briefly, the best in full) — with ``inversion.parametric.shadow_resolution_m`` then polished with each
+sub-facet's shadows resolved; its prediction of the held-out nights replaces the convex
 one in the headline metrics (the convex one kept as ``convex_*``), its mesh written as
 ``shape_parametric.obj`` and scored by volume IoU against the true mesh (``shape_iou_true``)."""
 
@@ -62,6 +63,10 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
             log.warning("inversion.parametric: the finer family %s ended above the plain box-wing's loss (%.4g > %.4g, "
                         "a local minimum from its %d starts): the plain box-wing is kept", parts, qi["loss"],
                         info["loss"], len(qi["briefs"]))
+    res_m = o.shadow_resolution_m
+    if res_m is not None:  # the shadows resolved below a sub-facet: a polish whose scored model is the resolved one
+        p, info = fit_box_wing(y[fit], S[fit], V[fit], p, **dict(fit_kw, outer=o.resolved_outer), resolution_m=res_m,
+                               **geo)
     kw = dict(range_km=1e-3, irradiance=1.0, **geo)
     if o.refine_spin and searched:  # a searched spin: a.sol is its SpinSolution
         p, R, S, V, refined = _refine_spin(o, m, a, p, psi, geo)
@@ -70,7 +75,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     elif o.refine_spin:
         log.warning("inversion.parametric.refine_spin: no searched spin to refine (the attitude was %s)",
                     a.metrics.get("spin"))
-    vis = box_wing_visibility(p, S, V, **geo)
+    vis = box_wing_visibility(p, S, V, resolution_m=res_m, **geo)
     sol.convex_model_unit = sol.model_unit
     sol.model_unit = box_wing_light_curve(torch.as_tensor(p), S, V, vis, **kw).numpy()
     bw = box_wing_mesh(p, **geo)
@@ -89,7 +94,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
               parametric_yaw_deg=float(np.degrees(psi)), parametric_family=family,
-              parametric_parts_start=start,
+              parametric_parts_start=start, parametric_shadow_resolution_m=res_m,
               **{f"parametric_{k}": v for k, v in info["params"].items()})
 
 

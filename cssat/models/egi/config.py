@@ -116,6 +116,12 @@ class ParametricConfig:
     #: a dish's cells: rings x segments (the benchmarks' 4 x 16; each cell has its own ray-cast visibility)
     dish_rings: int = 4
     dish_segments: int = 16
+    #: the model's shadows resolved below a sub-facet (m; null: one ray a sub-facet): after the fit, a polish of
+    #: `resolved_outer` recasts with each sub-facet's lit fraction from rays this far apart, which the scored and
+    #: predicted light curve then uses (with refine_spin, its defect correction and verdict too)
+    shadow_resolution_m: Optional[float] = None
+    #: the polish's recasts (with shadow_resolution_m)
+    resolved_outer: int = 3
 
     def __post_init__(self) -> None:
         self.panels = int_param(self.panels, "inversion.parametric.panels", 1, 2)
@@ -140,6 +146,10 @@ class ParametricConfig:
         self.deck = bool_param(self.deck, "inversion.parametric.deck")
         self.dish_rings = int_param(self.dish_rings, "inversion.parametric.dish_rings", 1, 64)
         self.dish_segments = int_param(self.dish_segments, "inversion.parametric.dish_segments", 3, 256)
+        if self.shadow_resolution_m is not None:
+            self.shadow_resolution_m = float_param(self.shadow_resolution_m, "inversion.parametric.shadow_resolution_m",
+                                                   0.0, open_lo=True)
+        self.resolved_outer = int_param(self.resolved_outer, "inversion.parametric.resolved_outer", 1, 50)
 
     def parts(self) -> dict[str, Any]:
         """The finer family's parts asked for (:func:`~cssat.inversion.parametric.param_names`'
