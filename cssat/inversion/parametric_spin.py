@@ -36,7 +36,7 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
-from cssat.inversion.parametric import box_wing_light_curve, param_names
+from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 from cssat.inversion.parametric_fit import (LOG_SIZE_BOUNDS, SIZE_NAMES, _to_p, _to_z, _transform, profile_albedos,
                                             soft_l1)
 from cssat.inversion.soft_shadow import soft_visibility
@@ -73,19 +73,36 @@ def spin_frames(times_s: Any, spin: torch.Tensor, frame: str = "ecliptic") -> to
 
 
 def _by_part(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
-             c: dict) -> torch.Tensor:
-    """Each part's soft-shadowed curve at unit albedo ``(T, P)``, the family ``p`` in the spin ``x (4,)``."""
+             c: dict, defect: torch.Tensor | None = None) -> torch.Tensor:
+    """Each part's soft-shadowed curve at unit albedo ``(T, P)``, the family ``p`` in the spin ``x (4,)``,
+    plus a fixed ``defect (T, P)`` (the resolved cast curve's difference, :func:`_defect`)."""
     R = spin_frames(t, x, c["frame"])
     S, V = torch.einsum("tij,tj->ti", R, Si), torch.einsum("tij,tj->ti", R, Oi)
     vis = soft_visibility(p, S, V, tau=tau, front_only=True, **c["geo"])
-    return box_wing_light_curve(p, S, V, vis, by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
+    Y = box_wing_light_curve(p, S, V, vis, by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
+    return Y if defect is None else Y + defect
+
+
+def _defect(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
+            c: dict) -> torch.Tensor | None:
+    """``(T, P)``: each part's curve with its sub-facets' shadows resolved (rays ``c["resolution_m"]``
+    apart: :func:`~cssat.inversion.parametric.box_wing_visibility`) less the soft one, at ``x, p``;
+    None without a resolution."""
+    if c["resolution_m"] is None:
+        return None
+    with torch.no_grad():
+        R = spin_frames(t, x, c["frame"])
+        S, V = torch.einsum("tij,tj->ti", R, Si), torch.einsum("tij,tj->ti", R, Oi)
+        vis = box_wing_visibility(p, S.cpu().numpy(), V.cpu().numpy(), resolution_m=c["resolution_m"], **c["geo"])
+        Y = box_wing_light_curve(p, S, V, vis.to(p.device), by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
+        return Y - _by_part(x, p, t, Si, Oi, tau, c)
 
 
 def _model(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float, c: dict,
            albedos: bool = False) -> Any:
     """The light curve ``(T,)`` of the family ``p`` in the spin ``x (4,)``, the free albedos solved
     against ``c["y"]`` (``albedos``: ``(curve, albedos (P,))``)."""
-    Y = _by_part(x, p, t, Si, Oi, tau, c)
+    Y = _by_part(x, p, t, Si, Oi, tau, c, c.get("defect"))
     a = profile_albedos(Y, c["y"], c["sigma"], p[c["cd_idx"]], c["cd_free"])
     return (Y @ a, a) if albedos else Y @ a
 
@@ -95,7 +112,7 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                 shape: bool = False, heldout: Any = None, huber: float = 3.0,
                 softness: tuple[float, ...] = (0.05, 0.02, 0.01), maxiter: int = 200, panels: int = 2,
                 divisions: int = 4, dishes: int = 0, dish_rings: int = 12, dish_segments: int = 40,
-                device: Any = None, **parts: Any) -> dict[str, Any]:
+                device: Any = None, resolution_m: float | None = None, **parts: Any) -> dict[str, Any]:
     """The spin ``(λ, β, P, φ₀)`` that best fits ``flux (T,)`` (per unit irradiance at 1 m, m²)
     at ``times_s (T,)`` with the family ``p`` (:func:`~cssat.inversion.parametric.param_names`'
     order for ``dishes`` and ``parts``) held — or, with ``shape``, its geometry (every parameter
@@ -112,7 +129,13 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     where the arithmetic's last bits had led them: a start moved by 1e-9° moved the answer by up to
     0.27°, above its 1σ, and an earlier session's machine gave other answers for the same code and
     seeds; at 200 by at most 0.009° on the same six in-class seeds — BENCHMARKS.md, "Converged").
-    ``device``: where
+    ``resolution_m`` (m; None: the soft shadows at the sub-facets' centroids): each run adds to
+    the soft model the defect of each part's curve with its sub-facets' shadows resolved by rays
+    this far apart (held fixed through the run, a defect correction: at a fixed point the model
+    is the resolved one, the gradient the soft one's; the last softness run twice), and the loss,
+    the 1σ's residuals and the held-out verdict are the resolved model's — a grid of ``divisions``
+    cells a face misses a converged light curve by up to ~1σ at a 1.5 % floor (BENCHMARKS.md,
+    "Converged shadows"). ``device``: where
     the light curves, shadows and gradients are computed (default the CPU; e.g. ``"cuda"``) —
     the inputs are moved there and the results come back as NumPy arrays and floats (the
     optimiser's steps, the Jacobian's differences and the 1σ are small and stay on the CPU).
@@ -163,7 +186,8 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
     held = None if heldout is None else _series(heldout, "heldout", "heldout", dev)
     cds = [n for n in names if n.startswith("cd_")]
-    c = dict(frame=frame, y=y, sigma=sg, cd_idx=torch.as_tensor([names.index(n) for n in cds], device=dev),
+    c = dict(frame=frame, y=y, sigma=sg, defect=None, resolution_m=None if resolution_m is None else
+             float_param(resolution_m, "resolution_m", 0.0, open_lo=True), cd_idx=torch.as_tensor([names.index(n) for n in cds], device=dev),
              cd_free=torch.as_tensor([n not in fixed for n in cds], device=dev),
              geo=dict(panels=panels, divisions=divisions, **parts,
                       **(dict(dishes=dishes, dish_rings=dish_rings, dish_segments=dish_segments) if dishes else {})))
@@ -186,6 +210,10 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     def unpack(x):  # (spin (4,), p)
         return x[:4] * scale, (_to_p(z0.index_put((free_idx,), x[4:]), transform) if len(free_idx) else pt)
 
+    def correct(x, tau):  # the resolved shadows' defect at x, held through the next run
+        sp, q = unpack(torch.as_tensor(x, device=dev))
+        c["defect"] = _defect(sp, q, t, Si, Oi, tau, c)
+
     def loss(x, tau):
         sp, q = unpack(x)
         return soft_l1((y - _model(sp, q, t, Si, Oi, tau, c)) / sg, huber)
@@ -206,22 +234,33 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         xs = minimize(vg, x[:k], jac=True, method="L-BFGS-B", bounds=bounds[:k], options=dict(maxiter=maxiter)).x
         return np.concatenate([xs, x[k:]])
 
+    correct(x0, softness[0] * bus)
     x = run(x0, softness[0] * bus, 4) if len(free_idx) else x0  # the spin alone first: a joint start stalls
     spins = []  # the spin after each τ: the last two's difference is the softness term of the 1σ
-    for s in softness:
+    stages = list(softness) + ([softness[-1]] if c["resolution_m"] is not None else [])  # resolved: a second last pass
+    for s in stages:
+        correct(x, s * bus)
         x = run(x, s * bus, len(x))
         spins.append((x[:4] * scale_np).copy())
+    spins = spins[:len(softness)]
     tau = float(softness[-1]) * bus
     with torch.no_grad():  # never worse than the start: the softness schedule can lead the descent off
-        start_loss, end_loss = (float(loss(torch.as_tensor(v, device=dev), tau)) for v in (x0, x))
+        correct(x0, tau)
+        start_loss = float(loss(torch.as_tensor(x0, device=dev), tau))
+        correct(x, tau)
+        end_loss = float(loss(torch.as_tensor(x, device=dev), tau))
         kept_start = start_loss < end_loss
         x = x0 if kept_start else x
+        if kept_start:
+            correct(x, tau)
         sp, q = unpack(torch.as_tensor(x, device=dev))
         spin = sp.cpu().numpy()
         m, a = _model(sp, q, t, Si, Oi, tau, c, albedos=True)
         q = q.index_put((c["cd_idx"],), a)
         out = dict(loss=min(start_loss, end_loss), start_loss=start_loss, refined_loss=end_loss, kept_start=kept_start,
                    rms_over_noise=float(((y - m) / sg).pow(2).mean().sqrt()), params=q.cpu().numpy().copy())
+    if held is not None:  # the held-out nights predicted with the same resolved shadows
+        c["defect_h"] = _defect(sp, q, held[0], held[2], held[3], tau, c)
     J, r0, J_h, r_h = _jacobians(spin, q, t, Si, Oi, tau, c, free, held)
     from cssat.inversion.spin_errors import verdict_keys  # local: scipy.stats, only for a verdict
 
@@ -316,7 +355,7 @@ def _jacobians(spin: np.ndarray, p: torch.Tensor, t: np.ndarray, Si: torch.Tenso
         if held is None:
             return r, None
         th_, y_h, S_h, O_h, sg_h = held
-        return r, ((y_h - _by_part(x, q, th_, S_h, O_h, tau, c) @ a) / sg_h).cpu().numpy()
+        return r, ((y_h - _by_part(x, q, th_, S_h, O_h, tau, c, c.get("defect_h")) @ a) / sg_h).cpu().numpy()
 
     with torch.no_grad():
         r0, rh0 = residuals(theta)

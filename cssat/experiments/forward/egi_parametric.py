@@ -112,7 +112,8 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
     ho = None if sigma is None or not held.any() else (m.t[held], m.y[held], m.sun_in[held], m.obs_in[held], sigma[held])
     r = refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], p, sp.pole_lon_deg, sp.pole_lat_deg, sp.period_s,
                     float(np.degrees(psi)), sigma=None if sigma is None else sigma[fit], frame=sp.frame,
-                    fixed=("cd_bus",) if o.albedo_prior else (), shape=True, heldout=ho, huber=o.huber, **family)
+                    fixed=("cd_bus",) if o.albedo_prior else (), shape=True, heldout=ho, huber=o.huber,
+                    resolution_m=o.shadow_resolution_m, **family)
     frames = spin_frame(m.t, r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], sp.frame)
     keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "phase_deg", "pole_err_deg", "period_err_s", "formal_pole_err_deg",
             "formal_period_err_s", "softness_pole_shift_deg", "softness_period_shift_s", "rms_over_noise", "verdict",
