@@ -163,18 +163,11 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     nothing held out — when the fitted samples' χ² is above the noise's. Keys ``verdict``,
     ``verdict_why``, ``heldout_chi2``, ``heldout_n``, ``heldout_threshold``."""
     names = param_names(dishes, **parts)
-    try:  # the light curves' and the gradients' device (the optimiser's steps and the 1σ on the CPU), tried
-        dev = torch.device("cpu" if device is None else device)
-        torch.zeros(1, dtype=torch.float64, device=dev).sum().item()
-    except (RuntimeError, TypeError, AssertionError, NotImplementedError) as e:  # no such device, or not in this build
-        raise FieldError("device", f"expected a torch device this machine has, such as 'cpu' or 'cuda', got {device!r} "
-                                   f"({type(e).__name__}: {str(e)[:80]})") from e
+    dev = _device(device)
     pt = torch.as_tensor(np.asarray(p, dtype=np.float64))
     if pt.shape != (len(names),) or not bool(torch.isfinite(pt).all()):
         raise FieldError("p", f"expected {len(names)} finite values {names}, got {pt.tolist()}")
-    fixed = [fixed] if isinstance(fixed, str) else list(fixed or ()) if isinstance(fixed, (list, tuple, set)) else fixed
-    if not isinstance(fixed, list) or [n for n in fixed if n not in names]:
-        raise FieldError("fixed", f"expected names among {list(names)}, got {fixed}")
+    fixed = _checked_fixed(fixed, names)
     huber = float_param(huber, "huber", 0.0, open_lo=True)
     maxiter = int_param(maxiter, "maxiter", 1, 10_000)
     pole_lon_deg, pole_lat_deg, period_s, phase_deg, softness = _checked_start(pole_lon_deg, pole_lat_deg, period_s,
@@ -182,12 +175,11 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     shape = bool_param(shape, "shape")
     divisions = int_param(divisions, "divisions", 1, 16)
     t, y, Si, Oi, sg = _series((times_s, flux, sun, obs, sigma), "flux", "sigma", dev)
-    if heldout is not None and len(heldout) != 5:
-        raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
-    held = None if heldout is None else _series(heldout, "heldout", "heldout", dev)
+    held = _held_series(heldout, dev)
     cds = [n for n in names if n.startswith("cd_")]
-    c = dict(frame=frame, y=y, sigma=sg, defect=None, resolution_m=None if resolution_m is None else
-             float_param(resolution_m, "resolution_m", 0.0, open_lo=True), cd_idx=torch.as_tensor([names.index(n) for n in cds], device=dev),
+    res_m = None if resolution_m is None else float_param(resolution_m, "resolution_m", 0.0, open_lo=True)
+    c = dict(frame=frame, y=y, sigma=sg, defect=None, resolution_m=res_m,
+             cd_idx=torch.as_tensor([names.index(n) for n in cds], device=dev),
              cd_free=torch.as_tensor([n not in fixed for n in cds], device=dev),
              geo=dict(panels=panels, divisions=divisions, **parts,
                       **(dict(dishes=dishes, dish_rings=dish_rings, dish_segments=dish_segments) if dishes else {})))
@@ -234,25 +226,23 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         xs = minimize(vg, x[:k], jac=True, method="L-BFGS-B", bounds=bounds[:k], options=dict(maxiter=maxiter)).x
         return np.concatenate([xs, x[k:]])
 
+    def loss_at(v, tau):  # the loss with the defect at v itself: the resolved model's
+        correct(v, tau)
+        return float(loss(torch.as_tensor(v, device=dev), tau))
+
     correct(x0, softness[0] * bus)
     x = run(x0, softness[0] * bus, 4) if len(free_idx) else x0  # the spin alone first: a joint start stalls
     spins = []  # the spin after each τ: the last two's difference is the softness term of the 1σ
-    stages = list(softness) + ([softness[-1]] if c["resolution_m"] is not None else [])  # resolved: a second last pass
-    for s in stages:
+    for s in list(softness) + ([softness[-1]] if c["resolution_m"] is not None else []):  # resolved: a last pass again
         correct(x, s * bus)
         x = run(x, s * bus, len(x))
         spins.append((x[:4] * scale_np).copy())
-    spins = spins[:len(softness)]
     tau = float(softness[-1]) * bus
     with torch.no_grad():  # never worse than the start: the softness schedule can lead the descent off
-        correct(x0, tau)
-        start_loss = float(loss(torch.as_tensor(x0, device=dev), tau))
-        correct(x, tau)
-        end_loss = float(loss(torch.as_tensor(x, device=dev), tau))
+        start_loss, end_loss = loss_at(x0, tau), loss_at(x, tau)
         kept_start = start_loss < end_loss
         x = x0 if kept_start else x
-        if kept_start:
-            correct(x, tau)
+        correct(x, tau)
         sp, q = unpack(torch.as_tensor(x, device=dev))
         spin = sp.cpu().numpy()
         m, a = _model(sp, q, t, Si, Oi, tau, c, albedos=True)
@@ -268,7 +258,7 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                            "the pole")
     cov, formal_pole, formal_period = _formal(J, r0, spin)
     lon, lat, ph, om = spin
-    shift_pole, shift_period = _softness_shift(spins)
+    shift_pole, shift_period = _softness_shift(spins[:len(softness) - 1] + spins[-1:])
     ok = verdict["verdict"] == "reliable"
     return dict(out, **verdict, pole_lon_deg=math.degrees(lon) % 360.0, pole_lat_deg=math.degrees(lat),
                 period_s=float(2 * math.pi / om), phase_deg=math.degrees(ph) % 360.0,
@@ -276,6 +266,37 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
                 period_err_s=math.hypot(formal_period, shift_period) if ok else math.nan,
                 formal_pole_err_deg=formal_pole, formal_period_err_s=formal_period,
                 softness_pole_shift_deg=shift_pole, softness_period_shift_s=shift_period, cov=cov)
+
+
+def _checked_fixed(fixed: Any, names: tuple) -> list[str]:
+    """``fixed`` as a list of parameter names among ``names`` (a single name too), else a
+    :class:`FieldError` naming ``fixed``."""
+    fixed = [fixed] if isinstance(fixed, str) else list(fixed or ()) if isinstance(fixed, (list, tuple, set)) else fixed
+    if not isinstance(fixed, list) or [n for n in fixed if n not in names]:
+        raise FieldError("fixed", f"expected names among {list(names)}, got {fixed}")
+    return fixed
+
+
+def _held_series(heldout: Any, dev: Any) -> tuple | None:
+    """The held-out ``(times_s, flux, sun, obs, sigma)`` checked (:func:`_series`, every field named
+    ``heldout``), or None."""
+    if heldout is None:
+        return None
+    if len(heldout) != 5:
+        raise FieldError("heldout", f"expected (times_s, flux, sun, obs, sigma), got {len(heldout)} items")
+    return _series(heldout, "heldout", "heldout", dev)
+
+
+def _device(device: Any) -> torch.device:
+    """The light curves' and the gradients' device (the optimiser's steps and the 1σ stay on the
+    CPU), tried: a :class:`FieldError` naming ``device`` where this machine or build has none."""
+    try:
+        dev = torch.device("cpu" if device is None else device)
+        torch.zeros(1, dtype=torch.float64, device=dev).sum().item()
+    except (RuntimeError, TypeError, AssertionError, NotImplementedError) as e:  # no such device, or not in this build
+        raise FieldError("device", f"expected a torch device this machine has, such as 'cpu' or 'cuda', got {device!r} "
+                                   f"({type(e).__name__}: {str(e)[:80]})") from e
+    return dev
 
 
 def _checked_start(lon: Any, lat: Any, period: Any, phase: Any, softness: Any) -> tuple:
