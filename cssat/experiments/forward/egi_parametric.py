@@ -51,7 +51,8 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     S, V = a.sun_b @ R.T, a.obs_b @ R.T
     fit_kw = dict(sigma=None if sigma is None else sigma[fit], outer=o.outer, inner=o.inner, huber=o.huber,
                   visibility=o.visibility, softness=o.softness, albedos=o.albedos,
-                  fixed=("cd_bus",) if o.albedo_prior else ())
+                  fixed=("cd_bus",) if o.albedo_prior else (),
+                  resolution_m=o.shadow_resolution_m if o.resolved_search else None)
     p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, **fit_kw, **geo)
     parts, family, start = o.parts(), "plain", None
     if parts:  # the finer family from the plain fit: its parts at generic places, each fitted briefly, the best in full
@@ -65,7 +66,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
                         info["loss"], len(qi["briefs"]))
     res_m = o.shadow_resolution_m
     if res_m is not None:  # the shadows resolved below a sub-facet: a polish whose scored model is the resolved one
-        p, info = fit_box_wing(y[fit], S[fit], V[fit], p, **dict(fit_kw, outer=o.resolved_outer), resolution_m=res_m,
+        p, info = fit_box_wing(y[fit], S[fit], V[fit], p, **dict(fit_kw, outer=o.resolved_outer, resolution_m=res_m),
                                **geo)
     kw = dict(range_km=1e-3, irradiance=1.0, **geo)
     if o.refine_spin and searched:  # a searched spin: a.sol is its SpinSolution

@@ -122,6 +122,9 @@ class ParametricConfig:
     shadow_resolution_m: Optional[float] = None
     #: the polish's recasts (with shadow_resolution_m)
     resolved_outer: int = 3
+    #: with shadow_resolution_m: every stage's scored model resolved too (the plain fit, the parts' brief and full
+    #: fits), not only the polish — dearer
+    resolved_search: bool = False
 
     def __post_init__(self) -> None:
         self.panels = int_param(self.panels, "inversion.parametric.panels", 1, 2)
@@ -150,6 +153,9 @@ class ParametricConfig:
             self.shadow_resolution_m = float_param(self.shadow_resolution_m, "inversion.parametric.shadow_resolution_m",
                                                    0.0, open_lo=True)
         self.resolved_outer = int_param(self.resolved_outer, "inversion.parametric.resolved_outer", 1, 50)
+        self.resolved_search = bool_param(self.resolved_search, "inversion.parametric.resolved_search")
+        if self.resolved_search and self.shadow_resolution_m is None:
+            raise FieldError("inversion.parametric.resolved_search", "needs inversion.parametric.shadow_resolution_m")
 
     def parts(self) -> dict[str, Any]:
         """The finer family's parts asked for (:func:`~cssat.inversion.parametric.param_names`'
