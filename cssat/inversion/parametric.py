@@ -142,7 +142,7 @@ def check_params(p: Any, panels: int, divisions: int, dishes: int = 0, **parts: 
     return t
 
 
-def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, np.ndarray, tuple[Tensor, Tensor, Tensor]]:
+def _dish(q: Tensor, mirror: bool, rings: int, segments: int) -> tuple[Tensor, np.ndarray, tuple[Tensor, ...]]:
     """One dish of the dish geometry ``q (7,)`` (vertex x, y, z, tilt, azimuth, radius, depth):
     vertices ``(V, 3)``, faces (two-sided), the triangles of :func:`cssat.scene.models.dish` in its
     order, differentiable in ``q``; and its aperture disk ``(centre (3,), unit axis (3,), radius,
