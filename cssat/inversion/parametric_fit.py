@@ -26,6 +26,7 @@ import torch
 
 from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
+from cssat.optics.shadow_sampling import check_resolution
 
 __all__ = ["best_box_wing_yaw", "box_wing_start", "box_wing_yaw", "fit_box_wing", "profile_albedos", "soft_l1"]
 
@@ -219,6 +220,22 @@ def profile_albedos(Y: torch.Tensor, y: torch.Tensor, sigma: torch.Tensor, cd: t
     return best[1]
 
 
+def shadow_defect(p: torch.Tensor, sun: Any, observer: Any, tau: float, resolution_m: float, **geo: Any) -> torch.Tensor:
+    """``(T, P)``: each part's curve at unit albedo with its sub-facets' shadows resolved (rays
+    ``resolution_m`` apart: :func:`~cssat.inversion.parametric.box_wing_visibility`) less its soft
+    one at softness ``tau`` (:func:`~cssat.inversion.soft_shadow.soft_visibility`), at the family
+    ``p`` (``geo`` its keywords) and body-frame ``sun, observer (T, 3)`` — the defect that
+    :func:`fit_box_wing` and :func:`~cssat.inversion.parametric_spin.refine_spin` add to the soft
+    model, fixed (no gradient)."""
+    from cssat.inversion.soft_shadow import soft_visibility  # local: only for soft shadows resolved
+
+    kw = dict(geo, by_part=True, range_km=1e-3, irradiance=1.0)
+    with torch.no_grad():
+        cast = box_wing_visibility(p, sun, observer, resolution_m=resolution_m, **geo).to(p.device)
+        soft = soft_visibility(p, sun, observer, tau=tau, front_only=True, **geo)
+        return box_wing_light_curve(p, sun, observer, cast, **kw) - box_wing_light_curve(p, sun, observer, soft, **kw)
+
+
 def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None, panels: int = 2, divisions: int = 4,
                  outer: int = 5, inner: int = 40, huber: float = 3.0, dishes: int = 0, dish_rings: int = 12,
                  dish_segments: int = 40, fixed: Any = (), visibility: str = "cast",
@@ -267,7 +284,7 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     visibility = choice_param(visibility, "visibility", ("cast", "soft"))
     profile = choice_param(albedos, "albedos", ("fit", "profile")) == "profile"
     softness = float_param(softness, "softness", 0.0, open_lo=True)
-    resolution_m = None if resolution_m is None else float_param(resolution_m, "resolution_m", 0.0, open_lo=True)
+    resolution_m = check_resolution(resolution_m)
     yt = torch.as_tensor(np.asarray(y, dtype=np.float64))
     sg = torch.ones_like(yt) if sigma is None else torch.as_tensor(np.asarray(sigma, dtype=np.float64))
     if sg.shape != yt.shape or bool((sg <= 0).any()):
@@ -298,15 +315,6 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
         Y = Y if defect is None else Y + defect
         return Y @ (profile_albedos(Y, yt, sg, p[cd_idx], cd_free) if profile else p[cd_idx])
 
-    def defect_at(z, tau):
-        """Each part's resolved cast curve less its soft one at ``z`` (fixed: no gradient)."""
-        from cssat.inversion.soft_shadow import soft_visibility  # local: only for visibility="soft"
-
-        with torch.no_grad():
-            p = _to_p(z, transform)
-            soft = soft_visibility(p, S, V, tau=tau, front_only=True, **geo)
-            return (box_wing_light_curve(p, S, V, cast(z), by_part=True, **kw)
-                    - box_wing_light_curve(p, S, V, soft, by_part=True, **kw))
 
     p0 = np.asarray(p0, dtype=np.float64)
     if p0.shape != (len(names),):
@@ -340,7 +348,8 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
     tau0 = softness * float(np.mean(p0[:3]))
     for k in range(outer):
         vis = tau0 * 0.5**k if visibility == "soft" else cast(z)
-        defect = defect_at(z, vis) if visibility == "soft" and resolution_m is not None and free.any() else None
+        defect = shadow_defect(_to_p(z, transform), S, V, vis, resolution_m, **geo) \
+            if visibility == "soft" and resolution_m is not None and free.any() else None
         if free.any():  # nothing free (every geometry held, the albedos profiled): only scored
             z = full(minimize(value_and_grad, z.numpy()[free], args=(vis, defect), jac=True, method="L-BFGS-B",
                               bounds=bounds, options={"maxiter": inner}).x)

@@ -36,9 +36,10 @@ import numpy as np
 import torch
 
 from cssat._checks import FieldError, bool_param, choice_param, float_param, int_param
-from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
+from cssat.inversion.parametric import box_wing_light_curve, param_names
 from cssat.inversion.parametric_fit import (LOG_SIZE_BOUNDS, SIZE_NAMES, _to_p, _to_z, _transform, profile_albedos,
-                                            soft_l1)
+                                            shadow_defect, soft_l1)
+from cssat.optics.shadow_sampling import check_resolution
 from cssat.inversion.soft_shadow import soft_visibility
 from cssat.scene.attitude import OBLIQUITY_DEG
 
@@ -72,12 +73,17 @@ def spin_frames(times_s: Any, spin: torch.Tensor, frame: str = "ecliptic") -> to
     return _rz(spin[2] + spin[3] * t) @ fixed
 
 
+def _body(x: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, c: dict) -> tuple[torch.Tensor, ...]:
+    """The body-frame Sun and observer ``(T, 3)`` of the inertial ``Si, Oi`` in the spin ``x (4,)``."""
+    R = spin_frames(t, x, c["frame"])
+    return torch.einsum("tij,tj->ti", R, Si), torch.einsum("tij,tj->ti", R, Oi)
+
+
 def _by_part(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
              c: dict, defect: torch.Tensor | None = None) -> torch.Tensor:
     """Each part's soft-shadowed curve at unit albedo ``(T, P)``, the family ``p`` in the spin ``x (4,)``,
     plus a fixed ``defect (T, P)`` (the resolved cast curve's difference, :func:`_defect`)."""
-    R = spin_frames(t, x, c["frame"])
-    S, V = torch.einsum("tij,tj->ti", R, Si), torch.einsum("tij,tj->ti", R, Oi)
+    S, V = _body(x, t, Si, Oi, c)
     vis = soft_visibility(p, S, V, tau=tau, front_only=True, **c["geo"])
     Y = box_wing_light_curve(p, S, V, vis, by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
     return Y if defect is None else Y + defect
@@ -85,17 +91,13 @@ def _by_part(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, 
 
 def _defect(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float,
             c: dict) -> torch.Tensor | None:
-    """``(T, P)``: each part's curve with its sub-facets' shadows resolved (rays ``c["resolution_m"]``
-    apart: :func:`~cssat.inversion.parametric.box_wing_visibility`) less the soft one, at ``x, p``;
-    None without a resolution."""
+    """``(T, P)``: :func:`~cssat.inversion.parametric_fit.shadow_defect` (rays ``c["resolution_m"]``
+    apart) in the spin ``x``; None without a resolution."""
     if c["resolution_m"] is None:
         return None
     with torch.no_grad():
-        R = spin_frames(t, x, c["frame"])
-        S, V = torch.einsum("tij,tj->ti", R, Si), torch.einsum("tij,tj->ti", R, Oi)
-        vis = box_wing_visibility(p, S.cpu().numpy(), V.cpu().numpy(), resolution_m=c["resolution_m"], **c["geo"])
-        Y = box_wing_light_curve(p, S, V, vis.to(p.device), by_part=True, range_km=1e-3, irradiance=1.0, **c["geo"])
-        return Y - _by_part(x, p, t, Si, Oi, tau, c)
+        S, V = _body(x, t, Si, Oi, c)
+    return shadow_defect(p, S, V, tau, c["resolution_m"], **c["geo"])
 
 
 def _model(x: torch.Tensor, p: torch.Tensor, t: np.ndarray, Si: torch.Tensor, Oi: torch.Tensor, tau: float, c: dict,
@@ -177,8 +179,7 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
     t, y, Si, Oi, sg = _series((times_s, flux, sun, obs, sigma), "flux", "sigma", dev)
     held = _held_series(heldout, dev)
     cds = [n for n in names if n.startswith("cd_")]
-    res_m = None if resolution_m is None else float_param(resolution_m, "resolution_m", 0.0, open_lo=True)
-    c = dict(frame=frame, y=y, sigma=sg, defect=None, resolution_m=res_m,
+    c = dict(frame=frame, y=y, sigma=sg, defect=None, resolution_m=check_resolution(resolution_m),
              cd_idx=torch.as_tensor([names.index(n) for n in cds], device=dev),
              cd_free=torch.as_tensor([n not in fixed for n in cds], device=dev),
              geo=dict(panels=panels, divisions=divisions, **parts,
@@ -203,8 +204,9 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         return x[:4] * scale, (_to_p(z0.index_put((free_idx,), x[4:]), transform) if len(free_idx) else pt)
 
     def correct(x, tau):  # the resolved shadows' defect at x, held through the next run
-        sp, q = unpack(torch.as_tensor(x, device=dev))
-        c["defect"] = _defect(sp, q, t, Si, Oi, tau, c)
+        if c["resolution_m"] is not None:
+            sp, q = unpack(torch.as_tensor(x, device=dev))
+            c["defect"] = _defect(sp, q, t, Si, Oi, tau, c)
 
     def loss(x, tau):
         sp, q = unpack(x)
@@ -218,7 +220,9 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
 
     from scipy.optimize import minimize  # heavy: scipy.optimize
 
-    def run(x, tau, k):  # L-BFGS-B over the first k variables, the rest held
+    def run(x, tau, k):  # L-BFGS-B over the first k variables, the rest held (the defect at x held too)
+        correct(x, tau)
+
         def vg(xs):
             f, g = value_and_grad(np.concatenate([xs, x[k:]]), tau)
             return f, g[:k]
@@ -230,11 +234,9 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         correct(v, tau)
         return float(loss(torch.as_tensor(v, device=dev), tau))
 
-    correct(x0, softness[0] * bus)
     x = run(x0, softness[0] * bus, 4) if len(free_idx) else x0  # the spin alone first: a joint start stalls
     spins = []  # the spin after each τ: the last two's difference is the softness term of the 1σ
     for s in list(softness) + ([softness[-1]] if c["resolution_m"] is not None else []):  # resolved: a last pass again
-        correct(x, s * bus)
         x = run(x, s * bus, len(x))
         spins.append((x[:4] * scale_np).copy())
     tau = float(softness[-1]) * bus
@@ -242,7 +244,8 @@ def refine_spin(times_s: Any, flux: Any, sun: Any, obs: Any, p: Any, pole_lon_de
         start_loss, end_loss = loss_at(x0, tau), loss_at(x, tau)
         kept_start = start_loss < end_loss
         x = x0 if kept_start else x
-        correct(x, tau)
+        if kept_start:  # the defect at x0 again (loss_at left x's)
+            correct(x, tau)
         sp, q = unpack(torch.as_tensor(x, device=dev))
         spin = sp.cpu().numpy()
         m, a = _model(sp, q, t, Si, Oi, tau, c, albedos=True)

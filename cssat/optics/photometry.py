@@ -16,7 +16,7 @@ import torch
 from torch import Tensor
 
 from cssat._checks import FieldError
-from cssat.optics.shadow_sampling import any_hit, check_resolution, sampled_visibility
+from cssat.optics.shadow_sampling import check_resolution, lit_and_seen, sampled_visibility
 from cssat.optics.sun import AU_KM, SOLAR_IRRADIANCE_W_M2, SUN_MAGNITUDE_V, SUN_RADIUS_KM  # re-exported
 from cssat.scene.mesh import Mesh, as_mesh
 
@@ -358,12 +358,7 @@ def shadow_mask(
         out[ti, fi] = torch.as_tensor(frac)
         return out
     origins = mesh.centroids[fi.numpy()] + offset * mesh.normals[fi.numpy()]
-    blocked = np.zeros(len(ti), dtype=bool)
-    for dirs in (sun_t[ti].numpy(), obs_t[ti].numpy()):
-        todo = np.flatnonzero(~blocked)
-        if len(todo):
-            blocked[todo] |= any_hit(inter, origins[todo], dirs[todo], threaded)
-    out[ti, fi] = torch.as_tensor(~blocked)
+    out[ti, fi] = torch.as_tensor(lit_and_seen(inter, origins, sun_t[ti].numpy(), obs_t[ti].numpy(), threaded))
     return out
 
 

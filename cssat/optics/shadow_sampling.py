@@ -9,8 +9,8 @@ midpoints (``4^L`` equal sub-triangles, each edge ≤ ``resolution_m``); a ray p
 the observer) leaves each sub-triangle's centroid, and the facet's visibility is the fraction of
 its sub-triangles neither self- nor observer-shadowed — exactly the mean, over the children, of the
 centroid visibility of the mesh subdivided to ``resolution_m`` (``trimesh.remesh.subdivide_to_size``),
-without building that mesh. :func:`any_hit` is the ray engine's occlusion query that
-:func:`~cssat.optics.photometry.shadow_mask` casts its rays with.
+without building that mesh. :func:`lit_and_seen` and :func:`any_hit` (the ray engine's occlusion query) cast the rays of
+:func:`~cssat.optics.photometry.shadow_mask` at the centroids too.
 
 ASSUMPTIONS: flat facets (the sub-triangles are in the facet's plane, at its normal's offset);
 equal weights (midpoint subdivision gives sub-triangles of equal area); at most :data:`MAX_LEVEL`
@@ -27,7 +27,7 @@ import torch
 
 from cssat._checks import float_param
 
-__all__ = ["MAX_LEVEL", "any_hit", "barycentric_points", "facet_levels", "sampled_visibility"]
+__all__ = ["MAX_LEVEL", "any_hit", "barycentric_points", "facet_levels", "lit_and_seen", "sampled_visibility"]
 
 #: the most midpoint splits of one facet (4**MAX_LEVEL = 4096 rays a facet and direction)
 MAX_LEVEL = 6
@@ -81,15 +81,21 @@ def sampled_visibility(triangles: np.ndarray, normals: np.ndarray, ti: np.ndarra
             idx = sel[s:s + step]
             f, t = fi[idx], ti[idx]
             pts = np.einsum("pj,njc->npc", bary, triangles[f]) + offset * normals[f][:, None, :]
-            origins = pts.reshape(-1, 3)
-            blocked = np.zeros(len(origins), dtype=bool)
-            for d in (sun[t], observer[t]):
-                todo = np.flatnonzero(~blocked)
-                if len(todo):
-                    dirs = np.repeat(d, k, axis=0)
-                    blocked[todo] |= any_hit(inter, origins[todo], dirs[todo], threaded)
-            out[idx] = 1.0 - blocked.reshape(-1, k).mean(axis=1)
+            seen = lit_and_seen(inter, pts.reshape(-1, 3), np.repeat(sun[t], k, axis=0),
+                                np.repeat(observer[t], k, axis=0), threaded)
+            out[idx] = seen.reshape(-1, k).mean(axis=1)
     return out
+
+
+def lit_and_seen(inter: Any, origins: np.ndarray, sun: np.ndarray, observer: np.ndarray, threaded: bool) -> np.ndarray:
+    """``(N,)`` bool: the ray from each of ``origins (N, 3)`` towards ``sun (N, 3)`` hits nothing,
+    nor (cast only for those still lit) the one towards ``observer (N, 3)`` (:func:`any_hit`)."""
+    blocked = np.zeros(len(origins), dtype=bool)
+    for dirs in (sun, observer):
+        todo = np.flatnonzero(~blocked)
+        if len(todo):
+            blocked[todo] |= any_hit(inter, origins[todo], dirs[todo], threaded)
+    return ~blocked
 
 
 def any_hit(inter: Any, origins: np.ndarray, dirs: np.ndarray, threaded: bool) -> np.ndarray:
