@@ -28,7 +28,7 @@ from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 from cssat.optics.shadow_sampling import check_resolution
 
-__all__ = ["best_box_wing_yaw", "box_wing_start", "box_wing_yaw", "fit_box_wing", "profile_albedos", "soft_l1"]
+__all__ = ["best_box_wing_yaw", "box_wing_start", "box_wing_starts", "box_wing_yaw", "fit_box_wing", "profile_albedos", "soft_l1"]
 
 #: the parameters fitted as logarithms of a length (m)
 SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth", "dish2_radius", "dish2_depth", "panel_gap",
@@ -95,23 +95,41 @@ def best_box_wing_yaw(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, s
                       yaws: Any = None, panels: int = 2, divisions: int = 4, cd0: float = 0.3,
                       brief: int = 0) -> tuple[float, np.ndarray]:
     """The turn ψ (rad) among ``yaws`` (default :func:`box_wing_yaw`'s candidates) whose box-wing
-    start fits ``flux (T,)`` best, and that start ``p (9,)``: for each ψ the EGI (``normals (K,
-    3)``, ``areas (K,)``) turned by ``R_z(−ψ)`` (vectors ``v @ R.T``) gives
-    :func:`box_wing_start` (``panels``, ``cd0``), whose light curve with Embree's shadows
-    (``divisions``) at the body-frame unit directions ``sun, obs (T, 3)`` turned alike is
-    scored by ``Σ ((flux − m) / sigma)²`` (``sigma (T,)``, None: ones; flux per unit irradiance
-    at 1 m, m²) — or, with ``brief = k > 0``, by the loss of :func:`fit_box_wing` run from it
-    for one outer iteration of ``k`` L-BFGS-B steps (the start itself is returned): a start's
-    cubic bus cannot show a bus heavier than its panels, and where the EGI's heaviest direction
-    is such a bus's face the start a quarter turn off can misfit less than the right one
-    (``tests/test_parametric_yaw.py``); a brief fit gives the bus its sizes first. One candidate
-    is returned unscored. The lowest wins (the first on a tie)."""
+    start fits ``flux (T,)`` best, and that start ``p (9,)``: the first of
+    :func:`box_wing_starts` at one aspect. A start's cubic bus cannot show a bus heavier than its
+    panels, and where the EGI's heaviest direction is such a bus's face the start a quarter turn
+    off can misfit less than the right one (``tests/test_parametric_yaw.py``); a brief fit
+    (``brief`` > 0) gives the bus its sizes first."""
+    _, psi, p0 = box_wing_starts(normals, areas, flux, sun, obs, sigma, yaws=yaws, panels=panels,
+                                 divisions=divisions, cd0=cd0, brief=brief)[0]
+    return psi, p0
+
+
+def box_wing_starts(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, sigma: Any = None, *,
+                    yaws: Any = None, aspects: Any = (3.75,), panels: int = 2, divisions: int = 4,
+                    cd0: float = 0.3, brief: int = 0) -> list[tuple[float, float, np.ndarray]]:
+    """Every box-wing start ``(loss, ψ, p (9,))``, lowest ``loss`` first (the first on a tie), one
+    for each turn ψ (rad) among ``yaws`` (default :func:`box_wing_yaw`'s candidates) and each wing
+    aspect (length ÷ width) among ``aspects``: the EGI (``normals (K, 3)``, ``areas (K,)``) turned
+    by ``R_z(−ψ)`` (vectors ``v @ R.T``) gives :func:`box_wing_start` (``panels``, ``cd0``,
+    ``aspect``), whose light curve with Embree's shadows (``divisions``) at the body-frame unit
+    directions ``sun, obs (T, 3)`` turned alike is scored by ``Σ ((flux − m) / sigma)²``
+    (``sigma (T,)``, None: ones; flux per unit irradiance at 1 m, m²) — or, with ``brief = k >
+    0``, by the loss of :func:`fit_box_wing` run from it for one outer iteration of ``k`` L-BFGS-B
+    steps (the start itself is returned). A single candidate is returned unscored (loss 0).
+    Several starts are a multi-start for a fit whose basin the start decides: the wings' aspect is
+    not in the EGI (a convex shape has no shadows), and on a shadowed box-wing a start a noise's
+    change away can end in another basin."""
     from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
 
     brief = int_param(brief, "brief", 0, 10_000)
     yaws = box_wing_yaw(normals, areas, panels=panels) if yaws is None else tuple(float(v) for v in yaws)
+    aspects = (aspects,) if isinstance(aspects, (int, float)) else tuple(aspects)
     if not yaws:
         raise FieldError("yaws", "expected at least one turn (rad)")
+    if not aspects:
+        raise FieldError("aspects", "expected at least one wing aspect (length ÷ width)")
+    aspects = tuple(float_param(a, "aspects", 0.0, 100.0, open_lo=True) for a in aspects)
     y = np.asarray(flux, dtype=np.float64)
     S0, V0 = np.asarray(sun, dtype=np.float64), np.asarray(obs, dtype=np.float64)
     if S0.shape != (len(y), 3) or V0.shape != S0.shape:
@@ -121,12 +139,13 @@ def best_box_wing_yaw(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, s
         if sigma.shape != y.shape or not bool((sigma > 0).all()):
             raise FieldError("sigma", f"expected positive 1σ values of flux's shape {y.shape}, got {sigma.shape}")
     N = np.asarray(normals, dtype=np.float64)
-    best = None
-    for psi in yaws:
+    scored = len(yaws) * len(aspects) > 1
+    out = []
+    for psi, aspect in itertools.product(yaws, aspects):
         R = rot_z(np.array([psi]))[0]
-        p0 = box_wing_start(N @ R.T, areas, panels=panels, cd0=cd0)
+        p0 = box_wing_start(N @ R.T, areas, panels=panels, cd0=cd0, aspect=aspect)
         loss = 0.0
-        if len(yaws) > 1:  # the Sun and observer turned alike
+        if scored:  # the Sun and observer turned alike
             S, V = S0 @ R.T, V0 @ R.T
             if brief:
                 loss = fit_box_wing(y, S, V, p0, sigma=sigma, outer=1, inner=brief, panels=panels,
@@ -136,9 +155,8 @@ def best_box_wing_yaw(normals: Any, areas: Any, flux: Any, sun: Any, obs: Any, s
                                          box_wing_visibility(p0, S, V, panels=panels, divisions=divisions),
                                          range_km=1e-3, irradiance=1.0, panels=panels, divisions=divisions).numpy()
                 loss = float(np.sum(((y - m) / (1.0 if sigma is None else sigma)) ** 2))
-        if best is None or loss < best[0]:
-            best = (loss, psi, p0)
-    return best[1], best[2]
+        out.append((float(loss), float(psi), p0))
+    return sorted(out, key=lambda c: c[0])  # stable: the first on a tie
 
 
 def box_wing_start(normals: Any, areas: Any, *, panels: int = 2, cd0: float = 0.3, aspect: float = 3.75) -> np.ndarray:

@@ -35,7 +35,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     import torch  # heavy: torch, only to fit the box-wing
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
-    from cssat.inversion.parametric_fit import best_box_wing_yaw, box_wing_yaw, fit_box_wing  # heavy: torch
+    from cssat.inversion.parametric_fit import box_wing_starts, box_wing_yaw, fit_box_wing  # heavy: torch
     from cssat.inversion.parametric_parts import fit_parts  # heavy: torch
     from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
 
@@ -44,16 +44,23 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     searched = a.metrics.get("spin") == "search"  # z on the pole, the phase about it arbitrary: the panels' axis unknown
     yaws = box_wing_yaw(res.normals, res.areas, panels=o.panels) if o.yaw == "egi" or (o.yaw == "auto" and searched) \
         else (0.0,)
-    # the candidates told apart by a brief fit's misfit on the fitted nights (or the start's: yaw_brief=0)
-    psi, p0 = best_box_wing_yaw(res.normals, res.areas, y[fit], a.sun_b[fit], a.obs_b[fit],
-                                None if sigma is None else sigma[fit], yaws=yaws, cd0=o.cd0, brief=o.yaw_brief, **geo)
-    R = rot_z(np.array([psi]))[0]  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
-    S, V = a.sun_b @ R.T, a.obs_b @ R.T
+    # the starts (turns × wing aspects) told apart by a brief fit's misfit on the fitted nights (or the start's:
+    # yaw_brief=0), the best `plain_keep` fitted in full and the lowest loss kept: a multi-start
+    starts = box_wing_starts(res.normals, res.areas, y[fit], a.sun_b[fit], a.obs_b[fit],
+                             None if sigma is None else sigma[fit], yaws=yaws, aspects=o.aspects, cd0=o.cd0,
+                             brief=o.yaw_brief, **geo)
     fit_kw = dict(sigma=None if sigma is None else sigma[fit], outer=o.outer, inner=o.inner, huber=o.huber,
                   visibility=o.visibility, softness=o.softness, albedos=o.albedos,
                   fixed=("cd_bus",) if o.albedo_prior else (),
                   resolution_m=o.shadow_resolution_m if o.resolved_search else None)
-    p, info = fit_box_wing(y[fit], S[fit], V[fit], p0, **fit_kw, **geo)
+    best = None
+    for _, psi_k, p0 in starts[:o.plain_keep]:
+        R = rot_z(np.array([psi_k]))[0]  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
+        S_k, V_k = a.sun_b @ R.T, a.obs_b @ R.T
+        p_k, info_k = fit_box_wing(y[fit], S_k[fit], V_k[fit], p0, **fit_kw, **geo)
+        if best is None or info_k["loss"] < best[1]["loss"]:
+            best = (p_k, info_k, psi_k, R, S_k, V_k, float(p0[3] / p0[4]))
+    p, info, psi, R, S, V, aspect0 = best
     parts, family, start = o.parts(), "plain", None
     if parts:  # the finer family from the plain fit: its parts at generic places, each fitted briefly, the best in full
         q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, **fit_kw,
@@ -94,7 +101,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_over_noise=rh / nh if nh and held.any() else None, heldout_chi2_n=chi2_n(resid, sigma, held),
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
-              parametric_yaw_deg=float(np.degrees(psi)), parametric_family=family,
+              parametric_yaw_deg=float(np.degrees(psi)), parametric_start_aspect=aspect0, parametric_family=family,
               parametric_parts_start=start, parametric_shadow_resolution_m=res_m,
               **{f"parametric_{k}": v for k, v in info["params"].items()})
 

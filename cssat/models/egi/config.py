@@ -62,6 +62,20 @@ class NightsConfig:
         self.min_elevation_deg = float_param(self.min_elevation_deg, "nights.min_elevation_deg", -90.0, 90.0)
 
 
+def _aspects(v: Any) -> list[float]:
+    """``inversion.parametric.aspects``: a non-empty list of wing aspects in (0, 100]."""
+    one = isinstance(v, (int, float, str)) and not isinstance(v, bool)
+    try:
+        out = [float(x) for x in ([v] if one else list(v))]
+    except (TypeError, ValueError) as e:
+        raise FieldError("inversion.parametric.aspects", f"expected a list of wing aspects (length ÷ width) in "
+                                                         f"(0, 100], e.g. [2, 3.75, 6], got {v!r}") from e
+    if not out or not all(0.0 < x <= 100.0 for x in out):
+        raise FieldError("inversion.parametric.aspects", f"expected a non-empty list of wing aspects (length ÷ width) "
+                                                         f"in (0, 100], e.g. [2, 3.75, 6], got {v!r}")
+    return out
+
+
 @dataclass
 class ParametricConfig:
     """``inversion.parametric.*``: the box-wing fitted after the EGI for ``inversion.shape:
@@ -93,6 +107,11 @@ class ParametricConfig:
     #: that brief fit's loss (0: by the start's own misfit, which can take a quarter turn on a bus heavier than
     #: its panels)
     yaw_brief: int = 10
+    #: the plain box-wing's starts: its wings' aspects (length ÷ width; each with every turn of `yaw`), told apart
+    #: by the brief fit of yaw_brief steps (the wings' aspect is not in the convex EGI)
+    aspects: Any = field(default_factory=lambda: [3.75])
+    #: the best plain_keep starts fitted in full, the lowest loss kept (a multi-start: 1, the best start only)
+    plain_keep: int = 1
     #: with a searched spin: refine the pole, phase and period through the fitted box-wing's soft-shadowed light curve
     #: jointly with its shape (cssat.inversion.parametric_spin.refine_spin; the held-out nights give its verdict)
     refine_spin: bool = False
@@ -137,6 +156,8 @@ class ParametricConfig:
         self.softness = float_param(self.softness, "inversion.parametric.softness", 0.0, open_lo=True)
         self.yaw = choice_param(self.yaw, "inversion.parametric.yaw", ("auto", "egi", "none"))
         self.yaw_brief = int_param(self.yaw_brief, "inversion.parametric.yaw_brief", 0, 500)
+        self.aspects = _aspects(self.aspects)
+        self.plain_keep = int_param(self.plain_keep, "inversion.parametric.plain_keep", 1, 64)
         self.albedos = choice_param(self.albedos, "inversion.parametric.albedos", ("fit", "profile"))
         self.albedo_prior = bool_param(self.albedo_prior, "inversion.parametric.albedo_prior")
         self.refine_spin = bool_param(self.refine_spin, "inversion.parametric.refine_spin")
