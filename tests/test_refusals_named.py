@@ -83,6 +83,10 @@ def _curve(n=48):
     (dict(sigma="x"), "sigma", "expected numbers"),
     (dict(times_s=["a"] * 48), "times_s", "expected numbers"),
     (dict(n=3), "flux", "at least 4 samples"),  # was IndexError / ZeroDivisionError
+    (dict(nan="flux"), "flux", "must be finite: 1 NaN"),
+    (dict(nan="sun"), "sun", "must be finite: 1 NaN"),  # was named flux whatever was not finite
+    (dict(nan="obs"), "obs", "must be finite: 1 NaN"),
+    (dict(nan="times_s"), "times_s", "must be finite: 1 NaN"),
 ])
 @pytest.mark.parametrize("which", ["spin", "tumbling"])
 def test_a_light_curve_the_inversions_cannot_use_is_refused_by_name(change, key, says, which):
@@ -92,7 +96,11 @@ def test_a_light_curve_the_inversions_cannot_use_is_refused_by_name(change, key,
     t, y, sun, obs = _curve(change.pop("n", 48))
     if change.pop("flux", None) == "zero":
         y = np.zeros_like(y)
+    nan = change.pop("nan", None)
     kw = {**dict(times_s=t, flux=y, sun=sun, obs=obs, sigma=0.01), **change}
+    if nan:
+        kw[nan] = np.array(kw[nan], dtype=float)
+        kw[nan].reshape(-1)[-1] = np.nan  # the last sample: the times still increase up to it
     fn = estimate_spin if which == "spin" else estimate_tumbling
     with pytest.raises(FieldError, match=says) as e:
         fn(kw.pop("times_s"), kw.pop("flux"), kw.pop("sun"), kw.pop("obs"), **kw)

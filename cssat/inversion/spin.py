@@ -56,8 +56,9 @@ def _check_light_curve(times_s, flux, sun, obs, sigma, brdf=None, fitted=True):
                                  f"{O.shape}")
     if fitted and T < 4:
         raise FieldError("flux", f"expected at least 4 samples, got {T}")
-    if not (np.isfinite(t).all() and np.isfinite(y).all() and np.isfinite(S).all() and np.isfinite(O).all()):
-        raise FieldError("flux", "the times, fluxes and directions must be finite")
+    for name, arr in (("times_s", t), ("flux", y), ("sun", S), ("obs", O)):
+        if not np.isfinite(arr).all():
+            raise FieldError(name, f"must be finite: {int((~np.isfinite(arr)).sum())} NaN or infinite values")
     if np.any(np.diff(t) <= 0):
         raise FieldError("times_s", "the times must increase")
     if fitted and not (y > 0).any():
