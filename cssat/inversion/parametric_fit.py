@@ -28,7 +28,8 @@ from cssat._checks import FieldError, choice_param, float_param, int_param
 from cssat.inversion.parametric import box_wing_light_curve, box_wing_visibility, param_names
 from cssat.optics.shadow_sampling import check_resolution
 
-__all__ = ["best_box_wing_yaw", "box_wing_start", "box_wing_starts", "box_wing_yaw", "fit_box_wing", "profile_albedos", "soft_l1"]
+__all__ = ["best_box_wing_yaw", "box_wing_start", "box_wing_starts", "box_wing_yaw", "fit_box_wing", "profile_albedos",
+           "soft_l1"]
 
 #: the parameters fitted as logarithms of a length (m)
 SIZE_NAMES = ("a", "b", "c", "length", "width", "dish_radius", "dish_depth", "dish2_radius", "dish2_depth", "panel_gap",

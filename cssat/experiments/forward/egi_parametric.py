@@ -2,7 +2,8 @@
 a box-wing (:mod:`cssat.inversion.parametric`) fitted through its Embree-shadowed light
 curve, started from the convex EGI (in a searched spin's frame, turned about the pole first so
 that the EGI's panels lie along ±y: :func:`~cssat.inversion.parametric_fit.box_wing_yaw`,
-``inversion.parametric.yaw``), then — with ``inversion.parametric.dishes``, ``wing_panels``, ``booms``,
+``inversion.parametric.yaw``; with ``inversion.parametric.aspects`` and ``plain_keep`` a multi-start over
+the wings' aspect too: :func:`~cssat.inversion.parametric_fit.box_wing_starts`), then — with ``inversion.parametric.dishes``, ``wing_panels``, ``booms``,
 ``deck`` — the finer family from it (:func:`~cssat.inversion.parametric_parts.fit_parts`: the
 parts at generic places, each start fitted briefly, the best in full) — with ``inversion.parametric.shadow_resolution_m`` then polished with each
 sub-facet's shadows resolved; its prediction of the held-out nights replaces the convex
