@@ -190,9 +190,11 @@ def test_the_experiments_stage_fits_the_finer_family_when_asked(caplog):
         assert ("ended above the plain box-wing's loss" in caplog.text) == (dishes and family == "plain")
         parts = family != "plain"
         names = param_names(1 if parts else 0)
+        assert sol.metrics["parametric_start_aspect"] == pytest.approx(3.75)  # the one default start's
         assert {k for k in sol.metrics if k.startswith("parametric_")} - {"parametric_yaw_deg", "parametric_family",
                                                                               "parametric_parts_start",
-                                                                              "parametric_shadow_resolution_m"} == \
+                                                                              "parametric_shadow_resolution_m",
+                                                                              "parametric_start_aspect"} == \
             {f"parametric_{k}" for k in names}
         assert ("dish" in sol.param_mesh.part_names) == parts
         p = np.array([sol.metrics[f"parametric_{k}"] for k in names])
