@@ -334,7 +334,6 @@ def fit_box_wing(y: Any, sun: Any, observer: Any, p0: Any, *, sigma: Any = None,
         Y = Y if defect is None else Y + defect
         return Y @ (profile_albedos(Y, yt, sg, p[cd_idx], cd_free) if profile else p[cd_idx])
 
-
     p0 = np.asarray(p0, dtype=np.float64)
     if p0.shape != (len(names),):
         raise FieldError("p0", f"expected {len(names)} values {names}, got shape {p0.shape}")

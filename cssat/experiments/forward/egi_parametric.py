@@ -54,14 +54,18 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
                   visibility=o.visibility, softness=o.softness, albedos=o.albedos,
                   fixed=("cd_bus",) if o.albedo_prior else (),
                   resolution_m=o.shadow_resolution_m if o.resolved_search else None)
-    best = None
-    for _, psi_k, p0 in starts[:o.plain_keep]:
-        R = rot_z(np.array([psi_k]))[0]  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
-        S_k, V_k = a.sun_b @ R.T, a.obs_b @ R.T
-        p_k, info_k = fit_box_wing(y[fit], S_k[fit], V_k[fit], p0, **fit_kw, **geo)
-        if best is None or info_k["loss"] < best[1]["loss"]:
-            best = (p_k, info_k, psi_k, R, S_k, V_k, float(p0[3] / p0[4]))
-    p, info, psi, R, S, V, aspect0 = best
+
+    def turned(psi_k):  # the box-wing's frame: the fitted body frame turned by R_z(−ψ) (rot_z is passive)
+        R_k = rot_z(np.array([psi_k]))[0]
+        return R_k, a.sun_b @ R_k.T, a.obs_b @ R_k.T
+
+    def fit_from(psi_k, p0):  # (ψ, start, fitted p, its info)
+        _, S_k, V_k = turned(psi_k)
+        return (psi_k, p0, *fit_box_wing(y[fit], S_k[fit], V_k[fit], p0, **fit_kw, **geo))
+
+    fits = [fit_from(psi_k, p0) for _, psi_k, p0 in starts[:o.plain_keep]]
+    psi, p0, p, info = min(fits, key=lambda f: f[3]["loss"])  # the first on a tie
+    R, S, V = turned(psi)
     parts, family, start = o.parts(), "plain", None
     if parts:  # the finer family from the plain fit: its parts at generic places, each fitted briefly, the best in full
         q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, **fit_kw,
@@ -102,7 +106,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_over_noise=rh / nh if nh and held.any() else None, heldout_chi2_n=chi2_n(resid, sigma, held),
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
-              parametric_yaw_deg=float(np.degrees(psi)), parametric_start_aspect=aspect0, parametric_family=family,
+              parametric_yaw_deg=float(np.degrees(psi)), parametric_start_aspect=float(p0[3] / p0[4]), parametric_family=family,
               parametric_parts_start=start, parametric_shadow_resolution_m=res_m,
               **{f"parametric_{k}": v for k, v in info["params"].items()})
 
