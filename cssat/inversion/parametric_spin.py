@@ -39,8 +39,8 @@ from cssat._checks import FieldError, bool_param, choice_param, float_param, int
 from cssat.inversion.parametric import box_wing_light_curve, param_names
 from cssat.inversion.parametric_fit import (LOG_SIZE_BOUNDS, SIZE_NAMES, _to_p, _to_z, _transform, profile_albedos,
                                             shadow_defect, soft_l1)
-from cssat.optics.shadow_sampling import check_resolution
 from cssat.inversion.soft_shadow import soft_visibility
+from cssat.optics.shadow_sampling import check_resolution
 from cssat.scene.attitude import OBLIQUITY_DEG
 
 __all__ = ["spin_frames", "refine_spin"]
