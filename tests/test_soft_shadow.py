@@ -104,7 +104,8 @@ def test_the_hit_floor_leaves_out_only_what_cannot_matter():
     """The default ``hit_floor`` (1e-12: the hits below it not built) against every pair's hit
     built with its gradient (``hit_floor=None``), on the dished box-wing whose dish is set into the
     bus (bowl cells, whose factor is the hit itself, on both sides): the visibility agrees within
-    the floor times the number of occluders and rays, the light curve and the gradient to 1e-9
+    the floor times the factors of a cell (2 rays × 4 occluders: the bus, two wings, the dish),
+    the light curve and the gradient to 1e-9
     relative — at a softness where the pruned hits are many (τ = 5 mm) and where they are few
     (τ = 0.3 m); and the pruning is not vacuous: a floor of 0.4 changes the visibility."""
     from cssat.inversion.parametric import box_wing_light_curve
@@ -123,7 +124,7 @@ def test_the_hit_floor_leaves_out_only_what_cannot_matter():
                 (g,) = torch.autograd.grad((y * torch.linspace(0.5, 1.5, len(y), dtype=y.dtype)).sum(), q)
                 out[floor] = (vis.detach(), y.detach(), g)
             (v0, y0, g0), (v1, y1, g1) = out[None], out[HIT_FLOOR]
-            assert float((v0 - v1).abs().max()) <= 2 * 6 * HIT_FLOOR
+            assert float((v0 - v1).abs().max()) <= 2 * 4 * HIT_FLOOR + 1e-15
             assert float((y0 - y1).abs().max()) <= 1e-9 * float(y0.abs().max())
             assert float((g0 - g1).abs().max()) <= 1e-9 * float(g0.abs().max())
     assert float((soft_visibility(p17, S, V, tau=0.3, hit_floor=0.4, **kw) - v0).abs().max()) > 1e-3
