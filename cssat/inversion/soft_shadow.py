@@ -95,13 +95,6 @@ def _soft_hit(P: Tensor, D: Tensor, occluder: tuple, tau: Tensor) -> Tensor:
     return sig((radius - rho) / tau) * sig(t / tau)
 
 
-def _detached(occluder: tuple) -> tuple:
-    """``occluder`` (:func:`_soft_hit`) with its tensors detached: for the no-gradient pass."""
-    if occluder[0] == "panels":
-        return ("panels", [tuple(x.detach() if isinstance(x, Tensor) else x for x in panel) for panel in occluder[1]])
-    return tuple(x.detach() if isinstance(x, Tensor) else x for x in occluder)
-
-
 def _in_bowl(P: Tensor, disk: tuple, N: Tensor, own: Tensor) -> Tensor:
     """``(F,)`` bool: the sub-facets whose centroid ``P (F, 3)`` lies in the space the dish of
     ``disk = ("disk", aperture centre, unit axis, radius, depth)`` encloses (its paraboloid bowl up
@@ -155,22 +148,23 @@ def soft_visibility(p: Any, sun: Any, observer: Any, *, tau: float, panels: int 
                                                                                     device=v.device)
         ti, ci = pairs.nonzero(as_tuple=True)  # the (sample, sub-facet) pairs computed, (K,) each
     Pk, lk = P[ci], lab[ci]
+    held_in = {k: b[ci] for k, b in inside.items()}  # (K,) each: the rays starting in that dish's bowl
     vis = torch.ones(len(ci), dtype=v.dtype, device=v.device)
     for D in (S[ti], V[ti]):
         for k, occ in enumerate(occluders):
+            held = held_in.get(k)
             with torch.no_grad():  # the pairs whose factor is not 1: the ray meets the occluder, or starts in its bowl
-                need = lk != k
+                need = lk != k  # no other part shadows itself: its own part's factor is 1
                 if hit_floor is not None:
-                    need &= _soft_hit(Pk.detach(), D, _detached(occ), tau_t) > hit_floor
-                if k in inside:
-                    need |= inside[k][ci]
+                    need &= _soft_hit(Pk, D, occ, tau_t) > hit_floor
+                if held is not None:
+                    need |= held
                 idx = need.nonzero(as_tuple=True)[0]
             if len(idx) == 0:
                 continue
             hit = _soft_hit(Pk[idx], D[idx], occ, tau_t)
-            if k in inside:  # inside a bowl a ray leaves through the aperture (lit) or the bowl's wall (shadowed)
-                fac = torch.where(inside[k][ci[idx]], hit, torch.where(lk[idx] == k, torch.ones_like(hit), 1 - hit))
-            else:
-                fac = 1 - hit  # no other part shadows itself: its own part's pairs are not in idx
+            # inside a bowl a ray leaves through the aperture (lit) or the bowl's wall (shadowed); of the other
+            # pairs only other parts' are in idx
+            fac = 1 - hit if held is None else torch.where(held[idx], hit, 1 - hit)
             vis = vis.index_put((idx,), vis[idx] * fac)
     return torch.zeros((S.shape[0], len(f)), dtype=v.dtype, device=v.device).index_put((ti, ci), vis)
