@@ -260,9 +260,9 @@ def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
     searched spin 1.56° off the truth's pole, its phase 40° off the box-wing's frame (the turn found
     first) — the refined pole is brought to within half that, the refined model predicts the
     held-out night better than the box-wing fitted at the searched spin, and the stage reports the
-    refinement's verdict with a 1σ only where reliable (here the joint fit stops 0.5° off in a
-    neighbouring shape, and the held-out night says unreliable: no 1σ); without the option no
-    refinement is reported."""
+    refinement's verdict with a 1σ only where reliable (the first descent stops 0.5° off in the
+    truth's twin, the held-out night unreliable; the twin's descent, test_parametric_twin, ends
+    0.15° off and reliable); without the option no refinement is reported."""
     from cssat.models.egi.config import ParametricConfig
 
     stage, (lon, lat), start = _searched_stage()

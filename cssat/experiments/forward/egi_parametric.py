@@ -118,15 +118,22 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
     verdict): ``(p, R, S, V, metrics)`` — the refined family, the turn ``R (3, 3)`` from the searched
     spin's body frame to the refined one at the first sample (vectors ``v @ R.T``), the body-frame Sun
     and observer ``(T, 3)`` of the refined spin, and ``parametric_spin_*`` metrics."""
+    from cssat.inversion.parametric import box_wing_twin  # heavy: torch
     from cssat.inversion.parametric_spin import refine_spin  # heavy: torch
     from cssat.scene.attitude import spin_frame, to_body  # heavy: cssat.scene imports torch
 
     fit, held, sigma, sp = m.fit, m.held, m.sigma, a.sol
     ho = None if sigma is None or not held.any() else (m.t[held], m.y[held], m.sun_in[held], m.obs_in[held], sigma[held])
-    r = refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], p, sp.pole_lon_deg, sp.pole_lat_deg, sp.period_s,
-                    float(np.degrees(psi)), sigma=None if sigma is None else sigma[fit], frame=sp.frame,
-                    fixed=("cd_bus",) if o.albedo_prior else (), shape=True, heldout=ho, huber=o.huber,
-                    resolution_m=o.shadow_resolution_m, **family)
+    kw = dict(sigma=None if sigma is None else sigma[fit], frame=sp.frame, fixed=("cd_bus",) if o.albedo_prior else (),
+              shape=True, heldout=ho, huber=o.huber, resolution_m=o.shadow_resolution_m, **family)
+    phase = float(np.degrees(psi))
+    runs = [refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], p, sp.pole_lon_deg, sp.pole_lat_deg,
+                        sp.period_s, phase, **kw)]
+    if o.spin_twin and family.get("panels", 2) == 2:  # the same object turned 180° about the pole: its own descent
+        twin = box_wing_twin(p, **{k: v for k, v in family.items() if k not in ("divisions", "dish_rings", "dish_segments")})
+        runs.append(refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], twin, sp.pole_lon_deg,
+                                sp.pole_lat_deg, sp.period_s, phase + 180.0, **kw))
+    r = min(runs, key=lambda q: q["loss"])  # the first on a tie
     frames = spin_frame(m.t, r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], sp.frame)
     keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "phase_deg", "pole_err_deg", "period_err_s", "formal_pole_err_deg",
             "formal_period_err_s", "softness_pole_shift_deg", "softness_period_shift_s", "rms_over_noise", "verdict",
@@ -135,6 +142,7 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
         log.warning("inversion.parametric.refine_spin: the refinement ended above its start's loss (%.4g > %.4g): "
                     "the searched spin and the family's fit in its frame are kept", r["refined_loss"], r["start_loss"])
     out = {f"parametric_spin_{k}": (None if isinstance(r[k], float) and not np.isfinite(r[k]) else r[k]) for k in keys}
+    out.update(parametric_spin_twin=r is not runs[0], parametric_spin_losses=[float(q["loss"]) for q in runs])
     return (np.asarray(r["params"]), frames[0] @ a.frames[0].T, to_body(frames, m.sun_in), to_body(frames, m.obs_in),
             out)
 

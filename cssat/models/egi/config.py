@@ -115,6 +115,10 @@ class ParametricConfig:
     #: with a searched spin: refine the pole, phase and period through the fitted box-wing's soft-shadowed light curve
     #: jointly with its shape (cssat.inversion.parametric_spin.refine_spin; the held-out nights give its verdict)
     refine_spin: bool = False
+    #: with refine_spin: the spin refined from the family's twin too (the same object turned 180° about the pole,
+    #: cssat.inversion.parametric.box_wing_twin; panels 2), the lower fitted loss kept (the model's shadows differ
+    #: between the twins, so the two descents can end in different minima)
+    spin_twin: bool = True
     #: fit (by gradient, with the geometry) | profile (solved by least squares at every evaluation: the light curve
     #: is linear in them)
     albedos: str = "fit"
@@ -161,6 +165,7 @@ class ParametricConfig:
         self.albedos = choice_param(self.albedos, "inversion.parametric.albedos", ("fit", "profile"))
         self.albedo_prior = bool_param(self.albedo_prior, "inversion.parametric.albedo_prior")
         self.refine_spin = bool_param(self.refine_spin, "inversion.parametric.refine_spin")
+        self.spin_twin = bool_param(self.spin_twin, "inversion.parametric.spin_twin")
         self.dishes = int_param(self.dishes, "inversion.parametric.dishes", 0, 2)
         self.dish_pair = choice_param(self.dish_pair, "inversion.parametric.dish_pair", ("mirror", "free"))
         if self.dish_pair == "free" and self.dishes != 2:
