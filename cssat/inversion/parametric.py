@@ -128,8 +128,8 @@ def box_wing_twin(p: Any, dishes: int = 0, *, panels: int = 2, dish_pair: str = 
     if panels != 2:
         raise FieldError("panels", f"a twin (the object turned by 180° about z) needs the mirror pair, panels=2; got {panels!r}")
     q = np.array(p, dtype=np.float64)
-    if q.shape != (len(names),):
-        raise FieldError("p", f"expected {len(names)} values {names}, got shape {q.shape}")
+    if q.shape != (len(names),) or not np.isfinite(q).all():
+        raise FieldError("p", f"expected {len(names)} finite values {names}, got {q.tolist()}")
     i = {n: k for k, n in enumerate(names)}
     q[i["hinge"]] = -q[i["hinge"]]
     for d in ("dish", "dish2"):
