@@ -260,13 +260,14 @@ def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
     searched spin 1.56° off the truth's pole, its phase 40° off the box-wing's frame (the turn found
     first) — the refined pole is brought to within half that, the refined model predicts the
     held-out night better than the box-wing fitted at the searched spin, and the stage reports the
-    refinement's verdict with a 1σ only where reliable (the first descent stops 0.5° off in the
-    truth's twin, the held-out night unreliable; the twin's descent, test_parametric_twin, ends
-    0.15° off and reliable); without the option no refinement is reported."""
+    refinement's verdict with a 1σ only where reliable (one descent, ``spin_twin=False``: it stops
+    0.5° off in the truth's twin, and the held-out night says unreliable: no 1σ; both twins'
+    descents: test_parametric_twin); without the option no refinement is reported."""
     from cssat.models.egi.config import ParametricConfig
 
     stage, (lon, lat), start = _searched_stage()
-    plain, refined = (stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=r))[0] for r in (False, True))
+    plain, refined = (stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=r, spin_twin=False))[0]
+                      for r in (False, True))
     assert "parametric_spin_pole_lon_deg" not in plain
     assert refined["parametric_spin_kept_start"] is False  # the refinement moved: the start was worse
     sep = separation_deg((refined["parametric_spin_pole_lon_deg"], refined["parametric_spin_pole_lat_deg"]), (lon, lat))
@@ -286,7 +287,7 @@ def test_the_stage_refines_the_spin_through_the_finer_family_it_kept():
 
     stage, _, _ = _searched_stage()
     metrics, sol = stage(ParametricConfig(outer=2, inner=30, divisions=2, albedo_prior=True, refine_spin=True, dishes=1,
-                                          dish_rings=2, dish_segments=8))
+                                          dish_rings=2, dish_segments=8, spin_twin=False))
     assert metrics["parametric_family"] == "parts" and metrics["parametric_dish_radius"] > 0
     assert metrics["parametric_spin_verdict"] in ("reliable", "unreliable") and metrics["parametric_spin_period_s"] > 0
     assert "dish" in sol.param_mesh.part_names

@@ -64,7 +64,8 @@ def test_the_twin_refuses_what_has_no_twin():
 def test_the_stage_refines_the_spin_from_both_twins_and_keeps_the_lower_loss():
     """The tests' searched-spin scene (test_parametric_spin): the box-wing fitted in the searched
     frame is the truth's twin, whose cast shadows differ from the truth's by ~2σ rms at 4 cells a
-    side, and its refinement stops ~0.5° off with a held-out night that says unreliable. The twin's
+    side, and its refinement stops ~0.5° off with a held-out night that says unreliable (one
+    descent: test_parametric_spin's stage test). The twin's
     descent (the same object turned 180° about the pole) ends at a lower fitted loss, near the
     truth's pole, with a held-out night that says reliable; the stage keeps it and says so."""
     from test_parametric_spin import _searched_stage
@@ -72,15 +73,10 @@ def test_the_stage_refines_the_spin_from_both_twins_and_keeps_the_lower_loss():
     from cssat.models.egi.config import ParametricConfig
 
     stage, (lon, lat), start = _searched_stage()
-    one, both = (stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=True, spin_twin=t))[0]
-                 for t in (False, True))
-    sep = {k: separation_deg((m["parametric_spin_pole_lon_deg"], m["parametric_spin_pole_lat_deg"]), (lon, lat))
-           for k, m in (("one", one), ("both", both))}
-    assert len(one["parametric_spin_losses"]) == 1 and one["parametric_spin_twin"] is False
-    assert one["parametric_spin_verdict"] == "unreliable" and sep["one"] > 0.4
+    both = stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=True))[0]  # spin_twin: default
+    sep = separation_deg((both["parametric_spin_pole_lon_deg"], both["parametric_spin_pole_lat_deg"]), (lon, lat))
     first, twin = both["parametric_spin_losses"]
-    assert first == pytest.approx(one["parametric_spin_losses"][0], rel=1e-9)  # the first descent unchanged
     assert both["parametric_spin_twin"] is True and twin < 0.8 * first
-    assert both["parametric_spin_verdict"] == "reliable" and sep["both"] < 0.5 * sep["one"]
-    assert sep["both"] < 2 * both["parametric_spin_pole_err_deg"]
-    assert both["heldout_chi2_n"] < one["heldout_chi2_n"]
+    assert both["parametric_spin_verdict"] == "reliable" and sep < 0.3 < separation_deg(start, (lon, lat))
+    assert sep < 2 * both["parametric_spin_pole_err_deg"]
+    assert both["heldout_chi2_n"] < 2.0  # the first descent's model: 4.6 (one descent, its own test)
