@@ -260,14 +260,17 @@ def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
     searched spin 1.56° off the truth's pole, its phase 40° off the box-wing's frame (the turn found
     first) — the refined pole is brought to within half that, the refined model predicts the
     held-out night better than the box-wing fitted at the searched spin, and the stage reports the
-    refinement's verdict with a 1σ only where reliable (one descent, ``spin_twin=False``: it stops
-    0.5° off in the truth's twin, and the held-out night says unreliable: no 1σ; both twins'
-    descents: test_parametric_twin); without the option no refinement is reported."""
+    refinement's verdict with a 1σ only where reliable; without the option no refinement is
+    reported. The box-wing fitted in the searched frame is the truth's twin (turned 180° about the
+    pole: :func:`~cssat.inversion.parametric.box_wing_twin`), whose cast shadows differ from the
+    truth's by ~2σ rms at 4 cells a side: its own descent stops ~0.5° off, the held-out night
+    unreliable (measured; BENCHMARKS.md "The family's twin"). The twin's descent ends at a lower
+    fitted loss near the truth's pole, reliable: the stage (``spin_twin``, default) keeps it and
+    says so."""
     from cssat.models.egi.config import ParametricConfig
 
     stage, (lon, lat), start = _searched_stage()
-    plain, refined = (stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=r, spin_twin=False))[0]
-                      for r in (False, True))
+    plain, refined = (stage(ParametricConfig(outer=2, inner=30, albedo_prior=True, refine_spin=r))[0] for r in (False, True))
     assert "parametric_spin_pole_lon_deg" not in plain
     assert refined["parametric_spin_kept_start"] is False  # the refinement moved: the start was worse
     sep = separation_deg((refined["parametric_spin_pole_lon_deg"], refined["parametric_spin_pole_lat_deg"]), (lon, lat))
@@ -276,8 +279,10 @@ def test_the_experiment_stage_refines_a_searched_spin_through_the_box_wing():
     verdict, err = refined["parametric_spin_verdict"], refined["parametric_spin_pole_err_deg"]
     assert verdict in ("reliable", "unreliable") and refined["parametric_spin_verdict_why"]
     assert (err is None) == (verdict == "unreliable") and refined["parametric_spin_formal_pole_err_deg"] > 0
-    if verdict == "reliable":
-        assert sep < 4 * err
+    first, twin = refined["parametric_spin_losses"]  # the twin's descent, kept: far lower, near the pole, reliable
+    assert refined["parametric_spin_twin"] is True and twin < 0.8 * first
+    assert verdict == "reliable" and sep < 0.3 and sep < 2 * err
+    assert refined["heldout_chi2_n"] < 2.0  # the first descent's model: 4.6
 
 
 def test_the_stage_refines_the_spin_through_the_finer_family_it_kept():
