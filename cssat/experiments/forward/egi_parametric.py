@@ -140,7 +140,9 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
             "verdict_why", "heldout_chi2", "heldout_n", "heldout_threshold", "kept_start")
     if r["kept_start"]:
         log.warning("inversion.parametric.refine_spin: the refinement ended above its start's loss (%.4g > %.4g): "
-                    "the searched spin and the family's fit in its frame are kept", r["refined_loss"], r["start_loss"])
+                    "%s kept", r["refined_loss"], r["start_loss"],
+                    "the twin's start (the family turned 180° about the searched pole) is" if r is not runs[0]
+                    else "the searched spin and the family's fit in its frame are")
     out = {f"parametric_spin_{k}": (None if isinstance(r[k], float) and not np.isfinite(r[k]) else r[k]) for k in keys}
     out.update(parametric_spin_twin=r is not runs[0], parametric_spin_losses=[float(q["loss"]) for q in runs])
     return (np.asarray(r["params"]), frames[0] @ a.frames[0].T, to_body(frames, m.sun_in), to_body(frames, m.obs_in),
