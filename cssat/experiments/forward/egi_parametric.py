@@ -124,15 +124,18 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
 
     fit, held, sigma, sp = m.fit, m.held, m.sigma, a.sol
     ho = None if sigma is None or not held.any() else (m.t[held], m.y[held], m.sun_in[held], m.obs_in[held], sigma[held])
+    series = (m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit])
     kw = dict(sigma=None if sigma is None else sigma[fit], frame=sp.frame, fixed=("cd_bus",) if o.albedo_prior else (),
               shape=True, heldout=ho, huber=o.huber, resolution_m=o.shadow_resolution_m, **family)
+
+    def descend(q, phase_deg):  # the searched spin refined with the family q in the frame at that phase
+        return refine_spin(*series, q, sp.pole_lon_deg, sp.pole_lat_deg, sp.period_s, phase_deg, **kw)
+
     phase = float(np.degrees(psi))
-    runs = [refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], p, sp.pole_lon_deg, sp.pole_lat_deg,
-                        sp.period_s, phase, **kw)]
-    if o.spin_twin and family.get("panels", 2) == 2:  # the same object turned 180° about the pole: its own descent
-        twin = box_wing_twin(p, **{k: v for k, v in family.items() if k not in ("divisions", "dish_rings", "dish_segments")})
-        runs.append(refine_spin(m.t[fit], m.y[fit], m.sun_in[fit], m.obs_in[fit], twin, sp.pole_lon_deg,
-                                sp.pole_lat_deg, sp.period_s, phase + 180.0, **kw))
+    runs = [descend(p, phase)]
+    if o.spin_twin and family["panels"] == 2:  # the same object turned 180° about the pole: its own descent
+        parts = {k: v for k, v in family.items() if k not in ("divisions", "dish_rings", "dish_segments")}
+        runs.append(descend(box_wing_twin(p, **parts), phase + 180.0))
     r = min(runs, key=lambda q: q["loss"])  # the first on a tie
     frames = spin_frame(m.t, r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], sp.frame)
     keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "phase_deg", "pole_err_deg", "period_err_s", "formal_pole_err_deg",
