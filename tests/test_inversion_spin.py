@@ -204,7 +204,15 @@ def test_the_experiment_inverts_its_own_light_curve_file(tmp_path, inversion_sim
     sig_h = ea["sigma"][held]
     assert a["true_heldout_chi2_n"] == pytest.approx(np.mean(((ea["flux"] - ea["clean"])[held] / sig_h) ** 2), rel=1e-9)
     assert a["heldout_chi2_n"] == pytest.approx(np.mean(((ea["flux"] - ea["model"])[held] / sig_h) ** 2), rel=1e-9)
-    assert not {"true_heldout_rms", "heldout_rms_over_true", "true_heldout_chi2_n"} & set(saved)  # no truth for a measured curve
+    # the same on the fitted nights and on each night in turn (arrays.npz's night index), for the fit and the truth
+    fit, night = ea["fit"].astype(bool), ea["night"]
+    for key, curve in (("", ea["model"]), ("true_", ea["clean"])):
+        z2 = ((ea["flux"] - curve) / ea["sigma"]) ** 2
+        assert a[f"{key}fit_chi2_n"] == pytest.approx(np.mean(z2[fit]), rel=1e-9)
+        assert a[f"{key}night_chi2_n"] == pytest.approx([np.mean(z2[night == k]) for k in np.unique(night)], rel=1e-9)
+    assert len(a["night_chi2_n"]) == a["n_nights_observed"] == 2
+    assert b["night_chi2_n"] and not {"true_heldout_rms", "heldout_rms_over_true", "true_heldout_chi2_n", "true_fit_chi2_n",
+                                      "true_night_chi2_n"} & set(saved)  # no truth for a measured curve
 
 
 def test_the_experiment_names_its_bad_settings(tmp_path):

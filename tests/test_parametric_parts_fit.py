@@ -179,7 +179,7 @@ def test_the_experiments_stage_fits_the_finer_family_when_asked(caplog):
                                      range_km=1e-3, irradiance=1.0, **kw).numpy()
         sigma = 0.02 * clean + 0.002 * float(np.median(clean))
         y = clean + sigma * rng.normal(size=len(clean))
-        m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y)
+        m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y, night=(~fit).astype(int))
         a = SimpleNamespace(sun_b=S, obs_b=V, metrics={"spin": "known"})
         sol = SimpleNamespace(res=SimpleNamespace(normals=N, areas=A), model_unit=np.zeros(160), metrics={})
         caplog.clear()
@@ -246,7 +246,7 @@ def test_the_experiments_stage_polishes_and_predicts_with_resolved_shadows():
     y = clean + sigma * rng.normal(size=len(clean))
     out = {}
     for res in (None, 0.25):
-        m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y)
+        m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y, night=(~fit).astype(int))
         a = SimpleNamespace(sun_b=S, obs_b=V, metrics={"spin": "known"})
         sol = SimpleNamespace(res=SimpleNamespace(normals=N, areas=A), model_unit=np.zeros(160), metrics={})
         solve_parametric(ParametricConfig(divisions=1, outer=2, inner=40, shadow_resolution_m=res, resolved_outer=2),

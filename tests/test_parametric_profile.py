@@ -129,7 +129,7 @@ def test_the_experiments_settings_are_checked_and_reach_the_fit():
                              **UNIT).numpy()
     N, A = egi(box_wing_mesh(p9, divisions=2))
     fit = np.arange(160) < 110
-    m = SimpleNamespace(fit=fit, held=~fit, sigma=0.02 * y.mean() * np.ones_like(y), y=y)
+    m = SimpleNamespace(fit=fit, held=~fit, sigma=0.02 * y.mean() * np.ones_like(y), y=y, night=(~fit).astype(int))
     a = SimpleNamespace(sun_b=S, obs_b=V, metrics={"spin": "known"})
     sol = SimpleNamespace(res=SimpleNamespace(normals=N, areas=A), model_unit=np.zeros(160), metrics={})
     solve_parametric(ParametricConfig(divisions=2, outer=1, inner=10, cd0=0.25, albedos="profile", albedo_prior=True),

@@ -241,7 +241,7 @@ def _searched_stage():
     A = spin_frame(t, *start, period, 0.0, "ecliptic")  # the searched spin's frame: its phase arbitrary (0)
     N, areas = egi(box_wing_mesh(p))
     held = t >= 86400.0 + 4 * 3600.0
-    m = SimpleNamespace(fit=~held, held=held, sigma=sigma, y=y, t=t, sun_in=sun, obs_in=obs)
+    m = SimpleNamespace(fit=~held, held=held, sigma=sigma, y=y, t=t, sun_in=sun, obs_in=obs, night=(t // 86400).astype(int))
     a = SimpleNamespace(sun_b=to_body(A, sun), obs_b=to_body(A, obs), frames=A, metrics={"spin": "search"},
                         sol=SimpleNamespace(pole_lon_deg=start[0], pole_lat_deg=start[1], period_s=period,
                                             frame="ecliptic"))

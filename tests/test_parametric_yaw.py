@@ -150,7 +150,7 @@ def _stage(yaw, psi0=40.0, seed=0, truth=P, **cfg):
     R = _rz(psi0)  # the searched frame: the truth's vectors turned by psi0
     N, A = egi(box_wing_mesh(truth, divisions=2))
     fit = np.arange(240) < 160
-    m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y)
+    m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y, night=(~fit).astype(int))
     a = SimpleNamespace(sun_b=S @ R.T, obs_b=V @ R.T, metrics={"spin": "search"})
     sol = SimpleNamespace(res=SimpleNamespace(normals=N @ R.T, areas=A), model_unit=np.zeros(240), metrics={})
     solve_parametric(ParametricConfig(**dict(dict(divisions=2, outer=2, inner=30, yaw=yaw), **cfg)), m, a, sol)
@@ -171,6 +171,8 @@ def test_the_stage_in_a_turned_frame_fits_only_with_the_turn():
     assert a40["heldout_rms_over_noise"] == pytest.approx(own["heldout_rms_over_noise"], rel=0.1)
     # with one σ for every sample the held-out reduced χ² is the rms over the noise, squared
     assert a40["heldout_chi2_n"] == pytest.approx(a40["heldout_rms_over_noise"] ** 2, rel=1e-9)
+    assert a40["fit_chi2_n"] == pytest.approx(a40["fit_rms_over_noise"] ** 2, rel=1e-9)  # and on the fitted samples
+    assert a40["night_chi2_n"] == pytest.approx([a40["fit_chi2_n"], a40["heldout_chi2_n"]], rel=1e-9)  # night 0 fitted, 1 held out
     none = _stage("none")
     assert none["parametric_yaw_deg"] == 0.0 and none["heldout_rms_over_noise"] > 5 * own["heldout_rms_over_noise"]
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from cssat._tmpfiles import atomic_write
-from cssat.experiments.forward.egi_score import chi2_n, rms, typical
+from cssat.experiments.forward.egi_score import chi2_n, night_chi2_n, rms, typical
 from cssat.scene.mesh import Mesh
 
 __all__ = ["solve_parametric", "score_parametric", "write_parametric"]
@@ -95,8 +95,8 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     sol.param_mesh = Mesh(np.asarray(bw.vertices) @ R, np.asarray(bw.faces), bw.cd, bw.cs, name=bw.name, part=bw.part,
                           part_names=bw.part_names)  # the fitted frame
     mt = sol.metrics
-    for k in ("fit_rms", "fit_rms_over_noise", "heldout_rms", "heldout_rms_over_noise", "heldout_chi2_n",
-              "heldout_rms_relative", "fit_typical_over_noise", "heldout_typical_over_noise"):
+    for k in ("fit_rms", "fit_rms_over_noise", "heldout_rms", "heldout_rms_over_noise", "heldout_chi2_n", "fit_chi2_n",
+              "night_chi2_n", "heldout_rms_relative", "fit_typical_over_noise", "heldout_typical_over_noise"):
         mt[f"convex_{k}"] = mt.get(k)
     resid = y - sol.model_unit
     rf, rh = rms(resid, fit), rms(resid, held)
@@ -104,6 +104,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     nh = rms(sigma, held) if sigma is not None else None
     mt.update(shape="parametric", fit_rms=rf, fit_rms_over_noise=rf / nf if nf else None, heldout_rms=rh,
               heldout_rms_over_noise=rh / nh if nh and held.any() else None, heldout_chi2_n=chi2_n(resid, sigma, held),
+              fit_chi2_n=chi2_n(resid, sigma, fit), night_chi2_n=night_chi2_n(resid, sigma, m.night),
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
               parametric_yaw_deg=float(np.degrees(psi)), parametric_start_aspect=float(p0[3] / p0[4]), parametric_family=family,

@@ -17,8 +17,8 @@ from cssat.plots import save_figure
 from cssat.scene.attitudes import Spin, Tumbling
 from cssat.scene.mesh import Mesh
 
-__all__ = ["EGISolution", "solve_egi", "true_egi", "score_truth", "write_egi", "egi_recovered_share", "rms", "typical", "EGI_WEIGHT_SHARE",
-           "EGI_MATCH_DEG"]
+__all__ = ["EGISolution", "solve_egi", "true_egi", "score_truth", "write_egi", "egi_recovered_share", "rms", "typical", "chi2_n",
+           "night_chi2_n", "EGI_WEIGHT_SHARE", "EGI_MATCH_DEG"]
 
 #: a recovered normal "carries weight" when it holds at least this share of the recovered area
 EGI_WEIGHT_SHARE = 0.01
@@ -64,6 +64,15 @@ def chi2_n(resid: np.ndarray, sigma: np.ndarray | None, m: np.ndarray) -> float 
     return float(np.mean((resid[m] / sigma[m]) ** 2)) if sigma is not None and m.any() else None
 
 
+def night_chi2_n(resid: np.ndarray, sigma: np.ndarray | None, night: np.ndarray) -> list[float] | None:
+    """:func:`chi2_n` over each night's samples, in the nights' order (``night (T,)`` each
+    sample's night): whether the held-out night is worse than the fitted ones (a model that
+    overfits) or all alike (a model whose misfit is its own, everywhere); None without ``sigma``."""
+    if sigma is None:
+        return None
+    return [chi2_n(resid, sigma, night == k) for k in np.unique(night)]
+
+
 _rms, _typical = rms, typical  # the old private names, kept for old imports
 
 
@@ -100,7 +109,8 @@ def solve_egi(p: Any, m: Any, a: Any) -> EGISolution:
         egi_n_normals=int(res.areas.size), egi_area_m2=float(res.areas.sum()), fit_rms=rms_fit,
         fit_rms_over_noise=(rms_fit / noise_fit) if noise_fit else None,
         heldout_rms=rms_held, heldout_rms_over_noise=(rms_held / noise_held) if noise_held and held.any() else None,
-        heldout_chi2_n=chi2_n(resid, sigma, held),
+        heldout_chi2_n=chi2_n(resid, sigma, held), fit_chi2_n=chi2_n(resid, sigma, fit),
+        night_chi2_n=night_chi2_n(resid, sigma, m.night),
         heldout_rms_relative=(rms_held / float(np.sqrt(np.mean(y[held] ** 2)))) if held.any() else None,
         fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
         shape_volume_m3=float(res.mesh.volume) if res.mesh is not None else None,
@@ -143,6 +153,8 @@ def score_truth(p: Any, m: Any, a: Any, sol: EGISolution) -> dict[str, Any]:
         if m.sigma is not None:
             metrics["true_heldout_rms_over_noise"] = true_rms / rms(m.sigma, m.held)
             metrics["true_heldout_chi2_n"] = chi2_n(true_resid, m.sigma, m.held)
+            metrics["true_fit_chi2_n"] = chi2_n(true_resid, m.sigma, m.fit)
+            metrics["true_night_chi2_n"] = night_chi2_n(true_resid, m.sigma, m.night)
         if sol.metrics.get("heldout_rms") is not None and true_rms > 0:
             metrics["heldout_rms_over_true"] = sol.metrics["heldout_rms"] / true_rms
     if res.mesh is not None:
