@@ -51,6 +51,26 @@ def test_motion_and_rates_against_torque_free(alpha_deg):
     assert f_phi_meas == pytest.approx(st.f_phi_hz, rel=1e-6)
 
 
+def test_the_grid_s_rate_ratios_at_once_equal_them_one_by_one():
+    """``_rate_ratios`` (a grid of mode angles in one array pass, for the root search's brackets)
+    gives ``f_φ/f_ω`` of :func:`tumbling_rates` (held to torque_free's measured periods above) at
+    every angle to rounding, in both modes, and nan exactly where it is nan (a steady spin, equal
+    moments)."""
+    from cssat.inversion.tumble_state import _rate_ratios
+    from cssat.inversion.tumble import tumbling_rates
+
+    rng = np.random.default_rng(0)
+    cases = [(0.5, 0.8), (0.55, 0.85), (0.5, 0.5), (0.8, 1.0), (1.0, 1.0)]
+    cases += [tuple(sorted(rng.uniform(0.06, 1.0, 2))) for _ in range(20)]
+    for i1, i2 in cases:
+        alphas = np.sort(rng.uniform(1e-4, math.pi / 2 - 1e-4, 9))
+        got = _rate_ratios(i1, i2, alphas, 128)
+        want = np.array([fp / fw if fw == fw else math.nan for fw, fp in (tumbling_rates(i1, i2, a, n=128) for a in alphas)])
+        assert np.array_equal(np.isnan(got), np.isnan(want)), (i1, i2)
+        assert np.allclose(got, want, rtol=1e-13, atol=0, equal_nan=True), (i1, i2)
+    assert np.isnan(_rate_ratios(1.0, 1.0, np.array([0.3, 1.0]), 64)).all()  # a sphere: no tumbling
+
+
 @pytest.mark.parametrize("frame", ["ecliptic", "equatorial"])
 def test_invariants_of_a_torque_free_state(frame):
     """``torque_free_invariants`` of the initial state (q0, ω0, a scaled inertia tensor) of a

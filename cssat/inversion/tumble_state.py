@@ -98,16 +98,53 @@ def torque_free_invariants(inertia_kg_m2: Any, q0: Any, omega0_rad_s: Any, frame
             "short_axis": bool(float(np.sum(Lb ** 2)) >= float(np.sum(Ip * wp ** 2)) * Ip[1])}
 
 
+def _rate_ratios(i1: float, i2: float, alphas: np.ndarray, n: int) -> np.ndarray:
+    """``f_φ/f_ω (K,)`` of :func:`tumbling_rates` at each of ``alphas (K,)`` at once (nan where
+    it gives nan): the same Jacobi solution (:func:`~cssat.scene.attitude._motion`) for every
+    ``α`` in one array pass — equal to the one-by-one ratio to rounding (the phase taken forward:
+    over a whole period the mean does not depend on its direction); for a grid's signs, not a root."""
+    from scipy.special import ellipj, ellipk, ellipkinc  # heavy: scipy.special, only for _rate_ratios()
+
+    Ip = np.array([i1, i2, 1.0])
+    al = np.asarray(alphas, dtype=np.float64)
+    wp = np.stack([np.sin(al), np.zeros_like(al), np.cos(al)], 1) / Ip  # (K, 3): L's body direction (sin α, 0, cos α)
+    E2, L2 = (Ip * wp ** 2).sum(1), ((Ip * wp) ** 2).sum(1)
+    major = L2 >= E2 * Ip[1]  # about the major axis (order 0, 1, 2) or the minor one (2, 1, 0)
+    a_, b_, c_ = np.where(major, Ip[0], Ip[2]), Ip[1], np.where(major, Ip[2], Ip[0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        amp0 = np.sqrt(np.clip(np.where(c_ != a_, (E2 * c_ - L2) / (a_ * (c_ - a_)), 0.0), 0, None))
+        amp1 = np.sqrt(np.clip(np.where(c_ != b_, (E2 * c_ - L2) / (b_ * (c_ - b_)), 0.0), 0, None))
+        amp2 = np.sqrt(np.clip(np.where(c_ != a_, (L2 - E2 * a_) / (c_ * (c_ - a_)), 0.0), 0, None))
+        lam = np.sqrt(np.abs((c_ - b_) * (L2 - E2 * a_) / (a_ * b_ * c_)))
+        den = (c_ - b_) * (L2 - E2 * a_)
+        m = np.where(den == 0, 0.0, np.clip((b_ - a_) * (E2 * c_ - L2) / den, 0.0, 1.0))
+        w0, w2 = np.where(major, wp[:, 0], wp[:, 2]), np.where(major, wp[:, 2], wp[:, 0])
+        am0 = np.arctan2(0.0, np.where(amp0 > 0, w0 / amp0, 1.0))  # ω's middle component is 0 at α's crossing
+        steady = (amp0 <= 1e-12 * np.abs(wp).max(1)) & (amp1 <= 1e-12 * np.abs(wp).max(1))
+        ok = ~steady & (m < 1.0 - 1e-12) & (lam > 0)
+        m_ok = np.where(ok, m, 0.0)
+        half = 2 * ellipk(m_ok) / np.where(ok, lam, 1.0)
+        u = np.where(ok, lam, 1.0)[:, None] * (np.arange(n) * (half / n)[:, None]) + ellipkinc(am0, m_ok)[:, None]
+        sn, cn, dn, _ = ellipj(u, m_ok[:, None])
+        wx = np.where(major[:, None], amp0[:, None] * cn, np.where(w2 >= 0, 1.0, -1.0)[:, None] * amp2[:, None] * dn)
+        wy = amp1[:, None] * sn
+        rate = (Ip[0] * wx ** 2 + Ip[1] * wy ** 2) / np.maximum(Ip[0] ** 2 * wx ** 2 + Ip[1] ** 2 * wy ** 2, 1e-300)
+        fp = rate.mean(1) / (2 * math.pi)
+        return np.where(ok, fp * 2 * half, math.nan)  # f_ω = 1 / (2 half)
+
+
 def _ratio_roots(i1: float, i2: float, ratio: float, grid: np.ndarray, n_rates: int, xtol: float) -> list[float]:
     """The ``α`` on ``grid``'s brackets where ``f_φ/f_ω = ratio`` for moments ``(i₁, i₂, 1)``
-    (``tumbling_rates`` on ``n_rates`` points; a jump of the ratio across a bracket is no root)."""
+    (``tumbling_rates`` on ``n_rates`` points; a jump of the ratio across a bracket is no root):
+    the grid's ratios at once (:func:`_rate_ratios`), each bracket's root by Brent's method on
+    :func:`tumbling_rates` one ``α`` at a time."""
     from scipy.optimize import brentq  # heavy: scipy.optimize, only for _ratio_roots()
 
     def g(a):
         fw, fp = tumbling_rates(i1, i2, a, n=n_rates)
         return fp / fw - ratio if fw == fw else math.nan
 
-    vals = [g(a) for a in grid]
+    vals = list(_rate_ratios(i1, i2, grid, n_rates) - ratio)
     roots = []
     for k in range(len(grid) - 1):
         a, b = vals[k], vals[k + 1]
