@@ -40,6 +40,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--resolution", type=float, default=0.2, help="the family's resolved shadows (m), as the run's")
     ap.add_argument("--cd0", type=float, default=0.5, help="every albedo of the start (the run's cd0)")
     ap.add_argument("--spin", type=float, nargs=4, metavar=("LON", "LAT", "PERIOD", "PHASE"), default=None)
+    ap.add_argument("--no-fit", action="store_true", help="skip the attitude-known fit (only the spin's refinement)")
     args = ap.parse_args(argv)
 
     import torch
@@ -83,12 +84,13 @@ def main(argv: list[str] | None = None) -> None:
     report("the platform's own parameters", p0)
     kw = dict(sigma=sig[fit], outer=6, inner=40, huber=3.0, visibility="soft", softness=0.1, albedos="profile",
               fixed=("cd_bus",))
-    clock = time.process_time()
-    p1, _ = fit_box_wing(y[fit], S[fit], V[fit], p0, **kw, **geo)
-    report("fitted from them, soft shadows", p1)
-    p2, _ = fit_box_wing(y[fit], S[fit], V[fit], p1, **dict(kw, outer=3, resolution_m=res), **geo)
-    report("then polished, shadows resolved", p2)
-    print(f"  {time.process_time() - clock:.0f} CPU-s")
+    if not args.no_fit:
+        clock = time.process_time()
+        p1, _ = fit_box_wing(y[fit], S[fit], V[fit], p0, **kw, **geo)
+        report("fitted from them, soft shadows", p1)
+        p2, _ = fit_box_wing(y[fit], S[fit], V[fit], p1, **dict(kw, outer=3, resolution_m=res), **geo)
+        report("then polished, shadows resolved", p2)
+        print(f"  {time.process_time() - clock:.0f} CPU-s")
     if args.spin is None:
         return
     from cssat.inversion.parametric_spin import refine_spin
@@ -108,7 +110,8 @@ def main(argv: list[str] | None = None) -> None:
     one = r["formal_pole_err_deg"]
     print(f"refine_spin from the truth's spin and parameters: pole {off:.3f}° off (formal 1σ {one:.3f}°: {off / one:.1f}σ), "
           f"period {r['period_s']:.5f} s, held-out χ²/n {r['heldout_chi2'] / r['heldout_n']:.3f} "
-          f"(limit {r['heldout_threshold'] / r['heldout_n']:.3f}), verdict {r['verdict']}, stated 1σ {r['pole_err_deg']}, "
+          f"(limit {r['heldout_threshold'] / r['heldout_n']:.3f}), verdict {r['verdict']}, stated 1σ {r['pole_err_deg']:.3f}°; "
+          f"loss {r['refined_loss']:.4f} refined, {r['start_loss']:.4f} at the start, the start kept: {r['kept_start']}; "
           f"{time.process_time() - clock:.0f} CPU-s")
 
 

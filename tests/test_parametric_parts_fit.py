@@ -163,7 +163,9 @@ def test_the_experiments_stage_fits_the_finer_family_when_asked(caplog):
 
     for bad, key in ((dict(dishes=3), "dishes"), (dict(dishes=1, dish_pair="free"), "dish_pair"),
                      (dict(dish_pair="left"), "dish_pair"), (dict(wing_panels=0), "wing_panels"),
-                     (dict(booms="yes"), "booms"), (dict(dish_rings=0), "dish_rings")):
+                     (dict(booms="yes"), "booms"), (dict(dish_rings=0), "dish_rings"), (dict(parts_keep=0), "parts_keep"),
+                     (dict(parts_pairs=True), "parts_pairs"), (dict(dishes=2, parts_pairs=True), "parts_pairs"),
+                     (dict(dishes=2, dish_pair="free", parts_pairs="yes"), "parts_pairs")):
         with pytest.raises(FieldError, match=rf"inversion\.parametric\.{key}"):
             ParametricConfig(**bad)
     assert ParametricConfig().parts() == {} and ParametricConfig().family() == dict(panels=2, divisions=4)
@@ -263,3 +265,51 @@ def test_the_experiments_stage_polishes_and_predicts_with_resolved_shadows():
                                          range_km=1e-3, irradiance=1.0, divisions=1).numpy()
             assert np.abs(sol.model_unit - cells).max() > 0.01 * clean.max()  # the resolution made a difference
     assert out[0.25] <= out[None]
+
+
+def test_the_stage_hands_its_parts_multi_start_to_fit_parts(monkeypatch):
+    """``inversion.parametric.parts_pairs`` and ``parts_keep``: a free pair's dishes started at
+    every pairing of the generic placements (3 × 3 starts, each labelled by both) and the best
+    ``parts_keep`` briefs fitted in full — the stage passes both to ``fit_parts`` (recorded here)
+    and keeps a paired start's fit; without them, the three mirror-image starts and one full fit."""
+    from types import SimpleNamespace
+
+    import torch
+
+    import cssat.inversion.parametric_parts as pp
+    from cssat.experiments.forward.egi_parametric import solve_parametric
+    from cssat.inversion.egi import egi
+    from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility
+    from cssat.models.egi.config import ParametricConfig
+
+    truth = np.r_[1.0, 0.9, 1.2, 4.0, 1.5, math.radians(25.0), 0.6, 0.3, 0.2]
+    N, A = egi(box_wing_mesh(truth, divisions=1))
+    rng = np.random.default_rng(4)
+    S, V = _unit(rng, 120), _unit(rng, 120)
+    clean = box_wing_light_curve(torch.as_tensor(truth), S, V, box_wing_visibility(truth, S, V, divisions=1),
+                                 range_km=1e-3, irradiance=1.0, divisions=1).numpy()
+    sigma = 0.02 * clean + 0.002 * float(np.median(clean))
+    y = clean + sigma * rng.normal(size=len(clean))
+    fit = np.arange(120) < 80
+    calls = []
+    original = pp.fit_parts
+
+    def recorded(*args, **kw):
+        out = original(*args, **kw)
+        calls.append((kw["keep"], kw["starts"], out[1]))
+        return out
+
+    monkeypatch.setattr(pp, "fit_parts", recorded)
+    for pairs, keep in ((True, 2), (False, 1)):
+        m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y, night=(~fit).astype(int))
+        a = SimpleNamespace(sun_b=S, obs_b=V, metrics={"spin": "known"})
+        sol = SimpleNamespace(res=SimpleNamespace(normals=N, areas=A), model_unit=np.zeros(120), metrics={})
+        solve_parametric(ParametricConfig(divisions=1, outer=1, inner=10, dishes=2, dish_pair="free", dish_rings=2,
+                                          dish_segments=6, parts_pairs=pairs, parts_keep=keep), m, a, sol)
+        got_keep, starts, info = calls[-1]
+        assert got_keep == keep
+        if pairs:
+            assert len(starts) == 9 and len(info["briefs"]) == 9 and all("; " in label for label, _ in starts)
+            assert len({label for label, _ in starts}) == 9 and "; " in info["start"]
+        else:
+            assert starts is None and len(info["briefs"]) == 3 and "; " not in info["start"]

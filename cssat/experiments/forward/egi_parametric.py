@@ -5,7 +5,8 @@ that the EGI's panels lie along ±y: :func:`~cssat.inversion.parametric_fit.box_
 ``inversion.parametric.yaw``; with ``inversion.parametric.aspects`` and ``plain_keep`` a multi-start over
 the wings' aspect too: :func:`~cssat.inversion.parametric_fit.box_wing_starts`), then — with ``inversion.parametric.dishes``, ``wing_panels``, ``booms``,
 ``deck`` — the finer family from it (:func:`~cssat.inversion.parametric_parts.fit_parts`: the
-parts at generic places, each start fitted briefly, the best in full) — with ``inversion.parametric.shadow_resolution_m`` then polished with each
+parts at generic places — a free pair's dishes at every pairing of them with ``parts_pairs`` —,
+each start fitted briefly, the best ``parts_keep`` in full) — with ``inversion.parametric.shadow_resolution_m`` then polished with each
 sub-facet's shadows resolved; its prediction of the held-out nights replaces the convex
 one in the headline metrics (the convex one kept as ``convex_*``), its mesh written as
 ``shape_parametric.obj`` and scored by volume IoU against the true mesh (``shape_iou_true``)."""
@@ -37,7 +38,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
     from cssat.inversion.parametric_fit import box_wing_starts, box_wing_yaw, fit_box_wing  # heavy: torch
-    from cssat.inversion.parametric_parts import fit_parts  # heavy: torch
+    from cssat.inversion.parametric_parts import fit_parts, part_starts  # heavy: torch
     from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
 
     res, fit, held, sigma, y = sol.res, m.fit, m.held, m.sigma, m.y
@@ -68,7 +69,8 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     R, S, V = turned(psi)
     parts, family, start = o.parts(), "plain", None
     if parts:  # the finer family from the plain fit: its parts at generic places, each fitted briefly, the best in full
-        q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, **fit_kw,
+        starts = part_starts(p, parts, pairs=True, cd0=o.cd0) if o.parts_pairs else None  # None: the mirror-image starts
+        q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, starts=starts, keep=o.parts_keep, **fit_kw,
                           **{k: v for k, v in o.family().items() if k not in parts})
         if qi["loss"] <= info["loss"]:  # it holds the plain box-wing (parts shrunk away): a higher loss is a local minimum
             p, info, family, start, geo = q, qi, "parts", qi["start"], o.family()

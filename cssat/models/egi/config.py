@@ -136,6 +136,12 @@ class ParametricConfig:
     booms: bool = False
     #: an Earth-deck box on the bus's +z face
     deck: bool = False
+    #: the finer family's starts fitted in full after their brief fits, the lowest loss kept (a multi-start; 1: the
+    #: best brief only — the brief fits' ranking can miss the basin: BENCHMARKS.md "An oracle start")
+    parts_keep: int = 1
+    #: with dish_pair free: the two dishes started at every pairing of the generic placements (3 x 3 starts) instead
+    #: of as mirror images (3)
+    parts_pairs: bool = False
     #: a dish's cells: rings x segments (the benchmarks' 4 x 16; each cell has its own ray-cast visibility)
     dish_rings: int = 4
     dish_segments: int = 16
@@ -173,6 +179,11 @@ class ParametricConfig:
         self.wing_panels = int_param(self.wing_panels, "inversion.parametric.wing_panels", 1, 32)
         self.booms = bool_param(self.booms, "inversion.parametric.booms")
         self.deck = bool_param(self.deck, "inversion.parametric.deck")
+        self.parts_keep = int_param(self.parts_keep, "inversion.parametric.parts_keep", 1, 64)
+        self.parts_pairs = bool_param(self.parts_pairs, "inversion.parametric.parts_pairs")
+        if self.parts_pairs and (self.dishes != 2 or self.dish_pair != "free"):
+            raise FieldError("inversion.parametric.parts_pairs", "needs inversion.parametric.dishes=2 and dish_pair=free "
+                             f"(got dishes={self.dishes}, dish_pair={self.dish_pair})")
         self.dish_rings = int_param(self.dish_rings, "inversion.parametric.dish_rings", 1, 64)
         self.dish_segments = int_param(self.dish_segments, "inversion.parametric.dish_segments", 3, 256)
         if self.shadow_resolution_m is not None:
