@@ -69,8 +69,8 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     R, S, V = turned(psi)
     parts, family, start = o.parts(), "plain", None
     if parts:  # the finer family from the plain fit: its parts at generic places, each fitted briefly, the best in full
-        starts = part_starts(p, parts, pairs=True, cd0=o.cd0) if o.parts_pairs else None  # None: the mirror-image starts
-        q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, starts=starts, keep=o.parts_keep, **fit_kw,
+        paired = part_starts(p, parts, pairs=True, cd0=o.cd0) if o.parts_pairs else None  # None: the mirror-image starts
+        q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, starts=paired, keep=o.parts_keep, **fit_kw,
                           **{k: v for k, v in o.family().items() if k not in parts})
         if qi["loss"] <= info["loss"]:  # it holds the plain box-wing (parts shrunk away): a higher loss is a local minimum
             p, info, family, start, geo = q, qi, "parts", qi["start"], o.family()
