@@ -120,11 +120,11 @@ def _rate_ratios(i1: float, i2: float, alphas: np.ndarray, n: int) -> np.ndarray
         m = np.where(den == 0, 0.0, np.clip((b_ - a_) * (E2 * c_ - L2) / den, 0.0, 1.0))
         w0, w2 = np.where(major, wp[:, 0], wp[:, 2]), np.where(major, wp[:, 2], wp[:, 0])
         am0 = np.arctan2(0.0, np.where(amp0 > 0, w0 / amp0, 1.0))  # ω's middle component is 0 at α's crossing
-        steady = (amp0 <= 1e-12 * np.abs(wp).max(1)) & (amp1 <= 1e-12 * np.abs(wp).max(1))
-        ok = ~steady & (m < 1.0 - 1e-12) & (lam > 0)
-        m_ok = np.where(ok, m, 0.0)
-        half = 2 * ellipk(m_ok) / np.where(ok, lam, 1.0)
-        u = np.where(ok, lam, 1.0)[:, None] * (np.arange(n) * (half / n)[:, None]) + ellipkinc(am0, m_ok)[:, None]
+        tiny = 1e-12 * np.abs(wp).max(1)
+        ok = ~((amp0 <= tiny) & (amp1 <= tiny)) & (m < 1.0 - 1e-12) & (lam > 0)  # not a steady spin, not the separatrix
+        m_ok, lam_ok = np.where(ok, m, 0.0), np.where(ok, lam, 1.0)
+        half = 2 * ellipk(m_ok) / lam_ok
+        u = lam_ok[:, None] * (np.arange(n) * (half / n)[:, None]) + ellipkinc(am0, m_ok)[:, None]
         sn, cn, dn, _ = ellipj(u, m_ok[:, None])
         wx = np.where(major[:, None], amp0[:, None] * cn, np.where(w2 >= 0, 1.0, -1.0)[:, None] * amp2[:, None] * dn)
         wy = amp1[:, None] * sn
