@@ -73,8 +73,35 @@ def test_volume_iou_two_boxes():
     # aligned: a translated copy of a box is the same volume
     assert volume_iou(box((2, 1, 1)), Mesh(box((2, 1, 1)).vertices + 5, box((2, 1, 1)).faces, 0.5, 0),
                       n_points=2_000) == 1.0
+    # an open triangle has no volume: nothing is shared with the box; two of them, nothing to compare
+    tri = Mesh(np.eye(3), [[0, 1, 2]], 0.5, 0.0)
+    assert volume_iou(tri, box((1, 1, 1), center=(9, 9, 9)), n_points=100, align=False) == 0.0
     with pytest.raises(FieldError, match="watertight"):
-        volume_iou(Mesh(np.eye(3), [[0, 1, 2]], 0.5, 0.0), box((1, 1, 1), center=(9, 9, 9)), n_points=100, align=False)
+        volume_iou(tri, Mesh(np.eye(3) + 4, [[0, 1, 2]], 0.5, 0.0), n_points=100, align=False)
+
+
+def _with_runaway_panel(m, half_width):
+    """``m`` plus a two-sided open plate ``2 half_width`` square in its z = 0 plane (no volume)."""
+    h = float(half_width)
+    v = np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]], float)
+    f = np.array([[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]]) + len(m.vertices)
+    return Mesh(np.vstack([m.vertices, v]), np.vstack([m.faces, f]), 0.5, 0.0)
+
+
+def test_volume_iou_ignores_a_runaway_open_panel():
+    # a fitted 2×2×1 bus inside the true 2×2×2 one: IoU = 4/8 = 1/2 (analytic), whatever open
+    # panel the fit carries. A 600 m plate once widened the sampling box so far that 2 of 100,000
+    # points fell inside either body and the estimate read 1.0.
+    true, fit = box((2, 2, 2)), _with_runaway_panel(box((2, 2, 1), center=(0, 0, -0.5)), 300.0)
+    iou, se = volume_iou(true, fit, n_points=100_000, align=False, return_stderr=True)
+    assert se == pytest.approx(math.sqrt(0.25 / 100_000), rel=0.05)  # every point is in the union: the bodies' box
+    assert iou == pytest.approx(0.5, abs=4 * se)
+    # too few points in the union is refused by name, not printed as a number
+    far = box((1, 1, 1), center=(2000, 0, 0))
+    with pytest.raises(FieldError, match="n_points.*raise n_points"):
+        volume_iou(box((1, 1, 1)), far, n_points=10_000, align=False)
+    with pytest.raises(FieldError, match="min_union"):
+        volume_iou(true, fit, n_points=1_000, min_union=0)
 
 
 def test_fit_recovers_an_in_class_box_wing():

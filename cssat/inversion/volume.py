@@ -46,21 +46,33 @@ def inside(mesh: Any, points: np.ndarray) -> np.ndarray:
     return out
 
 
-def volume_iou(a: Any, b: Any, *, n_points: int = 200_000, seed: int = 0, align: bool = True) -> float:
+def volume_iou(a: Any, b: Any, *, n_points: int = 200_000, seed: int = 0, align: bool = True,
+               min_union: int | None = None, return_stderr: bool = False) -> float | tuple[float, float]:
     """``|A ∩ B| / |A ∪ B|`` of the closed bodies of meshes ``a`` and ``b`` in the same frame
     (no rotation, no rescaling; with ``align``, ``b`` translated so that its closed volume's
-    centroid is ``a``'s: a light curve does not observe a translation), estimated from ``n_points`` uniform points in the union of
-    their bounding boxes (standard error ≈ ``sqrt(IoU (1 − IoU) / n_inside_union)``)."""
+    centroid is ``a``'s: a light curve does not observe a translation), estimated from
+    ``n_points`` uniform points in the bounding box of the two meshes' CLOSED bodies (open panels
+    and dishes have no volume and do not widen the box: a runaway panel cannot thin the points
+    out). Standard error ``sqrt(IoU (1 − IoU) / n_union)`` with ``n_union`` the points inside
+    ``A ∪ B``; fewer than ``min_union`` of them (default ``min(1000, n_points // 10)``) is an error
+    naming ``n_points`` (an estimate from a handful of points would read as exact). ``return_stderr``: ``(IoU, standard error)``."""
     if isinstance(n_points, bool) or not isinstance(n_points, int) or n_points < 100:
         raise FieldError("n_points", f"expected an integer >= 100, got {n_points!r}")
+    min_union = min(1000, n_points // 10) if min_union is None else min_union
+    if isinstance(min_union, bool) or not isinstance(min_union, int) or not 1 <= min_union <= n_points:
+        raise FieldError("min_union", f"expected an integer in [1, n_points={n_points}], got {min_union!r}")
     A, B = as_mesh(a), as_mesh(b)
     if align:
         B = Mesh(B.vertices + (volume_centroid(A) - volume_centroid(B)), B.faces, B.cd, B.cs)
-    lo = np.minimum(A.vertices.min(0), B.vertices.min(0))
-    hi = np.maximum(A.vertices.max(0), B.vertices.max(0))
+    bounds = [body.bounds for body in _bodies(A) + _bodies(B)]
+    if not bounds:
+        raise FieldError("mesh", "neither mesh has a closed (watertight) body: no volume to compare")
+    lo, hi = np.min([q[0] for q in bounds], axis=0), np.max([q[1] for q in bounds], axis=0)
     pts = np.random.default_rng(seed).uniform(lo, hi, size=(n_points, 3))
     ia, ib = inside(A, pts), inside(B, pts)
     union = int((ia | ib).sum())
-    if union == 0:
-        raise FieldError("mesh", "neither mesh has a closed (watertight) body: no volume to compare")
-    return float((ia & ib).sum() / union)
+    if union < min_union:
+        raise FieldError("n_points", f"only {union} of {n_points} points fell inside either closed body "
+                         f"(fewer than min_union={min_union}): raise n_points for a usable IoU")
+    iou = float((ia & ib).sum() / union)
+    return (iou, float(np.sqrt(iou * (1 - iou) / union))) if return_stderr else iou
