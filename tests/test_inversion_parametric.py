@@ -135,3 +135,22 @@ def test_experiment_refuses_a_bad_shape_setting():
         s = EGISettings.from_config({"inversion": {"shape": "parametric", "parametric": {key: value}}})
         assert getattr(s.inversion.parametric, key) == value
     assert EGISettings.from_config({"inversion": {"parametric": {"booms": False}}}).inversion.shape == "convex"  # a default
+
+
+def test_the_experiment_scores_no_iou_rather_than_a_wrong_one(caplog):
+    # the inversion experiment's score: a refused estimate is written as None (and logged), not
+    # raised at the end of a long fit nor printed as a number
+    from types import SimpleNamespace
+
+    from cssat.experiments.forward.egi_parametric import score_parametric
+
+    from cssat.scene.mesh import merge
+
+    # a fit whose two closed parts ran 1800 m apart: ~100 of 100,000 points inside either body
+    apart = merge([box((0.1, 0.1, 0.1), center=(-900, 0, 0)), box((0.1, 0.1, 0.1), center=(900, 0, 0))])
+    big = box((2, 2, 2))
+    sol = SimpleNamespace(param_mesh=apart, res=SimpleNamespace(mesh=box((2, 2, 1))))
+    with caplog.at_level("WARNING", logger="cssat"):
+        out = score_parametric(big, sol, np.eye(3))
+    assert out["shape_iou_true"] is None and "shape_iou_true not scored: n_points" in caplog.text
+    assert out["convex_iou_true"] == pytest.approx(0.5, abs=0.02)  # a 2×2×1 box in a 2×2×2 one, aligned

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from cssat._checks import FieldError
 from cssat._tmpfiles import atomic_write
 from cssat.experiments.forward.egi_score import chi2_n, night_chi2_n, rms, typical
 from cssat.scene.mesh import Mesh
@@ -158,17 +159,24 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
 def score_parametric(mesh: Any, sol: Any, to_fit: np.ndarray) -> dict[str, Any]:
     """``shape_iou_true``: the volume IoU of the true ``mesh`` (turned into the fitted body frame
     by ``to_fit (3, 3)``) and the box-wing of ``sol`` (closed bodies only: zero-thickness panels
-    have no volume), and ``convex_iou_true`` for the convex shape."""
+    have no volume), and ``convex_iou_true`` for the convex shape; ``None`` (logged) where
+    :func:`~cssat.inversion.volume.volume_iou` refuses (too few points inside either closed
+    body for an estimate, or no closed body)."""
     from cssat.inversion.volume import volume_iou  # heavy: cssat.inversion imports torch
+
+    def iou(key: str, fit: Any) -> None:
+        try:
+            out[key] = volume_iou(true, fit, n_points=100_000, seed=0)
+        except FieldError as err:  # too few points in the union, no closed body: no number, not a wrong one
+            log.warning("%s not scored: %s", key, err)
+            out[key] = None
 
     out: dict[str, Any] = {}
     true = Mesh(np.asarray(mesh.vertices) @ to_fit.T, np.asarray(mesh.faces), 0.5, 0.0)
     if sol.param_mesh is not None:
-        out["shape_iou_true"] = volume_iou(true, sol.param_mesh, n_points=100_000, seed=0)
+        iou("shape_iou_true", sol.param_mesh)
     if sol.res.mesh is not None:
-        cm = sol.res.mesh
-        out["convex_iou_true"] = volume_iou(true, Mesh(np.asarray(cm.vertices), np.asarray(cm.faces), 0.5, 0.0),
-                                            n_points=100_000, seed=0)
+        iou("convex_iou_true", Mesh(np.asarray(sol.res.mesh.vertices), np.asarray(sol.res.mesh.faces), 0.5, 0.0))
     return out
 
 
