@@ -297,7 +297,8 @@ def missing_launcher(argv: list[str]) -> str | None:
 
 def main() -> None:
     """Console-script entry point. A sweep (``-m``) whose jobs did not all end ``ok`` exits 1,
-    after every job has run and the summary is written."""
+    after every job has run and the summary is written — 2 when every job was refused as bad
+    input (a ``FieldError``: the same exit as one bad run)."""
     logging.raiseExceptions = False  # a log file on a full disk: drop its lines, never print tracebacks
     if "--version" in sys.argv[1:] or "-V" in sys.argv[1:]:  # cssat's version, not Hydra's
         print(f"cssat {__version__}")
@@ -331,6 +332,9 @@ def main() -> None:
     where = _last_value(overrides or [], "hydra.sweep.dir" if multirun else "hydra.run.dir")
     with _write_errors_in_one_line(where or "the output directory (outputs/)"):
         _hydra_main()
+    if summary.SWEEP_BAD_INPUT:  # every job refused its config: the command line is wrong, as a single run's exit 2
+        log.error("sweep: every job was refused as bad input (see each job's error in summary.csv)")
+        sys.exit(2)
     if summary.SWEEP_FAILED:
         log.error("sweep: not every job ended ok (see summary.csv)")
         sys.exit(1)

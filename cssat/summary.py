@@ -211,6 +211,9 @@ except ImportError:  # pragma: no cover
 
 #: set when the last multirun of this process had a job that did not end ``ok`` (the app then exits 1)
 SWEEP_FAILED = False
+#: set when every job of the last multirun was refused as bad input (its ``error`` a ``FieldError``:
+#: the app then exits 2, as a single bad run does)
+SWEEP_BAD_INPUT = False
 #: the sweep directories this process holds (their ``FileLock``), from a multirun's start to its end
 _SWEEP_LOCKS: dict[str, Any] = {}
 
@@ -243,10 +246,12 @@ class SummaryCallback(Callback):
         atomic_write(d / SWEEP_MARK, lambda tmp: Path(tmp).write_text(uuid.uuid4().hex + "\n"), result=False)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        global SWEEP_FAILED
+        global SWEEP_FAILED, SWEEP_BAD_INPUT
         try:
             collected = collect(config.hydra.sweep.dir)
             SWEEP_FAILED = any(r.get("status") != "ok" for r in collected[0]) or not collected[0]
+            SWEEP_BAD_INPUT = bool(collected[0]) and all(
+                r.get("status") == "failed" and str(r.get("error", "")).startswith("FieldError:") for r in collected[0])
             summarize(config.hydra.sweep.dir, self.metric, collected, str(config.get("figure_format") or "png"))
             if not join_catalogue(config.hydra.sweep.dir, collected[0]):
                 SWEEP_FAILED = True

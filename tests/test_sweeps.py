@@ -154,6 +154,22 @@ def test_a_smaller_sweep_into_an_old_sweep_directory_summarises_only_its_jobs(tm
     assert "1 jobs (1 ok)" in res.stdout + res.stderr
 
 
+def test_a_sweep_of_only_bad_input_exits_2_and_a_mixed_one_1(tmp_path):
+    # every job refused by a FieldError is a wrong command line: exit 2, as one bad run; one job
+    # that ran keeps the sweep's exit at 1 (not every job ended ok)
+    base = ["experiment=inversion", "threads=1"]
+    res = subprocess.run(EXE + base + ["inversion.parametric.parts_keep=0,99", f"hydra.sweep.dir={tmp_path / 'a'}"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 2, res.stderr
+    assert "every job was refused as bad input" in res.stderr + res.stdout
+    assert {r["status"] for r in rows_of(tmp_path / "a" / "summary.csv")} == {"failed"}
+    small = ["target.size=16", "threads=1", "denoiser=none", f"hydra.sweep.dir={tmp_path / 'b'}"]
+    res = subprocess.run(EXE + small + ["solver.k_ratio=0.1,7"], capture_output=True, text=True, cwd=tmp_path,
+                         timeout=600)
+    assert res.returncode == 1, res.stderr
+    assert sorted(r["status"] for r in rows_of(tmp_path / "b" / "summary.csv")) == ["failed", "ok"]
+
+
 def test_summarize_marks_a_corrupt_metrics_file_and_checks_the_metric(tmp_path, capsys):
     sweep = tmp_path / "sweep"
     res = subprocess.run(EXE + ["target.size=16", "cs.m=60,120", "threads=1", "denoiser=none", f"hydra.sweep.dir={sweep}"],
