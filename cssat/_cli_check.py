@@ -102,6 +102,19 @@ def _typed_refusal(cfg: Any, key: str) -> str | None:
             f"{', '.join(names)}")
 
 
+def _bool_refusal(cfg: Any, key: str, values: list[Any] | None) -> str | None:
+    """Why a typed boolean field ``key`` (a dataclass's ``bool``) cannot take ``values``: anything
+    but ``true`` / ``false`` — OmegaConf would read ``2``, ``'yes'`` or ``'on'`` as true —, or ``None``."""
+    from omegaconf import BooleanNode, OmegaConf  # startup: omegaconf; this module imports without it
+
+    parent, _, leaf = key.rpartition(".")
+    node = OmegaConf.select(cfg, parent, default=None) if parent else cfg
+    if not OmegaConf.is_dict(node) or leaf not in node or not isinstance(node._get_node(leaf), BooleanNode):
+        return None
+    bad = [v for v in values or [] if not isinstance(v, bool)]
+    return f"{key}: expected true or false, got {bad[0]!r}" if bad else None
+
+
 def _bad_option(compose, config_name, paths, o, group, value, loader) -> str | None:
     """Why ``group=value`` is not an option (Hydra's own list of the options, which includes the
     command line's ``hydra.searchpath``), or ``None``."""
@@ -166,6 +179,7 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
             else:  # a key added with + to a typed config composes, and its dataclass refuses it later
                 for o in rest:
                     why = _typed_refusal(cfg, o.key_or_group) if o.is_add() or o.is_force_add() else None
+                    why = why or _bool_refusal(cfg, o.key_or_group, _values(o))
                     if why:
                         return why
                 return None
@@ -177,7 +191,7 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
             for o in rest:
                 key = o.key_or_group
                 values = _values(o)
-                typed = _typed_refusal(base, key)
+                typed = _typed_refusal(base, key) or _bool_refusal(base, key, values)
                 if typed and not key.startswith("hydra."):
                     return typed
                 if not (o.is_add() or o.is_force_add() or key.startswith("hydra.")) and \

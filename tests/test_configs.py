@@ -177,6 +177,19 @@ def test_the_command_line_check_does_not_suggest_adding_a_key_to_a_typed_config(
     assert check(["experiment=characterise", "period.n_surrogates=5", "stages.spin=off"]) is None
 
 
+@pytest.mark.parametrize("value, shown", [("2", "2"), ("0", "0"), ("yes", "'yes'"), ("true,on", "'on'")])
+def test_a_typed_boolean_takes_only_true_or_false_on_the_command_line(value, shown):
+    """OmegaConf reads 2, 'yes' and 'on' into a dataclass's bool as true (0 as false): the
+    command line's check refuses them, naming the key, the allowed values and the value, every
+    value of a sweep included; true and false pass."""
+    from cssat._cli_check import check
+
+    base = ["experiment=inversion", "inversion.shape=parametric"]
+    assert check([*base, f"inversion.parametric.booms={value}"]) == \
+        f"inversion.parametric.booms: expected true or false, got {shown}"
+    assert check([*base, "inversion.parametric.booms=true", "inversion.split_nights=false"]) is None
+
+
 def test_the_scene_models_settings_are_typed_with_one_set_of_defaults():
     """The light curve's own settings (render.*, shadows, earthshine, earth_albedo, magnitudes.*,
     observations, observed.*) come from cssat.models.scene.config; lightcurve.yaml keeps only
