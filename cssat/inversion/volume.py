@@ -55,7 +55,8 @@ def volume_iou(a: Any, b: Any, *, n_points: int = 200_000, seed: int = 0, align:
     and dishes have no volume and do not widen the box: a runaway panel cannot thin the points
     out). Standard error ``sqrt(IoU (1 − IoU) / n_union)`` with ``n_union`` the points inside
     ``A ∪ B``; fewer than ``min_union`` of them (default ``min(1000, n_points // 10)``) is an error
-    naming ``n_points`` (an estimate from a handful of points would read as exact). ``return_stderr``: ``(IoU, standard error)``."""
+    naming ``n_points`` (an estimate from a handful of points would read as exact).
+    ``return_stderr``: ``(IoU, standard error)``."""
     if isinstance(n_points, bool) or not isinstance(n_points, int) or n_points < 100:
         raise FieldError("n_points", f"expected an integer >= 100, got {n_points!r}")
     min_union = min(1000, n_points // 10) if min_union is None else min_union
