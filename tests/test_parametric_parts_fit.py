@@ -117,6 +117,7 @@ def test_fit_parts_finds_a_dish_the_plain_box_wing_cannot_hold():
     losses = [loss for _, loss in info["briefs"]]
     assert [lab for lab, _ in info["briefs"]][0] == info["start"] and losses == sorted(losses) and len(losses) == 4
     assert info["loss"] <= losses[0]
+    assert info["fulls"] == [(info["start"], info["loss"])]  # keep=1: the best brief, fitted in full
     np.testing.assert_array_equal(p, np.array(list(info["params"].values())))
 
 
@@ -308,6 +309,9 @@ def test_the_stage_hands_its_parts_multi_start_to_fit_parts(monkeypatch):
                                           dish_segments=6, parts_pairs=pairs, parts_keep=keep), m, a, sol)
         got_keep, starts, info = calls[-1]
         assert got_keep == keep
+        # the full fits: the best `keep` briefs, in their order; the lowest of them kept
+        assert [lab for lab, _ in info["fulls"]] == [lab for lab, _ in info["briefs"][:keep]]
+        assert min(info["fulls"], key=lambda f: f[1]) == (info["start"], info["loss"])
         if pairs:
             assert len(starts) == 9 and len(info["briefs"]) == 9 and all("; " in label for label, _ in starts)
             assert len({label for label, _ in starts}) == 9 and "; " in info["start"]

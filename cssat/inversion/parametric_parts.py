@@ -132,8 +132,9 @@ def fit_parts(y: Any, sun: Any, observer: Any, p9: Any, parts: dict[str, Any], *
     ``fit_kw`` (its ``panels``, ``divisions``, ``outer``, ``inner``, ``visibility``, ``albedos``,
     ``fixed``, ``dish_rings``, ``dish_segments``, ...), the lowest loss kept. Returns ``(p, info)``:
     ``p`` in ``param_names(**parts)``' order, ``info`` the full fit's (``loss``,
-    ``rms_over_noise``, ``params``) with ``start`` (the winning start's label) and ``briefs``
-    (every start's ``(label, loss)``, lowest first). The finer family holds ``p9`` (its parts
+    ``rms_over_noise``, ``params``) with ``start`` (the winning start's label), ``briefs``
+    (every start's ``(label, loss)``, lowest first) and ``fulls`` (the ``keep`` full fits'
+    ``(label, loss)``, in the briefs' order). The finer family holds ``p9`` (its parts
     shrunk away), yet from these starts its fit can end at a higher loss than ``p9``'s — a local
     minimum: compare ``info["loss"]`` with the plain fit's and keep the lower, as the inversion
     experiment's stage does (``parametric_family``)."""
@@ -155,4 +156,5 @@ def fit_parts(y: Any, sun: Any, observer: Any, p9: Any, parts: dict[str, Any], *
     briefs.sort(key=lambda b: b[0])
     fulls = [(label, *run(p_s)) for _, label, p_s in briefs[:keep]]
     label, p, info = min(fulls, key=lambda f: f[2]["loss"])
-    return p, dict(info, start=label, briefs=[(lab, float(loss)) for loss, lab, _ in briefs])
+    return p, dict(info, start=label, briefs=[(lab, float(loss)) for loss, lab, _ in briefs],
+                   fulls=[(lab, float(f_info["loss"])) for lab, _, f_info in fulls])

@@ -73,6 +73,9 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
         paired = part_starts(p, parts, pairs=True, cd0=o.cd0) if o.parts_pairs else None  # None: the mirror-image starts
         q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, starts=paired, keep=o.parts_keep, **fit_kw,
                           **{k: v for k, v in o.family().items() if k not in parts})
+        log.info("inversion.parametric: the finer family's starts, brief fits' losses %s; fitted in full %s",
+                 ", ".join(f"{lab} {loss:.4g}" for lab, loss in qi["briefs"]),
+                 ", ".join(f"{lab} {loss:.4g}" for lab, loss in qi["fulls"]))
         if qi["loss"] <= info["loss"]:  # it holds the plain box-wing (parts shrunk away): a higher loss is a local minimum
             p, info, family, start, geo = q, qi, "parts", qi["start"], o.family()
         else:
