@@ -102,6 +102,8 @@ def test_volume_iou_ignores_a_runaway_open_panel():
         volume_iou(box((1, 1, 1)), far, n_points=10_000, align=False)
     with pytest.raises(FieldError, match="min_union"):
         volume_iou(true, fit, n_points=1_000, min_union=0)
+    with pytest.raises(FieldError, match="return_stderr: expected true or false"):
+        volume_iou(true, fit, n_points=1_000, return_stderr="no")
 
 
 def test_fit_recovers_an_in_class_box_wing():

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError
+from cssat._checks import FieldError, bool_param
 from cssat.scene.mesh import Mesh, as_mesh
 
 __all__ = ["volume_iou", "inside", "volume_centroid"]
@@ -59,6 +59,8 @@ def volume_iou(a: Any, b: Any, *, n_points: int = 200_000, seed: int = 0, align:
     ``return_stderr``: ``(IoU, standard error)``."""
     if isinstance(n_points, bool) or not isinstance(n_points, int) or n_points < 100:
         raise FieldError("n_points", f"expected an integer >= 100, got {n_points!r}")
+    bool_param(align, "align")
+    bool_param(return_stderr, "return_stderr")
     min_union = min(1000, n_points // 10) if min_union is None else min_union
     if isinstance(min_union, bool) or not isinstance(min_union, int) or not 1 <= min_union <= n_points:
         raise FieldError("min_union", f"expected an integer in [1, n_points={n_points}], got {min_union!r}")
