@@ -356,7 +356,7 @@ def test_a_bad_catalogue_setting_is_refused_before_any_job(tmp_path):
 
     for i in range(2):
         mmt_file(tmp_path / f"f{i}.txt", 90080 + i, None, seed=i, n=60)
-    for arg, key in (("catalogue.tumbling=maybe", "catalogue.tumbling: cannot set it to 'maybe'"),
+    for arg, key in (("catalogue.tumbling=maybe", "catalogue.tumbling: expected true or false, got 'maybe'"),
                      ("+period.min_periods=3", "period.min_periods: no such key; period is a typed config")):
         code, lines = run_cli(["-m", "experiment=characterise", f"observations={tmp_path}", arg,
                                f"hydra.sweep.dir={tmp_path / 'sweep'}"], tmp_path)
