@@ -90,7 +90,7 @@ def _with_runaway_panel(m, half_width):
 
 def test_volume_iou_ignores_a_runaway_open_panel():
     # a fitted 2×2×1 bus inside the true 2×2×2 one: IoU = 4/8 = 1/2 (analytic), whatever open
-    # panel the fit carries. A 600 m plate once widened the sampling box so far that 2 of 100,000
+    # panel the fit carries. A 600 m plate once widened the sampling box so far that ~1 of 100,000
     # points fell inside either body and the estimate read 1.0.
     true, fit = box((2, 2, 2)), _with_runaway_panel(box((2, 2, 1), center=(0, 0, -0.5)), 300.0)
     iou, se = volume_iou(true, fit, n_points=100_000, align=False, return_stderr=True)
@@ -145,7 +145,6 @@ def test_the_experiment_scores_no_iou_rather_than_a_wrong_one(caplog):
     from types import SimpleNamespace
 
     from cssat.experiments.forward.egi_parametric import score_parametric
-
     from cssat.scene.mesh import merge
 
     # a fit whose two closed parts ran 1800 m apart: ~100 of 100,000 points inside either body
