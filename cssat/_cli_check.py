@@ -179,7 +179,7 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
             else:  # a key added with + to a typed config composes, and its dataclass refuses it later
                 for o in rest:
                     why = _typed_refusal(cfg, o.key_or_group) if o.is_add() or o.is_force_add() else None
-                    why = why or _bool_refusal(cfg, o.key_or_group, _values(o))
+                    why = why or _bool_refusal(cfg, o.key_or_group, None if o.is_delete() else _values(o))
                     if why:
                         return why
                 return None
@@ -191,7 +191,7 @@ def check(overrides: Sequence[str], config_module: str = "cssat.conf", config_na
             for o in rest:
                 key = o.key_or_group
                 values = _values(o)
-                typed = _typed_refusal(base, key) or _bool_refusal(base, key, values)
+                typed = _typed_refusal(base, key) or _bool_refusal(base, key, None if o.is_delete() else values)
                 if typed and not key.startswith("hydra."):
                     return typed
                 if not (o.is_add() or o.is_force_add() or key.startswith("hydra.")) and \

@@ -188,6 +188,7 @@ def test_a_typed_boolean_takes_only_true_or_false_on_the_command_line(value, sho
     assert check([*base, f"inversion.parametric.booms={value}"]) == \
         f"inversion.parametric.booms: expected true or false, got {shown}"
     assert check([*base, "inversion.parametric.booms=true", "inversion.split_nights=false"]) is None
+    assert "does not support deletion" in check([*base, "~inversion.parametric.booms"])  # not "got None"
 
 
 def test_the_scene_models_settings_are_typed_with_one_set_of_defaults():
