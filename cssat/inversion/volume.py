@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from cssat._checks import FieldError, bool_param
+from cssat._checks import FieldError, bool_param, int_param
 from cssat.scene.mesh import Mesh, as_mesh
 
 __all__ = ["volume_iou", "inside", "volume_centroid"]
@@ -25,7 +25,11 @@ def _bodies(mesh: Any) -> list:
 
 def volume_centroid(mesh: Any) -> np.ndarray:
     """``(3,)`` the centroid of the mesh's closed bodies' volume (m); an error when it has none."""
-    bodies = _bodies(mesh)
+    return _centroid(_bodies(mesh))
+
+
+def _centroid(bodies: list) -> np.ndarray:
+    """:func:`volume_centroid` of the closed bodies ``bodies`` (:func:`_bodies`)."""
     if not bodies:
         raise FieldError("mesh", "no closed (watertight) body: no volume to compare")
     vol = np.array([abs(b.volume) for b in bodies])
@@ -37,8 +41,13 @@ def inside(mesh: Any, points: np.ndarray) -> np.ndarray:
     connected components (vertices merged); the watertight ones with a volume are tested by ray
     parity (trimesh ``contains``). ASSUMPTION: open parts (zero-thickness panels, dishes) have no
     volume and are ignored."""
+    return _inside(_bodies(mesh), points)
+
+
+def _inside(bodies: list, points: np.ndarray) -> np.ndarray:
+    """:func:`inside` of the closed bodies ``bodies`` (:func:`_bodies`)."""
     out = np.zeros(len(points), dtype=bool)
-    for body in _bodies(mesh):
+    for body in bodies:
         lo, hi = body.bounds
         box = np.all((points >= lo) & (points <= hi), axis=1)
         if box.any():
@@ -61,18 +70,18 @@ def volume_iou(a: Any, b: Any, *, n_points: int = 200_000, seed: int = 0, align:
         raise FieldError("n_points", f"expected an integer >= 100, got {n_points!r}")
     bool_param(align, "align")
     bool_param(return_stderr, "return_stderr")
-    min_union = min(1000, n_points // 10) if min_union is None else min_union
-    if isinstance(min_union, bool) or not isinstance(min_union, int) or not 1 <= min_union <= n_points:
-        raise FieldError("min_union", f"expected an integer in [1, n_points={n_points}], got {min_union!r}")
+    min_union = int_param(min(1000, n_points // 10) if min_union is None else min_union, "min_union", 1, n_points)
     A, B = as_mesh(a), as_mesh(b)
+    bodies_a = _bodies(A)  # split once: the centroid, the box and the points
     if align:
-        B = Mesh(B.vertices + (volume_centroid(A) - volume_centroid(B)), B.faces, B.cd, B.cs)
-    bounds = [body.bounds for body in _bodies(A) + _bodies(B)]
+        B = Mesh(B.vertices + (_centroid(bodies_a) - volume_centroid(B)), B.faces, B.cd, B.cs)
+    bodies_b = _bodies(B)
+    bounds = [body.bounds for body in bodies_a + bodies_b]
     if not bounds:
         raise FieldError("mesh", "neither mesh has a closed (watertight) body: no volume to compare")
     lo, hi = np.min([q[0] for q in bounds], axis=0), np.max([q[1] for q in bounds], axis=0)
     pts = np.random.default_rng(seed).uniform(lo, hi, size=(n_points, 3))
-    ia, ib = inside(A, pts), inside(B, pts)
+    ia, ib = _inside(bodies_a, pts), _inside(bodies_b, pts)
     union = int((ia | ib).sum())
     if union < min_union:
         raise FieldError("n_points", f"only {union} of {n_points} points fell inside either closed body "
