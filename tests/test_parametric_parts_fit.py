@@ -166,7 +166,8 @@ def test_the_experiments_stage_fits_the_finer_family_when_asked(caplog):
                      (dict(dish_pair="left"), "dish_pair"), (dict(wing_panels=0), "wing_panels"),
                      (dict(booms="yes"), "booms"), (dict(dish_rings=0), "dish_rings"), (dict(parts_keep=0), "parts_keep"),
                      (dict(parts_pairs=True), "parts_pairs"), (dict(dishes=2, parts_pairs=True), "parts_pairs"),
-                     (dict(dishes=2, dish_pair="free", parts_pairs="yes"), "parts_pairs")):
+                     (dict(dishes=2, dish_pair="free", parts_pairs="yes"), "parts_pairs"),
+                     (dict(parts_from="sideways"), "parts_from")):
         with pytest.raises(FieldError, match=rf"inversion\.parametric\.{key}"):
             ParametricConfig(**bad)
     assert ParametricConfig().parts() == {} and ParametricConfig().family() == dict(panels=2, divisions=4)
@@ -196,6 +197,7 @@ def test_the_experiments_stage_fits_the_finer_family_when_asked(caplog):
         assert sol.metrics["parametric_start_aspect"] == pytest.approx(3.75)  # the one default start's
         assert {k for k in sol.metrics if k.startswith("parametric_")} - {"parametric_yaw_deg", "parametric_family",
                                                                               "parametric_parts_start",
+                                                                              "parametric_parts_base",
                                                                               "parametric_shadow_resolution_m",
                                                                               "parametric_start_aspect"} == \
             {f"parametric_{k}" for k in names}
@@ -317,3 +319,62 @@ def test_the_stage_hands_its_parts_multi_start_to_fit_parts(monkeypatch):
             assert len({label for label, _ in starts}) == 9 and "; " in info["start"]
         else:
             assert starts is None and len(info["briefs"]) == 3 and "; " not in info["start"]
+
+
+def test_the_stage_starts_the_parts_on_the_plain_fit_its_start_or_both(monkeypatch):
+    """``inversion.parametric.parts_from``: ``fit_parts`` is handed the plain box-wing's fit
+    (``fit``), its unfitted start from the EGI (``start``: :func:`box_wing_start` of the EGI at the
+    one default aspect, to the bit), or both in that order (``both``), and the stage keeps the run
+    of lower loss, named in ``parametric_parts_base``, its parameters the metrics'."""
+    from types import SimpleNamespace
+
+    import torch
+
+    import cssat.inversion.parametric_parts as pp
+    from cssat.experiments.forward.egi_parametric import solve_parametric
+    from cssat.inversion.egi import egi
+    from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility, param_names
+    from cssat.inversion.parametric_fit import box_wing_start
+    from cssat.models.egi.config import ParametricConfig
+
+    truth = np.r_[1.0, 0.9, 1.2, 4.0, 1.5, math.radians(25.0), 0.6, 0.3, 0.2, 0.0, 0.0, 1.2, 0.0, 0.0, 0.8, 0.25, 0.6]
+    kw = dict(panels=2, divisions=1, dish_rings=2, dish_segments=6, dishes=1)
+    N, A = egi(box_wing_mesh(truth, **kw))
+    rng = np.random.default_rng(5)
+    S, V = _unit(rng, 100), _unit(rng, 100)
+    clean = box_wing_light_curve(torch.as_tensor(truth), S, V, box_wing_visibility(truth, S, V, **kw),
+                                 range_km=1e-3, irradiance=1.0, **kw).numpy()
+    sigma = 0.02 * clean + 0.002 * float(np.median(clean))
+    y = clean + sigma * rng.normal(size=len(clean))
+    fit = np.arange(100) < 70
+    start = box_wing_start(N, A, panels=2, cd0=0.3, aspect=3.75)
+    calls = []
+    original = pp.fit_parts
+
+    def recorded(*args, **kw):
+        out = original(*args, **kw)
+        calls.append((np.array(args[3]), *out))
+        return out
+
+    monkeypatch.setattr(pp, "fit_parts", recorded)
+    names = param_names(1)
+    for how in ("fit", "start", "both"):
+        calls.clear()
+        m = SimpleNamespace(fit=fit, held=~fit, sigma=sigma, y=y, night=(~fit).astype(int))
+        a = SimpleNamespace(sun_b=S, obs_b=V, metrics={"spin": "known"})
+        sol = SimpleNamespace(res=SimpleNamespace(normals=N, areas=A), model_unit=np.zeros(100), metrics={})
+        solve_parametric(ParametricConfig(divisions=1, outer=1, inner=10, dishes=1, dish_rings=2, dish_segments=6,
+                                          parts_from=how), m, a, sol)
+        bases = [c[0] for c in calls]
+        assert len(bases) == (2 if how == "both" else 1)
+        is_start = [bool(np.array_equal(b, start)) for b in bases]
+        assert is_start == {"fit": [False], "start": [True], "both": [False, True]}[how]
+        if how != "start":  # the plain fit moved away from its start
+            assert np.abs(bases[0] - start).max() > 1e-3
+        if sol.metrics["parametric_family"] == "parts":
+            labels = ["plain fit", "plain start"] if how == "both" else ["plain " + how]
+            best = min(range(len(calls)), key=lambda i: calls[i][2]["loss"])
+            assert sol.metrics["parametric_parts_base"] == labels[best]
+            np.testing.assert_allclose([sol.metrics[f"parametric_{k}"] for k in names], calls[best][1], rtol=1e-12)
+        else:
+            assert sol.metrics["parametric_parts_base"] is None

@@ -39,7 +39,6 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
     from cssat.inversion.parametric_fit import box_wing_starts, box_wing_yaw, fit_box_wing  # heavy: torch
-    from cssat.inversion.parametric_parts import fit_parts, part_starts  # heavy: torch
     from cssat.scene.attitude import rot_z  # heavy: cssat.scene imports torch
 
     res, fit, held, sigma, y = sol.res, m.fit, m.held, m.sigma, m.y
@@ -68,20 +67,18 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     fits = [fit_from(psi_k, p0) for _, psi_k, p0 in starts[:o.plain_keep]]
     psi, p0, p, info = min(fits, key=lambda f: f[3]["loss"])  # the first on a tie
     R, S, V = turned(psi)
-    parts, family, start = o.parts(), "plain", None
-    if parts:  # the finer family from the plain fit: its parts at generic places, each fitted briefly, the best in full
-        paired = part_starts(p, parts, pairs=True, cd0=o.cd0) if o.parts_pairs else None  # None: the mirror-image starts
-        q, qi = fit_parts(y[fit], S[fit], V[fit], p, parts, cd0=o.cd0, starts=paired, keep=o.parts_keep, **fit_kw,
-                          **{k: v for k, v in o.family().items() if k not in parts})
-        log.info("inversion.parametric: the finer family's starts, brief fits' losses %s; fitted in full %s",
-                 ", ".join(f"{lab} {loss:.4g}" for lab, loss in qi["briefs"]),
-                 ", ".join(f"{lab} {loss:.4g}" for lab, loss in qi["fulls"]))
+    parts, family, start, base = o.parts(), "plain", None, None
+    if parts:  # the finer family from the plain fit and/or its start: its parts at generic places, each fitted briefly
+        bases = {"fit": (("plain fit", p),), "start": (("plain start", p0),),
+                 "both": (("plain fit", p), ("plain start", p0))}[o.parts_from]
+        runs = [(label, *_fit_parts_from(o, y[fit], S[fit], V[fit], b, parts, fit_kw, label)) for label, b in bases]
+        on, q, qi = min(runs, key=lambda r: r[2]["loss"])  # the first on a tie
         if qi["loss"] <= info["loss"]:  # it holds the plain box-wing (parts shrunk away): a higher loss is a local minimum
-            p, info, family, start, geo = q, qi, "parts", qi["start"], o.family()
+            p, info, family, start, base, geo = q, qi, "parts", qi["start"], on, o.family()
         else:
             log.warning("inversion.parametric: the finer family %s ended above the plain box-wing's loss (%.4g > %.4g, "
                         "a local minimum from its %d starts): the plain box-wing is kept", parts, qi["loss"],
-                        info["loss"], len(qi["briefs"]))
+                        info["loss"], sum(len(r[2]["briefs"]) for r in runs))
     res_m = o.shadow_resolution_m
     if res_m is not None:  # the shadows resolved below a sub-facet: a polish whose scored model is the resolved one
         p, info = fit_box_wing(y[fit], S[fit], V[fit], p, **dict(fit_kw, outer=o.resolved_outer, resolution_m=res_m),
@@ -114,8 +111,24 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
               heldout_rms_relative=rh / float(np.sqrt(np.mean(y[held] ** 2))) if held.any() else None,
               fit_typical_over_noise=typical(resid, sigma, fit), heldout_typical_over_noise=typical(resid, sigma, held),
               parametric_yaw_deg=float(np.degrees(psi)), parametric_start_aspect=float(p0[3] / p0[4]), parametric_family=family,
-              parametric_parts_start=start, parametric_shadow_resolution_m=res_m,
+              parametric_parts_start=start, parametric_parts_base=base, parametric_shadow_resolution_m=res_m,
               **{f"parametric_{k}": v for k, v in info["params"].items()})
+
+
+def _fit_parts_from(o: Any, y: np.ndarray, S: np.ndarray, V: np.ndarray, base: np.ndarray, parts: dict,
+                    fit_kw: dict, label: str) -> tuple[np.ndarray, dict]:
+    """:func:`~cssat.inversion.parametric_parts.fit_parts` on the fitted samples ``y``, ``S``, ``V``
+    from the box-wing ``base (9,)`` (``label``: which one, for the log), with the stage's settings
+    ``o`` (its starts: the mirror images, or every pairing with ``parts_pairs``): ``(p, info)``."""
+    from cssat.inversion.parametric_parts import fit_parts, part_starts  # heavy: torch
+
+    paired = part_starts(base, parts, pairs=True, cd0=o.cd0) if o.parts_pairs else None  # None: the mirror images
+    q, qi = fit_parts(y, S, V, base, parts, cd0=o.cd0, starts=paired, keep=o.parts_keep, **fit_kw,
+                      **{k: v for k, v in o.family().items() if k not in parts})
+    log.info("inversion.parametric: the finer family on the %s: brief fits' losses %s; fitted in full %s", label,
+             ", ".join(f"{lab} {loss:.4g}" for lab, loss in qi["briefs"]),
+             ", ".join(f"{lab} {loss:.4g}" for lab, loss in qi["fulls"]))
+    return q, qi
 
 
 def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict) -> tuple:

@@ -142,6 +142,11 @@ class ParametricConfig:
     #: with dish_pair free: the two dishes started at every pairing of the generic placements (3 x 3 starts) instead
     #: of as mirror images (3)
     parts_pairs: bool = False
+    #: where the finer family's parts are started: fit (on the plain box-wing's fit) | start (on its start from the
+    #: EGI, unfitted) | both (each base's best parts_keep briefs fitted in full, the lowest loss kept). The plain
+    #: fit has no dishes and bends its bus and wings to carry their light, and the parts' fit can stay in that basin
+    #: (BENCHMARKS.md "The parts started from the EGI's box-wing")
+    parts_from: str = "both"
     #: a dish's cells: rings x segments (the benchmarks' 4 x 16; each cell has its own ray-cast visibility)
     dish_rings: int = 4
     dish_segments: int = 16
@@ -184,6 +189,7 @@ class ParametricConfig:
         if self.parts_pairs and (self.dishes != 2 or self.dish_pair != "free"):
             raise FieldError("inversion.parametric.parts_pairs", "needs inversion.parametric.dishes=2 and dish_pair=free "
                              f"(got dishes={self.dishes}, dish_pair={self.dish_pair})")
+        self.parts_from = choice_param(self.parts_from, "inversion.parametric.parts_from", ("fit", "start", "both"))
         self.dish_rings = int_param(self.dish_rings, "inversion.parametric.dish_rings", 1, 64)
         self.dish_segments = int_param(self.dish_segments, "inversion.parametric.dish_segments", 3, 256)
         if self.shadow_resolution_m is not None:
