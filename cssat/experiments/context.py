@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterator
 
 from cssat._checks import FieldError, choice_param, device_param, dtype_param, float_param, int_param, progress_param
+from cssat._threads import one_thread  # re-exported: where the stages import it from
 
 if TYPE_CHECKING:
     import torch
@@ -41,21 +42,6 @@ def as_field(prefix: str) -> Iterator[None]:
         raise err.within(prefix) from err
     except ValueError as err:
         raise FieldError(prefix, str(err)) from err
-
-
-@contextmanager
-def one_thread() -> Iterator[None]:
-    """Within the block, torch on one thread (the run's count put back after): for a fit whose
-    answer must not depend on ``threads`` — a long L-BFGS path amplifies the last bits in which a
-    parallel sum's order (set by the thread count) differs, and can end in another optimum."""
-    import torch  # heavy: torch (~1 s); the module imports without it
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 @dataclass

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError, int_param
+from cssat._threads import thread_map
 
 __all__ = ["dish_starts", "fit_parts", "part_starts", "with_albedo_prior"]
 
@@ -123,7 +124,7 @@ def with_albedo_prior(p: Any, names: tuple[str, ...], cd_bus: float = 0.3) -> np
 
 def fit_parts(y: Any, sun: Any, observer: Any, p9: Any, parts: dict[str, Any], *, sigma: Any = None,
               starts: list[tuple[str, np.ndarray]] | None = None, brief: dict[str, Any] | None = None, keep: int = 1,
-              cd0: float = 0.3, **fit_kw: Any) -> tuple[np.ndarray, dict[str, Any]]:
+              cd0: float = 0.3, workers: int = 1, **fit_kw: Any) -> tuple[np.ndarray, dict[str, Any]]:
     """The finer family ``parts`` fitted to ``y (T,)`` (flux per unit irradiance at 1 m, m²) at
     body-frame ``sun, observer (T, 3)`` from a fitted box-wing ``p9 (9,)``: each of ``starts``
     (default :func:`part_starts`, ``cd0`` its dishes' albedo) fitted briefly by
@@ -137,10 +138,13 @@ def fit_parts(y: Any, sun: Any, observer: Any, p9: Any, parts: dict[str, Any], *
     ``(label, loss)``, in the briefs' order). The finer family holds ``p9`` (its parts
     shrunk away), yet from these starts its fit can end at a higher loss than ``p9``'s — a local
     minimum: compare ``info["loss"]`` with the plain fit's and keep the lower, as the inversion
-    experiment's stage does (``parametric_family``)."""
+    experiment's stage does (``parametric_family``). ``workers``: the brief fits, then the full
+    ones, run that many at once (:func:`cssat._threads.thread_map`; within
+    :func:`cssat._threads.one_thread` the answer is the serial one's, bit for bit)."""
     from cssat.inversion.parametric_fit import fit_box_wing  # heavy: torch
 
     keep = int_param(keep, "keep", 1)
+    workers = int_param(workers, "workers", 1)
     starts = part_starts(p9, parts, cd0=cd0) if starts is None else list(starts)
     if not starts:
         raise FieldError("starts", "expected at least one (label, p) start, got none")
@@ -149,12 +153,10 @@ def fit_parts(y: Any, sun: Any, observer: Any, p9: Any, parts: dict[str, Any], *
     def run(p0: np.ndarray, **over: Any) -> tuple[np.ndarray, dict]:
         return fit_box_wing(y, sun, observer, p0, sigma=sigma, **dict(fit_kw, **parts, **over))
 
-    briefs = []
-    for label, ps in starts:
-        p_s, info_s = run(ps, **brief)
-        briefs.append((info_s["loss"], label, p_s))
-    briefs.sort(key=lambda b: b[0])
-    fulls = [(label, *run(p_s)) for _, label, p_s in briefs[:keep]]
+    outs = thread_map(lambda s: run(s[1], **brief), starts, workers)
+    briefs = sorted(((i_s["loss"], label, p_s) for (label, _), (p_s, i_s) in zip(starts, outs)), key=lambda b: b[0])
+    best = briefs[:keep]
+    fulls = [(label, *out) for (_, label, _), out in zip(best, thread_map(lambda b: run(b[2]), best, workers))]
     label, p, info = min(fulls, key=lambda f: f[2]["loss"])
     return p, dict(info, start=label, briefs=[(lab, float(loss)) for loss, lab, _ in briefs],
                    fulls=[(lab, float(f_info["loss"])) for lab, _, f_info in fulls])

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from cssat._checks import FieldError
+from cssat._threads import one_thread, thread_map
 from cssat._tmpfiles import atomic_write
 from cssat.experiments.forward.egi_score import chi2_n, night_chi2_n, rms, typical
 from cssat.scene.mesh import Mesh
@@ -34,7 +35,17 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
     convex EGI of ``sol`` (:class:`~cssat.experiments.forward.egi_score.EGISolution`), and
     predict every sample: the convex model's metrics move to ``convex_*`` and the box-wing's take
     the headline keys (``sol`` updated in place: its ``model_unit``, ``convex_model_unit``,
-    ``param_mesh`` and ``metrics``)."""
+    ``param_mesh`` and ``metrics``).
+
+    The answer does not depend on the run's ``threads``: every fit's torch operations run on one
+    thread, and the threads run independent fits at once instead (the plain multi-start, the parts'
+    bases and brief fits, the twins' descents: :func:`cssat._threads.thread_map`)."""
+    with one_thread() as workers:
+        _solve(o, m, a, sol, workers)
+
+
+def _solve(o: Any, m: Any, a: Any, sol: Any, workers: int) -> None:
+    """:func:`solve_parametric` with torch on one thread and ``workers`` fits at once."""
     import torch  # heavy: torch, only to fit the box-wing
 
     from cssat.inversion.parametric import box_wing_light_curve, box_wing_mesh, box_wing_visibility  # heavy: torch
@@ -64,14 +75,16 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
         _, S_k, V_k = turned(psi_k)
         return (psi_k, p0, *fit_box_wing(y[fit], S_k[fit], V_k[fit], p0, **fit_kw, **geo))
 
-    fits = [fit_from(psi_k, p0) for _, psi_k, p0 in starts[:o.plain_keep]]
+    fits = thread_map(lambda s_k: fit_from(s_k[1], s_k[2]), starts[:o.plain_keep], workers)
     psi, p0, p, info = min(fits, key=lambda f: f[3]["loss"])  # the first on a tie
     R, S, V = turned(psi)
     parts, family, start, base = o.parts(), "plain", None, None
     if parts:  # the finer family from the plain fit and/or its start: its parts at generic places, each fitted briefly
         bases = {"fit": (("plain fit", p),), "start": (("plain start", p0),),
                  "both": (("plain fit", p), ("plain start", p0))}[o.parts_from]
-        runs = [(label, *_fit_parts_from(o, y[fit], S[fit], V[fit], b, parts, fit_kw, label)) for label, b in bases]
+        inner = max(1, workers // len(bases))  # the bases at once, each base's fits on its share of the threads
+        runs = thread_map(lambda lb: (lb[0], *_fit_parts_from(o, y[fit], S[fit], V[fit], lb[1], parts, fit_kw, lb[0],
+                                                              inner)), bases, workers)
         on, q, qi = min(runs, key=lambda r: r[2]["loss"])  # the first on a tie
         if qi["loss"] <= info["loss"]:  # it holds the plain box-wing (parts shrunk away): a higher loss is a local minimum
             p, info, family, start, base, geo = q, qi, "parts", qi["start"], on, o.family()
@@ -85,7 +98,7 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
                                **geo)
     kw = dict(range_km=1e-3, irradiance=1.0, **geo)
     if o.refine_spin and searched:  # a searched spin: a.sol is its SpinSolution
-        p, R, S, V, refined = _refine_spin(o, m, a, p, psi, geo)
+        p, R, S, V, refined = _refine_spin(o, m, a, p, psi, geo, workers)
         info = dict(info, params=dict(zip(info["params"], map(float, p))))
         sol.metrics.update(refined)
     elif o.refine_spin:
@@ -116,14 +129,14 @@ def solve_parametric(o: Any, m: Any, a: Any, sol: Any) -> None:
 
 
 def _fit_parts_from(o: Any, y: np.ndarray, S: np.ndarray, V: np.ndarray, base: np.ndarray, parts: dict,
-                    fit_kw: dict, label: str) -> tuple[np.ndarray, dict]:
+                    fit_kw: dict, label: str, workers: int = 1) -> tuple[np.ndarray, dict]:
     """:func:`~cssat.inversion.parametric_parts.fit_parts` on the fitted samples ``y``, ``S``, ``V``
     from the box-wing ``base (9,)`` (``label``: which one, for the log), with the stage's settings
     ``o`` (its starts: the mirror images, or every pairing with ``parts_pairs``): ``(p, info)``."""
     from cssat.inversion.parametric_parts import fit_parts, part_starts  # heavy: torch
 
     paired = part_starts(base, parts, pairs=True, cd0=o.cd0) if o.parts_pairs else None  # None: the mirror images
-    q, qi = fit_parts(y, S, V, base, parts, cd0=o.cd0, starts=paired, keep=o.parts_keep, **fit_kw,
+    q, qi = fit_parts(y, S, V, base, parts, cd0=o.cd0, starts=paired, keep=o.parts_keep, workers=workers, **fit_kw,
                       **{k: v for k, v in o.family().items() if k not in parts})
     log.info("inversion.parametric: the finer family on the %s: brief fits' losses %s; fitted in full %s", label,
              ", ".join(f"{lab} {loss:.4g}" for lab, loss in qi["briefs"]),
@@ -131,7 +144,7 @@ def _fit_parts_from(o: Any, y: np.ndarray, S: np.ndarray, V: np.ndarray, base: n
     return q, qi
 
 
-def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict) -> tuple:
+def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict, workers: int = 1) -> tuple:
     """The searched spin refined with the box-wing ``p`` (its ``family``'s keywords: panels, cells,
     parts) fitted in its frame turned by ``ψ``
     (:func:`~cssat.inversion.parametric_spin.refine_spin`, ``shape=True``; the held-out nights its
@@ -152,10 +165,11 @@ def _refine_spin(o: Any, m: Any, a: Any, p: np.ndarray, psi: float, family: dict
         return refine_spin(*series, q, sp.pole_lon_deg, sp.pole_lat_deg, sp.period_s, phase_deg, **kw)
 
     phase = float(np.degrees(psi))
-    runs = [descend(p, phase)]
+    starts = [(p, phase)]
     if o.spin_twin and family["panels"] == 2:  # the same object turned 180° about the pole: its own descent
         parts = {k: v for k, v in family.items() if k not in ("divisions", "dish_rings", "dish_segments")}
-        runs.append(descend(box_wing_twin(p, **parts), phase + 180.0))
+        starts.append((box_wing_twin(p, **parts), phase + 180.0))
+    runs = thread_map(lambda st: descend(*st), starts, workers)
     r = min(runs, key=lambda q: q["loss"])  # the first on a tie
     frames = spin_frame(m.t, r["pole_lon_deg"], r["pole_lat_deg"], r["period_s"], r["phase_deg"], sp.frame)
     keys = ("pole_lon_deg", "pole_lat_deg", "period_s", "phase_deg", "pole_err_deg", "period_err_s", "formal_pole_err_deg",
