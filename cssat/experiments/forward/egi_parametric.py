@@ -4,7 +4,7 @@ curve, started from the convex EGI (in a searched spin's frame, turned about the
 that the EGI's panels lie along ±y: :func:`~cssat.inversion.parametric_fit.box_wing_yaw`,
 ``inversion.parametric.yaw``; with ``inversion.parametric.aspects`` and ``plain_keep`` a multi-start over
 the wings' aspect too: :func:`~cssat.inversion.parametric_fit.box_wing_starts`), then — with ``inversion.parametric.dishes``, ``wing_panels``, ``booms``,
-``deck`` — the finer family from it (:func:`~cssat.inversion.parametric_parts.fit_parts`: the
+``deck`` — the finer family from it and from its unfitted start (``parts_from``; :func:`~cssat.inversion.parametric_parts.fit_parts`: the
 parts at generic places — a free pair's dishes at every pairing of them with ``parts_pairs`` —,
 each start fitted briefly, the best ``parts_keep`` in full) — with ``inversion.parametric.shadow_resolution_m`` then polished with each
 sub-facet's shadows resolved; its prediction of the held-out nights replaces the convex
