@@ -82,9 +82,9 @@ def _solve(o: Any, m: Any, a: Any, sol: Any, workers: int) -> None:
     if parts:  # the finer family from the plain fit and/or its start: its parts at generic places, each fitted briefly
         bases = {"fit": (("plain fit", p),), "start": (("plain start", p0),),
                  "both": (("plain fit", p), ("plain start", p0))}[o.parts_from]
-        inner = max(1, workers // len(bases))  # the bases at once, each base's fits on its share of the threads
+        share = max(1, workers // len(bases))  # the bases at once, each base's fits on its share of the threads
         runs = thread_map(lambda lb: (lb[0], *_fit_parts_from(o, y[fit], S[fit], V[fit], lb[1], parts, fit_kw, lb[0],
-                                                              inner)), bases, workers)
+                                                              share)), bases, workers)
         on, q, qi = min(runs, key=lambda r: r[2]["loss"])  # the first on a tie
         if qi["loss"] <= info["loss"]:  # it holds the plain box-wing (parts shrunk away): a higher loss is a local minimum
             p, info, family, start, base, geo = q, qi, "parts", qi["start"], on, o.family()
